@@ -1,0 +1,11 @@
+//! The `velour` command-line subcommands. Each submodule owns one subcommand: its clap
+//! argument struct and its `run` function.
+
+pub mod convert;
+pub mod diff;
+pub mod inspect;
+pub mod render;
+pub mod weave;
+
+/// The result of a subcommand: any error is printed by `main` and the process exits non-zero.
+pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;

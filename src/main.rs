@@ -1,0 +1,40 @@
+//! The `velour` binary: a thin clap front end over [`velour::cli`].
+
+use clap::{Parser, Subcommand};
+use velour::cli;
+
+#[derive(Parser)]
+#[command(name = "velour", version, about = "Monte-Carlo volumetric path tracer for translucent creatures, fabric and OpenVDB volumes")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene file (or the built-in default scene) to EXR + PNG.
+    Render(cli::render::RenderArgs),
+    /// Print the grids of an OpenVDB file with their statistics.
+    Inspect(cli::inspect::InspectArgs),
+    /// Rewrite an OpenVDB file through velour's reader and writer.
+    Convert(cli::convert::ConvertArgs),
+    /// Generate a woven fabric patch and write it as OpenVDB grids.
+    Weave(cli::weave::WeaveArgs),
+    /// Compare two EXR images (RMSE, relative MSE, bias, per-pixel z-test).
+    Diff(cli::diff::DiffArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Render(a) => cli::render::run(a),
+        Command::Inspect(a) => cli::inspect::run(a),
+        Command::Convert(a) => cli::convert::run(a),
+        Command::Weave(a) => cli::weave::run(a),
+        Command::Diff(a) => cli::diff::run(a),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}

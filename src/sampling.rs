@@ -1,0 +1,311 @@
+//! Random numbers and sample warps.
+//!
+//! Every random number in a render is a pure function of
+//! `(seed, pixel, sample index, dimension)` ([`PixelSampler`]), so an image is bit-identical
+//! whatever the thread count or tile order. The first [`SOBOL_DIMENSIONS`] dimensions of a
+//! pixel come from Owen-scrambled Sobol points (`sobol_burley`, Burley 2020, "Practical
+//! Hash-based Owen Scrambling"); deeper dimensions (long random walks) come from a hash.
+
+use crate::math::{Vec2, Vec3, INV_PI, PI};
+
+/// Number of dimensions served by the Sobol sequence before falling back to hashing.
+pub const SOBOL_DIMENSIONS: u32 = sobol_burley::NUM_DIMENSIONS as u32;
+
+/// The largest `f32` strictly below 1.
+pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// A 64-bit finaliser (splitmix64 / Stafford variant 13): a good avalanche hash.
+#[must_use]
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// Hashes any number of words into 64 bits.
+#[must_use]
+pub fn hash_words(words: &[u64]) -> u64 {
+    let mut h = 0x9e37_79b9_7f4a_7c15u64;
+    for &w in words {
+        h = mix64(h ^ w.wrapping_add(0x9e37_79b9_7f4a_7c15).wrapping_add(h << 6));
+    }
+    h
+}
+
+/// Converts 32 random bits to a float in `[0, 1)` (24 bits; never rounds to 1).
+#[must_use]
+pub fn bits_to_unit_f32(bits: u32) -> f32 {
+    (bits >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// Deterministic per-pixel sample stream.
+#[derive(Clone, Debug)]
+pub struct PixelSampler {
+    pixel_seed: u64,
+    sample_index: u32,
+    dimension: u32,
+}
+
+impl PixelSampler {
+    /// Starts sample `sample_index` of pixel `(px, py)` for the render seed `seed`.
+    #[must_use]
+    pub fn new(seed: u64, px: u32, py: u32, sample_index: u32) -> Self {
+        let pixel_seed = hash_words(&[seed, ((px as u64) << 32) | py as u64]);
+        PixelSampler { pixel_seed, sample_index, dimension: 0 }
+    }
+    /// The next uniform number in `[0, 1)`.
+    pub fn next_1d(&mut self) -> f32 {
+        let d = self.dimension;
+        self.dimension += 1;
+        if d < SOBOL_DIMENSIONS {
+            let v = sobol_burley::sample(self.sample_index, d, self.pixel_seed as u32);
+            v.min(ONE_MINUS_EPSILON)
+        } else {
+            let h = hash_words(&[self.pixel_seed, self.sample_index as u64, d as u64]);
+            bits_to_unit_f32(h as u32)
+        }
+    }
+    /// The next two uniform numbers.
+    pub fn next_2d(&mut self) -> Vec2 {
+        Vec2::new(self.next_1d(), self.next_1d())
+    }
+    /// Dimensions consumed so far.
+    #[must_use]
+    pub fn dimension(&self) -> u32 {
+        self.dimension
+    }
+}
+
+/// A small, fast PCG32 generator (O'Neill 2014) for tests, tools and baking.
+#[derive(Clone, Debug)]
+pub struct Rng {
+    state: u64,
+    inc: u64,
+}
+
+impl Rng {
+    /// A generator seeded from `seed` and stream `stream`.
+    #[must_use]
+    pub fn new(seed: u64, stream: u64) -> Self {
+        let mut r = Rng { state: 0, inc: (stream << 1) | 1 };
+        r.next_u32();
+        r.state = r.state.wrapping_add(mix64(seed));
+        r.next_u32();
+        r
+    }
+    /// 32 random bits.
+    pub fn next_u32(&mut self) -> u32 {
+        let old = self.state;
+        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
+        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+        let rot = (old >> 59) as u32;
+        xorshifted.rotate_right(rot)
+    }
+    /// Uniform `f32` in `[0, 1)`.
+    pub fn next_f32(&mut self) -> f32 {
+        bits_to_unit_f32(self.next_u32())
+    }
+    /// Uniform `f64` in `[0, 1)`.
+    pub fn next_f64(&mut self) -> f64 {
+        let hi = (self.next_u32() as u64) << 21;
+        let lo = (self.next_u32() >> 11) as u64;
+        (hi | lo) as f64 * (1.0 / 9_007_199_254_740_992.0)
+    }
+    /// Two uniform numbers.
+    pub fn next_2d(&mut self) -> Vec2 {
+        Vec2::new(self.next_f32(), self.next_f32())
+    }
+}
+
+/// Uniform point on the unit disc (concentric map, Shirley & Chiu 1997).
+#[must_use]
+pub fn sample_uniform_disk_concentric(u: Vec2) -> Vec2 {
+    let o = u * 2.0 - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, PI / 4.0 * (o.y / o.x))
+    } else {
+        (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y))
+    };
+    Vec2::new(r * theta.cos(), r * theta.sin())
+}
+
+/// Cosine-weighted direction on the +z hemisphere; pdf = cosθ/π.
+#[must_use]
+pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = sample_uniform_disk_concentric(u);
+    let z = (1.0 - d.x * d.x - d.y * d.y).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Pdf of [`sample_cosine_hemisphere`] (solid angle).
+#[must_use]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * INV_PI
+}
+
+/// Uniform direction on the unit sphere; pdf = 1/(4π).
+#[must_use]
+pub fn sample_uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Uniform direction in the cone of half-angle `acos(cos_max)` around +z; pdf = 1/(2π(1−cos_max)).
+#[must_use]
+pub fn sample_uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
+    let cos_t = (1.0 - u.x) + u.x * cos_max;
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+}
+
+/// Pdf of [`sample_uniform_cone`] (solid angle).
+#[must_use]
+pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
+    1.0 / (2.0 * PI * (1.0 - cos_max))
+}
+
+/// Balance heuristic weight of strategy `f` against `g` (one sample each).
+#[must_use]
+pub fn balance_heuristic(pdf_f: f32, pdf_g: f32) -> f32 {
+    if pdf_f + pdf_g > 0.0 {
+        pdf_f / (pdf_f + pdf_g)
+    } else {
+        0.0
+    }
+}
+
+/// Power heuristic (β = 2) weight of strategy `f` against `g` (Veach 1997).
+#[must_use]
+pub fn power_heuristic(pdf_f: f32, pdf_g: f32) -> f32 {
+    if pdf_f.is_infinite() {
+        return 1.0;
+    }
+    let f = pdf_f * pdf_f;
+    let g = pdf_g * pdf_g;
+    if f + g > 0.0 && (f + g).is_finite() {
+        f / (f + g)
+    } else if pdf_f > pdf_g {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// A piecewise-constant 2D distribution over `[0,1)^2` (for environment-map importance
+/// sampling): a marginal over rows and a conditional per row.
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    width: usize,
+    height: usize,
+    conditional_cdf: Vec<f32>,
+    conditional_integral: Vec<f32>,
+    marginal_cdf: Vec<f32>,
+    marginal_integral: f32,
+}
+
+impl Distribution2D {
+    /// Builds from non-negative row-major weights (`width × height`). Returns `None` if every
+    /// weight is zero or the sizes do not match.
+    #[must_use]
+    pub fn new(weights: &[f32], width: usize, height: usize) -> Option<Self> {
+        if width == 0 || height == 0 || weights.len() != width * height {
+            return None;
+        }
+        let mut conditional_cdf = vec![0.0f32; (width + 1) * height];
+        let mut conditional_integral = vec![0.0f32; height];
+        for y in 0..height {
+            let row = &weights[y * width..(y + 1) * width];
+            let cdf = &mut conditional_cdf[y * (width + 1)..(y + 1) * (width + 1)];
+            let mut acc = 0.0f64;
+            cdf[0] = 0.0;
+            for x in 0..width {
+                acc += row[x].max(0.0) as f64 / width as f64;
+                cdf[x + 1] = acc as f32;
+            }
+            conditional_integral[y] = acc as f32;
+            if acc > 0.0 {
+                for c in cdf.iter_mut() {
+                    *c = (*c as f64 / acc) as f32;
+                }
+            } else {
+                for (x, c) in cdf.iter_mut().enumerate() {
+                    *c = x as f32 / width as f32;
+                }
+            }
+        }
+        let mut marginal_cdf = vec![0.0f32; height + 1];
+        let mut acc = 0.0f64;
+        for y in 0..height {
+            acc += conditional_integral[y] as f64 / height as f64;
+            marginal_cdf[y + 1] = acc as f32;
+        }
+        if acc <= 0.0 || !acc.is_finite() {
+            return None;
+        }
+        for c in marginal_cdf.iter_mut() {
+            *c = (*c as f64 / acc) as f32;
+        }
+        Some(Distribution2D { width, height, conditional_cdf, conditional_integral, marginal_cdf, marginal_integral: acc as f32 })
+    }
+
+    fn sample_cdf(cdf: &[f32], u: f32) -> (usize, f32) {
+        let n = cdf.len() - 1;
+        let mut lo = 0usize;
+        let mut hi = n;
+        while lo + 1 < hi {
+            let mid = (lo + hi) / 2;
+            if cdf[mid] <= u {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        // skip zero-width cells
+        let mut i = lo;
+        while i + 1 < n && cdf[i + 1] <= u {
+            i += 1;
+        }
+        let width = cdf[i + 1] - cdf[i];
+        let du = if width > 0.0 { ((u - cdf[i]) / width).clamp(0.0, ONE_MINUS_EPSILON) } else { 0.5 };
+        (i, du)
+    }
+
+    /// Samples a point in `[0,1)^2`; returns the point and its pdf (w.r.t. area in `[0,1)^2`).
+    #[must_use]
+    pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let (y, dy) = Self::sample_cdf(&self.marginal_cdf, u.y);
+        let row = &self.conditional_cdf[y * (self.width + 1)..(y + 1) * (self.width + 1)];
+        let (x, dx) = Self::sample_cdf(row, u.x);
+        let p = Vec2::new((x as f32 + dx) / self.width as f32, (y as f32 + dy) / self.height as f32);
+        (p, self.pdf(p))
+    }
+
+    /// Pdf of a point in `[0,1)^2`.
+    #[must_use]
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        let x = ((p.x * self.width as f32) as usize).min(self.width - 1);
+        let y = ((p.y * self.height as f32) as usize).min(self.height - 1);
+        let row = &self.conditional_cdf[y * (self.width + 1)..(y + 1) * (self.width + 1)];
+        let cell = row[x + 1] - row[x];
+        let row_p = self.marginal_cdf[y + 1] - self.marginal_cdf[y];
+        cell * row_p * (self.width * self.height) as f32
+    }
+
+    /// Integral of the weights over `[0,1)^2`.
+    #[must_use]
+    pub fn integral(&self) -> f32 {
+        self.marginal_integral
+    }
+
+    /// Integral of row `y`.
+    #[must_use]
+    pub fn row_integral(&self, y: usize) -> f32 {
+        self.conditional_integral[y]
+    }
+}
