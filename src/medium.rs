@@ -1,1 +1,210 @@
-//! (in progress)
+//! Interiors: the participating media inside objects, and the conversion of the artist's
+//! parameters into optical coefficients.
+//!
+//! Artist parameters follow the course notes §2.4.2 (eq. 1–3): `attenuation` is a distance per
+//! RGB channel (σ_t = density / attenuation), `albedo` is the colour the artist wants the
+//! medium to be. By default the albedo is read as the *multiple-scattering* albedo and inverted
+//! to the single-scattering albedo with the van de Hulst relation as used by Chiang, Kutz and
+//! Burley 2016 / Wrenninge et al. 2017 (REFERENCES §1.3–1.4), which contains the similarity
+//! relation for anisotropic phase functions. `albedo_mode = "single"` uses the albedo as σ_s/σ_t.
+
+use crate::phase::PhaseFunction;
+use crate::spectrum::Rgb;
+
+/// How the artist's albedo maps to the single-scattering albedo σ_s/σ_t.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AlbedoMode {
+    /// The albedo is the multiple-scattering (diffuse-illumination) albedo of a semi-infinite
+    /// medium: inverted with van de Hulst's relation (REFERENCES §1.3).
+    MultipleScattering,
+    /// The albedo is the single-scattering albedo σ_s/σ_t itself.
+    SingleScattering,
+}
+
+/// Where next event estimation happens for paths inside an interior (notes §2.3.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NeeStrategy {
+    /// Only at boundary vertices, through the (rough) boundary BSDF: for dense media (skin).
+    ExitPoint,
+    /// At every interior scattering vertex, with transparent shadows through the boundaries:
+    /// for less dense media (liquids). Biased where the boundary refracts (notes §2.3.3).
+    Interior,
+}
+
+/// The largest single-scattering albedo velour uses (REFERENCES §8: albedo → 1 makes walks of
+/// ~1/(1−α) events; the clamp keeps them finite).
+pub const MAX_SINGLE_SCATTERING_ALBEDO: f32 = 0.999_999;
+
+/// van de Hulst's inversion: the single-scattering albedo of a semi-infinite index-matched
+/// medium whose diffuse-illumination albedo is `a`, for mean cosine `g`
+/// (REFERENCES §1.3: s(A) = 4.09712 + 4.20863 A − sqrt(9.59217 + 41.6808 A + 17.7126 A²),
+/// α = (1 − s²)/(1 − g s²)).
+#[must_use]
+pub fn single_scattering_albedo_from_multiple(a: f32, g: f32) -> f32 {
+    let a = a.clamp(0.0, 1.0) as f64;
+    let g = g.clamp(-0.999, 0.999) as f64;
+    let s = 4.09712 + 4.20863 * a - (9.59217 + 41.6808 * a + 17.7126 * a * a).sqrt();
+    let s2 = s * s;
+    let alpha = (1.0 - s2) / (1.0 - g * s2);
+    (alpha as f32).clamp(0.0, MAX_SINGLE_SCATTERING_ALBEDO)
+}
+
+/// van de Hulst's forward relation A(α, g) = (1 − s)(1 − 0.139 s)/(1 + 1.17 s),
+/// s = sqrt((1 − α)/(1 − g α)): the multiple-scattering albedo of a medium.
+#[must_use]
+pub fn multiple_scattering_albedo(alpha: f32, g: f32) -> f32 {
+    let alpha = alpha.clamp(0.0, 1.0) as f64;
+    let g = g.clamp(-0.999, 0.999) as f64;
+    let s = ((1.0 - alpha) / (1.0 - g * alpha)).max(0.0).sqrt();
+    ((1.0 - s) * (1.0 - 0.139 * s) / (1.0 + 1.17 * s)) as f32
+}
+
+/// Optical coefficients of a homogeneous region, per unit world length.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coefficients {
+    /// Absorption coefficient σ_a (1/length).
+    pub sigma_a: Rgb,
+    /// Scattering coefficient σ_s (1/length).
+    pub sigma_s: Rgb,
+}
+
+impl Coefficients {
+    /// Extinction σ_t = σ_a + σ_s.
+    #[must_use]
+    pub fn sigma_t(&self) -> Rgb {
+        self.sigma_a + self.sigma_s
+    }
+
+    /// Coefficients from the artist's parameters (notes eq. 1–3 with a density multiplier):
+    /// σ_t = density / attenuation, σ_s = α σ_t, σ_a = σ_t − σ_s, where α is `albedo` itself or
+    /// its van de Hulst inversion (see [`AlbedoMode`]).
+    #[must_use]
+    pub fn from_artist(albedo: Rgb, attenuation: Rgb, density: f32, mode: AlbedoMode, g: f32) -> Self {
+        let sigma_t = attenuation.map(|d| if d.is_infinite() { 0.0 } else { density / d });
+        let alpha = match mode {
+            AlbedoMode::MultipleScattering => albedo.map(|a| single_scattering_albedo_from_multiple(a, g)),
+            AlbedoMode::SingleScattering => albedo.map(|a| a.clamp(0.0, MAX_SINGLE_SCATTERING_ALBEDO)),
+        };
+        let sigma_s = sigma_t * alpha;
+        Coefficients { sigma_a: (sigma_t - sigma_s).clamp_zero(), sigma_s }
+    }
+}
+
+/// A homogeneous scattering medium.
+#[derive(Clone, Debug)]
+pub struct HomogeneousMedium {
+    /// Optical coefficients.
+    pub coefficients: Coefficients,
+    /// Phase function.
+    pub phase: PhaseFunction,
+}
+
+/// An interior: what fills an object (notes §2.4.1).
+#[derive(Clone, Debug)]
+pub enum Medium {
+    /// Absorption only (coloured glass): Beer–Lambert attenuation, no scattering.
+    Absorbing {
+        /// Absorption coefficient (1/length).
+        sigma_a: Rgb,
+    },
+    /// Homogeneous scattering (most skin, water).
+    Homogeneous(HomogeneousMedium),
+}
+
+impl Medium {
+    /// Extinction coefficient (homogeneous media).
+    #[must_use]
+    pub fn sigma_t(&self) -> Rgb {
+        match self {
+            Medium::Absorbing { sigma_a } => *sigma_a,
+            Medium::Homogeneous(h) => h.coefficients.sigma_t(),
+        }
+    }
+
+    /// Transmittance `exp(−σ_t d)` along a straight segment of length `d` (world units).
+    #[must_use]
+    pub fn transmittance(&self, d: f32) -> Rgb {
+        if d <= 0.0 {
+            return Rgb::ONE;
+        }
+        // Guard 0·∞ (σ_t = 0 with an infinite segment): REFERENCES §8.
+        self.sigma_t().map(|s| if s == 0.0 { 1.0 } else { (-s * d).exp() })
+    }
+
+    /// True when the medium can scatter light.
+    #[must_use]
+    pub fn scatters(&self) -> bool {
+        match self {
+            Medium::Absorbing { .. } => false,
+            Medium::Homogeneous(h) => !h.coefficients.sigma_s.is_black(),
+        }
+    }
+}
+
+/// The outcome of sampling a free-flight distance in a homogeneous medium with one-sample MIS
+/// over the RGB channels (REFERENCES §4.6; the course notes' Algorithm 1, line 3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FreeFlight {
+    /// A real scattering event at distance `t`; `weight` multiplies the path throughput.
+    Scatter {
+        /// Distance along the ray (world units).
+        t: f32,
+        /// Throughput factor σ_s e^{−σ_t t} / Σ_k P(k) σ_t,k e^{−σ_t,k t}.
+        weight: Rgb,
+    },
+    /// The flight passed `t_max` (the boundary); `weight` multiplies the throughput.
+    Escape {
+        /// Throughput factor e^{−σ_t t_max} / Σ_k P(k) e^{−σ_t,k t_max}.
+        weight: Rgb,
+    },
+}
+
+/// Channel-selection probabilities proportional to |β_c · α_c| (Chiang et al. 2016, as in
+/// Cycles' random walk), falling back to |β_c| and then to uniform when those are all zero.
+#[must_use]
+pub fn channel_probabilities(beta: Rgb, alpha: Rgb) -> [f32; 3] {
+    let mut w = [0usize, 1, 2].map(|c| (beta[c] * alpha[c]).abs());
+    let mut sum: f32 = w.iter().sum();
+    if !(sum > 0.0) || !sum.is_finite() {
+        w = [0usize, 1, 2].map(|c| beta[c].abs());
+        sum = w.iter().sum();
+    }
+    if !(sum > 0.0) || !sum.is_finite() {
+        return [1.0 / 3.0; 3];
+    }
+    w.map(|x| x / sum)
+}
+
+/// Samples a free-flight distance through a homogeneous medium with spectrally varying σ_t,
+/// choosing the channel by throughput with one-sample MIS (balance heuristic) over channels
+/// (REFERENCES §4.6). `u_channel` and `u_distance` are uniform in [0, 1).
+#[must_use]
+pub fn sample_free_flight(coeff: &Coefficients, beta: Rgb, t_max: f32, u_channel: f32, u_distance: f32) -> FreeFlight {
+    let sigma_t = coeff.sigma_t();
+    let alpha = coeff.sigma_s.safe_div(sigma_t);
+    let p = channel_probabilities(beta, alpha);
+    let channel = if u_channel < p[0] {
+        0
+    } else if u_channel < p[0] + p[1] || p[2] == 0.0 {
+        1
+    } else {
+        2
+    };
+    let st = sigma_t[channel];
+    let t = if st > 0.0 { -(-u_distance).ln_1p() / st } else { f32::INFINITY };
+    if t < t_max {
+        let tr = sigma_t.map(|s| (-s * t).exp());
+        let pdf: f32 = (0..3).map(|k| p[k] * sigma_t[k] * tr[k]).sum();
+        if !(pdf > 0.0) {
+            return FreeFlight::Escape { weight: Rgb::ZERO };
+        }
+        FreeFlight::Scatter { t, weight: coeff.sigma_s * tr / pdf }
+    } else {
+        let tr = sigma_t.map(|s| if s == 0.0 { 1.0 } else { (-s * t_max).exp() });
+        let prob: f32 = (0..3).map(|k| p[k] * tr[k]).sum();
+        if !(prob > 0.0) {
+            return FreeFlight::Escape { weight: Rgb::ZERO };
+        }
+        FreeFlight::Escape { weight: tr / prob }
+    }
+}

@@ -1,0 +1,462 @@
+//! Validation of a parsed scene file and construction of the [`Scene`].
+
+use std::path::{Path, PathBuf};
+
+use super::desc::{ColorValue, InteriorDesc, LightDesc, ObjectDesc, ScaleValue, SceneFile, SurfaceDesc};
+use super::{CameraParams, DielectricParams, FilmSettings, Object, ObjectSurface, Scene, SceneError, ShapeOwner};
+use crate::bsdf::{MicrofacetDistribution, Surface};
+use crate::camera::Camera;
+use crate::geometry::{load_ply, SceneGeometry, Shape};
+use crate::light::{EnvironmentMap, Light, LightSampler};
+use crate::math::{Mat4, Vec3};
+use crate::medium::{AlbedoMode, Coefficients, HomogeneousMedium, Medium, NeeStrategy};
+use crate::phase::PhaseFunction;
+use crate::spectrum::Rgb;
+
+/// Name shown for the built-in default scene.
+pub const DEFAULT_SCENE_NAME: &str = "<built-in default scene>";
+
+/// Largest accepted image side, pixels.
+const MAX_IMAGE_SIDE: u32 = 32_768;
+
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    fn line_of(&self, offset: usize) -> usize {
+        self.text[..offset.min(self.text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+    }
+    fn invalid(&self, line: usize, message: impl Into<String>) -> SceneError {
+        SceneError::Invalid { path: self.path.to_path_buf(), line, message: message.into() }
+    }
+    fn resolve(&self, file: &str) -> PathBuf {
+        let p = Path::new(file);
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.path.parent().unwrap_or(Path::new(".")).join(p)
+        }
+    }
+}
+
+/// Reads and builds a scene file.
+pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    load_scene_str(&text, path)
+}
+
+/// Builds a scene from TOML text; `path` names it in messages and anchors relative file paths.
+pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    let ctx = Ctx { path, text };
+    let file: SceneFile = toml::from_str(text).map_err(|e| parse_error(&ctx, &e))?;
+    build_scene(&ctx, file)
+}
+
+/// Turns a toml/serde error into one naming the line; for an unknown key, the line of the key
+/// itself (serde reports the span of the enclosing table).
+fn parse_error(ctx: &Ctx, e: &toml::de::Error) -> SceneError {
+    let message = e.message().trim().to_string();
+    let mut line = e.span().map(|s| ctx.line_of(s.start)).unwrap_or(1);
+    if let Some(rest) = message.strip_prefix("unknown field `") {
+        if let Some(key) = rest.split('`').next() {
+            let start_line = line;
+            let end_line = e.span().map(|s| ctx.line_of(s.end)).unwrap_or(usize::MAX);
+            for (i, l) in ctx.text.lines().enumerate() {
+                let n = i + 1;
+                if n < start_line || n > end_line.max(start_line) {
+                    continue;
+                }
+                let t = l.trim_start();
+                let inline = l.contains(&format!("{key} =")) || l.contains(&format!("{key}="));
+                if t.starts_with(key) && t[key.len()..].trim_start().starts_with('=') || inline {
+                    line = n;
+                    break;
+                }
+            }
+            return SceneError::Parse { path: ctx.path.to_path_buf(), line, message: format!("unknown key `{key}` ({message})") };
+        }
+    }
+    SceneError::Parse { path: ctx.path.to_path_buf(), line, message }
+}
+
+fn color(v: Option<ColorValue>, default: Rgb) -> Rgb {
+    match v {
+        None => default,
+        Some(ColorValue::Scalar(s)) => Rgb::splat(s),
+        Some(ColorValue::Rgb(c)) => Rgb(c),
+    }
+}
+
+fn check_finite_rgb(ctx: &Ctx, line: usize, what: &str, c: Rgb, min: f32, max: f32) -> Result<Rgb, SceneError> {
+    for v in c.0 {
+        if !v.is_finite() || v < min || v > max {
+            return Err(ctx.invalid(line, format!("{what} = {:?} is outside [{min}, {max}] (or not finite)", c.0)));
+        }
+    }
+    Ok(c)
+}
+
+fn check_range(ctx: &Ctx, line: usize, what: &str, v: f32, min: f32, max: f32) -> Result<f32, SceneError> {
+    if !v.is_finite() || v < min || v > max {
+        return Err(ctx.invalid(line, format!("{what} = {v} is outside [{min}, {max}] (or not finite)")));
+    }
+    Ok(v)
+}
+
+fn vec3(ctx: &Ctx, line: usize, what: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(ctx.invalid(line, format!("{what} = {v:?} is not finite")));
+    }
+    Ok(Vec3::from_array(v))
+}
+
+/// Rejects keys that the chosen `type` does not use (they are almost always mistakes).
+fn reject_unused(ctx: &Ctx, line: usize, owner: &str, kind: &str, present: &[(&str, bool)]) -> Result<(), SceneError> {
+    for (key, is_set) in present {
+        if *is_set {
+            return Err(ctx.invalid(line, format!("{owner}: key `{key}` is not used by type \"{kind}\"")));
+        }
+    }
+    Ok(())
+}
+
+fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
+    let mut warnings = Vec::new();
+    let film = build_film(ctx, &file)?;
+    let (camera, camera_params) = build_camera(ctx, &file, &film)?;
+
+    let mut shapes: Vec<Shape> = Vec::new();
+    let mut shape_owner = Vec::new();
+    let mut objects = Vec::new();
+    let mut media = Vec::new();
+    for (index, spanned) in file.object.iter().enumerate() {
+        let line = ctx.line_of(spanned.span().start);
+        let desc = spanned.get_ref();
+        let name = desc.name.clone().unwrap_or_else(|| format!("object {}", index + 1));
+        let (shape, open_mesh) = build_shape(ctx, line, &name, desc)?;
+        let (surface, ior) = build_surface(ctx, line, &name, desc.surface.as_ref())?;
+        let (medium, nee) = match &desc.interior {
+            Some(interior) => {
+                let (m, nee) = build_medium(ctx, line, &name, interior)?;
+                media.push(m);
+                (Some((media.len() - 1) as u32), nee)
+            }
+            None => (None, NeeStrategy::ExitPoint),
+        };
+        if medium.is_some() && !surface.transmits() {
+            warnings.push(format!("{}:{line}: {name}: has an interior but its surface does not transmit light; the interior is never reached", ctx.path.display()));
+        }
+        if medium.is_none() && matches!(surface, ObjectSurface::Null) {
+            return Err(ctx.invalid(line, format!("{name}: an object needs a surface, an interior, or both")));
+        }
+        if open_mesh && surface.transmits() {
+            warnings.push(format!(
+                "{}:{line}: {name}: mesh is not closed (some edges are not shared by exactly two triangles); as an interior boundary it can leak paths",
+                ctx.path.display()
+            ));
+        }
+        objects.push(Object { name, surface, medium, priority: desc.priority.unwrap_or(0), ior, nee });
+        shapes.push(shape);
+        shape_owner.push(ShapeOwner::Object((objects.len() - 1) as u32));
+    }
+
+    let mut lights = Vec::new();
+    for spanned in &file.light {
+        let line = ctx.line_of(spanned.span().start);
+        let light = build_light(ctx, line, spanned.get_ref())?;
+        if let Light::Sphere { center, radius, .. } = &light {
+            shapes.push(Shape::Sphere { center: *center, radius: *radius });
+            shape_owner.push(ShapeOwner::Light(lights.len() as u32));
+        }
+        lights.push(light);
+    }
+    if lights.is_empty() {
+        warnings.push(format!("{}: the scene has no lights; the image will be black", ctx.path.display()));
+    }
+
+    let geometry = SceneGeometry::build(shapes).map_err(|e| ctx.invalid(1, format!("building the geometry: {e}")))?;
+    let b = geometry.bounds();
+    let radius = if b.is_valid() { (b.extent().length() * 0.5).max(1e-3) } else { 1.0 };
+    let light_sampler = LightSampler::new(&lights, radius);
+    Ok(Scene { camera, camera_params, film, lights, light_sampler, geometry, objects, media, shape_owner, warnings, source: ctx.path.to_path_buf() })
+}
+
+fn build_film(ctx: &Ctx, file: &SceneFile) -> Result<FilmSettings, SceneError> {
+    let f = file.film.clone().unwrap_or(super::desc::FilmDesc {
+        width: None,
+        height: None,
+        spp: None,
+        seed: None,
+        max_depth: None,
+        output: None,
+        exposure: None,
+    });
+    let line = ctx.text.lines().position(|l| l.trim() == "[film]").map(|i| i + 1).unwrap_or(1);
+    let width = f.width.unwrap_or(480);
+    let height = f.height.unwrap_or(360);
+    for (k, v) in [("film.width", width), ("film.height", height)] {
+        if v == 0 || v > MAX_IMAGE_SIDE {
+            return Err(ctx.invalid(line, format!("{k} = {v} is outside [1, {MAX_IMAGE_SIDE}]")));
+        }
+    }
+    let spp = f.spp.unwrap_or(16);
+    if spp == 0 || spp > 1 << 24 {
+        return Err(ctx.invalid(line, format!("film.spp = {spp} is outside [1, 16777216]")));
+    }
+    let max_depth = f.max_depth.unwrap_or(256);
+    if max_depth == 0 || max_depth > 1_000_000 {
+        return Err(ctx.invalid(line, format!("film.max_depth = {max_depth} is outside [1, 1000000]")));
+    }
+    let exposure = check_range(ctx, line, "film.exposure", f.exposure.unwrap_or(0.0), -30.0, 30.0)?;
+    let output = match &f.output {
+        Some(o) => ctx.resolve(o),
+        None => {
+            let stem = ctx.path.file_stem().and_then(|s| s.to_str()).filter(|s| !s.starts_with('<')).unwrap_or("default");
+            PathBuf::from("out").join(format!("{stem}.exr"))
+        }
+    };
+    Ok(FilmSettings { width, height, spp, seed: f.seed.unwrap_or(0), max_depth, output, exposure })
+}
+
+fn build_camera(ctx: &Ctx, file: &SceneFile, film: &FilmSettings) -> Result<(Camera, CameraParams), SceneError> {
+    let line = ctx.text.lines().position(|l| l.trim() == "[camera]").map(|i| i + 1).unwrap_or(1);
+    let c = file.camera.clone().ok_or_else(|| ctx.invalid(1, "missing [camera] table"))?;
+    let eye = vec3(ctx, line, "camera.eye", c.eye.ok_or_else(|| ctx.invalid(line, "camera.eye is required"))?)?;
+    let look_at = vec3(ctx, line, "camera.look_at", c.look_at.ok_or_else(|| ctx.invalid(line, "camera.look_at is required"))?)?;
+    let up = vec3(ctx, line, "camera.up", c.up.unwrap_or([0.0, 1.0, 0.0]))?;
+    let fov = check_range(ctx, line, "camera.fov", c.fov.unwrap_or(40.0), 1e-3, 179.0)?;
+    let kind = c.kind.as_deref().unwrap_or("pinhole");
+    let lens = match kind {
+        "pinhole" => {
+            reject_unused(ctx, line, "camera", kind, &[("aperture_radius", c.aperture_radius.is_some()), ("focus_distance", c.focus_distance.is_some())])?;
+            None
+        }
+        "thin_lens" => {
+            let aperture = check_range(ctx, line, "camera.aperture_radius", c.aperture_radius.unwrap_or(0.0), 0.0, 1e6)?;
+            let focus = check_range(ctx, line, "camera.focus_distance", c.focus_distance.unwrap_or((look_at - eye).length()), 1e-6, 1e9)?;
+            Some((aperture, focus))
+        }
+        other => return Err(ctx.invalid(line, format!("camera.type = \"{other}\" is unknown (expected \"pinhole\" or \"thin_lens\")"))),
+    };
+    let params = CameraParams { eye, look_at, up, fov, lens };
+    let cam = params.build(film.width, film.height).map_err(|e| ctx.invalid(line, format!("camera: {e}")))?;
+    Ok((cam, params))
+}
+
+fn object_transform(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc) -> Result<(Mat4, Option<f32>), SceneError> {
+    let t = vec3(ctx, line, &format!("{name}: translate"), d.translate.unwrap_or([0.0; 3]))?;
+    let r = vec3(ctx, line, &format!("{name}: rotate"), d.rotate.unwrap_or([0.0; 3]))?;
+    let (s, uniform) = match d.scale {
+        None => (Vec3::ONE, Some(1.0)),
+        Some(ScaleValue::Uniform(u)) => (Vec3::splat(u), Some(u)),
+        Some(ScaleValue::PerAxis(a)) => {
+            let v = vec3(ctx, line, &format!("{name}: scale"), a)?;
+            (v, if v.x == v.y && v.y == v.z { Some(v.x) } else { None })
+        }
+    };
+    if !s.is_finite() || s.abs().min_element() < 1e-12 || s.abs().max_element() > 1e12 {
+        return Err(ctx.invalid(line, format!("{name}: scale {:?} must be finite and non-zero", s.to_array())));
+    }
+    let rot = Mat4::from_rotation_z(r.z.to_radians()) * Mat4::from_rotation_y(r.y.to_radians()) * Mat4::from_rotation_x(r.x.to_radians());
+    Ok((Mat4::from_translation(t) * rot * Mat4::from_scale(s), uniform))
+}
+
+fn build_shape(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc) -> Result<(Shape, bool), SceneError> {
+    let (m, uniform) = object_transform(ctx, line, name, d)?;
+    match d.shape.as_str() {
+        "mesh" => {
+            reject_unused(ctx, line, name, "mesh", &[("center", d.center.is_some()), ("radius", d.radius.is_some())])?;
+            let file = d.file.as_ref().ok_or_else(|| ctx.invalid(line, format!("{name}: shape \"mesh\" needs `file`")))?;
+            let path = ctx.resolve(file);
+            let mut mesh = load_ply(&path).map_err(|e| ctx.invalid(line, format!("{name}: {e}")))?;
+            mesh.transform(m);
+            let closed = mesh.is_closed();
+            if closed {
+                mesh.make_outward();
+            }
+            Ok((Shape::Mesh(mesh), !closed))
+        }
+        "sphere" => {
+            reject_unused(ctx, line, name, "sphere", &[("file", d.file.is_some())])?;
+            let c = vec3(ctx, line, &format!("{name}: center"), d.center.unwrap_or([0.0; 3]))?;
+            let r = check_range(ctx, line, &format!("{name}: radius"), d.radius.unwrap_or(1.0), 1e-9, 1e9)?;
+            let scale = uniform.ok_or_else(|| ctx.invalid(line, format!("{name}: a sphere needs a uniform scale")))?;
+            let center = m.transform_point3(c);
+            Ok((Shape::Sphere { center, radius: r * scale.abs() }, false))
+        }
+        other => Err(ctx.invalid(line, format!("{name}: shape = \"{other}\" is unknown (expected \"mesh\" or \"sphere\")"))),
+    }
+}
+
+fn distribution(ctx: &Ctx, line: usize, name: &str, d: Option<&str>) -> Result<MicrofacetDistribution, SceneError> {
+    match d.unwrap_or("ggx") {
+        "ggx" => Ok(MicrofacetDistribution::Ggx),
+        "beckmann" => Ok(MicrofacetDistribution::Beckmann),
+        other => Err(ctx.invalid(line, format!("{name}: surface.distribution = \"{other}\" is unknown (expected \"ggx\" or \"beckmann\")"))),
+    }
+}
+
+fn build_surface(ctx: &Ctx, line: usize, name: &str, s: Option<&SurfaceDesc>) -> Result<(ObjectSurface, f32), SceneError> {
+    let Some(s) = s else { return Ok((ObjectSurface::Null, 1.0)) };
+    let owner = format!("{name}: surface");
+    let bad = |e: &dyn std::fmt::Display| ctx.invalid(line, format!("{owner}: {e}"));
+    let roughness = check_range(ctx, line, &format!("{owner}.roughness"), s.roughness.unwrap_or(0.0), 0.0, 1.0)?;
+    let coat = match &s.coat {
+        None => None,
+        Some(c) => {
+            let ior = check_range(ctx, line, &format!("{owner}.coat.ior"), c.ior.unwrap_or(1.5), 1.0, 4.0)?;
+            let r = check_range(ctx, line, &format!("{owner}.coat.roughness"), c.roughness.unwrap_or(0.1), 0.0, 1.0)?;
+            let w = check_range(ctx, line, &format!("{owner}.coat.weight"), c.weight.unwrap_or(1.0), 0.0, 1.0)?;
+            Some((ior, r, w))
+        }
+    };
+    let with_coat = |surf: Surface| -> Result<Surface, SceneError> {
+        match coat {
+            Some((ior, r, w)) => surf.with_coat(ior, r, w).map_err(|e| bad(&e)),
+            None => Ok(surf),
+        }
+    };
+    match s.kind.as_str() {
+        "dielectric" => {
+            reject_unused(ctx, line, &owner, "dielectric", &[("reflectance", s.reflectance.is_some()), ("transmittance", s.transmittance.is_some())])?;
+            let ior = check_range(ctx, line, &format!("{owner}.ior"), s.ior.unwrap_or(1.4), 1.0, 4.0)?;
+            let tint = check_finite_rgb(ctx, line, &format!("{owner}.tint"), color(s.tint, Rgb::ONE), 0.0, 1.0)?;
+            let dist = distribution(ctx, line, name, s.distribution.as_deref())?;
+            // Check once that the parameters build (the per-hit construction then cannot fail).
+            let test = Surface::dielectric(ior, roughness, dist, tint).map_err(|e| bad(&e))?;
+            with_coat(test)?;
+            Ok((ObjectSurface::Dielectric(DielectricParams { ior, roughness, distribution: dist, tint, coat }), ior))
+        }
+        "diffuse_transmission" => {
+            reject_unused(ctx, line, &owner, "diffuse_transmission", &[("ior", s.ior.is_some()), ("tint", s.tint.is_some()), ("distribution", s.distribution.is_some()), ("roughness", s.roughness.is_some())])?;
+            let r = check_finite_rgb(ctx, line, &format!("{owner}.reflectance"), color(s.reflectance, Rgb::splat(0.0)), 0.0, 1.0)?;
+            let t = check_finite_rgb(ctx, line, &format!("{owner}.transmittance"), color(s.transmittance, Rgb::ONE), 0.0, 1.0)?;
+            let surf = Surface::diffuse_transmission(r, t).map_err(|e| bad(&e))?;
+            Ok((ObjectSurface::Fixed(with_coat(surf)?), 1.0))
+        }
+        "lambertian" => {
+            reject_unused(ctx, line, &owner, "lambertian", &[("ior", s.ior.is_some()), ("tint", s.tint.is_some()), ("transmittance", s.transmittance.is_some()), ("distribution", s.distribution.is_some()), ("roughness", s.roughness.is_some())])?;
+            let r = check_finite_rgb(ctx, line, &format!("{owner}.reflectance"), color(s.reflectance, Rgb::splat(0.8)), 0.0, 1.0)?;
+            let surf = Surface::lambertian(r).map_err(|e| bad(&e))?;
+            Ok((ObjectSurface::Fixed(with_coat(surf)?), 1.0))
+        }
+        "conductor" => {
+            reject_unused(ctx, line, &owner, "conductor", &[("ior", s.ior.is_some()), ("tint", s.tint.is_some()), ("transmittance", s.transmittance.is_some())])?;
+            let r = check_finite_rgb(ctx, line, &format!("{owner}.reflectance"), color(s.reflectance, Rgb::splat(0.9)), 0.0, 1.0)?;
+            let dist = distribution(ctx, line, name, s.distribution.as_deref())?;
+            let surf = Surface::conductor_from_reflectance(r, roughness, dist).map_err(|e| bad(&e))?;
+            Ok((ObjectSurface::Fixed(with_coat(surf)?), 1.0))
+        }
+        other => Err(ctx.invalid(
+            line,
+            format!("{owner}.type = \"{other}\" is unknown (expected \"dielectric\", \"diffuse_transmission\", \"lambertian\" or \"conductor\")"),
+        )),
+    }
+}
+
+fn build_phase(ctx: &Ctx, line: usize, owner: &str, p: Option<&super::desc::PhaseDesc>) -> Result<PhaseFunction, SceneError> {
+    let bad = |e: &dyn std::fmt::Display| ctx.invalid(line, format!("{owner}.phase: {e}"));
+    let Some(p) = p else { return PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e)) };
+    match p.kind.as_deref().unwrap_or("hg") {
+        "hg" => {
+            reject_unused(ctx, line, &format!("{owner}.phase"), "hg", &[("g1", p.g1.is_some()), ("g2", p.g2.is_some()), ("w", p.w.is_some())])?;
+            let g = check_range(ctx, line, &format!("{owner}.phase.g"), p.g.unwrap_or(0.0), -1.0, 1.0)?;
+            PhaseFunction::henyey_greenstein(g).map_err(|e| bad(&e))
+        }
+        "double_hg" => {
+            reject_unused(ctx, line, &format!("{owner}.phase"), "double_hg", &[("g", p.g.is_some())])?;
+            let g1 = check_range(ctx, line, &format!("{owner}.phase.g1"), p.g1.unwrap_or(0.8), -1.0, 1.0)?;
+            let g2 = check_range(ctx, line, &format!("{owner}.phase.g2"), p.g2.unwrap_or(-0.3), -1.0, 1.0)?;
+            let w = check_range(ctx, line, &format!("{owner}.phase.w"), p.w.unwrap_or(0.7), 0.0, 1.0)?;
+            PhaseFunction::double_henyey_greenstein(g1, g2, w).map_err(|e| bad(&e))
+        }
+        other => Err(ctx.invalid(line, format!("{owner}.phase.type = \"{other}\" is unknown (expected \"hg\" or \"double_hg\")"))),
+    }
+}
+
+fn build_medium_nee(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Result<NeeStrategy, SceneError> {
+    match i.nee.as_deref().unwrap_or("exit") {
+        "exit" => Ok(NeeStrategy::ExitPoint),
+        "interior" => Ok(NeeStrategy::Interior),
+        other => Err(ctx.invalid(line, format!("{name}: interior.nee = \"{other}\" is unknown (expected \"exit\" or \"interior\")"))),
+    }
+}
+
+fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Result<(Medium, NeeStrategy), SceneError> {
+    let owner = format!("{name}: interior");
+    let density = check_range(ctx, line, &format!("{owner}.density"), i.density.unwrap_or(1.0), 0.0, 1e12)?;
+    let attenuation = color(i.attenuation, Rgb::ONE);
+    for v in attenuation.0 {
+        if !(v > 0.0) || v.is_nan() {
+            return Err(ctx.invalid(line, format!("{owner}.attenuation = {:?}: every channel must be a distance > 0 (use a large value for no attenuation)", attenuation.0)));
+        }
+    }
+    let nee = build_medium_nee(ctx, line, name, i)?;
+    match i.kind.as_str() {
+        "absorption" => {
+            reject_unused(ctx, line, &owner, "absorption", &[("albedo", i.albedo.is_some()), ("albedo_mode", i.albedo_mode.is_some()), ("phase", i.phase.is_some())])?;
+            let sigma_a = attenuation.map(|d| if d.is_infinite() { 0.0 } else { density / d });
+            Ok((Medium::Absorbing { sigma_a }, nee))
+        }
+        "homogeneous" => {
+            let albedo = check_finite_rgb(ctx, line, &format!("{owner}.albedo"), color(i.albedo, Rgb::splat(0.8)), 0.0, 1.0)?;
+            let mode = match i.albedo_mode.as_deref().unwrap_or("multiple") {
+                "multiple" => AlbedoMode::MultipleScattering,
+                "single" => AlbedoMode::SingleScattering,
+                other => return Err(ctx.invalid(line, format!("{owner}.albedo_mode = \"{other}\" is unknown (expected \"multiple\" or \"single\")"))),
+            };
+            let phase = build_phase(ctx, line, &owner, i.phase.as_ref())?;
+            let coefficients = Coefficients::from_artist(albedo, attenuation, density, mode, phase.mean_cosine());
+            if !coefficients.sigma_t().is_finite() {
+                return Err(ctx.invalid(line, format!("{owner}: density/attenuation gives a non-finite extinction")));
+            }
+            Ok((Medium::Homogeneous(HomogeneousMedium { coefficients, phase }), nee))
+        }
+        other => Err(ctx.invalid(line, format!("{owner}.type = \"{other}\" is unknown (expected \"absorption\" or \"homogeneous\")"))),
+    }
+}
+
+fn build_light(ctx: &Ctx, line: usize, l: &LightDesc) -> Result<Light, SceneError> {
+    let owner = format!("light \"{}\"", l.kind);
+    match l.kind.as_str() {
+        "environment" => {
+            reject_unused(ctx, line, &owner, &l.kind, &[("file", l.file.is_some()), ("scale", l.scale.is_some()), ("rotation", l.rotation.is_some()), ("direction", l.direction.is_some()), ("irradiance", l.irradiance.is_some()), ("angular_radius", l.angular_radius.is_some()), ("center", l.center.is_some()), ("radius", l.radius.is_some())])?;
+            let radiance = check_finite_rgb(ctx, line, "light.radiance", color(l.radiance, Rgb::ONE), 0.0, 1e12)?;
+            Ok(Light::ConstantEnvironment { radiance })
+        }
+        "envmap" => {
+            reject_unused(ctx, line, &owner, &l.kind, &[("radiance", l.radiance.is_some()), ("direction", l.direction.is_some()), ("irradiance", l.irradiance.is_some()), ("angular_radius", l.angular_radius.is_some()), ("center", l.center.is_some()), ("radius", l.radius.is_some())])?;
+            let file = l.file.as_ref().ok_or_else(|| ctx.invalid(line, "light \"envmap\" needs `file`"))?;
+            let scale = check_range(ctx, line, "light.scale", l.scale.unwrap_or(1.0), 0.0, 1e12)?;
+            let rotation = check_range(ctx, line, "light.rotation", l.rotation.unwrap_or(0.0), -36000.0, 36000.0)?;
+            let map = crate::image_io::read_latlong_exr(&ctx.resolve(file)).map_err(|e| ctx.invalid(line, format!("light \"envmap\": {e}")))?;
+            Ok(Light::EnvironmentMap(Box::new(EnvironmentMap::new(map, scale, rotation))))
+        }
+        "distant" => {
+            reject_unused(ctx, line, &owner, &l.kind, &[("file", l.file.is_some()), ("scale", l.scale.is_some()), ("rotation", l.rotation.is_some()), ("radiance", l.radiance.is_some()), ("center", l.center.is_some()), ("radius", l.radius.is_some())])?;
+            let dir = vec3(ctx, line, "light.direction", l.direction.ok_or_else(|| ctx.invalid(line, "light \"distant\" needs `direction` (towards the light)"))?)?;
+            if dir.length() < 1e-12 {
+                return Err(ctx.invalid(line, "light.direction must not be zero"));
+            }
+            let e = check_finite_rgb(ctx, line, "light.irradiance", color(l.irradiance, Rgb::splat(3.0)), 0.0, 1e12)?;
+            let r = check_range(ctx, line, "light.angular_radius", l.angular_radius.unwrap_or(0.0), 0.0, 90.0)?;
+            Ok(Light::distant(dir, e, r))
+        }
+        "sphere" => {
+            reject_unused(ctx, line, &owner, &l.kind, &[("file", l.file.is_some()), ("scale", l.scale.is_some()), ("rotation", l.rotation.is_some()), ("direction", l.direction.is_some()), ("irradiance", l.irradiance.is_some()), ("angular_radius", l.angular_radius.is_some())])?;
+            let center = vec3(ctx, line, "light.center", l.center.unwrap_or([0.0; 3]))?;
+            let radius = check_range(ctx, line, "light.radius", l.radius.unwrap_or(0.1), 1e-9, 1e9)?;
+            let radiance = check_finite_rgb(ctx, line, "light.radiance", color(l.radiance, Rgb::splat(10.0)), 0.0, 1e12)?;
+            Ok(Light::Sphere { center, radius, radiance })
+        }
+        other => Err(ctx.invalid(line, format!("light.type = \"{other}\" is unknown (expected \"environment\", \"envmap\", \"distant\" or \"sphere\")"))),
+    }
+}
+
+/// The built-in default scene.
+pub(super) fn default_scene() -> Result<Scene, SceneError> {
+    let text = include_str!("../../scenes/skin_sphere.toml");
+    load_scene_str(text, Path::new(DEFAULT_SCENE_NAME))
+}

@@ -1,0 +1,211 @@
+//! The TOML scene file as written by users: plain serde structures with every key optional
+//! where a default exists, and `deny_unknown_fields` everywhere so that a misspelt key is an
+//! error. Validation and defaults live in [`super::build`]. Keys are documented in
+//! `docs/scene-format.md`.
+
+use serde::Deserialize;
+
+/// A colour given either as one number (grey) or as `[r, g, b]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum ColorValue {
+    /// The same value in every channel.
+    Scalar(f32),
+    /// Per channel.
+    Rgb([f32; 3]),
+}
+
+/// A scale given either as one number (uniform) or per axis.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum ScaleValue {
+    /// Uniform scale.
+    Uniform(f32),
+    /// Per-axis scale.
+    PerAxis([f32; 3]),
+}
+
+/// The whole file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// `[camera]`.
+    pub camera: Option<CameraDesc>,
+    /// `[film]`.
+    pub film: Option<FilmDesc>,
+    /// `[[light]]` tables.
+    #[serde(default)]
+    pub light: Vec<toml::Spanned<LightDesc>>,
+    /// `[[object]]` tables.
+    #[serde(default)]
+    pub object: Vec<toml::Spanned<ObjectDesc>>,
+}
+
+/// `[camera]`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    /// "pinhole" (default) or "thin_lens".
+    #[serde(rename = "type")]
+    pub kind: Option<String>,
+    /// Eye position.
+    pub eye: Option<[f32; 3]>,
+    /// Point looked at.
+    pub look_at: Option<[f32; 3]>,
+    /// Up vector.
+    pub up: Option<[f32; 3]>,
+    /// Vertical field of view, degrees.
+    pub fov: Option<f32>,
+    /// Lens radius (thin lens), world units.
+    pub aperture_radius: Option<f32>,
+    /// Focus distance (thin lens), world units.
+    pub focus_distance: Option<f32>,
+}
+
+/// `[film]`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FilmDesc {
+    /// Image width, pixels.
+    pub width: Option<u32>,
+    /// Image height, pixels.
+    pub height: Option<u32>,
+    /// Samples per pixel.
+    pub spp: Option<u32>,
+    /// Random seed.
+    pub seed: Option<u64>,
+    /// Maximum number of scattering events per path.
+    pub max_depth: Option<u32>,
+    /// Output EXR path (relative to the scene file's folder).
+    pub output: Option<String>,
+    /// Exposure of the PNG preview, stops.
+    pub exposure: Option<f32>,
+}
+
+/// `[[light]]`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightDesc {
+    /// "environment", "envmap", "distant" or "sphere".
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Radiance (environment, sphere).
+    pub radiance: Option<ColorValue>,
+    /// Lat-long EXR file (envmap).
+    pub file: Option<String>,
+    /// Multiplier (envmap).
+    pub scale: Option<f32>,
+    /// Rotation about +y, degrees (envmap).
+    pub rotation: Option<f32>,
+    /// Direction towards the light (distant).
+    pub direction: Option<[f32; 3]>,
+    /// Irradiance at normal incidence (distant).
+    pub irradiance: Option<ColorValue>,
+    /// Angular radius, degrees (distant).
+    pub angular_radius: Option<f32>,
+    /// Centre (sphere).
+    pub center: Option<[f32; 3]>,
+    /// Radius (sphere).
+    pub radius: Option<f32>,
+}
+
+/// `[[object]]`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectDesc {
+    /// A name used in messages.
+    pub name: Option<String>,
+    /// "mesh" or "sphere".
+    pub shape: String,
+    /// PLY file (mesh), relative to the scene file's folder.
+    pub file: Option<String>,
+    /// Centre (sphere), object space.
+    pub center: Option<[f32; 3]>,
+    /// Radius (sphere), object space.
+    pub radius: Option<f32>,
+    /// Translation.
+    pub translate: Option<[f32; 3]>,
+    /// Rotation: Euler angles in degrees about x, then y, then z.
+    pub rotate: Option<[f32; 3]>,
+    /// Scale.
+    pub scale: Option<ScaleValue>,
+    /// Priority for nested or overlapping interiors (higher wins).
+    pub priority: Option<i32>,
+    /// The boundary's scattering model.
+    pub surface: Option<SurfaceDesc>,
+    /// What fills the object.
+    pub interior: Option<InteriorDesc>,
+}
+
+/// `surface = { ... }`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceDesc {
+    /// "dielectric", "diffuse_transmission", "lambertian" or "conductor".
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Index of refraction of the interior (dielectric; default 1.4).
+    pub ior: Option<f32>,
+    /// Roughness in [0, 1] (α = roughness²).
+    pub roughness: Option<f32>,
+    /// "ggx" (default) or "beckmann".
+    pub distribution: Option<String>,
+    /// Multiplier on transmission (dielectric).
+    pub tint: Option<ColorValue>,
+    /// Reflectance (lambertian albedo, conductor colour, diffuse_transmission reflectance).
+    pub reflectance: Option<ColorValue>,
+    /// Transmittance (diffuse_transmission).
+    pub transmittance: Option<ColorValue>,
+    /// Optional secondary specular coat.
+    pub coat: Option<CoatDesc>,
+}
+
+/// `coat = { ... }`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CoatDesc {
+    /// Coat IOR (default 1.5).
+    pub ior: Option<f32>,
+    /// Coat roughness (default 0.1).
+    pub roughness: Option<f32>,
+    /// Coat weight in [0, 1] (default 1).
+    pub weight: Option<f32>,
+}
+
+/// `interior = { ... }`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InteriorDesc {
+    /// "absorption" or "homogeneous".
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Artist albedo in [0, 1] (homogeneous).
+    pub albedo: Option<ColorValue>,
+    /// Attenuation distance per channel (world units), > 0.
+    pub attenuation: Option<ColorValue>,
+    /// Density multiplier ≥ 0 (default 1).
+    pub density: Option<f32>,
+    /// "multiple" (default) or "single".
+    pub albedo_mode: Option<String>,
+    /// Phase function.
+    pub phase: Option<PhaseDesc>,
+    /// "exit" or "interior".
+    pub nee: Option<String>,
+}
+
+/// `phase = { ... }`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhaseDesc {
+    /// "hg" (default) or "double_hg".
+    #[serde(rename = "type")]
+    pub kind: Option<String>,
+    /// Mean cosine (hg).
+    pub g: Option<f32>,
+    /// First lobe (double_hg).
+    pub g1: Option<f32>,
+    /// Second lobe (double_hg).
+    pub g2: Option<f32>,
+    /// Weight of the first lobe (double_hg).
+    pub w: Option<f32>,
+}
