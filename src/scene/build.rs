@@ -211,7 +211,8 @@ fn build_film(ctx: &Ctx, file: &SceneFile) -> Result<FilmSettings, SceneError> {
     }
     let exposure = check_range(ctx, line, "film.exposure", f.exposure.unwrap_or(0.0), -30.0, 30.0)?;
     let output = match &f.output {
-        Some(o) => ctx.resolve(o),
+        // Outputs are relative to the working directory (inputs to the scene file).
+        Some(o) => PathBuf::from(o),
         None => {
             let stem = ctx.path.file_stem().and_then(|s| s.to_str()).filter(|s| !s.starts_with('<')).unwrap_or("default");
             PathBuf::from("out").join(format!("{stem}.exr"))
