@@ -20,6 +20,8 @@ enum Command {
     Convert(cli::convert::ConvertArgs),
     /// Generate a woven fabric patch and write it as OpenVDB grids.
     Weave(cli::weave::WeaveArgs),
+    /// Print paths/s and rays/s rendering a scene (default: the built-in creature).
+    Bench(cli::bench::BenchArgs),
     /// Compare two EXR images (RMSE, relative MSE, bias, per-pixel z-test).
     Diff(cli::diff::DiffArgs),
 }
@@ -32,6 +34,7 @@ fn main() {
         Command::Convert(a) => cli::convert::run(a),
         Command::Weave(a) => cli::weave::run(a),
         Command::Diff(a) => cli::diff::run(a),
+        Command::Bench(a) => cli::bench::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -1,6 +1,7 @@
 //! The `velour` command-line subcommands. Each submodule owns one subcommand: its clap
 //! argument struct and its `run` function.
 
+pub mod bench;
 pub mod convert;
 pub mod diff;
 pub mod inspect;
