@@ -105,9 +105,8 @@ fn residual_tracking_is_exact_and_lookup_free_on_constant_segments() {
 
 #[test]
 fn ratio_tracking_has_zero_variance_when_the_majorant_is_tight() {
-    // Density exactly constant but given as a (non-homogeneous) segment with max = density:
-    // every factor is 1 − 1 = 0 ⇒ wrong! Ratio tracking with M = σ gives T̂ = 0 or 1 products…
-    // The zero-variance case is residual tracking with control = density: T̂ = e^{-σL} exactly.
+    // A constant density inside loose bounds: residual tracking with the control equal to the
+    // density has a zero residual, so every estimate is exactly e^{-σL}.
     let coeff = grey(0.8);
     let seg = [MajorantSegment { t0: 0.0, t1: 3.0, min: 0.6, max: 1.4, mean: 1.0 }];
     let mut rng = Rng::new(2, 2);
