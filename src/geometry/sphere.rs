@@ -1,0 +1,75 @@
+//! Numerically careful ray–sphere intersection (Haines, Günther & Akenine-Möller 2019,
+//! "Precision Improvements for Ray/Sphere Intersection", Ray Tracing Gems ch. 7).
+
+use crate::math::{Ray, Vec2, Vec3, INV_PI};
+
+/// A hit on an analytic sphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SphereHit {
+    /// Distance along the ray (> 0).
+    pub t: f32,
+    /// Hit point, re-projected onto the sphere.
+    pub p: Vec3,
+    /// Unit outward (radial) normal.
+    pub n: Vec3,
+    /// `(φ/2π, θ/π)`, θ measured from +y, φ = atan2(z, x) in [0, 2π).
+    pub uv: Vec2,
+}
+
+/// Intersects `ray` (unit direction) with the sphere `(center, radius)`, returning the
+/// nearest hit with `0 < t < t_max`, from outside or inside.
+///
+/// The discriminant is computed from the perpendicular vector `f − (f·d)d` rather than
+/// `b² − c` (no cancellation for distant spheres), and the near root uses the stable
+/// quadratic form `c/q` (Haines et al. 2019, eqs. 7.8–7.11 with `a = 1`).
+#[must_use]
+pub fn intersect_sphere(ray: &Ray, center: Vec3, radius: f32, t_max: f32) -> Option<SphereHit> {
+    let f = ray.o - center;
+    let b = -f.dot(ray.d);
+    let l = f + b * ray.d;
+    let l_len = l.length();
+    // r² − |l|² as a product of sum and difference (one rounding on the small factor).
+    let disc = (radius - l_len) * (radius + l_len);
+    if !(disc >= 0.0) {
+        return None;
+    }
+    let f_len = f.length();
+    let c = (f_len - radius) * (f_len + radius);
+    let q = b + disc.sqrt().copysign(b);
+    if q == 0.0 {
+        return None;
+    }
+    let mut t0 = c / q;
+    let mut t1 = q;
+    if t0 > t1 {
+        std::mem::swap(&mut t0, &mut t1);
+    }
+    let t = if t0 > 0.0 && t0 < t_max {
+        t0
+    } else if t1 > 0.0 && t1 < t_max {
+        t1
+    } else {
+        return None;
+    };
+    let mut dir = ray.at(t) - center;
+    let len = dir.length();
+    if !(len > 0.0) {
+        return None;
+    }
+    dir /= len;
+    let p = center + dir * radius;
+    let phi = {
+        let a = dir.z.atan2(dir.x);
+        if a < 0.0 {
+            a + 2.0 * std::f32::consts::PI
+        } else {
+            a
+        }
+    };
+    let theta = dir.y.clamp(-1.0, 1.0).acos();
+    let uv = Vec2::new(
+        (phi * 0.5 * INV_PI).min(1.0 - f32::EPSILON * 0.5),
+        theta * INV_PI,
+    );
+    Some(SphereHit { t, p, n: dir, uv })
+}

@@ -1,0 +1,189 @@
+//! Cached lookups: nearest and trilinear interpolation.
+
+use super::{
+    block_slot, voxel_offset, SparseGrid, Values, BLOCK_LOG2, BRICK_LOG2, BRICK_VOXELS, ROOT_LOG2,
+    TILE_BIT,
+};
+use glam::{IVec3, Vec3};
+
+/// A lookup handle on one channel of a [`SparseGrid`] that remembers the last brick it
+/// visited: coherent lookups (along a ray, within a brick) skip the topology walk.
+/// Cheap to create; not shared between threads (make one per thread).
+#[derive(Clone, Debug)]
+pub struct Accessor<'a> {
+    grid: &'a SparseGrid,
+    channel: usize,
+    comps: usize,
+    key: IVec3,
+    /// Brick index, or `TILE_BIT | tile` for a constant cell.
+    entry: u32,
+}
+
+const NO_KEY: IVec3 = IVec3::new(i32::MIN, i32::MIN, i32::MIN);
+
+impl<'a> Accessor<'a> {
+    /// An accessor on channel `channel` of `grid`.
+    ///
+    /// # Panics
+    /// If `channel` is out of range (programming error).
+    #[must_use]
+    pub fn new(grid: &'a SparseGrid, channel: usize) -> Self {
+        let comps = grid.channels[channel].kind.components();
+        Accessor {
+            grid,
+            channel,
+            comps,
+            key: NO_KEY,
+            entry: TILE_BIT,
+        }
+    }
+
+    /// The grid.
+    #[must_use]
+    pub fn grid(&self) -> &'a SparseGrid {
+        self.grid
+    }
+
+    #[inline]
+    fn resolve(&mut self, key: IVec3) -> u32 {
+        if key == self.key {
+            return self.entry;
+        }
+        let g = self.grid;
+        let block_key = key >> (BLOCK_LOG2 - BRICK_LOG2);
+        let e = match g.block_map.get(&block_key) {
+            Some(&e) if e & TILE_BIT != 0 => e,
+            Some(&e) => g.blocks[e as usize][block_slot(key)],
+            None => {
+                if g.root_tiles.is_empty() {
+                    TILE_BIT
+                } else {
+                    g.root_tiles
+                        .get(&(key >> (ROOT_LOG2 - BRICK_LOG2)))
+                        .map_or(TILE_BIT, |&t| TILE_BIT | t)
+                }
+            }
+        };
+        self.key = key;
+        self.entry = e;
+        e
+    }
+
+    /// Component `c` at brick entry `e`, voxel offset `v`.
+    #[inline]
+    fn fetch(&self, e: u32, v: usize, c: usize) -> f32 {
+        let ch = &self.grid.channels[self.channel];
+        if e & TILE_BIT != 0 {
+            return ch.tile_values[(e & !TILE_BIT) as usize * self.comps + c];
+        }
+        let i = (e as usize * BRICK_VOXELS + v) * self.comps + c;
+        match &ch.values {
+            Values::F32(s) => s[i],
+            Values::F16(s) => s[i].to_f32(),
+        }
+    }
+
+    /// Value (first component) of voxel `ijk`, active or not.
+    #[inline]
+    pub fn value(&mut self, ijk: IVec3) -> f32 {
+        let e = self.resolve(ijk >> BRICK_LOG2);
+        self.fetch(e, voxel_offset(ijk & 7), 0)
+    }
+
+    /// Vector value of voxel `ijk` (a scalar channel is splatted).
+    #[inline]
+    pub fn value_vec3(&mut self, ijk: IVec3) -> Vec3 {
+        let e = self.resolve(ijk >> BRICK_LOG2);
+        let v = voxel_offset(ijk & 7);
+        if self.comps == 3 {
+            Vec3::new(
+                self.fetch(e, v, 0),
+                self.fetch(e, v, 1),
+                self.fetch(e, v, 2),
+            )
+        } else {
+            Vec3::splat(self.fetch(e, v, 0))
+        }
+    }
+
+    /// Value of the voxel nearest to index-space point `p`.
+    #[inline]
+    pub fn sample_nearest(&mut self, p: Vec3) -> f32 {
+        self.value((p + Vec3::splat(0.5)).floor().as_ivec3())
+    }
+
+    /// Trilinear interpolation of the first component at index-space point `p` (voxel
+    /// centres at integer coordinates, as OpenVDB's `BoxSampler`).
+    #[inline]
+    pub fn sample_trilinear(&mut self, p: Vec3) -> f32 {
+        let f = p.floor();
+        let i = f.as_ivec3();
+        let t = p - f;
+        let l = i & 7;
+        let mut c = [0.0f32; 8];
+        if l.x < 7 && l.y < 7 && l.z < 7 {
+            let e = self.resolve(i >> BRICK_LOG2);
+            if e & TILE_BIT != 0 {
+                return self.fetch(e, 0, 0);
+            }
+            let ch = &self.grid.channels[self.channel];
+            let base = e as usize * BRICK_VOXELS + voxel_offset(l);
+            const OFF: [usize; 8] = [0, 1, 8, 9, 64, 65, 72, 73];
+            if self.comps == 1 {
+                match &ch.values {
+                    Values::F32(s) => {
+                        let s = &s[base..base + 74];
+                        for k in 0..8 {
+                            c[k] = s[OFF[k]];
+                        }
+                    }
+                    Values::F16(s) => {
+                        let s = &s[base..base + 74];
+                        for k in 0..8 {
+                            c[k] = s[OFF[k]].to_f32();
+                        }
+                    }
+                }
+            } else {
+                for k in 0..8 {
+                    c[k] = self.fetch(e, voxel_offset(l) + OFF[k], 0);
+                }
+            }
+        } else {
+            for (k, ck) in c.iter_mut().enumerate() {
+                let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
+                *ck = self.value(i.wrapping_add(d));
+            }
+        }
+        trilerp(&c, t)
+    }
+
+    /// Trilinear interpolation of a vector channel at index-space point `p`.
+    pub fn sample_trilinear_vec3(&mut self, p: Vec3) -> Vec3 {
+        let f = p.floor();
+        let i = f.as_ivec3();
+        let t = p - f;
+        let mut c = [[0.0f32; 8]; 3];
+        for k in 0..8 {
+            let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
+            let v = self.value_vec3(i.wrapping_add(d));
+            c[0][k] = v.x;
+            c[1][k] = v.y;
+            c[2][k] = v.z;
+        }
+        Vec3::new(trilerp(&c[0], t), trilerp(&c[1], t), trilerp(&c[2], t))
+    }
+}
+
+/// Trilinear blend of corner values `c[(dx << 2) | (dy << 1) | dz]` with weights `t`.
+#[inline]
+fn trilerp(c: &[f32; 8], t: Vec3) -> f32 {
+    let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
+    let x00 = lerp(c[0], c[4], t.x);
+    let x01 = lerp(c[1], c[5], t.x);
+    let x10 = lerp(c[2], c[6], t.x);
+    let x11 = lerp(c[3], c[7], t.x);
+    let y0 = lerp(x00, x10, t.y);
+    let y1 = lerp(x01, x11, t.y);
+    lerp(y0, y1, t.z)
+}

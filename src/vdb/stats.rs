@@ -1,0 +1,124 @@
+//! Statistics of active values, with OpenVDB's definitions.
+
+use crate::grid::{SparseGrid, BRICK_VOXELS};
+use glam::IVec3;
+
+/// Statistics of the active values of one channel of a grid, with the definitions of
+/// OpenVDB's tools (as in `truth.jsonl` of the fixtures): tiles count as the voxels they
+/// cover, sums are over value × voxels covered in f64, the moment is the sum of value × count ×
+/// index-space centre of each active item. Vector channels give per-component figures.
+/// Non-finite values are counted in `non_finite` and left out of min, max, sum and moment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridStats {
+    /// Active voxels, counting tiles as the voxels they cover.
+    pub active_voxels: u64,
+    /// Active voxels by level: `[root tiles, 128^3 tiles, 8^3 tiles, brick voxels]`.
+    pub active_voxels_by_level: [u64; 4],
+    /// Number of bricks (VDB leaves), active or not.
+    pub leaf_count: u64,
+    /// Components per value (1 or 3).
+    pub components: usize,
+    /// Per-component minimum of active values (`+inf` when none).
+    pub min: [f64; 3],
+    /// Per-component maximum of active values (`-inf` when none).
+    pub max: [f64; 3],
+    /// Per-component sum of value × voxels covered.
+    pub sum: [f64; 3],
+    /// Sum of |value| × voxels covered (vector channels).
+    pub sum_len: f64,
+    /// Scalar channels: sum of value × count × index-space centre per axis.
+    pub moment: [f64; 3],
+    /// Number of active items (voxels or tiles) holding NaN or infinite values.
+    pub non_finite: u64,
+    /// Inclusive active index-space bounding box.
+    pub active_bbox: Option<(IVec3, IVec3)>,
+}
+
+impl GridStats {
+    /// Computes the statistics of channel `c` of `grid`.
+    ///
+    /// # Panics
+    /// If `c` is not a channel of `grid` (programming error).
+    #[must_use]
+    pub fn compute(grid: &SparseGrid, c: usize) -> GridStats {
+        let comps = grid.channel_kind(c).map_or(1, |k| k.components());
+        let mut s = GridStats {
+            active_voxels: 0,
+            active_voxels_by_level: [0; 4],
+            leaf_count: grid.brick_count() as u64,
+            components: comps,
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+            sum: [0.0; 3],
+            sum_len: 0.0,
+            moment: [0.0; 3],
+            non_finite: 0,
+            active_bbox: grid.active_bbox(),
+        };
+        let add = |v: [f32; 3], count: f64, centre: [f64; 3], s: &mut GridStats| {
+            if v[..comps].iter().any(|x| !x.is_finite()) {
+                s.non_finite += 1;
+                return;
+            }
+            let mut len2 = 0.0;
+            for k in 0..comps {
+                let x = f64::from(v[k]);
+                s.min[k] = s.min[k].min(x);
+                s.max[k] = s.max[k].max(x);
+                s.sum[k] += x * count;
+                len2 += x * x;
+            }
+            s.sum_len += len2.sqrt() * count;
+            if comps == 1 {
+                let x = f64::from(v[0]);
+                for a in 0..3 {
+                    s.moment[a] += x * count * centre[a];
+                }
+            }
+        };
+        for b in 0..grid.brick_count() {
+            let m = grid.brick_active_mask(b);
+            let o = grid.brick_origin(b);
+            let data = grid.brick_data(c, b);
+            for v in 0..BRICK_VOXELS {
+                if m[v >> 6] >> (v & 63) & 1 == 0 {
+                    continue;
+                }
+                let mut val = [0f32; 3];
+                for (k, x) in val.iter_mut().enumerate().take(comps) {
+                    *x = data.get(v, comps, k);
+                }
+                let p = o + IVec3::new((v >> 6) as i32, ((v >> 3) & 7) as i32, (v & 7) as i32);
+                s.active_voxels_by_level[3] += 1;
+                add(
+                    val,
+                    1.0,
+                    [f64::from(p.x), f64::from(p.y), f64::from(p.z)],
+                    &mut s,
+                );
+            }
+        }
+        for t in grid.tiles() {
+            if !t.active {
+                continue;
+            }
+            let n = t.level.voxels();
+            let level = match t.level {
+                crate::grid::TileLevel::Root => 0,
+                crate::grid::TileLevel::Block => 1,
+                crate::grid::TileLevel::Brick => 2,
+            };
+            s.active_voxels_by_level[level] += n;
+            let half = (t.level.dim() - 1) as f64 / 2.0;
+            let centre = [
+                f64::from(t.origin.x) + half,
+                f64::from(t.origin.y) + half,
+                f64::from(t.origin.z) + half,
+            ];
+            let v = grid.tile_value_vec3(c, t.tile).to_array();
+            add(v, n as f64, centre, &mut s);
+        }
+        s.active_voxels = s.active_voxels_by_level.iter().sum();
+        s
+    }
+}
