@@ -9,7 +9,8 @@
 //! object whose priority is lower than the current interior's is a *false* intersection that
 //! only updates the stack, so overlapping objects are never counted twice.
 
-use crate::bsdf::{fresnel_dielectric, Surface};
+use crate::bsdf::fresnel::fresnel_dielectric;
+use crate::bsdf::Surface;
 use crate::math::{offset_ray_origin, Frame, Ray, Vec3};
 use crate::medium::{sample_free_flight, FreeFlight, Medium, NeeStrategy};
 use crate::sampling::{power_heuristic, PixelSampler};

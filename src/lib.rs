@@ -26,6 +26,7 @@ pub mod vdb;
 
 pub mod fabric;
 pub mod medium;
+pub mod majorant;
 pub mod tracking;
 
 pub mod light;

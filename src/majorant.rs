@@ -1,0 +1,471 @@
+//! The majorant pyramid over a [`SparseGrid`], and the hierarchical DDA that turns a ray into
+//! piecewise-constant [`MajorantSegment`]s for the tracking estimators (DESIGN.md; REFERENCES
+//! §4.8).
+//!
+//! Level 0 has one cell per 8^3 brick of index space. Its bounds are the min and max over every
+//! value a trilinear lookup anywhere inside the brick can return: the brick's voxels plus a
+//! one-voxel apron across neighbouring bricks and constant tiles (trilinear interpolation is a
+//! convex combination of the 8 surrounding voxels, so those bounds are exact and conservative).
+//! Each coarser level merges 2^3 children (max of maxes, min of mins, mean of means) up to one
+//! root cell. Bounds can also come from any other source (procedural media) through
+//! [`MajorantPyramid::from_brick_bounds`]; those may be estimates, which the weighted trackers
+//! tolerate.
+
+use glam::{DAffine3, DVec3, IVec3, Vec3};
+
+use crate::grid::{Node, SparseGrid, BRICK_DIM};
+use crate::math::Ray;
+use crate::tracking::MajorantSegment;
+
+/// Refuses pyramids whose finest level would exceed this many cells.
+pub const MAX_LEVEL0_CELLS: usize = 1 << 24;
+
+/// Errors while building a pyramid.
+#[derive(Debug, thiserror::Error)]
+pub enum MajorantError {
+    /// The grid spans too much index space for a dense level 0.
+    #[error("the grid spans {cells} bricks of index space; the majorant pyramid supports at most {max}")]
+    TooLarge {
+        /// Level-0 cells needed.
+        cells: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// A bound is NaN, infinite or negative.
+    #[error("invalid majorant bound at brick {brick:?}: min {min}, max {max}")]
+    InvalidBound {
+        /// Brick coordinate.
+        brick: [i32; 3],
+        /// Minimum.
+        min: f32,
+        /// Maximum.
+        max: f32,
+    },
+}
+
+/// Bounds of the values in a region.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Smallest value.
+    pub min: f32,
+    /// Largest value.
+    pub max: f32,
+    /// Mean value (any value in `[min, max]` is acceptable as a control variate).
+    pub mean: f32,
+}
+
+impl Bounds {
+    /// The bounds of a constant value.
+    #[must_use]
+    pub fn constant(v: f32) -> Self {
+        Bounds { min: v, max: v, mean: v }
+    }
+    /// True when the value is known to be zero everywhere in the region.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.max <= 0.0 && self.min >= 0.0
+    }
+}
+
+/// How segments are produced along a ray.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MajorantMode {
+    /// Hierarchical DDA: skip empty space at the coarsest empty level, emit homogeneous cells
+    /// whole, and descend to level `finest` elsewhere (0 = brick level).
+    Hierarchical {
+        /// Finest level used.
+        finest: u8,
+    },
+    /// One segment with the grid's global bounds over the whole ray interval (Mitsuba 3's
+    /// approach; the baseline of the benchmarks).
+    Global,
+}
+
+#[derive(Clone, Debug)]
+struct Level {
+    dims: IVec3,
+    cells: Vec<Bounds>,
+}
+
+impl Level {
+    fn index(&self, c: IVec3) -> usize {
+        ((c.z as usize * self.dims.y as usize) + c.y as usize) * self.dims.x as usize + c.x as usize
+    }
+}
+
+/// A pyramid of (min, max, mean) bounds over brick-sized cells of a grid's index space.
+#[derive(Clone, Debug)]
+pub struct MajorantPyramid {
+    /// Voxel coordinate of level-0 cell (0, 0, 0)'s first voxel.
+    origin: IVec3,
+    levels: Vec<Level>,
+    /// Value outside the pyramid's box.
+    background: f32,
+    world_to_index: DAffine3,
+}
+
+/// Statistics of one pyramid level (for `velour majorants`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelReport {
+    /// Level (0 = bricks).
+    pub level: usize,
+    /// Edge of a cell, voxels.
+    pub cell_voxels: i32,
+    /// Cells in the level's box.
+    pub cells: usize,
+    /// Cells whose bounds are not empty.
+    pub occupied: usize,
+    /// Occupied cells whose min equals max (sampled in closed form).
+    pub homogeneous: usize,
+}
+
+impl MajorantPyramid {
+    /// Builds the pyramid of channel `channel` of `grid` with exact bounds (brick + one-voxel
+    /// apron).
+    pub fn from_grid(grid: &SparseGrid, channel: usize) -> Result<Self, MajorantError> {
+        let background = grid.background(channel);
+        // Region: every brick and every non-background tile.
+        let mut lo = IVec3::MAX;
+        let mut hi = IVec3::MIN;
+        for b in 0..grid.brick_count() {
+            let o = grid.brick_origin(b);
+            lo = lo.min(o);
+            hi = hi.max(o + IVec3::splat(BRICK_DIM - 1));
+        }
+        for t in grid.tiles() {
+            if grid.tile_value(channel, t.tile) != background {
+                lo = lo.min(t.origin);
+                hi = hi.max(t.origin + IVec3::splat((t.level.dim() - 1) as i32));
+            }
+        }
+        let world_to_index = grid.world_to_index();
+        if lo.x > hi.x {
+            return Ok(Self::empty(background, world_to_index));
+        }
+        let key_lo = (lo - IVec3::ONE) >> 3;
+        let key_hi = (hi + IVec3::ONE) >> 3;
+        let mut acc = grid.accessor(channel);
+        Self::from_brick_bounds(key_lo, key_hi, background, world_to_index, |key| {
+            let mut nodes = [Node::Tile { tile: 0, level: crate::grid::TileLevel::Root, active: false }; 27];
+            let mut all_tiles = true;
+            let mut i = 0;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let n = grid.node_at_brick(key + IVec3::new(dx, dy, dz));
+                        all_tiles &= matches!(n, Node::Tile { .. });
+                        nodes[i] = n;
+                        i += 1;
+                    }
+                }
+            }
+            let own = nodes[13];
+            if all_tiles {
+                let mut b = Bounds { min: f32::INFINITY, max: f32::NEG_INFINITY, mean: 0.0 };
+                for n in nodes {
+                    if let Node::Tile { tile, .. } = n {
+                        let v = grid.tile_value(channel, tile);
+                        b.min = b.min.min(v);
+                        b.max = b.max.max(v);
+                    }
+                }
+                if let Node::Tile { tile, .. } = own {
+                    b.mean = grid.tile_value(channel, tile);
+                }
+                return b;
+            }
+            let base = key << 3;
+            let mut b = Bounds { min: f32::INFINITY, max: f32::NEG_INFINITY, mean: 0.0 };
+            for z in -1..=BRICK_DIM {
+                for y in -1..=BRICK_DIM {
+                    for x in -1..=BRICK_DIM {
+                        let v = acc.value(base + IVec3::new(x, y, z));
+                        b.min = b.min.min(v);
+                        b.max = b.max.max(v);
+                    }
+                }
+            }
+            b.mean = match own {
+                Node::Tile { tile, .. } => grid.tile_value(channel, tile),
+                Node::Brick(_) => {
+                    let mut s = 0.0f64;
+                    for z in 0..BRICK_DIM {
+                        for y in 0..BRICK_DIM {
+                            for x in 0..BRICK_DIM {
+                                s += acc.value(base + IVec3::new(x, y, z)) as f64;
+                            }
+                        }
+                    }
+                    (s / 512.0) as f32
+                }
+            };
+            b
+        })
+    }
+
+    /// An empty pyramid (the value is `background` everywhere).
+    #[must_use]
+    pub fn empty(background: f32, world_to_index: DAffine3) -> Self {
+        MajorantPyramid { origin: IVec3::ZERO, levels: Vec::new(), background, world_to_index }
+    }
+
+    /// Builds a pyramid from per-brick bounds for brick keys (voxel coordinate >> 3) in
+    /// `[key_lo, key_hi]`. Outside that box the value is `background`.
+    pub fn from_brick_bounds(
+        key_lo: IVec3,
+        key_hi: IVec3,
+        background: f32,
+        world_to_index: DAffine3,
+        mut bounds_of: impl FnMut(IVec3) -> Bounds,
+    ) -> Result<Self, MajorantError> {
+        let dims = key_hi - key_lo + IVec3::ONE;
+        let cells = dims.x as usize * dims.y as usize * dims.z as usize;
+        if dims.min_element() <= 0 || cells > MAX_LEVEL0_CELLS {
+            return Err(MajorantError::TooLarge { cells, max: MAX_LEVEL0_CELLS });
+        }
+        let mut level0 = Level { dims, cells: vec![Bounds::constant(0.0); cells] };
+        for z in 0..dims.z {
+            for y in 0..dims.y {
+                for x in 0..dims.x {
+                    let c = IVec3::new(x, y, z);
+                    let key = key_lo + c;
+                    let b = bounds_of(key);
+                    if !(b.min.is_finite() && b.max.is_finite() && b.mean.is_finite()) || b.min > b.max {
+                        return Err(MajorantError::InvalidBound { brick: key.to_array(), min: b.min, max: b.max });
+                    }
+                    let i = level0.index(c);
+                    level0.cells[i] = Bounds { mean: b.mean.clamp(b.min, b.max), ..b };
+                }
+            }
+        }
+        let mut levels = vec![level0];
+        while levels.last().is_some_and(|l| l.dims.max_element() > 1) {
+            let child = levels.last().expect("non-empty");
+            let pd = (child.dims + IVec3::ONE) / 2;
+            let mut parent = Level { dims: pd, cells: vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize] };
+            for z in 0..pd.z {
+                for y in 0..pd.y {
+                    for x in 0..pd.x {
+                        let mut b = Bounds { min: f32::INFINITY, max: f32::NEG_INFINITY, mean: 0.0 };
+                        let mut n = 0.0f32;
+                        for dz in 0..2 {
+                            for dy in 0..2 {
+                                for dx in 0..2 {
+                                    let c = IVec3::new(2 * x + dx, 2 * y + dy, 2 * z + dz);
+                                    // Cells beyond the child box hold the background.
+                                    let cb = if c.cmplt(child.dims).all() { child.cells[child.index(c)] } else { Bounds::constant(background) };
+                                    b.min = b.min.min(cb.min);
+                                    b.max = b.max.max(cb.max);
+                                    b.mean += cb.mean;
+                                    n += 1.0;
+                                }
+                            }
+                        }
+                        b.mean = (b.mean / n).clamp(b.min, b.max);
+                        let i = parent.index(IVec3::new(x, y, z));
+                        parent.cells[i] = b;
+                    }
+                }
+            }
+            levels.push(parent);
+        }
+        Ok(MajorantPyramid { origin: key_lo << 3, levels, background, world_to_index })
+    }
+
+    /// Number of levels (0 when empty).
+    #[must_use]
+    pub fn level_count(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Bounds over the whole grid (including the background outside the pyramid's box).
+    #[must_use]
+    pub fn global_bounds(&self) -> Bounds {
+        match self.levels.last() {
+            Some(top) => {
+                let b = top.cells[0];
+                Bounds { min: b.min.min(self.background), max: b.max.max(self.background), mean: b.mean }
+            }
+            None => Bounds::constant(self.background),
+        }
+    }
+
+    /// Per-level cell counts.
+    #[must_use]
+    pub fn level_reports(&self) -> Vec<LevelReport> {
+        self.levels
+            .iter()
+            .enumerate()
+            .map(|(i, l)| LevelReport {
+                level: i,
+                cell_voxels: BRICK_DIM << i,
+                cells: l.cells.len(),
+                occupied: l.cells.iter().filter(|b| !b.is_empty()).count(),
+                homogeneous: l.cells.iter().filter(|b| !b.is_empty() && b.min == b.max).count(),
+            })
+            .collect()
+    }
+
+    /// Bounds of the level-`level` cell containing voxel `ijk` (background outside).
+    #[must_use]
+    pub fn bounds_at_voxel(&self, level: usize, ijk: IVec3) -> Bounds {
+        let Some(l) = self.levels.get(level) else { return Bounds::constant(self.background) };
+        let c = (ijk - self.origin) >> (3 + level as i32);
+        if c.cmplt(IVec3::ZERO).any() || c.cmpge(l.dims).any() {
+            return Bounds::constant(self.background);
+        }
+        l.cells[l.index(c)]
+    }
+
+    /// The ray in index space: origin and direction (not unit) with the same parameter `t`.
+    #[must_use]
+    pub fn ray_to_index(&self, ray: &Ray) -> (DVec3, DVec3) {
+        let o = self.world_to_index.transform_point3(ray.o.as_dvec3());
+        let d = self.world_to_index.transform_vector3(ray.d.as_dvec3());
+        (o, d)
+    }
+
+    /// Appends to `out` the segments covering `[t_min, t_max]` of `ray` (world space).
+    /// Segments of zero density are skipped; the others tile their part of the interval.
+    pub fn segments(&self, ray: &Ray, t_min: f32, t_max: f32, mode: MajorantMode, out: &mut Vec<MajorantSegment>) {
+        if !(t_max > t_min) {
+            return;
+        }
+        match mode {
+            MajorantMode::Global => {
+                let b = self.global_bounds();
+                if !b.is_empty() {
+                    if t_max.is_finite() || self.background != 0.0 {
+                        out.push(MajorantSegment { t0: t_min, t1: t_max, min: b.min, max: b.max, mean: b.mean });
+                    } else if let Some((a, c)) = self.clip(ray, t_min, t_max) {
+                        out.push(MajorantSegment { t0: a, t1: c, min: b.min, max: b.max, mean: b.mean });
+                    }
+                }
+            }
+            MajorantMode::Hierarchical { finest } => {
+                let Some((a, c)) = self.clip(ray, t_min, t_max) else {
+                    self.push_background(t_min, t_max, out);
+                    return;
+                };
+                self.push_background(t_min, a, out);
+                let (o, d) = self.ray_to_index(ray);
+                let top = self.levels.len() - 1;
+                let finest = (finest as usize).min(top);
+                self.walk(top, IVec3::ZERO, self.levels[top].dims, a as f64, c as f64, o, d, finest, out);
+                self.push_background(c, t_max, out);
+            }
+        }
+    }
+
+    fn push_background(&self, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
+        if self.background != 0.0 && t1 > t0 {
+            out.push(MajorantSegment { t0, t1, min: self.background, max: self.background, mean: self.background });
+        }
+    }
+
+    /// Clips the ray to the pyramid's box in index space (voxel extents: voxel i covers
+    /// [i − 0.5, i + 0.5)).
+    fn clip(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+        let l0 = self.levels.first()?;
+        let (o, d) = self.ray_to_index(ray);
+        let lo = self.origin.as_dvec3() - DVec3::splat(0.5);
+        let hi = lo + (l0.dims * BRICK_DIM).as_dvec3();
+        let mut t0 = t_min as f64;
+        let mut t1 = t_max as f64;
+        for k in 0..3 {
+            if d[k] == 0.0 {
+                if o[k] < lo[k] || o[k] >= hi[k] {
+                    return None;
+                }
+                continue;
+            }
+            let inv = 1.0 / d[k];
+            let (mut a, mut b) = ((lo[k] - o[k]) * inv, (hi[k] - o[k]) * inv);
+            if a > b {
+                std::mem::swap(&mut a, &mut b);
+            }
+            t0 = t0.max(a);
+            t1 = t1.min(b);
+        }
+        (t0 < t1).then_some((t0 as f32, t1 as f32))
+    }
+
+    /// DDA over level `level` restricted to cells in `[cmin, cmax)` and `t ∈ [t0, t1]`.
+    #[allow(clippy::too_many_arguments)]
+    fn walk(&self, level: usize, cmin: IVec3, cmax: IVec3, t0: f64, t1: f64, o: DVec3, d: DVec3, finest: usize, out: &mut Vec<MajorantSegment>) {
+        let lv = &self.levels[level];
+        let cmax = cmax.min(lv.dims);
+        let size = (BRICK_DIM << level) as f64;
+        let base = self.origin.as_dvec3() - DVec3::splat(0.5);
+        // Start cell: the one containing the midpoint of a tiny step into the interval.
+        let t_probe = t0 + (t1 - t0) * 1e-6;
+        let p = o + d * t_probe;
+        let mut cell = ((p - base) / size).floor().as_ivec3().clamp(cmin, cmax - IVec3::ONE);
+        let mut step = IVec3::ZERO;
+        let mut t_next = DVec3::splat(f64::INFINITY);
+        let mut t_delta = DVec3::splat(f64::INFINITY);
+        for k in 0..3 {
+            if d[k] > 0.0 {
+                step[k] = 1;
+                t_next[k] = (base[k] + (cell[k] + 1) as f64 * size - o[k]) / d[k];
+                t_delta[k] = size / d[k];
+            } else if d[k] < 0.0 {
+                step[k] = -1;
+                t_next[k] = (base[k] + cell[k] as f64 * size - o[k]) / d[k];
+                t_delta[k] = -size / d[k];
+            }
+        }
+        let mut t = t0;
+        while t < t1 {
+            let axis = if t_next.x <= t_next.y && t_next.x <= t_next.z {
+                0
+            } else if t_next.y <= t_next.z {
+                1
+            } else {
+                2
+            };
+            let t_exit = t_next[axis].min(t1).max(t);
+            let b = lv.cells[lv.index(cell)];
+            if !b.is_empty() && t_exit > t {
+                if level <= finest || b.min == b.max {
+                    let seg = MajorantSegment { t0: t as f32, t1: t_exit as f32, min: b.min, max: b.max, mean: b.mean };
+                    match out.last_mut() {
+                        Some(last) if last.t1 == seg.t0 && last.min == seg.min && last.max == seg.max && last.mean == seg.mean => last.t1 = seg.t1,
+                        _ => out.push(seg),
+                    }
+                } else {
+                    let child_min = cell * 2;
+                    self.walk(level - 1, child_min, child_min + IVec3::splat(2), t, t_exit, o, d, finest, out);
+                }
+            }
+            t = t_exit;
+            cell[axis] += step[axis];
+            t_next[axis] += t_delta[axis];
+            if cell[axis] < cmin[axis] || cell[axis] >= cmax[axis] {
+                break;
+            }
+        }
+    }
+}
+
+/// A density lookup along a ray in a grid's index space (trilinear, coherent accessor).
+pub struct RayDensity<'a> {
+    accessor: crate::grid::Accessor<'a>,
+    o: Vec3,
+    d: Vec3,
+}
+
+impl<'a> RayDensity<'a> {
+    /// Prepares lookups along `ray` (world space) in channel `channel` of `grid`.
+    #[must_use]
+    pub fn new(grid: &'a SparseGrid, channel: usize, ray: &Ray) -> Self {
+        let w2i = grid.world_to_index();
+        let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
+        let d = w2i.transform_vector3(ray.d.as_dvec3()).as_vec3();
+        RayDensity { accessor: grid.accessor(channel), o, d }
+    }
+    /// Trilinear density at distance `t`.
+    pub fn at(&mut self, t: f32) -> f32 {
+        self.accessor.sample_trilinear(self.o + self.d * t)
+    }
+}
