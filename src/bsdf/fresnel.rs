@@ -24,15 +24,17 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     if eta == 1.0 && c > 0.0 {
         return 0.0;
     }
-    // sin²θ_t = (1 - c²)/η²; 1 - c² = (1-c)(1+c) is better conditioned near c = 1.
-    let sin2_t = (1.0 - c) * (1.0 + c) / (eta * eta);
-    if sin2_t >= 1.0 {
+    // Evaluated in f64: near the critical angle cos θ_t is a small difference of O(1) terms.
+    let (c, eta) = (c as f64, eta as f64);
+    // cos²θ_t = 1 − (1 − c²)/η² = (η² − 1 + c²)/η² (Walter 2007's g²/η²).
+    let cos2_t = (eta * eta - 1.0 + c * c) / (eta * eta);
+    if cos2_t <= 0.0 {
         return 1.0;
     }
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    let cos_t = cos2_t.sqrt();
     let r_s = (c - eta * cos_t) / (c + eta * cos_t);
     let r_p = (eta * c - cos_t) / (eta * c + cos_t);
-    (0.5 * (r_s * r_s + r_p * r_p)).clamp(0.0, 1.0)
+    (0.5 * (r_s * r_s + r_p * r_p)).clamp(0.0, 1.0) as f32
 }
 
 /// A small complex number for the conductor Fresnel equations.

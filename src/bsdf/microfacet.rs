@@ -222,13 +222,13 @@ fn sample_beckmann_slopes_11(wh: Vec3, u: Vec2) -> (f32, f32) {
         let theta = cos_t.clamp(-1.0, 1.0).acos();
         let fit = 1.0 + theta * (-0.876 + theta * (0.4265 - 0.0594 * theta));
         let mut b = erf_cot - (1.0 + erf_cot) * (1.0 - xi1).powf(fit);
-        for _ in 0..16 {
+        for _ in 0..10 {
             if !(b >= lo && b <= hi) {
                 b = 0.5 * (lo + hi);
             }
             let x = erf_inv(b);
             let value = cdf(b, x) - xi1;
-            if value.abs() < 1e-6 {
+            if value.abs() < 2e-6 || hi - lo < 1e-6 {
                 break;
             }
             if value > 0.0 {
