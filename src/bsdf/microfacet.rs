@@ -222,11 +222,14 @@ fn sample_beckmann_slopes_11(wh: Vec3, u: Vec2) -> (f32, f32) {
         let theta = cos_t.clamp(-1.0, 1.0).acos();
         let fit = 1.0 + theta * (-0.876 + theta * (0.4265 - 0.0594 * theta));
         let mut b = erf_cot - (1.0 + erf_cot) * (1.0 - xi1).powf(fit);
+        // The last evaluated (u, x̃) pair: the converged iterate is reused, not recomputed.
+        let mut last = (f32::NAN, 0.0f32);
         for _ in 0..10 {
             if !(b >= lo && b <= hi) {
                 b = 0.5 * (lo + hi);
             }
             let x = erf_inv(b);
+            last = (b, x);
             let value = cdf(b, x) - xi1;
             if value.abs() < 2e-6 || hi - lo < 1e-6 {
                 break;
@@ -243,8 +246,12 @@ fn sample_beckmann_slopes_11(wh: Vec3, u: Vec2) -> (f32, f32) {
                 b = 0.5 * (lo + hi);
             }
         }
-        let b = b.clamp(-1.0 + 6e-8, erf_cot.min(1.0 - 6e-8));
-        erf_inv(b)
+        let b_c = b.clamp(-1.0 + 6e-8, erf_cot.min(1.0 - 6e-8));
+        if b_c == last.0 {
+            last.1
+        } else {
+            erf_inv(b_c)
+        }
     };
     let y_slope = erf_inv(2.0 * xi2 - 1.0);
     let x = if x_slope.is_finite() { x_slope } else { 0.0 };

@@ -13,7 +13,7 @@
 use std::f32::consts::PI;
 
 /// 2/√π.
-const TWO_OVER_SQRT_PI: f32 = 1.128_379_2;
+const TWO_OVER_SQRT_PI: f32 = std::f32::consts::FRAC_2_SQRT_PI;
 
 /// Complementary error function `erfc(x) = 1 - erf(x)`, fractional error < 2e-7 for all `x`
 /// (Numerical Recipes "erfcc" fit). Returns 2 for `x = -∞` and 0 for `x = +∞`; NaN in, NaN out.
@@ -27,8 +27,8 @@ pub fn erfc(x: f32) -> f32 {
                 + t * (0.096_784_18
                     + t * (-0.186_288_06
                         + t * (0.278_868_07
-                            + t * (-1.135_203_98
-                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+                            + t * (-1.135_204
+                                + t * (1.488_515_9 + t * (-0.822_152_2 + t * 0.170_872_77))))))));
     let ans = if z.is_infinite() { 0.0 } else { t * poly.exp() };
     if x >= 0.0 {
         ans
@@ -90,7 +90,7 @@ pub fn erf_inv(y: f32) -> f32 {
         p = 5.739_507_7e-3 + p * w;
         p = -7.622_461_3e-3 + p * w;
         p = 9.438_870_5e-3 + p * w;
-        p = 1.001_674_1 + p * w;
+        p = 1.001_674 + p * w;
         p = 2.832_976_8 + p * w;
     }
     let x = p * y;
@@ -115,7 +115,7 @@ pub fn erf_inv(y: f32) -> f32 {
 }
 
 /// `1/√π`.
-pub(crate) const INV_SQRT_PI: f32 = 0.564_189_6;
+pub(crate) const INV_SQRT_PI: f32 = 0.5 * std::f32::consts::FRAC_2_SQRT_PI;
 
 /// `e^{-a²}/(a√π) - erfc(a)` for `a > 0`, computed without catastrophic cancellation for
 /// large `a` (asymptotic series beyond `a = 3`). This is `2 Λ(a)` of the Beckmann distribution.
