@@ -257,6 +257,39 @@ fn dielectric_half(wo: Vec3, wi: Vec3, eta: f32) -> Option<HalfGeometry> {
     })
 }
 
+/// Shared geometry of a rough microfacet reflection lobe for (wo, wi), both above the
+/// surface: the half vector `wm`, `wo·wm`, the Fresnel-free BRDF `D G2 / (4 cos_o cos_i)` and
+/// the visible-normal pdf `D_wo(wm) / (4 wo·wm)`. `None` when grazing or degenerate.
+struct ReflectionTerms {
+    wo_m: f32,
+    brdf: f32,
+    pdf: f32,
+}
+
+fn rough_reflection(mf: &Microfacet, wo: Vec3, wi: Vec3) -> Option<ReflectionTerms> {
+    if !(wo.z >= COS_EPSILON) || !(wi.z >= COS_EPSILON) {
+        return None;
+    }
+    let wm = (wo + wi).try_normalize()?;
+    let wo_m = wo.dot(wm);
+    if !(wo_m > 0.0) {
+        return None;
+    }
+    let brdf = finite_or_zero(mf.d(wm) * mf.g2(wo, wi) / (4.0 * wo.z * wi.z));
+    let pdf = finite_or_zero(mf.visible_pdf(wo, wm) / (4.0 * wo_m));
+    Some(ReflectionTerms { wo_m, brdf, pdf })
+}
+
+/// Mirrors both directions below the surface into the upper hemisphere when `wo` is below
+/// (two-sided opaque lobes).
+fn upper_pair(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
+    if wo.z < 0.0 {
+        (flip_z(wo), flip_z(wi))
+    } else {
+        (wo, wi)
+    }
+}
+
 /// Rough dielectric `f` (radiance mode) for a valid half-vector geometry.
 fn dielectric_f(mf: &Microfacet, tint: Rgb, eta: f32, wo: Vec3, wi: Vec3, h: &HalfGeometry) -> Rgb {
     let f = fresnel_dielectric(h.wo_m, eta);
@@ -368,21 +401,12 @@ impl BaseLobe {
                 if alpha < SMOOTH_ALPHA {
                     return Rgb::ZERO;
                 }
-                let (wo, wi) = if wo.z < 0.0 {
-                    (flip_z(wo), flip_z(wi))
-                } else {
-                    (wo, wi)
-                };
-                if !(wo.z >= COS_EPSILON) || !(wi.z >= COS_EPSILON) {
-                    return Rgb::ZERO;
-                }
-                let Some(wm) = (wo + wi).try_normalize() else {
-                    return Rgb::ZERO;
-                };
+                let (wo, wi) = upper_pair(wo, wi);
                 let mf = Microfacet::new(distribution, alpha);
-                let f = fresnel_conductor(wo.dot(wm), eta, k);
-                let s = mf.d(wm) * mf.g2(wo, wi) / (4.0 * wo.z * wi.z);
-                finite_rgb(f * finite_or_zero(s))
+                match rough_reflection(&mf, wo, wi) {
+                    Some(r) => finite_rgb(fresnel_conductor(r.wo_m, eta, k) * r.brdf),
+                    None => Rgb::ZERO,
+                }
             }
         }
     }
@@ -430,23 +454,9 @@ impl BaseLobe {
                 if alpha < SMOOTH_ALPHA {
                     return 0.0;
                 }
-                let (wo, wi) = if wo.z < 0.0 {
-                    (flip_z(wo), flip_z(wi))
-                } else {
-                    (wo, wi)
-                };
-                if !(wo.z >= COS_EPSILON) || !(wi.z >= COS_EPSILON) {
-                    return 0.0;
-                }
-                let Some(wm) = (wo + wi).try_normalize() else {
-                    return 0.0;
-                };
+                let (wo, wi) = upper_pair(wo, wi);
                 let mf = Microfacet::new(distribution, alpha);
-                let wo_m = wo.dot(wm);
-                if !(wo_m > 0.0) {
-                    return 0.0;
-                }
-                finite_or_zero(mf.visible_pdf(wo, wm) / (4.0 * wo_m))
+                rough_reflection(&mf, wo, wi).map_or(0.0, |r| r.pdf)
             }
         }
     }
@@ -676,29 +686,19 @@ impl Coat {
 
     /// Coat BRDF (without weight); zero unless both directions are outside; zero if smooth.
     fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if self.is_smooth() || !(wo.z >= COS_EPSILON) || !(wi.z >= COS_EPSILON) {
+        if self.is_smooth() {
             return 0.0;
         }
-        let Some(wm) = (wo + wi).try_normalize() else {
-            return 0.0;
-        };
-        let mf = self.mf();
-        let f = fresnel_dielectric(wo.dot(wm), self.ior);
-        finite_or_zero(mf.d(wm) * mf.g2(wo, wi) * f / (4.0 * wo.z * wi.z))
+        rough_reflection(&self.mf(), wo, wi).map_or(0.0, |r| {
+            finite_or_zero(fresnel_dielectric(r.wo_m, self.ior) * r.brdf)
+        })
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if self.is_smooth() || !(wo.z >= COS_EPSILON) || !(wi.z >= COS_EPSILON) {
+        if self.is_smooth() {
             return 0.0;
         }
-        let Some(wm) = (wo + wi).try_normalize() else {
-            return 0.0;
-        };
-        let wo_m = wo.dot(wm);
-        if !(wo_m > 0.0) {
-            return 0.0;
-        }
-        finite_or_zero(self.mf().visible_pdf(wo, wm) / (4.0 * wo_m))
+        rough_reflection(&self.mf(), wo, wi).map_or(0.0, |r| r.pdf)
     }
 
     /// Directional albedo E_c(μ) of the unweighted coat, interpolated from the table.
