@@ -207,7 +207,7 @@ impl PhaseFunction {
         }
     }
 
-    /// Mean cosine E[μ] of the scattering angle (after clamping): `g`, or `w g1 + (1−w) g2`.
+    /// Mean cosine `E[μ]` of the scattering angle (after clamping): `g`, or `w g1 + (1−w) g2`.
     #[must_use]
     pub fn mean_cosine(&self) -> f32 {
         match *self {

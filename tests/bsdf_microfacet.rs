@@ -72,6 +72,30 @@ fn beckmann_visible_normals_chi_square() {
 }
 
 #[test]
+fn chi_square_detects_a_wrong_distribution() {
+    // GGX and Beckmann visible normals of equal α differ mostly in their tails: the test
+    // must tell them apart, and must notice a 5 % error in α.
+    let w = dir_from_theta_deg(45.0);
+    let ggx = Microfacet::new(MicrofacetDistribution::Ggx, 0.5);
+    let beck = Microfacet::new(MicrofacetDistribution::Beckmann, 0.5);
+    let beck_wide = Microfacet::new(MicrofacetDistribution::Beckmann, 0.525);
+    for (name, wrong) in [
+        ("beckmann vs ggx", &ggx),
+        ("alpha 0.5 vs 0.525", &beck_wide),
+    ] {
+        let r = chi2_sphere(
+            &bins_for_alpha(0.5),
+            2,
+            200_000,
+            77,
+            |rng| Some(beck.sample_visible(w, rng.next_2d())),
+            &|m| wrong.visible_pdf(w, m) as f64,
+        );
+        assert!(r.p_value < 1e-6, "{name}: not detected ({r:?})");
+    }
+}
+
+#[test]
 fn projected_ndf_and_visible_density_integrate_to_one() {
     // ∫ D(m) m.z dm = 1 and ∫ D_w(m) dm = 1; the latter holds only if Smith Λ is exact
     // (∫ max(0, w·m) D(m) dm = w.z (1 + Λ(w))), so it tests Λ too.

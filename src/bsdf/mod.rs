@@ -9,6 +9,14 @@
 //! transmission carry the `1/η'²` radiance scaling (REFERENCES §3.5, §3.8), where
 //! `η' = η_{wi side}/η_{wo side}`.
 //!
+//! Using a [`Surface`] from an integrator: build a [`crate::math::Frame`] around the shading
+//! normal (outward), convert `wo` to local, call [`Surface::sample`]; multiply the throughput
+//! by `weight`, and by `eta²` the eta-scale used for Russian roulette. Samples with
+//! `is_delta` carry a discrete probability in `pdf` and must skip MIS; for light samples use
+//! [`Surface::eval`] × `|cos θ_i|` and [`Surface::pdf`] (which matches the `pdf` of non-delta
+//! samples exactly, mixture of coat and base included). Surfaces with [`Surface::is_delta`]
+//! need no light sampling at all.
+//!
 //! Numerical guards (REFERENCES §8): directions with `|cos θ| < 1e-7` and Jacobian
 //! denominators below `1e-7` give zero `f`, zero pdf and no sample; microfacet lobes with
 //! `α < 1e-3` become delta lobes; no function returns NaN or infinity.
