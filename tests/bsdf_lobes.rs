@@ -508,3 +508,78 @@ fn bad_parameters_are_rejected() {
         .to_string();
     assert!(msg.contains("albedo.g"), "{msg}");
 }
+
+#[test]
+fn random_stress_never_returns_nan() {
+    // Random parameters (including the edges of their ranges) and random, also grazing and
+    // axis-aligned, directions: every output must be finite and non-negative.
+    let mut rng = Rng::new(2024, 7);
+    let pick = |rng: &mut Rng, edges: &[f32]| -> f32 {
+        if rng.next_f32() < 0.3 {
+            edges[(rng.next_u32() as usize) % edges.len()]
+        } else {
+            rng.next_f32()
+        }
+    };
+    for i in 0..3000 {
+        let rough = pick(&mut rng, &[0.0, 1e-3, 0.0316, 0.0317, 1.0]);
+        let dist = if i % 2 == 0 { GGX } else { BECKMANN };
+        let eta = [1.0001f32, 1.5, 3.0, 1.0 / 1.5, 1.0, 0.3][i % 6];
+        let c = Rgb::new(
+            pick(&mut rng, &[0.0, 1.0]),
+            pick(&mut rng, &[0.0, 1.0]),
+            pick(&mut rng, &[0.0, 1.0]),
+        );
+        let mut s = match i % 4 {
+            0 => Surface::dielectric(eta, rough, dist, c).unwrap(),
+            1 => Surface::diffuse_transmission(c * 0.5, c * 0.5).unwrap(),
+            2 => Surface::lambertian(c).unwrap(),
+            _ => Surface::conductor(Rgb::splat(eta), c * 5.0, rough, dist).unwrap(),
+        };
+        if i % 3 == 0 {
+            s = s
+                .with_coat(
+                    1.0 + 2.0 * rng.next_f32(),
+                    pick(&mut rng, &[0.0, 1.0]),
+                    pick(&mut rng, &[0.0, 1.0]),
+                )
+                .unwrap();
+        }
+        for _ in 0..50 {
+            let wo = match rng.next_u32() % 5 {
+                0 => [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.6, 0.8, 0.0)]
+                    [(rng.next_u32() % 4) as usize],
+                1 => Vec3::new(
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                    (rng.next_f32() - 0.5) * 1e-6,
+                )
+                .normalize(),
+                _ => velour::sampling::sample_uniform_sphere(rng.next_2d()),
+            };
+            let u = Vec2::new(
+                pick(&mut rng, &[0.0, 1.0 - f32::EPSILON / 2.0]),
+                pick(&mut rng, &[0.0, 1.0 - f32::EPSILON / 2.0]),
+            );
+            if let Some(x) = s.sample(wo, rng.next_f32(), u) {
+                assert!(
+                    x.wi.is_finite() && x.weight.is_finite() && x.pdf.is_finite() && x.pdf > 0.0,
+                    "{s:?} {wo:?}: {x:?}"
+                );
+                assert!(
+                    x.weight.min_component() >= 0.0 && x.eta.is_finite() && x.eta > 0.0,
+                    "{s:?} {wo:?}: {x:?}"
+                );
+                let f = s.eval(wo, x.wi);
+                let p = s.pdf(wo, x.wi);
+                assert!(f.is_finite() && f.min_component() >= 0.0 && p.is_finite() && p >= 0.0);
+            }
+            let wi = velour::sampling::sample_uniform_sphere(rng.next_2d());
+            let f = s.eval(wo, wi);
+            assert!(
+                f.is_finite() && f.min_component() >= 0.0 && s.pdf(wo, wi).is_finite(),
+                "{s:?} {wo:?} {wi:?}"
+            );
+        }
+    }
+}
