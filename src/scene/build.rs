@@ -464,8 +464,27 @@ fn build_light(ctx: &Ctx, line: usize, l: &LightDesc) -> Result<Light, SceneErro
     }
 }
 
-/// The built-in default scene.
+/// The built-in default scene: `scenes/creature.toml` and its meshes, compiled into the binary
+/// and unpacked into a temporary folder so that it renders from anywhere.
 pub(super) fn default_scene() -> Result<Scene, SceneError> {
-    let text = include_str!("../../scenes/skin_sphere.toml");
-    load_scene_str(text, Path::new(DEFAULT_SCENE_NAME))
+    const FILES: [(&str, &[u8]); 3] = [
+        ("creature_skin.ply", include_bytes!("../../scenes/meshes/creature_skin.ply")),
+        ("creature_skeleton.ply", include_bytes!("../../scenes/meshes/creature_skeleton.ply")),
+        ("backdrop.ply", include_bytes!("../../scenes/meshes/backdrop.ply")),
+    ];
+    let text = include_str!("../../scenes/creature.toml");
+    let dir = std::env::temp_dir().join(format!("velour-default-scene-{}", std::process::id()));
+    let meshes = dir.join("meshes");
+    let io = |path: &Path, source: std::io::Error| SceneError::Io { path: path.to_path_buf(), source };
+    std::fs::create_dir_all(&meshes).map_err(|e| io(&meshes, e))?;
+    for (name, bytes) in FILES {
+        let p = meshes.join(name);
+        std::fs::write(&p, bytes).map_err(|e| io(&p, e))?;
+    }
+    let scene_path = dir.join("creature.toml");
+    let result = load_scene_str(text, &scene_path);
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut scene = result?;
+    scene.source = PathBuf::from(DEFAULT_SCENE_NAME);
+    Ok(scene)
 }
