@@ -305,7 +305,8 @@ fn crossings_keep_clearance_for_every_pattern() {
 #[test]
 fn weave_parameter_errors_name_the_parameter() {
     let base = WeaveParams::new(WeavePattern::Plain, small_yarn());
-    let cases: Vec<(&str, Box<dyn Fn(&mut WeaveParams)>)> = vec![
+    type Edit = Box<dyn Fn(&mut WeaveParams)>;
+    let cases: Vec<(&str, Edit)> = vec![
         ("warp_spacing", Box::new(|p| p.warp_spacing = 0.0)),
         ("weft_spacing", Box::new(|p| p.weft_spacing = -1.0)),
         ("flyaway_fraction", Box::new(|p| p.flyaway_fraction = -0.5)),
@@ -422,14 +423,16 @@ fn patch_counts_tags_volume_and_albedo() {
 fn flyaway_fraction_scales_flyaway_counts() {
     let mut p = WeaveParams::new(WeavePattern::Plain, small_yarn());
     p.repeats = [3, 3];
-    let mut counts = [0usize; 3];
+    let mut hairs = [0usize; 3];
+    let mut loops = [0usize; 3];
     for (k, frac) in [0.0f32, 1.0, 3.0].iter().enumerate() {
         p.flyaway_fraction = *frac;
         let patch = generate_patch(&p, 9).unwrap();
-        counts[k] = patch.hair_count + patch.loop_count;
+        hairs[k] = patch.hair_count;
+        loops[k] = patch.loop_count;
     }
-    assert_eq!(counts[0], 0);
-    // Expected count: (ρ_hair + ρ_loop)·K·total yarn length·fraction (Poisson).
+    assert_eq!((hairs[0], loops[0]), (0, 0));
+    // Hairs: Poisson with mean ρ_hair·K·(total yarn length)·fraction.
     let y = &p.warp_yarn;
     let m = p.matrix().unwrap();
     let len: f32 = (0..6)
@@ -437,11 +440,21 @@ fn flyaway_fraction_scales_flyaway_counts() {
         .sum::<f32>()
         * 2.0;
     for (k, frac) in [(1, 1.0f64), (2, 3.0)] {
-        let mean =
-            (y.hair_density + y.loop_density) as f64 * y.ply_count as f64 * len as f64 * frac;
-        let z = (counts[k] as f64 - mean) / mean.sqrt();
-        assert!(z.abs() < 4.5, "fraction {frac}: {} vs {mean}", counts[k]);
+        let mean = y.hair_density as f64 * y.ply_count as f64 * len as f64 * frac;
+        let z = (hairs[k] as f64 - mean) / mean.sqrt();
+        assert!(z.abs() < 4.5, "fraction {frac}: {} vs {mean}", hairs[k]);
+        // Loops grow with the fraction but saturate at one per fibre per migration period.
+        let loop_mean = y.loop_density as f64 * y.ply_count as f64 * len as f64 * frac;
+        assert!((loops[k] as f64) < loop_mean + 4.5 * loop_mean.sqrt());
     }
+    assert!(loops[2] > loops[1]);
+    let periods = len as f64 * y.migration_freq as f64 / y.fibre_pitch as f64 + 12.0;
+    let cap = periods * (y.ply_count * y.fibres_per_ply) as f64;
+    assert!(
+        (loops[2] as f64) < cap * 1.2,
+        "{} loops, cap {cap}",
+        loops[2]
+    );
 }
 
 #[test]

@@ -82,7 +82,8 @@ fn unknown_preset_lists_names() {
 #[test]
 fn bad_parameters_name_the_parameter() {
     let base = YarnParams::preset("cotton1").unwrap();
-    let cases: Vec<(&str, Box<dyn Fn(&mut YarnParams)>)> = vec![
+    type Edit = Box<dyn Fn(&mut YarnParams)>;
+    let cases: Vec<(&str, Edit)> = vec![
         ("ply_count", Box::new(|p| p.ply_count = 0)),
         ("fibres_per_ply", Box::new(|p| p.fibres_per_ply = 0)),
         ("yarn_radius", Box::new(|p| p.yarn_radius = 0.0)),
@@ -305,8 +306,11 @@ fn migration_radius_between_rmin_and_rmax() {
 #[test]
 fn flyaway_counts_match_densities() {
     let mut p = YarnParams::preset("cotton1").unwrap();
-    p.fibres_per_ply = 8;
+    p.fibres_per_ply = 40;
     p.segment_length = 0.05;
+    // A loop peaks at R_max^loop (normalised by sqrt(e_X e_Y)); loops never compound.
+    let loop_cap =
+        (p.loop_r_max.mean + 6.0 * p.loop_r_max.std_dev) / (p.ellipse_x * p.ellipse_y).sqrt();
     let len = 20.0;
     let mut hairs = 0usize;
     let mut loops = 0usize;
@@ -323,6 +327,7 @@ fn flyaway_counts_match_densities() {
                 .map(|&q| ply_local(&p, f.ply, q).length())
                 .fold(0.0f32, f32::max);
             assert!(mx > p.r_max * f.section_radius * 1.001);
+            assert!(mx < loop_cap * 1.001, "loop reaches {mx} > {loop_cap}");
         }
         for f in y.fibres.iter().filter(|f| f.kind == FibreKind::Hair) {
             assert!(f.points.iter().all(|q| (0.0..=len).contains(&q.z)));

@@ -512,11 +512,8 @@ impl FibrePhase {
         let k = ((u[0] * n_nodes as f32) as usize).min(n_nodes - 1);
         let mut u0 = (u[0] * n_nodes as f32 - k as f32).clamp(0.0, 1.0);
         let node = self.node(k, o.sin_t, o.cos_t);
-        let mut w = [0.0f32; 5];
-        for p in 0..4 {
-            w[p] = node.a[p].average();
-        }
-        w[4] = (self.params.diffuse_albedo * self.params.diffuse_weight).average();
+        let wd = (self.params.diffuse_albedo * self.params.diffuse_weight).average();
+        let w: [f32; 5] = std::array::from_fn(|p| if p < 4 { node.a[p].average() } else { wd });
         let total: f32 = w.iter().sum();
         if total <= 0.0 {
             return None;
@@ -562,7 +559,7 @@ impl FibrePhase {
             return None;
         }
         let (value, pdf) = self.eval_pdf(wo, wi, tangent);
-        if !(pdf > 0.0) || !pdf.is_finite() {
+        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }
         Some(FibreSample {
@@ -686,7 +683,7 @@ impl SggxFibrePhase {
         let m = mp.x * wk + mp.y * wj + mp.z * wi;
         let out = 2.0 * wo.dot(m) * m - wo;
         let pdf = self.pdf(wo, out);
-        if !(pdf > 0.0) || !out.is_finite() {
+        if pdf.is_nan() || pdf <= 0.0 || !out.is_finite() {
             return None;
         }
         Some(SggxSample {

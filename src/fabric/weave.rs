@@ -179,7 +179,7 @@ impl WeavePattern {
                     return Err(bad(format!("size = {size}: allowed 2..=32")));
                 }
                 let s = *size as usize;
-                WeaveMatrix::from_fn(2 * s, 2 * s, |i, j| (i / s + j / s) % 2 == 0)
+                WeaveMatrix::from_fn(2 * s, 2 * s, |i, j| (i / s + j / s).is_multiple_of(2))
             }
             WeavePattern::Satin {
                 harness,

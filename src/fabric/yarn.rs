@@ -124,7 +124,7 @@ pub struct YarnParams {
     /// `s`, migration cycles per fibre turn (`>= 0`; 0 disables migration).
     pub migration_freq: f32,
     /// Physical radius of one fibre (length, `> 0`). Not part of the fits: the presets use
-    /// typical textile values (cotton 8 µm, polyester/rayon/silk 6 µm) [A].
+    /// typical textile values (cotton 8 µm, polyester/rayon/silk 6 µm) (our assumption).
     pub fibre_radius: f32,
     /// `ρ_hair`, hair-type flyaways per ply per unit length (`>= 0`).
     pub hair_density: f32,
@@ -568,29 +568,40 @@ pub fn generate_yarn(params: &YarnParams, length: f32, seed: u64) -> Result<Yarn
         // Loop-type flyaways: Poisson process along the ply; each picks a fibre and the
         // migration period around the event, whose peak is raised to R_max^loop.
         for z_e in poisson_positions(&mut rng, p.loop_density, length) {
-            let idx = ((rng.next_f32() * regs.len() as f32) as usize).min(regs.len() - 1);
-            let r = &regs[idx];
-            let (centre, width) = if p.migration_freq > 0.0 {
-                let s = p.migration_freq;
-                let psi = s * TAU * z_e / p.fibre_pitch + r.theta_m;
-                let k = (psi / TAU).round();
-                (
-                    (TAU * k - r.theta_m) * p.fibre_pitch / (TAU * s),
-                    p.fibre_pitch / s,
-                )
-            } else {
-                (z_e, p.fibre_pitch)
-            };
-            let peak = migr(r, centre).max(1e-6);
-            let r_loop = redraw(
-                p.loop_r_max,
-                &mut rng,
-                |v| v / norm_loop > peak,
-                1.05 * peak * norm_loop,
-            );
-            let k = (r_loop / norm_loop) / peak;
-            regs[idx].loops.push(LoopBump { centre, width, k });
-            loop_count += 1;
+            // Pick a fibre whose migration period around z_e carries no loop yet (loops
+            // never overlap; after 16 failed picks the event is dropped).
+            for _ in 0..16 {
+                let idx = ((rng.next_f32() * regs.len() as f32) as usize).min(regs.len() - 1);
+                let r = &regs[idx];
+                let (centre, width) = if p.migration_freq > 0.0 {
+                    let s = p.migration_freq;
+                    let psi = s * TAU * z_e / p.fibre_pitch + r.theta_m;
+                    let k = (psi / TAU).round();
+                    (
+                        (TAU * k - r.theta_m) * p.fibre_pitch / (TAU * s),
+                        p.fibre_pitch / s,
+                    )
+                } else {
+                    (z_e, p.fibre_pitch)
+                };
+                if r.loops
+                    .iter()
+                    .any(|l| (l.centre - centre).abs() < 0.999 * l.width)
+                {
+                    continue;
+                }
+                let peak = migr(r, centre).max(1e-6);
+                let r_loop = redraw(
+                    p.loop_r_max,
+                    &mut rng,
+                    |v| v / norm_loop > peak,
+                    1.05 * peak * norm_loop,
+                );
+                let k = (r_loop / norm_loop) / peak;
+                regs[idx].loops.push(LoopBump { centre, width, k });
+                loop_count += 1;
+                break;
+            }
         }
         for r in &regs {
             let mut points = Vec::with_capacity(n_seg as usize + 1);
