@@ -468,3 +468,33 @@ fn sggx_fibre_flakes() {
         }
     }
 }
+
+/// Warp and weft take their own phase function (albedo by yarn id).
+#[test]
+fn fabric_shading_by_yarn_id() {
+    use velour::fabric::{
+        generate_patch, FabricShading, WeaveParams, WeavePattern, YarnId, YarnParams,
+    };
+    let mut y = YarnParams::preset("polyester1").unwrap();
+    y.fibres_per_ply = 2;
+    let mut p = WeaveParams::new(WeavePattern::Plain, y);
+    p.warp_albedo = Rgb::new(0.9, 0.2, 0.1);
+    p.weft_albedo = Rgb::new(0.1, 0.3, 0.9);
+    let patch = generate_patch(&p, 1).unwrap();
+    let base = FibrePhaseParams {
+        h_nodes: 8,
+        ..Default::default()
+    };
+    let sh = FabricShading::from_patch(&base, &patch).unwrap();
+    let t = Vec3::Z;
+    let wo = Vec3::new(0.6, 0.0, 0.8);
+    let warp = integrate_sphere(t, 120, |wi| {
+        rgb3(sh.for_yarn(YarnId::Warp(0)).eval(wo, wi, t))
+    });
+    let weft = integrate_sphere(t, 120, |wi| {
+        rgb3(sh.for_yarn(YarnId::Weft(1)).eval(wo, wi, t))
+    });
+    assert!(warp[0] > warp[2] && weft[2] > weft[0], "{warp:?} {weft:?}");
+    assert_eq!(sh.for_yarn(YarnId::Warp(5)), &sh.warp);
+    assert_eq!(sh.for_yarn(YarnId::Pile), &sh.pile);
+}

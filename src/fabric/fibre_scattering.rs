@@ -344,10 +344,19 @@ impl FibrePhase {
         }
         let s = azimuthal_scale(params.beta_n);
         let n = params.h_nodes as usize;
+        // Exactly mirrored nodes (h_{n−1−k} = −h_k), so eval can share A_p between ±h.
+        let node = |k: usize| {
+            let h = -1.0 + (2 * k + 1) as f32 / n as f32;
+            (h, h.asin(), (1.0 - h * h).max(0.0).sqrt())
+        };
         let nodes = (0..n)
             .map(|k| {
-                let h = -1.0 + (2 * k + 1) as f32 / n as f32;
-                (h, h.asin(), (1.0 - h * h).max(0.0).sqrt())
+                if 2 * k + 1 <= n {
+                    node(k)
+                } else {
+                    let (h, g, c) = node(n - 1 - k);
+                    (-h, -g, c)
+                }
             })
             .collect();
         Ok(FibrePhase {
@@ -455,33 +464,33 @@ impl FibrePhase {
         let mut value = Rgb::ZERO;
         let mut pdf = 0.0;
         let n_nodes = self.nodes.len();
-        for k in 0..n_nodes {
+        let wd = ad.average();
+        // A_p(h) = A_p(−h) and Φ(p, −h) ≡ −Φ(p, h) (mod 2π): one node evaluation serves the
+        // mirrored pair.
+        for k in 0..n_nodes.div_ceil(2) {
             let node = self.node(k, o.sin_t, o.cos_t);
-            let mut lobe_val = [0.0f32; 4];
-            for p in 0..4 {
-                let n = if p < 3 {
-                    trimmed_logistic_norm(
-                        wrap(dphi - Self::phi_p(p, &node)),
-                        self.s,
-                        self.inv_logistic_norm,
-                    )
-                } else {
-                    INV_2PI
-                };
-                lobe_val[p] = m[p] * n;
-                value += node.a[p] * lobe_val[p];
-            }
             let w: [f32; 4] = std::array::from_fn(|p| node.a[p].average());
-            let wd = ad.average();
             let total: f32 = w.iter().sum::<f32>() + wd;
-            if total > 0.0 {
-                pdf += (w
-                    .iter()
-                    .zip(lobe_val.iter())
-                    .map(|(a, b)| a * b)
-                    .sum::<f32>()
-                    + wd * dd)
-                    / total;
+            let mirrored = n_nodes - 1 - k != k;
+            for sign in [1.0f32, -1.0] {
+                if sign < 0.0 && !mirrored {
+                    break;
+                }
+                let mut lobe_pdf = wd * dd;
+                for p in 0..4 {
+                    let n = if p < 3 {
+                        let phi = sign * Self::phi_p(p, &node);
+                        trimmed_logistic_norm(wrap(dphi - phi), self.s, self.inv_logistic_norm)
+                    } else {
+                        INV_2PI
+                    };
+                    let lv = m[p] * n;
+                    value += node.a[p] * lv;
+                    lobe_pdf += w[p] * lv;
+                }
+                if total > 0.0 {
+                    pdf += lobe_pdf / total;
+                }
             }
         }
         value = value * (1.0 / n_nodes as f32) + ad * dd;

@@ -27,8 +27,8 @@ pub use fibre_scattering::{
     FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, SggxFibrePhase, SggxSample,
 };
 pub use weave::{
-    generate_patch, FabricPatch, PatchFibre, PileParams, TwillDirection, WeaveMatrix, WeaveParams,
-    WeavePattern, YarnId,
+    generate_patch, FabricPatch, FabricShading, PatchFibre, PileParams, TwillDirection,
+    WeaveMatrix, WeaveParams, WeavePattern, YarnId,
 };
 pub use yarn::{
     generate_yarn, generate_yarn_on_centreline, Centreline, CentrelineFrame, Fibre, FibreKind,

@@ -874,3 +874,42 @@ fn pile_fibre(p: &PileParams, leg: Vec2, nap: Vec3, rng: &mut Rng) -> Fibre {
         section_angle: 0.0,
     }
 }
+
+/// One fibre phase function per yarn family, so warp, weft and pile fibres scatter with their
+/// own albedo (course notes §3.4, "separate warp and weft scattering properties").
+#[derive(Clone, Debug, PartialEq)]
+pub struct FabricShading {
+    /// Phase function of warp fibres.
+    pub warp: super::FibrePhase,
+    /// Phase function of weft fibres.
+    pub weft: super::FibrePhase,
+    /// Phase function of pile fibres.
+    pub pile: super::FibrePhase,
+}
+
+impl FabricShading {
+    /// Builds the three phase functions from shared fibre parameters and the patch's albedos
+    /// (each through [`super::FibrePhaseParams::with_colour`]; a black albedo, e.g. the pile
+    /// of a patch without pile, becomes the darkest allowed colour).
+    pub fn from_patch(
+        base: &super::FibrePhaseParams,
+        patch: &FabricPatch,
+    ) -> Result<FabricShading, FabricError> {
+        let make = |c: Rgb| super::FibrePhase::new(base.clone().with_colour(c));
+        Ok(FabricShading {
+            warp: make(patch.warp_albedo)?,
+            weft: make(patch.weft_albedo)?,
+            pile: make(patch.pile_albedo)?,
+        })
+    }
+
+    /// The phase function of a yarn.
+    #[must_use]
+    pub fn for_yarn(&self, id: YarnId) -> &super::FibrePhase {
+        match id {
+            YarnId::Warp(_) => &self.warp,
+            YarnId::Weft(_) => &self.weft,
+            YarnId::Pile => &self.pile,
+        }
+    }
+}
