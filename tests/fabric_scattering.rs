@@ -424,6 +424,33 @@ fn bad_phase_parameters_name_the_parameter() {
             "{msg}"
         );
     }
+    assert!(FibrePhase::new(FibrePhaseParams {
+        h_nodes: 300,
+        ..Default::default()
+    })
+    .unwrap_err()
+    .to_string()
+    .contains("`h_nodes`"));
+    // Automatic node count: ⌈10/β_n⌉, even, in [8, 128].
+    let auto = |b: f32| {
+        phase(FibrePhaseParams {
+            beta_n: b,
+            ..Default::default()
+        })
+        .h_node_count()
+    };
+    assert_eq!(
+        (auto(0.3), auto(0.15), auto(1.0), auto(0.01)),
+        (34, 68, 10, 128)
+    );
+    assert_eq!(
+        phase(FibrePhaseParams {
+            h_nodes: 5,
+            ..Default::default()
+        })
+        .h_node_count(),
+        5
+    );
     assert!(SggxFibrePhase::new(Vec3::Z, 0.0, Rgb::ONE).is_err());
     assert!(SggxFibrePhase::new(Vec3::new(0.0, 0.0, 2.0), 0.5, Rgb::ONE).is_err());
 }
