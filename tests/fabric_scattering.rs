@@ -525,3 +525,34 @@ fn fabric_shading_by_yarn_id() {
     assert_eq!(sh.for_yarn(YarnId::Warp(5)), &sh.warp);
     assert_eq!(sh.for_yarn(YarnId::Pile), &sh.pile);
 }
+
+/// Degenerate tangents give zero, and the model does not depend on the tangent's sign or length.
+#[test]
+fn tangent_sign_and_degenerate_tangents() {
+    let ph = phase(
+        FibrePhaseParams {
+            alpha: 0.0,
+            ..Default::default()
+        }
+        .with_colour(Rgb::new(0.7, 0.5, 0.3)),
+    );
+    let mut rng = Rng::new(8, 8);
+    for _ in 0..200 {
+        let t = velour::sampling::sample_uniform_sphere(rng.next_2d());
+        let wo = velour::sampling::sample_uniform_sphere(rng.next_2d());
+        let wi = velour::sampling::sample_uniform_sphere(rng.next_2d());
+        let a = ph.eval(wo, wi, t);
+        let b = ph.eval(wo, wi, -t);
+        let c = ph.eval(wo, wi, 3.0 * t);
+        for k in 0..3 {
+            assert!(
+                (a.0[k] - b.0[k]).abs() <= 1e-3 * a.0[k].max(1e-3),
+                "{a:?} {b:?}"
+            );
+            assert!((a.0[k] - c.0[k]).abs() <= 1e-4 * a.0[k].max(1e-3));
+        }
+    }
+    assert_eq!(ph.eval(Vec3::X, Vec3::Y, Vec3::ZERO), Rgb::ZERO);
+    assert_eq!(ph.pdf(Vec3::X, Vec3::Y, Vec3::NAN), 0.0);
+    assert!(ph.sample(Vec3::X, Vec3::ZERO, [0.5; 4]).is_none());
+}

@@ -518,3 +518,43 @@ fn velvet_pile_tufts() {
         .count();
     assert_eq!(n, (patch.weft_count * 2 * 2 * 2) as usize);
 }
+
+/// With `snap_pitches`, regular fibres join up across the tile seam (period = tile).
+#[test]
+fn snapped_regular_fibres_are_periodic() {
+    for name in ["plain", "twill31", "satin"] {
+        let mut p = WeaveParams::new(WeavePattern::from_name(name).unwrap(), small_yarn());
+        p.flyaway_fraction = 0.0;
+        let patch = generate_patch(&p, 3).unwrap();
+        let mut worst = 0.0f32;
+        for f in &patch.fibres {
+            let a = f.fibre.points[0];
+            let b = *f.fibre.points.last().unwrap();
+            let shift = match f.yarn {
+                YarnId::Warp(_) => velour::math::Vec3::new(0.0, patch.tile.y, 0.0),
+                YarnId::Weft(_) => velour::math::Vec3::new(patch.tile.x, 0.0, 0.0),
+                YarnId::Pile => unreachable!(),
+            };
+            worst = worst.max((b - a - shift).length());
+        }
+        // Float rounding only (the fibre radius is 8e-4).
+        assert!(worst < 2e-4, "{name}: seam gap {worst}");
+        // Without snapping the seam is open.
+        let mut q = p.clone();
+        q.snap_pitches = false;
+        let patch = generate_patch(&q, 3).unwrap();
+        // Off-axis gap between a fibre's two ends (warps run along y, wefts along x).
+        let open = patch
+            .fibres
+            .iter()
+            .map(|f| {
+                let d = *f.fibre.points.last().unwrap() - f.fibre.points[0];
+                match f.yarn {
+                    YarnId::Warp(_) => d.x.abs().max(d.z.abs()),
+                    _ => d.y.abs().max(d.z.abs()),
+                }
+            })
+            .fold(0.0f32, f32::max);
+        assert!(open > 1e-3, "{name}: unsnapped seam unexpectedly closed");
+    }
+}

@@ -274,6 +274,13 @@ struct Angles {
     phi: f32,
 }
 
+/// Frame around the (re-normalised) tangent; `None` for a zero or non-finite tangent.
+/// The model is symmetric under `t → −t`, so a voxeliser may average tangents as `t tᵀ`.
+fn tangent_frame(t: Vec3) -> Option<Frame> {
+    let t = t.try_normalize()?;
+    Some(Frame::from_normal(t))
+}
+
 fn angles(frame: &Frame, w: Vec3) -> Angles {
     let l = frame.to_local(w);
     let sin_t = l.z.clamp(-1.0, 1.0);
@@ -362,7 +369,7 @@ impl FibrePhase {
         };
         let nodes = (0..n)
             .map(|k| {
-                if 2 * k + 1 <= n {
+                if 2 * k < n {
                     node(k)
                 } else {
                     let (h, g, c) = node(n - 1 - k);
@@ -471,7 +478,9 @@ impl FibrePhase {
 
     /// Evaluates value (RGB) and pdf together.
     fn eval_pdf(&self, wo: Vec3, wi: Vec3, tangent: Vec3) -> (Rgb, f32) {
-        let frame = Frame::from_normal(tangent);
+        let Some(frame) = tangent_frame(tangent) else {
+            return (Rgb::ZERO, 0.0);
+        };
         let o = angles(&frame, wo);
         let i = angles(&frame, wi);
         let m = self.mp(&o, &i);
@@ -514,7 +523,9 @@ impl FibrePhase {
         (value, pdf / n_nodes as f32)
     }
 
-    /// Phase function value (RGB, per unit solid angle of `wi`), averaged over `h`.
+    /// Phase function value (RGB, per unit solid angle of `wi`), averaged over `h`. The
+    /// tangent is re-normalised; a zero or non-finite tangent gives zero (and `pdf` 0,
+    /// `sample` `None`). The value is unchanged by `t → −t`.
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3, tangent: Vec3) -> Rgb {
         self.eval_pdf(wo, wi, tangent).0
@@ -532,7 +543,7 @@ impl FibrePhase {
     /// surface normal). `None` when every lobe is black or the direction is degenerate.
     #[must_use]
     pub fn sample(&self, wo: Vec3, tangent: Vec3, u: [f32; 4]) -> Option<FibreSample> {
-        let frame = Frame::from_normal(tangent);
+        let frame = tangent_frame(tangent)?;
         let o = angles(&frame, wo);
         let n_nodes = self.nodes.len();
         let k = ((u[0] * n_nodes as f32) as usize).min(n_nodes - 1);

@@ -719,6 +719,11 @@ impl Centreline {
                 reason: format!("needs at least 2 points, got {}", points.len()),
             });
         }
+        if !up.is_finite() {
+            return Err(FabricError::InvalidCentreline {
+                reason: format!("`up` = {up:?} is not finite"),
+            });
+        }
         if points.iter().any(|p| !p.is_finite()) {
             return Err(FabricError::InvalidCentreline {
                 reason: "non-finite point".into(),
