@@ -514,9 +514,12 @@ fn redraw(d: NormalDist, rng: &mut Rng, ok: impl Fn(f32) -> bool, fallback: f32)
 }
 
 /// Generates a straight yarn along `+z` from `z = 0` to `z = length`, deterministic in
-/// `seed`. The number of hairs and loops per ply is Poisson with mean `ρ·length` (positions
-/// from a Poisson process); hairs are cropped to `[0, length]` and dropped if fewer than two
-/// vertices remain.
+/// `seed`. Hair and loop events per ply come from Poisson processes of rates `ρ_hair` and
+/// `ρ_loop` (so their counts are Poisson with mean `ρ·length`). Hairs are cropped to
+/// `[0, length]` and dropped if fewer than two vertices remain. A loop event raises the
+/// migration period of a random fibre around it to `R_max^loop`; loops never overlap (an
+/// event landing on a period that already has a loop re-picks the fibre, up to 16 times,
+/// then is dropped), so loop counts saturate at one per fibre per migration period.
 pub fn generate_yarn(params: &YarnParams, length: f32, seed: u64) -> Result<Yarn, FabricError> {
     params.validate()?;
     check_positive("length", length, 1.0e6)?;
