@@ -447,3 +447,51 @@ fn twist_is_mapped_to_arc_length() {
     // Twist phase after the whole centreline = length/α·2π (fibre frame only).
     assert!(y.length == c.length());
 }
+
+mod never_panics {
+    use proptest::prelude::*;
+    use velour::fabric::{generate_patch, generate_yarn, WeaveParams, WeavePattern, YarnParams};
+
+    fn weird() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(-1.0f32),
+            Just(0.0f32),
+            Just(1e-30f32),
+            Just(1e30f32),
+            0.0f32..2.0,
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
+        #[test]
+        fn bad_yarn_values_error_not_panic(
+            a in weird(), b in weird(), c in weird(), d in weird(), e in weird(),
+            f in weird(), g in weird(), k in 0u32..5, m in 0u32..6, len in weird(),
+        ) {
+            let mut p = YarnParams::preset("cotton2").unwrap();
+            p.ply_count = k;
+            p.fibres_per_ply = m;
+            p.ellipse_x = a;
+            p.fibre_pitch = b.max(0.05);
+            p.epsilon = c;
+            p.beta = d;
+            p.r_min = e;
+            p.hair_r_span.mean = f;
+            p.loop_r_max.std_dev = g;
+            let r = generate_yarn(&p, len.min(2.0), 1);
+            if let Ok(y) = r {
+                prop_assert!(y.fibres.iter().all(|f| f.points.iter().all(|q| q.is_finite())));
+            }
+            let mut w = WeaveParams::new(WeavePattern::Plain, YarnParams::preset("cotton2").unwrap());
+            w.warp_yarn.fibres_per_ply = 2;
+            w.weft_yarn.fibres_per_ply = 2;
+            w.warp_spacing = a;
+            w.warp_height = b;
+            w.flyaway_fraction = c;
+            let _ = generate_patch(&w, 2);
+        }
+    }
+}
