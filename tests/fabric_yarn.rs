@@ -241,7 +241,18 @@ fn fibre_twist_returns_after_one_pitch() {
             "{quarter}"
         );
     }
-    assert_eq!(p.fibre_twist, Twist::Z);
+    assert_eq!(p.fibre_twist, Twist::S);
+    // Twist flags of the released configs: rayon1/3/4 have S plies, the others Z plies.
+    for (name, ply) in [
+        ("cotton1", Twist::Z),
+        ("polyester1", Twist::Z),
+        ("rayon1", Twist::S),
+        ("rayon3", Twist::S),
+        ("rayon4", Twist::S),
+        ("silk2", Twist::Z),
+    ] {
+        assert_eq!(YarnParams::preset(name).unwrap().ply_twist, ply, "{name}");
+    }
 }
 
 #[test]
