@@ -558,3 +558,34 @@ fn snapped_regular_fibres_are_periodic() {
         assert!(open > 1e-3, "{name}: unsnapped seam unexpectedly closed");
     }
 }
+
+#[test]
+fn obj_export_lists_every_vertex() {
+    let mut p = WeaveParams::new(WeavePattern::Plain, small_yarn());
+    p.repeats = [1, 1];
+    let patch = generate_patch(&p, 2).unwrap();
+    let mut buf = Vec::new();
+    patch.write_obj(&mut buf).unwrap();
+    let text = String::from_utf8(buf).unwrap();
+    let verts: usize = patch.fibres.iter().map(|f| f.fibre.points.len()).sum();
+    assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), verts);
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("l ")).count(),
+        patch.fibres.len()
+    );
+    assert!(text.contains("g warp_0") && text.contains("g weft_1"));
+    let last = text.lines().rev().find(|l| l.starts_with("l ")).unwrap();
+    assert_eq!(last.split(' ').next_back().unwrap(), verts.to_string());
+    // I/O failures become errors that say what was being written.
+    struct Fail;
+    impl std::io::Write for Fail {
+        fn write(&mut self, _: &[u8]) -> std::io::Result<usize> {
+            Err(std::io::Error::other("disk full"))
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let e = patch.write_obj(&mut Fail).unwrap_err().to_string();
+    assert!(e.contains("OBJ") && e.contains("disk full"), "{e}");
+}

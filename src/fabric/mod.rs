@@ -91,6 +91,14 @@ pub enum FabricError {
         /// What is wrong.
         reason: String,
     },
+    /// Writing an export failed.
+    #[error("could not write {what}: {reason}")]
+    Io {
+        /// What was being written.
+        what: String,
+        /// The I/O error.
+        reason: String,
+    },
 }
 
 /// Builds an [`FabricError::InvalidParameter`].

@@ -690,6 +690,46 @@ pub struct FabricPatch {
 }
 
 impl FabricPatch {
+    /// Writes the fibres as Wavefront OBJ polylines (`v` and `l` records), one group per
+    /// yarn (`g warp_3`, `g weft_0`, `g pile`), for inspection in any 3D viewer. Units are the
+    /// patch's (cm for the presets).
+    pub fn write_obj(&self, out: &mut impl std::io::Write) -> Result<(), FabricError> {
+        let io = |e: std::io::Error| FabricError::Io {
+            what: "OBJ fibre export".into(),
+            reason: e.to_string(),
+        };
+        writeln!(
+            out,
+            "# velour fabric patch: {} fibres, tile {} x {}, fibre volume {:e}",
+            self.fibres.len(),
+            self.tile.x,
+            self.tile.y,
+            self.fibre_volume
+        )
+        .map_err(io)?;
+        let mut base = 1usize;
+        let mut group: Option<YarnId> = None;
+        for f in &self.fibres {
+            if group != Some(f.yarn) {
+                let name = match f.yarn {
+                    YarnId::Warp(j) => format!("warp_{j}"),
+                    YarnId::Weft(i) => format!("weft_{i}"),
+                    YarnId::Pile => "pile".to_string(),
+                };
+                writeln!(out, "g {name}").map_err(io)?;
+                group = Some(f.yarn);
+            }
+            for q in &f.fibre.points {
+                writeln!(out, "v {} {} {}", q.x, q.y, q.z).map_err(io)?;
+            }
+            let n = f.fibre.points.len();
+            let idx: Vec<String> = (base..base + n).map(|k| k.to_string()).collect();
+            writeln!(out, "l {}", idx.join(" ")).map_err(io)?;
+            base += n;
+        }
+        Ok(())
+    }
+
     /// Albedo of the fibres of a yarn (warp and weft take their own, course notes §3.4).
     #[must_use]
     pub fn albedo(&self, id: YarnId) -> Rgb {
