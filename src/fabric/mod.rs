@@ -1,1 +1,129 @@
-//! (in progress)
+//! Procedural fabric: yarns, weaves, velvet pile and fibre scattering.
+//!
+//! The generator half of the fabric pipeline of the course notes (§3, "Volumetric Skin and
+//! Fabric Shading at Framestore"):
+//!
+//! * [`yarn`]: the procedural yarn model of Zhao, Luan and Bala 2016 ("Fitting Procedural
+//!   Yarn Models for Realistic Cloth Rendering"): plies twisted around the yarn axis, fibres
+//!   over each ply's cross-section with twist and migration, loop and hair flyaways; named
+//!   presets from the published fits; yarns placed on arbitrary centrelines with a
+//!   rotation-minimising frame.
+//! * [`weave`]: weave patterns as binary matrices (plain, twill, basket, satin, velvet),
+//!   warp/weft centrelines with a cosine ease, and [`weave::generate_patch`], which returns a
+//!   periodic patch of tagged fibres ([`weave::YarnId`]) ready for voxelisation.
+//! * [`fibre_scattering`]: the Chiang et al. 2016 fibre scattering model (R, TT, TRT and the
+//!   residual lobe) plus a Lambertian-cylinder diffuse lobe, as a phase function of fibre
+//!   volumes, and an SGGX fibre microflake alternative.
+//!
+//! Lengths: the yarn presets are in **centimetres** (the units of the released fits); every
+//! length in this module is in the same unit as the yarn parameters it came from. Use
+//! [`yarn::YarnParams::scaled`] to convert to scene units.
+
+pub mod fibre_scattering;
+pub mod weave;
+pub mod yarn;
+
+pub use fibre_scattering::{
+    FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, SggxFibrePhase, SggxSample,
+};
+pub use weave::{
+    generate_patch, FabricPatch, FabricShading, PatchFibre, PileParams, TwillDirection,
+    WeaveMatrix, WeaveParams, WeavePattern, YarnId,
+};
+pub use yarn::{
+    generate_yarn, generate_yarn_on_centreline, Centreline, CentrelineFrame, Fibre, FibreKind,
+    NormalDist, Twist, Yarn, YarnParams,
+};
+
+/// Errors of the fabric generator. Every message names the offending parameter (or
+/// preset/pattern name) and the allowed range or values.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FabricError {
+    /// A numeric parameter is outside its allowed range.
+    #[error("fabric parameter `{name}` = {value} is invalid: allowed {allowed}")]
+    InvalidParameter {
+        /// Parameter name, as spelt in the Rust struct (e.g. `yarn.ply_count`).
+        name: String,
+        /// The rejected value, formatted.
+        value: String,
+        /// The allowed range or values.
+        allowed: String,
+    },
+    /// A yarn preset name is unknown.
+    #[error("unknown yarn preset `{name}`: allowed {allowed}")]
+    UnknownPreset {
+        /// The requested name.
+        name: String,
+        /// The known names.
+        allowed: String,
+    },
+    /// A weave pattern name is unknown.
+    #[error("unknown weave pattern `{name}`: allowed {allowed}")]
+    UnknownPattern {
+        /// The requested name.
+        name: String,
+        /// The known names.
+        allowed: String,
+    },
+    /// A weave matrix is not a valid weave (a yarn never interlaces, ragged rows, ...).
+    #[error("invalid weave pattern `{pattern}`: {reason}")]
+    InvalidPattern {
+        /// The pattern (or parameter) concerned.
+        pattern: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The requested geometry would not fit in memory.
+    #[error("fabric parameter `{name}` asks for {count} {what}, more than the limit of {limit}")]
+    TooLarge {
+        /// The parameter that drives the size.
+        name: String,
+        /// What is being counted (fibres, vertices).
+        what: String,
+        /// The estimated count.
+        count: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// A centreline is unusable (fewer than two distinct points, non-finite values).
+    #[error("invalid centreline: {reason}")]
+    InvalidCentreline {
+        /// What is wrong.
+        reason: String,
+    },
+    /// Writing an export failed.
+    #[error("could not write {what}: {reason}")]
+    Io {
+        /// What was being written.
+        what: String,
+        /// The I/O error.
+        reason: String,
+    },
+}
+
+/// Builds an [`FabricError::InvalidParameter`].
+pub(crate) fn invalid(name: &str, value: impl std::fmt::Display, allowed: &str) -> FabricError {
+    FabricError::InvalidParameter {
+        name: name.to_string(),
+        value: value.to_string(),
+        allowed: allowed.to_string(),
+    }
+}
+
+/// Checks `lo <= x <= hi` (and finiteness); `name` and `allowed` go into the error.
+pub(crate) fn check_range(name: &str, x: f32, lo: f32, hi: f32) -> Result<(), FabricError> {
+    if x.is_finite() && x >= lo && x <= hi {
+        Ok(())
+    } else {
+        Err(invalid(name, x, &format!("[{lo}, {hi}]")))
+    }
+}
+
+/// Checks `0 < x <= hi` (and finiteness).
+pub(crate) fn check_positive(name: &str, x: f32, hi: f32) -> Result<(), FabricError> {
+    if x.is_finite() && x > 0.0 && x <= hi {
+        Ok(())
+    } else {
+        Err(invalid(name, x, &format!("(0, {hi}]")))
+    }
+}
