@@ -12,7 +12,7 @@ fn tmp(name: &str) -> PathBuf {
         .join(format!("diff_cli_{}_{name}", std::process::id()))
 }
 
-fn render(path: &PathBuf, w: u32, h: u32, seed: u64, scale: f32) {
+fn render(path: &std::path::Path, w: u32, h: u32, seed: u64, scale: f32) {
     let mut film = Film::new(w, h).unwrap();
     for y in 0..h {
         for x in 0..w {

@@ -250,7 +250,7 @@ fn error_maps_use_z_scores_when_variances_exist_else_absolute_error() {
     let mut plain_b = ExrImage::new(w, h);
     plain_a.insert_rgb("", &t);
     let mut tb = t.clone();
-    tb[7] = tb[7] + 0.5;
+    tb[7] += 0.5;
     plain_b.insert_rgb("", &tb);
     let m = error_map(&plain_a, &plain_b, "", Some(0.25)).unwrap();
     assert_eq!(m.mode, ErrorMapMode::AbsoluteError);

@@ -320,7 +320,9 @@ impl Prepared<'_> {
         }
         let na = self.a.samples.map(|s| f64::from(s[i]));
         let nb = self.b.samples.map(|s| f64::from(s[i]));
-        if na.is_some_and(|n| !(n >= 2.0)) || nb.is_some_and(|n| !(n >= 2.0)) {
+        // (NaN counts are caught too: they are not >= 2.)
+        let too_few = |n: Option<f64>| n.is_some_and(|n| n.is_nan() || n < 2.0);
+        if too_few(na) || too_few(nb) {
             return None;
         }
         let var = va + vb;
@@ -765,7 +767,7 @@ pub fn normal_two_sided_tail(z: f64) -> f64 {
 /// normal tail).
 #[must_use]
 pub fn student_t_two_sided_tail(t: f64, dof: f64) -> f64 {
-    if t.is_nan() || !(dof > 0.0) {
+    if t.is_nan() || dof.is_nan() || dof <= 0.0 {
         return 1.0;
     }
     if t.is_infinite() {
