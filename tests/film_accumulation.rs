@@ -328,3 +328,40 @@ fn film_restored_from_its_exr_continues_the_render() {
         Err(FilmError::Restore(_))
     ));
 }
+
+/// Fills the tiles of each pass in parallel on a pool of `threads` threads and merges them in
+/// completion order (whatever order the workers finish in).
+fn render_parallel(w: u32, h: u32, threads: usize) -> Film {
+    use rayon::prelude::*;
+    use std::sync::Mutex;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let film = Mutex::new(Film::new(w, h).unwrap());
+    for pass in 0..2u32 {
+        let tiles = film.lock().unwrap().tiles(6).unwrap();
+        pool.install(|| {
+            tiles.into_par_iter().for_each(|mut t| {
+                for y in t.y0()..t.y0() + t.height() {
+                    for x in t.x0()..t.x0() + t.width() {
+                        for s in pass * 3..(pass + 1) * 3 {
+                            t.add_sample(x, y, &sample(x, y, s));
+                        }
+                    }
+                }
+                film.lock().unwrap().merge_tile(&t).unwrap();
+            });
+        });
+    }
+    film.into_inner().unwrap()
+}
+
+#[test]
+fn thread_count_does_not_change_a_bit() {
+    let (w, h) = (31, 17);
+    let one = exr_bits(&render_parallel(w, h, 1), "par1.exr");
+    let four = exr_bits(&render_parallel(w, h, 4), "par4.exr");
+    let sequential = exr_bits(&render_tiled(w, h, 6, 2, 3, 0), "seq.exr");
+    assert!(one == four && one == sequential);
+}
