@@ -181,7 +181,6 @@ struct Prepared<'a> {
     a: Side<'a>,
     b: Side<'a>,
     pixels: usize,
-    width: u32,
 }
 
 /// The channel names compared for a layer: its R/G/B (or X/Y/Z) triple when present, else all
@@ -282,7 +281,6 @@ fn prepare<'a>(
         a: sa,
         b: sb,
         pixels,
-        width: a.width,
     })
 }
 
@@ -609,7 +607,7 @@ pub fn error_map(
     };
     Ok(ErrorMap {
         width: a.width,
-        height: p.pixels.checked_div(p.width as usize).unwrap_or(0) as u32,
+        height: a.height,
         rgb8,
         mode,
         scale: used_scale,
