@@ -29,6 +29,7 @@ struct Descriptor {
 #[derive(Clone, Debug)]
 pub struct VdbFile {
     path: PathBuf,
+    bytes: Option<std::sync::Arc<Vec<u8>>>,
     len: u64,
     /// File format version (e.g. 224).
     pub version: u32,
@@ -48,18 +49,42 @@ fn io_err(path: &Path, source: std::io::Error) -> VdbError {
     }
 }
 
-fn read_range(f: &mut File, path: &Path, start: u64, len: usize) -> Result<Vec<u8>, VdbError> {
-    f.seek(SeekFrom::Start(start))
-        .map_err(|e| io_err(path, e))?;
-    let mut v = vec![0u8; len];
-    f.read_exact(&mut v).map_err(|e| io_err(path, e))?;
-    Ok(v)
+/// Where the bytes of a VDB file come from.
+enum Source<'a> {
+    File(File),
+    Bytes(&'a [u8]),
+}
+
+fn read_range(
+    f: &mut Source<'_>,
+    path: &Path,
+    start: u64,
+    len: usize,
+) -> Result<Vec<u8>, VdbError> {
+    match f {
+        Source::File(f) => {
+            f.seek(SeekFrom::Start(start))
+                .map_err(|e| io_err(path, e))?;
+            let mut v = vec![0u8; len];
+            f.read_exact(&mut v).map_err(|e| io_err(path, e))?;
+            Ok(v)
+        }
+        Source::Bytes(b) => usize::try_from(start)
+            .ok()
+            .and_then(|s| b.get(s..s.checked_add(len)?))
+            .map(<[u8]>::to_vec)
+            .ok_or_else(|| VdbError::Format {
+                path: path.to_path_buf(),
+                offset: start,
+                msg: "range beyond the data".into(),
+            }),
+    }
 }
 
 /// Parses with `parse` from a chunk of the file at `start`, growing the chunk while the
 /// parser runs out of bytes and the file has more.
 fn parse_growing<T>(
-    f: &mut File,
+    f: &mut Source<'_>,
     path: &Path,
     file_len: u64,
     start: u64,
@@ -190,8 +215,41 @@ impl VdbFile {
     /// header.
     pub fn open(path: impl AsRef<Path>) -> Result<VdbFile, VdbError> {
         let path = path.as_ref();
-        let mut f = File::open(path).map_err(|e| io_err(path, e))?;
+        let f = File::open(path).map_err(|e| io_err(path, e))?;
         let len = f.metadata().map_err(|e| io_err(path, e))?.len();
+        Self::parse_header(path, Source::File(f), len, None)
+    }
+
+    /// Reads a VDB file held in memory; `name` stands for the file's path in messages.
+    ///
+    /// # Errors
+    /// As [`VdbFile::open`].
+    pub fn from_bytes(name: impl AsRef<Path>, bytes: Vec<u8>) -> Result<VdbFile, VdbError> {
+        let bytes = std::sync::Arc::new(bytes);
+        let len = bytes.len() as u64;
+        Self::parse_header(
+            name.as_ref(),
+            Source::Bytes(&bytes.clone()),
+            len,
+            Some(bytes),
+        )
+    }
+
+    fn source(&self) -> Result<Source<'_>, VdbError> {
+        match &self.bytes {
+            Some(b) => Ok(Source::Bytes(b)),
+            None => File::open(&self.path)
+                .map(Source::File)
+                .map_err(|e| io_err(&self.path, e)),
+        }
+    }
+
+    fn parse_header(
+        path: &Path,
+        mut f: Source<'_>,
+        len: u64,
+        bytes: Option<std::sync::Arc<Vec<u8>>>,
+    ) -> Result<VdbFile, VdbError> {
         let (version, library_version, uuid, metadata, count, first) = parse_growing(
             &mut f,
             path,
@@ -263,6 +321,7 @@ impl VdbFile {
         }
         Ok(VdbFile {
             path: path.to_path_buf(),
+            bytes,
             len,
             version,
             library_version,
@@ -331,7 +390,7 @@ impl VdbFile {
                 grid: d.name.clone(),
                 type_name: d.type_name.clone(),
             })?;
-        let mut f = File::open(&self.path).map_err(|e| io_err(&self.path, e))?;
+        let mut f = self.source()?;
         let bytes = read_range(
             &mut f,
             &self.path,
