@@ -7,12 +7,16 @@ use std::path::PathBuf;
 use velour::vdb::{read_vdb, GridStats, VdbError, VdbFile, VdbGrid};
 
 fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/vdb").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/vdb")
+        .join(name)
 }
 
 fn truth() -> Vec<Value> {
     let text = std::fs::read_to_string(data("truth.jsonl")).expect("truth.jsonl");
-    text.lines().map(|l| serde_json::from_str(l).expect("json line")).collect()
+    text.lines()
+        .map(|l| serde_json::from_str(l).expect("json line"))
+        .collect()
 }
 
 fn f(v: &Value) -> f64 {
@@ -26,27 +30,65 @@ fn arr3(v: &Value) -> [f64; 3] {
 
 fn close(a: f64, b: f64, rel: f64, what: &str) {
     let tol = rel * a.abs().max(b.abs()).max(1e-300);
-    assert!((a - b).abs() <= tol, "{what}: ours {a} vs OpenVDB {b} (tolerance {tol})");
+    assert!(
+        (a - b).abs() <= tol,
+        "{what}: ours {a} vs OpenVDB {b} (tolerance {tol})"
+    );
 }
 
 fn check_grid(t: &Value, g: &VdbGrid, s: &GridStats) {
     let file = t["file"].as_str().unwrap_or("?");
     let w = |k: &str| format!("{file} {k}");
     assert_eq!(g.name, t["name"].as_str().unwrap(), "{}", w("name"));
-    assert_eq!(g.value_type.name(), t["type"].as_str().unwrap(), "{}", w("type"));
+    assert_eq!(
+        g.value_type.name(),
+        t["type"].as_str().unwrap(),
+        "{}",
+        w("type")
+    );
     assert_eq!(g.class, t["class"].as_str().unwrap(), "{}", w("class"));
-    assert_eq!(g.map.type_name(), t["map"].as_str().unwrap(), "{}", w("map"));
-    assert_eq!(g.saved_as_half, t["save_half"].as_bool().unwrap(), "{}", w("save_half"));
+    assert_eq!(
+        g.map.type_name(),
+        t["map"].as_str().unwrap(),
+        "{}",
+        w("map")
+    );
+    assert_eq!(
+        g.saved_as_half,
+        t["save_half"].as_bool().unwrap(),
+        "{}",
+        w("save_half")
+    );
     assert_eq!(
         velour::cli::inspect::compression_name(g.compression_flags),
         t["file_compression"].as_str().unwrap(),
         "{}",
         w("compression")
     );
-    assert_eq!(s.active_voxels, t["active_voxels"].as_u64().unwrap(), "{}", w("active_voxels"));
-    assert_eq!(s.leaf_count, t["leaf_count"].as_u64().unwrap(), "{}", w("leaf_count"));
-    let by_depth: Vec<u64> = t["active_voxels_by_depth"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
-    assert_eq!(s.active_voxels_by_level.to_vec(), by_depth, "{}", w("by depth"));
+    assert_eq!(
+        s.active_voxels,
+        t["active_voxels"].as_u64().unwrap(),
+        "{}",
+        w("active_voxels")
+    );
+    assert_eq!(
+        s.leaf_count,
+        t["leaf_count"].as_u64().unwrap(),
+        "{}",
+        w("leaf_count")
+    );
+    let by_depth: Vec<u64> = t["active_voxels_by_depth"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!(
+        s.active_voxels_by_level.to_vec(),
+        by_depth,
+        "{}",
+        w("by depth")
+    );
     let bb = t["active_bbox"].as_array().unwrap();
     let lo = arr3(&bb[0]);
     let hi = arr3(&bb[1]);
@@ -68,21 +110,39 @@ fn check_grid(t: &Value, g: &VdbGrid, s: &GridStats) {
         let want = arr3(&t[key]);
         let got = m.transform_point3(p).to_array();
         for k in 0..3 {
-            assert!((got[k] - want[k]).abs() <= 1e-12, "{}: {got:?} vs {want:?}", w(key));
+            assert!(
+                (got[k] - want[k]).abs() <= 1e-12,
+                "{}: {got:?} vs {want:?}",
+                w(key)
+            );
         }
     }
     let n = s.components;
     if n == 1 {
-        assert_eq!(f64::from(g.grid.background(0)), f(&t["background"]), "{}", w("background"));
+        assert_eq!(
+            f64::from(g.grid.background(0)),
+            f(&t["background"]),
+            "{}",
+            w("background")
+        );
         close(s.min[0], f(&t["min"]), 1e-12, &w("min"));
         close(s.max[0], f(&t["max"]), 1e-12, &w("max"));
         close(s.sum[0], f(&t["sum"]), 1e-6, &w("sum"));
         let want = arr3(&t["moment"]);
-        let max_coord = lo.iter().chain(hi.iter()).fold(0.0f64, |m, c| m.max(c.abs())) + 1.0;
+        let max_coord = lo
+            .iter()
+            .chain(hi.iter())
+            .fold(0.0f64, |m, c| m.max(c.abs()))
+            + 1.0;
         let scale = s.sum[0].abs() * max_coord;
         for k in 0..3 {
             let tol = 1e-7 * scale;
-            assert!((s.moment[k] - want[k]).abs() <= tol, "{}: {:?} vs {want:?}", w("moment"), s.moment);
+            assert!(
+                (s.moment[k] - want[k]).abs() <= tol,
+                "{}: {:?} vs {want:?}",
+                w("moment"),
+                s.moment
+            );
         }
     } else {
         let (mn, mx, sm) = (arr3(&t["min"]), arr3(&t["max"]), arr3(&t["sum"]));
@@ -133,7 +193,12 @@ fn half_file_loads_into_f16_storage_exactly() {
 /// value at the same coordinate, and the totals must agree.
 #[test]
 fn vdb_rs_agrees_on_float_files() {
-    for file in ["noise_fbm.vdb", "sphere_fog.vdb", "tiles_internal.vdb", "xform_scaletranslate.vdb"] {
+    for file in [
+        "noise_fbm.vdb",
+        "sphere_fog.vdb",
+        "tiles_internal.vdb",
+        "xform_scaletranslate.vdb",
+    ] {
         let ours = read_vdb(data(file)).unwrap().remove(0);
         let fh = std::fs::File::open(data(file)).unwrap();
         let mut reader = vdb_rs::VdbReader::new(std::io::BufReader::new(fh)).unwrap();
@@ -160,7 +225,10 @@ fn unknown_grid_name_lists_the_grids() {
     let e = f.read_grid("temperature").unwrap_err();
     assert!(matches!(e, VdbError::NoSuchGrid { .. }));
     let msg = e.to_string();
-    assert!(msg.contains("temperature") && msg.contains("density") && msg.contains("sphere_fog.vdb"), "{msg}");
+    assert!(
+        msg.contains("temperature") && msg.contains("density") && msg.contains("sphere_fog.vdb"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -186,8 +254,12 @@ fn non_finite_values_are_reported_and_refused() {
     b.set_value(0, IVec3::new(1, 2, 4), f32::NAN).unwrap();
     b.set_value(0, IVec3::new(9, 2, 4), f32::INFINITY).unwrap();
     let g = b.build();
-    let bytes = write_vdb_to_vec(&[GridToWrite::new("smoke", &g)], &WriteOptions::default()).unwrap();
-    let back = VdbFile::from_bytes("nan.vdb", bytes).unwrap().read_grid("smoke").unwrap();
+    let bytes =
+        write_vdb_to_vec(&[GridToWrite::new("smoke", &g)], &WriteOptions::default()).unwrap();
+    let back = VdbFile::from_bytes("nan.vdb", bytes)
+        .unwrap()
+        .read_grid("smoke")
+        .unwrap();
     let s = back.stats();
     assert_eq!(s.non_finite, 2);
     assert_eq!(s.max[0], 0.5);
