@@ -226,6 +226,8 @@ impl SparseGridBuilder {
             let n = ch.kind.components();
             let tv = &ch.tile_values[t * n..t * n + n];
             match &mut ch.values {
+                Values::F32(v) if n == 1 => v.resize(v.len() + BRICK_VOXELS, tv[0]),
+                Values::F16(v) if n == 1 => v.resize(v.len() + BRICK_VOXELS, f16::from_f32(tv[0])),
                 Values::F32(v) => {
                     for _ in 0..BRICK_VOXELS {
                         v.extend_from_slice(tv);

@@ -141,6 +141,7 @@ pub fn read_data<'a>(
     nbytes: usize,
     compression: u32,
     scratch: &mut Vec<u8>,
+    tmp: &mut Vec<u8>,
 ) -> Result<Option<&'a [u8]>, VdbError> {
     if compression & (COMPRESS_BLOSC | COMPRESS_ZIP) == 0 {
         return r.take(nbytes, "node values").map(Some);
@@ -166,7 +167,7 @@ pub fn read_data<'a>(
         msg,
     };
     if compression & COMPRESS_BLOSC != 0 {
-        *scratch = blosc::decompress(src, nbytes).map_err(fail)?;
+        blosc::decompress_into(src, nbytes, scratch, tmp).map_err(fail)?;
     } else {
         scratch.clear();
         scratch.resize(nbytes, 0);
@@ -197,6 +198,7 @@ pub struct ValueCodec {
     pub compression: u32,
     pub background: [f32; 3],
     pub scratch: Vec<u8>,
+    pub tmp: Vec<u8>,
     pub temp: Vec<f32>,
 }
 
@@ -252,7 +254,13 @@ impl ValueCodec {
             let bytes: &[u8] = if self.half && temp_count == 0 {
                 &[]
             } else {
-                match read_data(r, temp_count * elem, self.compression, &mut self.scratch)? {
+                match read_data(
+                    r,
+                    temp_count * elem,
+                    self.compression,
+                    &mut self.scratch,
+                    &mut self.tmp,
+                )? {
                     Some(b) => b,
                     None => &self.scratch,
                 }

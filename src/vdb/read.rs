@@ -513,6 +513,7 @@ fn read_tree(
         compression,
         background: bg,
         scratch: Vec::new(),
+        tmp: Vec::new(),
         temp: Vec::new(),
     };
     let bgs = &bg[..n];
