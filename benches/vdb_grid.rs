@@ -12,31 +12,83 @@ use std::time::Instant;
 use velour::sampling::Rng;
 use velour::vdb::VdbFile;
 
-fn best_of<T>(n: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
+/// On-CPU time of the calling thread in seconds (Linux `/proc/thread-self/schedstat`):
+/// on a shared machine it excludes the time other processes hold the core.
+fn thread_cpu() -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| {
+            s.split_whitespace()
+                .next()
+                .and_then(|x| x.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |ns| ns * 1e-9)
+}
+
+/// A wall-clock and on-CPU duration, seconds.
+#[derive(Clone, Copy)]
+struct Time {
+    wall: f64,
+    cpu: f64,
+}
+
+fn best_of<T>(n: usize, mut f: impl FnMut() -> T) -> (Time, T) {
+    let mut best = Time {
+        wall: f64::INFINITY,
+        cpu: f64::INFINITY,
+    };
     let mut out = None;
     for _ in 0..n {
         let t = Instant::now();
+        let c = thread_cpu();
         let r = f();
-        best = best.min(t.elapsed().as_secs_f64());
+        best.cpu = best.cpu.min(thread_cpu() - c);
+        best.wall = best.wall.min(t.elapsed().as_secs_f64());
         out = Some(r);
     }
     (best, out.expect("n > 0"))
 }
 
-fn run_vdb_print(args: &[&str]) -> f64 {
+/// Runs `vdb_print` (delayed loading off, so every leaf is read and decompressed) under
+/// `/usr/bin/time`; returns wall and user+system CPU time (10 ms resolution).
+fn run_vdb_print(args: &[&str]) -> Time {
+    let log = std::env::temp_dir().join(format!("velour_bench_time_{}", std::process::id()));
     let t = Instant::now();
-    let out = Command::new("vdb_print")
+    let out = Command::new("/usr/bin/time")
+        .arg("-f")
+        .arg("%U %S")
+        .arg("-o")
+        .arg(&log)
+        .arg("vdb_print")
         .args(args)
         .env("OPENVDB_DISABLE_DELAYED_LOAD", "1")
         .output()
-        .expect("vdb_print (Debian libopenvdb-tools) is needed for the load comparison");
+        .expect("vdb_print (Debian libopenvdb-tools) and /usr/bin/time are needed");
+    let wall = t.elapsed().as_secs_f64();
     assert!(
         out.status.success(),
         "vdb_print failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    t.elapsed().as_secs_f64()
+    let text = std::fs::read_to_string(&log).unwrap_or_default();
+    let cpu: f64 = text
+        .split_whitespace()
+        .filter_map(|x| x.parse::<f64>().ok())
+        .sum();
+    Time { wall, cpu }
+}
+
+fn best(n: usize, args: &[&str]) -> Time {
+    let mut b = Time {
+        wall: f64::INFINITY,
+        cpu: f64::INFINITY,
+    };
+    for _ in 0..n {
+        let t = run_vdb_print(args);
+        b.wall = b.wall.min(t.wall);
+        b.cpu = b.cpu.min(t.cpu);
+    }
+    b
 }
 
 fn main() {
@@ -66,46 +118,44 @@ fn main() {
             .and_then(|f| f.read_all())
             .expect("read")
     });
-    let vdb_print = (0..5)
-        .map(|_| run_vdb_print(&[p]))
-        .fold(f64::INFINITY, f64::min);
-    let startup = (0..5)
-        .map(|_| run_vdb_print(&[tiny]))
-        .fold(f64::INFINITY, f64::min);
+    let vdb_print = best(5, &[p]);
+    let startup = best(5, &[tiny]);
     let (ours_stats, _) = best_of(3, || {
         let g = VdbFile::open(&path)
             .and_then(|f| f.read_all())
             .expect("read");
         g[0].stats()
     });
-    let vdb_print_l = (0..3)
-        .map(|_| run_vdb_print(&["-l", p]))
-        .fold(f64::INFINITY, f64::min);
+    let vdb_print_l = best(3, &["-l", p]);
     let g = &grids[0];
     let s = g.stats();
     println!(
         "grid '{}': {} active voxels, {} leaves",
         g.name, s.active_voxels, s.leaf_count
     );
-    println!("load (read every grid), best of 5:");
-    println!("  velour read_all           {:8.1} ms", ours_load * 1e3);
+    let ms = |t: Time| format!("{:8.1} ms wall, {:8.1} ms CPU", t.wall * 1e3, t.cpu * 1e3);
+    println!("load (read every grid; best of 5):");
+    println!("  velour read_all            {}", ms(ours_load));
+    println!("  vdb_print (no delay-load)  {}", ms(vdb_print));
     println!(
-        "  vdb_print (no delay-load) {:8.1} ms  (process start-up {:.1} ms, measured on a 16 KB file)",
-        vdb_print * 1e3,
-        startup * 1e3
+        "  vdb_print on a 16 KB file  {}  (process start-up)",
+        ms(startup)
     );
     println!(
-        "  ratio vdb_print / velour   {:.2}x   (start-up removed: {:.2}x)",
-        vdb_print / ours_load,
-        (vdb_print - startup) / ours_load
+        "  ratio vdb_print / velour, start-up removed: wall {:.2}x, CPU {:.2}x",
+        (vdb_print.wall - startup.wall) / ours_load.wall,
+        (vdb_print.cpu - startup.cpu) / ours_load.cpu
     );
-    println!("load + statistics, best of 3:");
-    println!("  velour read_all + stats    {:8.1} ms", ours_stats * 1e3);
-    println!("  vdb_print -l               {:8.1} ms", vdb_print_l * 1e3);
     println!(
-        "  ratio                      {:.2}x   (start-up removed: {:.2}x)",
-        vdb_print_l / ours_stats,
-        (vdb_print_l - startup) / ours_stats
+        "load + statistics (best of 3; velour: counts, min, max, sum, moments, bbox in one \
+         thread; vdb_print -l: counts, min, max, multi-threaded):"
+    );
+    println!("  velour read_all + stats    {}", ms(ours_stats));
+    println!("  vdb_print -l               {}", ms(vdb_print_l));
+    println!(
+        "  ratio, start-up removed: wall {:.2}x, CPU {:.2}x",
+        (vdb_print_l.wall - startup.wall) / ours_stats.wall,
+        (vdb_print_l.cpu - startup.cpu) / ours_stats.cpu
     );
 
     // --- Lookups ---------------------------------------------------------------------
@@ -113,7 +163,7 @@ fn main() {
     let (lo, hi) = grid.active_bbox().expect("non-empty");
     let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
     let mut rng = Rng::new(1, 0);
-    let mut rnd3 = |rng: &mut Rng| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+    let rnd3 = |rng: &mut Rng| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
     // Coherent: rays through the volume, 0.37-voxel steps (as a ray marcher or tracker).
     let mut coherent = Vec::with_capacity(1 << 22);
     while coherent.len() < 1 << 22 {
@@ -147,21 +197,50 @@ fn main() {
         std::hint::black_box(sum)
     });
     let n = coherent.len() as f64;
+    let rate = |t: Time, n: f64| {
+        format!(
+            "{:7.1} M/s wall, {:7.1} M/s on-CPU",
+            n / t.wall / 1e6,
+            n / t.cpu / 1e6
+        )
+    };
     println!(
         "trilinear lookups, one thread, accessor, best of 5 ({} points):",
         coherent.len()
     );
+    println!("  coherent (rays, 0.37-voxel steps)  {}", rate(tc, n));
     println!(
-        "  coherent (rays, 0.37-voxel steps)  {:7.1} M/s",
-        n / tc / 1e6
+        "  random (uniform in the bbox)       {}",
+        rate(tr, random.len() as f64)
     );
+    println!("  coherent, world space (incl. map)  {}", rate(tw, n));
+
+    // The same coherent walk on a small (cache-resident) grid: the cost of the lookup itself.
+    let small = VdbFile::open(root.join("tests/data/vdb/sphere_fog.vdb"))
+        .and_then(|v| v.read_all())
+        .expect("fixture");
+    let sg = &small[0].grid;
+    let (slo, shi) = sg.active_bbox().expect("non-empty");
+    let (slo, shi) = (slo.as_vec3(), shi.as_vec3());
+    let mut small_pts = Vec::with_capacity(1 << 22);
+    while small_pts.len() < 1 << 22 {
+        let o = slo + (shi - slo) * rnd3(&mut rng);
+        let d = (rnd3(&mut rng) - 0.5).normalize_or(Vec3::X);
+        for k in 0..128 {
+            small_pts.push(o + d * (0.37 * k as f32));
+        }
+    }
+    let (ts, _) = best_of(5, || {
+        let mut acc = sg.accessor(0);
+        let mut sum = 0.0f32;
+        for &p in &small_pts {
+            sum += acc.sample_trilinear(p);
+        }
+        std::hint::black_box(sum)
+    });
     println!(
-        "  random (uniform in the bbox)       {:7.1} M/s",
-        random.len() as f64 / tr / 1e6
-    );
-    println!(
-        "  coherent, world space (incl. map)  {:7.1} M/s",
-        n / tw / 1e6
+        "  coherent, sphere_fog fixture (1.6 MB of bricks, cache-resident) {}",
+        rate(ts, small_pts.len() as f64)
     );
 
     // --- Memory ----------------------------------------------------------------------

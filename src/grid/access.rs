@@ -83,6 +83,22 @@ impl<'a> Accessor<'a> {
         e
     }
 
+    /// Like `resolve`, but leaves the brick cache alone (the block cache is updated).
+    #[inline(always)]
+    fn peek(&mut self, key: IVec3) -> u32 {
+        let block_key = key >> (BLOCK_LOG2 - BRICK_LOG2);
+        if block_key != self.block_key {
+            self.block_entry = self.resolve_block(block_key);
+            self.block_key = block_key;
+        }
+        let be = self.block_entry;
+        if be & TILE_BIT != 0 {
+            be
+        } else {
+            self.grid.blocks[be as usize][block_slot(key)]
+        }
+    }
+
     #[cold]
     fn resolve_block(&self, block_key: IVec3) -> u32 {
         let g = self.grid;
@@ -173,9 +189,25 @@ impl<'a> Accessor<'a> {
                 }
             }
         } else {
+            // The 8 corners straddle 2 to 8 bricks: resolve the first through the cache and
+            // the others without evicting it (the next lookup is most likely in it).
+            let k0 = i >> BRICK_LOG2;
+            let e0 = self.resolve(k0);
+            let i1 = i.wrapping_add(IVec3::ONE);
+            let k1 = i1 >> BRICK_LOG2;
+            let l1 = i1 & 7;
             for (k, ck) in c.iter_mut().enumerate() {
-                let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
-                *ck = self.value(i.wrapping_add(d));
+                let (dx, dy, dz) = (k & 4 != 0, k & 2 != 0, k & 1 != 0);
+                let key = IVec3::new(
+                    if dx { k1.x } else { k0.x },
+                    if dy { k1.y } else { k0.y },
+                    if dz { k1.z } else { k0.z },
+                );
+                let e = if key == k0 { e0 } else { self.peek(key) };
+                let off = ((if dx { l1.x } else { l.x }) << 6)
+                    | ((if dy { l1.y } else { l.y }) << 3)
+                    | (if dz { l1.z } else { l.z });
+                *ck = self.fetch(e, off as usize, 0);
             }
         }
         trilerp(&c, t)

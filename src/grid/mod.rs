@@ -566,20 +566,22 @@ impl SparseGrid {
         let mut lo = IVec3::MAX;
         let mut hi = IVec3::MIN;
         for (b, m) in self.brick_mask.iter().enumerate() {
-            if m.iter().all(|&w| w == 0) {
+            // Word x of the mask holds the voxels of slab x; bit (y << 3) | z within it.
+            let Some(x0) = m.iter().position(|&w| w != 0) else {
                 continue;
-            }
+            };
+            let x1 = 7 - m.iter().rev().position(|&w| w != 0).unwrap_or(0);
+            let yz = m.iter().fold(0u64, |a, &w| a | w);
+            let ys: Vec<i32> = (0..8).filter(|y| (yz >> (8 * y)) & 0xff != 0).collect();
+            let zbits = (0..8).fold(0u64, |a, y| a | ((yz >> (8 * y)) & 0xff));
+            let (y0, y1) = (ys[0], ys[ys.len() - 1]);
+            let (z0, z1) = (
+                zbits.trailing_zeros() as i32,
+                63 - zbits.leading_zeros() as i32,
+            );
             let o = self.brick_origin[b];
-            for (wi, &w) in m.iter().enumerate() {
-                let mut w = w;
-                while w != 0 {
-                    let v = (wi * 64 + w.trailing_zeros() as usize) as i32;
-                    w &= w - 1;
-                    let p = o + IVec3::new(v >> 6, (v >> 3) & 7, v & 7);
-                    lo = lo.min(p);
-                    hi = hi.max(p);
-                }
-            }
+            lo = lo.min(o + IVec3::new(x0 as i32, y0, z0));
+            hi = hi.max(o + IVec3::new(x1 as i32, y1, z1));
         }
         for t in self.tiles() {
             if t.active {

@@ -88,6 +88,47 @@ impl GridStats {
                     }
                 }
             }
+            if comps == 1 {
+                // Scalar fast path: per-brick accumulators, moments relative to the origin.
+                let (mut mn, mut mx) = (s.min[0], s.max[0]);
+                let (mut sum, mut sabs, mut mom) = (0.0f64, 0.0f64, [0.0f64; 3]);
+                let mut count = 0u64;
+                for (wi, &word) in m.iter().enumerate() {
+                    let mut w = word;
+                    while w != 0 {
+                        let v = wi * 64 + w.trailing_zeros() as usize;
+                        w &= w - 1;
+                        let x = f64::from(buf[v]);
+                        if !x.is_finite() {
+                            s.non_finite += 1;
+                            count += 1;
+                            continue;
+                        }
+                        count += 1;
+                        if x < mn {
+                            mn = x;
+                        }
+                        if x > mx {
+                            mx = x;
+                        }
+                        sum += x;
+                        sabs += x.abs();
+                        mom[0] += x * (v >> 6) as f64;
+                        mom[1] += x * ((v >> 3) & 7) as f64;
+                        mom[2] += x * (v & 7) as f64;
+                    }
+                }
+                s.min[0] = mn;
+                s.max[0] = mx;
+                s.sum[0] += sum;
+                s.sum_len += sabs;
+                let of = [f64::from(o.x), f64::from(o.y), f64::from(o.z)];
+                for a in 0..3 {
+                    s.moment[a] += mom[a] + of[a] * sum;
+                }
+                s.active_voxels_by_level[3] += count;
+                continue;
+            }
             for (wi, &word) in m.iter().enumerate() {
                 let mut w = word;
                 while w != 0 {
