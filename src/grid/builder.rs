@@ -342,6 +342,27 @@ impl SparseGridBuilder {
         Ok(b)
     }
 
+    /// Sets the active mask of brick `b` (an index returned by [`SparseGridBuilder::brick`]).
+    ///
+    /// # Panics
+    /// If `b` is not a brick index (programming error).
+    pub fn set_brick_mask(&mut self, b: usize, mask: [u64; 8]) {
+        self.grid.brick_mask[b] = mask;
+    }
+
+    /// Mutable access to all brick values of channel `c` (brick `b`, voxel `v`, component
+    /// `k` at `(b * 512 + v) * components + k`), for filling many bricks at once (e.g. in
+    /// parallel).
+    ///
+    /// # Panics
+    /// If `c` is not a channel (programming error).
+    pub fn values_mut(&mut self, c: usize) -> super::ValuesMut<'_> {
+        match &mut self.grid.channels[c].values {
+            Values::F32(v) => super::ValuesMut::F32(v),
+            Values::F16(v) => super::ValuesMut::F16(v),
+        }
+    }
+
     /// Finishes the grid.
     #[must_use]
     pub fn build(self) -> SparseGrid {

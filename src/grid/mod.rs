@@ -202,6 +202,16 @@ impl BrickData<'_> {
     }
 }
 
+/// Mutable brick values of one channel, in the channel's storage (see
+/// [`SparseGridBuilder::values_mut`]).
+#[derive(Debug)]
+pub enum ValuesMut<'a> {
+    /// 32-bit storage.
+    F32(&'a mut [f32]),
+    /// 16-bit storage.
+    F16(&'a mut [f16]),
+}
+
 /// What covers a brick-sized cell of index space.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Node {

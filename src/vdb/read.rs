@@ -4,6 +4,7 @@ use super::codec::{Reader, ValueCodec};
 use super::{dmat3_is_finite, MetaEntry, ValueType, VdbError, VdbGrid, VdbMap};
 use crate::grid::{ChannelKind, SparseGridBuilder, Storage, TileLevel};
 use glam::{DAffine3, DMat3, DVec3, IVec3, Vec3};
+use rayon::prelude::*;
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -605,12 +606,67 @@ fn read_tree(
             }
         }
     }
-    // Leaf buffers, in the same order.
-    let mut vals = vec![0f32; 512 * n];
-    for (o3, m) in leaves {
+    // Leaf buffers, in the same order. Split the stream into per-leaf byte ranges (cheap:
+    // no decompression), create the bricks, then decode the leaves in parallel straight into
+    // their bricks.
+    let mut ranges = Vec::with_capacity(leaves.len());
+    for (_, m) in &leaves {
+        let start = r.pos;
         r.take(64, "leaf value mask")?;
-        codec.read_values(r, 512, &m, &mut vals)?;
-        b.fill_brick(0, o3 >> 3, &vals, m).map_err(gerr)?;
+        codec.skip_values(r, 512, m)?;
+        ranges.push((start, r.pos));
+    }
+    let first = b.grid().brick_count();
+    let mut in_order = true;
+    for (i, (o3, m)) in leaves.iter().enumerate() {
+        let idx = b.brick(*o3 >> 3).map_err(gerr)?;
+        in_order &= idx == first + i;
+        b.set_brick_mask(idx, *m);
+    }
+    if !in_order {
+        // Duplicate leaves (a damaged file): decode sequentially, the last one wins.
+        let mut vals = vec![0f32; 512 * n];
+        for ((o3, m), &(s0, s1)) in leaves.iter().zip(&ranges) {
+            let mut rr = Reader::new(&r.data[s0..s1], r.base + s0 as u64, path);
+            rr.take(64, "leaf value mask")?;
+            codec.read_values(&mut rr, 512, m, &mut vals)?;
+            b.fill_brick(0, *o3 >> 3, &vals, *m).map_err(gerr)?;
+        }
+        return Ok(b.build());
+    }
+    let data = r.data;
+    let base = r.base;
+    let template = ValueCodec {
+        scratch: Vec::new(),
+        tmp: Vec::new(),
+        temp: Vec::new(),
+        ..codec
+    };
+    let decode =
+        |c: &mut (ValueCodec, Vec<f32>), i: usize, out: &mut [f32]| -> Result<(), VdbError> {
+            let (s0, s1) = ranges[i];
+            let mut rr = Reader::new(&data[s0..s1], base + s0 as u64, path);
+            rr.take(64, "leaf value mask")?;
+            c.0.read_values(&mut rr, 512, &leaves[i].1, out)
+        };
+    let init = || (template.clone(), vec![0f32; 512 * n]);
+    match b.values_mut(0) {
+        crate::grid::ValuesMut::F32(v) => v[first * 512 * n..]
+            .par_chunks_mut(512 * n)
+            .enumerate()
+            .try_for_each_init(init, |c, (i, out)| decode(c, i, out))?,
+        crate::grid::ValuesMut::F16(v) => v[first * 512 * n..]
+            .par_chunks_mut(512 * n)
+            .enumerate()
+            .try_for_each_init(init, |c, (i, out)| {
+                let mut tmp = std::mem::take(&mut c.1);
+                let res = decode(c, i, &mut tmp);
+                for (d, &x) in out.iter_mut().zip(&tmp) {
+                    *d = half::f16::from_f32(x);
+                }
+                c.1 = tmp;
+                res
+            })?,
     }
     Ok(b.build())
 }
