@@ -342,6 +342,21 @@ impl SparseGridBuilder {
         Ok(b)
     }
 
+    /// Reserves room for `additional` more bricks (avoids regrowing storage when the brick
+    /// count is known, e.g. when loading a VDB file).
+    pub fn reserve_bricks(&mut self, additional: usize) {
+        let g = &mut self.grid;
+        g.brick_origin.reserve(additional);
+        g.brick_mask.reserve(additional);
+        for ch in &mut g.channels {
+            let n = additional * BRICK_VOXELS * ch.kind.components();
+            match &mut ch.values {
+                Values::F32(v) => v.reserve(n),
+                Values::F16(v) => v.reserve(n),
+            }
+        }
+    }
+
     /// Sets the active mask of brick `b` (an index returned by [`SparseGridBuilder::brick`]).
     ///
     /// # Panics

@@ -617,6 +617,7 @@ fn read_tree(
         ranges.push((start, r.pos));
     }
     let first = b.grid().brick_count();
+    b.reserve_bricks(leaves.len());
     let mut in_order = true;
     for (i, (o3, m)) in leaves.iter().enumerate() {
         let idx = b.brick(*o3 >> 3).map_err(gerr)?;
