@@ -190,24 +190,31 @@ impl<'a> Accessor<'a> {
             }
         } else {
             // The 8 corners straddle 2 to 8 bricks: resolve the first through the cache and
-            // the others without evicting it (the next lookup is most likely in it).
+            // each neighbour once, without evicting the first (the next lookup is most
+            // likely in it).
             let k0 = i >> BRICK_LOG2;
             let e0 = self.resolve(k0);
             let i1 = i.wrapping_add(IVec3::ONE);
-            let k1 = i1 >> BRICK_LOG2;
             let l1 = i1 & 7;
+            let cx = usize::from(l.x == 7);
+            let cy = usize::from(l.y == 7);
+            let cz = usize::from(l.z == 7);
+            // e[(dx & cx) << 2 | (dy & cy) << 1 | (dz & cz)]
+            let mut e = [e0; 8];
+            for n in 1..8usize {
+                let (nx, ny, nz) = (n >> 2, (n >> 1) & 1, n & 1);
+                if nx <= cx && ny <= cy && nz <= cz {
+                    let d = IVec3::new(nx as i32, ny as i32, nz as i32);
+                    e[n] = self.peek(k0 + d);
+                }
+            }
             for (k, ck) in c.iter_mut().enumerate() {
-                let (dx, dy, dz) = (k & 4 != 0, k & 2 != 0, k & 1 != 0);
-                let key = IVec3::new(
-                    if dx { k1.x } else { k0.x },
-                    if dy { k1.y } else { k0.y },
-                    if dz { k1.z } else { k0.z },
-                );
-                let e = if key == k0 { e0 } else { self.peek(key) };
-                let off = ((if dx { l1.x } else { l.x }) << 6)
-                    | ((if dy { l1.y } else { l.y }) << 3)
-                    | (if dz { l1.z } else { l.z });
-                *ck = self.fetch(e, off as usize, 0);
+                let (dx, dy, dz) = (k >> 2, (k >> 1) & 1, k & 1);
+                let ent = e[((dx & cx) << 2) | ((dy & cy) << 1) | (dz & cz)];
+                let off = ((if dx == 1 { l1.x } else { l.x }) << 6)
+                    | ((if dy == 1 { l1.y } else { l.y }) << 3)
+                    | (if dz == 1 { l1.z } else { l.z });
+                *ck = self.fetch(ent, off as usize, 0);
             }
         }
         trilerp(&c, t)
