@@ -85,8 +85,8 @@ pub enum GridError {
         key: IVec3,
     },
     /// A non-invertible or non-finite index-to-world map.
-    #[error("index-to-world map is not invertible or not finite: {0:?}")]
-    BadTransform(DAffine3),
+    #[error("index-to-world map is not invertible or not finite: {0}")]
+    BadTransform(String),
     /// Too many bricks or tiles for 31-bit indices.
     #[error("grid too large: more than 2^31 bricks or tiles")]
     TooLarge,
@@ -384,7 +384,7 @@ impl SparseGrid {
     pub fn set_index_to_world(&mut self, m: DAffine3) -> Result<(), GridError> {
         let det = m.matrix3.determinant();
         if !det.is_finite() || det.abs() < 1e-300 || !m.translation.is_finite() {
-            return Err(GridError::BadTransform(m));
+            return Err(GridError::BadTransform(format!("{m:?}")));
         }
         self.index_to_world = m;
         self.world_to_index = m.inverse();

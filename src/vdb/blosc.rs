@@ -116,7 +116,7 @@ pub fn decompress_into(
             && !leftover
             && typesize <= 16
             && blocksize / typesize >= 128
-            && bsize % typesize == 0
+            && bsize.is_multiple_of(typesize)
         {
             typesize
         } else {
@@ -313,7 +313,7 @@ pub fn compress(src: &[u8], typesize: usize) -> Vec<u8> {
     if nbytes == 0 {
         return memcpy();
     }
-    let split = typesize <= 16 && nbytes / typesize >= 128 && nbytes % typesize == 0;
+    let split = typesize <= 16 && nbytes / typesize >= 128 && nbytes.is_multiple_of(typesize);
     let nsplits = if split { typesize } else { 1 };
     let mut shuffled = vec![0u8; nbytes];
     shuffle(typesize, src, &mut shuffled);
