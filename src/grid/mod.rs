@@ -637,6 +637,8 @@ impl SparseGrid {
     }
 
     /// Value of voxel `ijk` in channel 0 (active or not; tiles and background outside bricks).
+    /// This and the other channel-0 conveniences below panic if the grid has no channel
+    /// (a programming error); use an [`Accessor`] for repeated lookups.
     #[must_use]
     pub fn value_at(&self, ijk: IVec3) -> f32 {
         self.accessor(0).value(ijk)
