@@ -183,9 +183,13 @@ pub fn run(args: &InspectArgs) -> CliResult {
         if let Some((a, b)) = s.active_bbox {
             outln!("  active bbox:    {:?} -> {:?}", a.to_array(), b.to_array());
         }
-        outln!("  min:            {}", fmt3(&s.min, n));
-        outln!("  max:            {}", fmt3(&s.max, n));
-        outln!("  sum:            {}", fmt3(&s.sum, n));
+        if s.min[0] <= s.max[0] {
+            outln!("  min:            {}", fmt3(&s.min, n));
+            outln!("  max:            {}", fmt3(&s.max, n));
+            outln!("  sum:            {}", fmt3(&s.sum, n));
+        } else {
+            outln!("  min, max, sum:  no finite active values");
+        }
         if s.non_finite > 0 {
             outln!(
                 "  WARNING: {} active values are NaN or infinite (left out of min/max/sum)",
