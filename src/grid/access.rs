@@ -208,6 +208,10 @@ impl<'a> Accessor<'a> {
                     e[n] = self.peek(k0 + d);
                 }
             }
+            if e0 & TILE_BIT != 0 && e.iter().all(|&x| x == e0) {
+                // One constant tile (or the background) under all 8 corners.
+                return self.fetch(e0, 0, 0);
+            }
             for (k, ck) in c.iter_mut().enumerate() {
                 let (dx, dy, dz) = (k >> 2, (k >> 1) & 1, k & 1);
                 let ent = e[((dx & cx) << 2) | ((dy & cy) << 1) | (dz & cz)];
