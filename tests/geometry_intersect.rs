@@ -700,6 +700,18 @@ fn build_rejects_bad_shapes_and_handles_empty() {
         indices: vec![[0, 1, 2]],
     };
     assert!(SceneGeometry::build(vec![Shape::Mesh(nan)]).is_err());
+    let huge = TriangleMesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(0.0, 1e30, 0.0)],
+        normals: None,
+        uvs: None,
+        indices: vec![[0, 1, 2]],
+    };
+    assert!(SceneGeometry::build(vec![Shape::Mesh(huge)]).is_err());
+    assert!(SceneGeometry::build(vec![Shape::Sphere {
+        center: Vec3::splat(1e30),
+        radius: 1.0
+    }])
+    .is_err());
     assert!(SceneGeometry::build(vec![Shape::Sphere {
         center: Vec3::ZERO,
         radius: 0.0

@@ -76,7 +76,7 @@ fn reads_big_endian_doubles_polygons_and_alternative_names() {
     // Binary big endian, double positions, `s t` texture coordinates, int list named
     // `vertex_index`, one quad and one pentagon (fan triangulated: 2 + 3 triangles).
     let mut b = b"ply\nformat binary_big_endian 1.0\nelement vertex 5\nproperty double x\nproperty double y\nproperty double z\nproperty float s\nproperty float t\nelement face 2\nproperty list uchar int vertex_index\nend_header\n".to_vec();
-    let pts = [
+    let pts: [[f64; 3]; 5] = [
         [0.0, 0.0, 0.0],
         [1.0, 0.0, 0.0],
         [1.0, 1.0, 0.0],
@@ -85,7 +85,7 @@ fn reads_big_endian_doubles_polygons_and_alternative_names() {
     ];
     for (i, p) in pts.iter().enumerate() {
         for c in p {
-            b.extend((*c as f64).to_be_bytes());
+            b.extend(c.to_be_bytes());
         }
         b.extend((i as f32).to_be_bytes());
         b.extend((0.5f32).to_be_bytes());
@@ -378,6 +378,11 @@ fn topology_closed_open_inconsistent_and_welded() {
     open.indices.pop();
     assert!(!open.is_closed());
     assert_eq!(open.topology().boundary_edges, 3);
+    let msg = open.topology().to_string();
+    assert!(
+        msg.starts_with("open") && msg.contains("3 boundary edges"),
+        "{msg}"
+    );
 
     let mut flipped = m.clone();
     flipped.indices[0].swap(1, 2);

@@ -146,10 +146,14 @@ impl SceneGeometry {
                     topologies.push(Some(topo));
                 }
                 Shape::Sphere { center, radius } => {
-                    if !center.is_finite() || !radius.is_finite() || *radius <= 0.0 {
+                    let far = center.abs().max_element() + *radius > super::mesh::MAX_COORDINATE;
+                    if !center.is_finite() || !radius.is_finite() || *radius <= 0.0 || far {
                         return Err(GeometryError::InvalidShape {
                             shape: i,
-                            message: format!("sphere needs a finite centre and radius > 0 (got {center:?}, {radius})"),
+                            message: format!(
+                                "sphere needs a finite centre, a radius > 0 and coordinates within ±{:e} (got {center:?}, {radius})",
+                                super::mesh::MAX_COORDINATE
+                            ),
                         });
                     }
                     topologies.push(None);
@@ -246,7 +250,12 @@ impl SceneGeometry {
     #[must_use]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
-        if !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || !(t_max > 0.0) {
+        if !ray.o.is_finite()
+            || !ray.d.is_finite()
+            || ray.d == Vec3::ZERO
+            || t_max.is_nan()
+            || t_max <= 0.0
+        {
             return None;
         }
         let sr = ShearedRay::new(ray);
@@ -285,7 +294,12 @@ impl SceneGeometry {
         let Some(bvh) = self.bvh.as_ref() else {
             return false;
         };
-        if !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || !(t_max > 0.0) {
+        if !ray.o.is_finite()
+            || !ray.d.is_finite()
+            || ray.d == Vec3::ZERO
+            || t_max.is_nan()
+            || t_max <= 0.0
+        {
             return false;
         }
         let sr = ShearedRay::new(ray);
