@@ -340,6 +340,18 @@ fn bvh_matches_brute_force() {
         },
     ];
     let geo = SceneGeometry::build(shapes.clone()).unwrap();
+    assert_eq!(
+        geo.primitive_count(),
+        shapes
+            .iter()
+            .map(|s| match s {
+                Shape::Mesh(m) => m.indices.len(),
+                Shape::Sphere { .. } => 1,
+            })
+            .sum::<usize>()
+    );
+    let depth = geo.bvh_depth();
+    assert!((3..20).contains(&depth), "depth {depth}");
     let mut rng = Rng::new(5, 0);
     let b = geo.bounds();
     let mut hits = 0;
@@ -783,5 +795,90 @@ fn near_boundary_medium_points_find_their_boundary() {
             "walk escaped at {p:?}"
         );
         n += 1;
+    }
+}
+
+#[test]
+fn degenerate_geometry_builds_or_errors_without_panicking() {
+    // Nested triangles shrinking geometrically (a deep-tree stress), many identical
+    // triangles, and zero-area slivers.
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for k in 0..100 {
+        let s = 0.7f32.powi(k);
+        let b = pos.len() as u32;
+        pos.extend([
+            Vec3::new(-s, -s, k as f32 * 1e-3),
+            Vec3::new(s, -s, 0.0),
+            Vec3::new(0.0, s, 0.0),
+        ]);
+        tris.push([b, b + 1, b + 2]);
+    }
+    for _ in 0..2000 {
+        tris.push([0, 1, 2]);
+    }
+    let b = pos.len() as u32;
+    pos.extend([Vec3::ZERO, Vec3::X, Vec3::X * 2.0]);
+    tris.push([b, b + 1, b + 2]);
+    let mesh = TriangleMesh {
+        positions: pos,
+        normals: None,
+        uvs: None,
+        indices: tris,
+    };
+    match SceneGeometry::build(vec![Shape::Mesh(mesh.clone())]) {
+        Err(e) => assert!(e.to_string().contains("BVH depth"), "{e}"),
+        Ok(geo) => {
+            let mut rng = Rng::new(15, 0);
+            for _ in 0..2000 {
+                let o = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 1.0) * 0.2;
+                let d = (Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 0.0) * 0.01 - o)
+                    .normalize();
+                let ray = Ray::new(o, d);
+                let mut best = f32::INFINITY;
+                for t in &mesh.indices {
+                    let [p0, p1, p2] = t.map(|k| mesh.positions[k as usize]);
+                    if let Some(h) = intersect_triangle(&ray, p0, p1, p2, best) {
+                        best = h.t;
+                    }
+                }
+                let got = geo
+                    .intersect(&ray, f32::INFINITY)
+                    .map_or(f32::INFINITY, |h| h.t);
+                assert_eq!(got, best);
+            }
+        }
+    }
+}
+
+#[test]
+fn tessellated_sphere_matches_analytic_sphere() {
+    let mesh = load_ply(&mesh_path("sphere.ply")).unwrap();
+    assert!(mesh.is_closed());
+    let geo = SceneGeometry::build(vec![Shape::Mesh(mesh)]).unwrap();
+    let mut rng = Rng::new(16, 0);
+    for _ in 0..5000 {
+        let o = sample_uniform_sphere(rng.next_2d()) * 2.0;
+        let d = (sample_uniform_sphere(rng.next_2d()) * 0.3 - o).normalize();
+        let ray = Ray::new(o, d);
+        let (Some(a), Some(m)) = (
+            intersect_sphere(&ray, Vec3::ZERO, 0.5, f32::INFINITY),
+            geo.intersect(&ray, f32::INFINITY),
+        ) else {
+            continue;
+        };
+        // Entry points agree to within the tessellation's sagitta, shading normals and uvs
+        // closely (away from the uv seam and the poles).
+        assert!(
+            (a.t - m.t).abs() < 3e-3 / a.n.dot(-d).max(0.05),
+            "t {} vs {}",
+            a.t,
+            m.t
+        );
+        assert!(a.n.dot(m.ns) > 0.995);
+        assert!(m.ng.dot(d) < 0.0);
+        if a.uv.x > 0.05 && a.uv.x < 0.95 && a.uv.y > 0.05 && a.uv.y < 0.95 {
+            assert!((a.uv - m.uv).length() < 0.02, "uv {:?} vs {:?}", a.uv, m.uv);
+        }
     }
 }

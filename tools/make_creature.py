@@ -15,6 +15,10 @@ Writes into scenes/meshes/ (relative to the repository root, or --out DIR):
                          circumradius), and that each bone lies inside the skin.
   backdrop.ply           open studio sweep (floor curving into a back wall), normals toward
                          the subject.
+  sphere.ply             icosphere of radius 0.5 at the origin (5120 triangles, exact radial
+                         normals, spherical UVs like the analytic sphere's): the tessellated
+                         twin of `Shape::Sphere { center: 0, radius: 0.5 }` for the
+                         sphere-of-skin scene, to compare mesh and analytic renders.
 
 Every file has per-vertex normals (area weighted) and UVs. Plain Python 3, no packages.
 Usage: python3 tools/make_creature.py [--out DIR] [--no-check]
@@ -566,6 +570,16 @@ def main():
                   len(bone_f)))
     sizes.append(("backdrop.ply", write_ply(os.path.join(out, "backdrop.ply"), bd_v, bd_f, bd_n, bd_uv),
                   len(bd_f)))
+    sp_dirs, sp_f = icosphere(4)
+    sp_v = round_verts([mul(u, 0.5) for u in sp_dirs])
+    sp_uv = []
+    for u in sp_dirs:
+        phi = math.atan2(u[2], u[0]) % (2 * math.pi)
+        sp_uv.append((phi / (2 * math.pi), math.acos(max(-1.0, min(1.0, u[1]))) / math.pi))
+    if check and not (is_closed(sp_f) and signed_volume(sp_v, sp_f) > 0):
+        raise SystemExit("check failed: sphere")
+    sizes.append(("sphere.ply", write_ply(os.path.join(out, "sphere.ply"), sp_v, sp_f, sp_dirs, sp_uv),
+                  len(sp_f)))
     for name, size, nf in sizes:
         print(f"wrote {name}: {nf} triangles, {size} bytes")
     print("skin bounds:", [round(min(v[k] for v in skin_v), 3) for k in range(3)],

@@ -129,6 +129,27 @@ fn node_hits(
     hit_mask
 }
 
+/// Depth (in nodes) of a compressed wide BVH.
+fn cwbvh_depth(bvh: &CwBvh) -> usize {
+    if bvh.nodes.is_empty() {
+        return 0;
+    }
+    let mut max = 0;
+    let mut stack = vec![(0u32, 1usize)];
+    while let Some((i, d)) = stack.pop() {
+        max = max.max(d);
+        let Some(node) = bvh.nodes.get(i as usize) else {
+            continue;
+        };
+        for c in 0..8 {
+            if !node.is_leaf(c) && !node.is_child_empty(c) {
+                stack.push((node.child_node_index(c), d + 1));
+            }
+        }
+    }
+    max
+}
+
 impl SceneGeometry {
     /// Validates the shapes, orients every closed mesh outward
     /// ([`super::TriangleMesh::make_outward`]), and builds one BVH over all triangles and
@@ -384,6 +405,12 @@ impl SceneGeometry {
     #[must_use]
     pub fn shape_count(&self) -> usize {
         self.shapes.len()
+    }
+
+    /// Depth of the BVH in nodes (diagnostics; 0 when empty).
+    #[must_use]
+    pub fn bvh_depth(&self) -> usize {
+        self.bvh.as_ref().map_or(0, cwbvh_depth)
     }
 
     /// Number of BVH primitives (triangles plus spheres).
