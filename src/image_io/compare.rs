@@ -304,6 +304,8 @@ impl Prepared<'_> {
 
     /// The z-score of channel `c` at pixel `i`, or `None` when untestable.
     fn z_at(&self, c: usize, i: usize) -> Option<ZOutcome> {
+        /// Relative difference treated as float rounding (a few f32 ulps).
+        const ROUNDING_FLOOR: f64 = 1e-6;
         let (va, vb) = (self.a.variances.as_ref()?, self.b.variances.as_ref()?);
         let (a, b) = (
             f64::from(self.a.values[c][i]),
@@ -323,8 +325,13 @@ impl Prepared<'_> {
         if too_few(na) || too_few(nb) {
             return None;
         }
-        let var = va + vb;
         let d = a - b;
+        // Values stored as f32 carry rounding of about 1e-7 relative: a difference below that
+        // floor is not evidence of bias, however small the estimated variances are (e.g.
+        // pixels that every sample estimates to within rounding).
+        let floor = (ROUNDING_FLOOR * a.abs().max(b.abs())).powi(2);
+        let var = if d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) && va + vb < floor { 0.0 } else { va + vb };
+        let d = if var == 0.0 && d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) { 0.0 } else { d };
         if var == 0.0 {
             let z = if d == 0.0 {
                 0.0
