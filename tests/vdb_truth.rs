@@ -269,7 +269,8 @@ fn non_finite_values_are_reported_and_refused() {
 
 /// Files written by OpenVDB's C++ API (`tools/vdb/make_cpp_fixtures.cpp`): double and vec3d
 /// grids, zip and blosc without active-mask compression, half, root/128^3/8^3 tiles, an
-/// inactive non-background tile, affine maps; figures computed by OpenVDB itself.
+/// inactive non-background tile, affine maps, an instanced grid (sharing its parent's tree);
+/// figures computed by OpenVDB itself.
 #[test]
 fn cpp_fixtures_match_openvdb_figures() {
     let text = std::fs::read_to_string(data("cpp/truth_cpp.jsonl")).unwrap();
@@ -354,6 +355,12 @@ fn cpp_fixtures_match_openvdb_figures() {
     }
     // double, vec3d, float, vec3s x zip, blosc (no mask), zip + mask, each full and half.
     assert_eq!(seen.len(), 20, "{seen:?}");
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.contains("density_instance"))
+            .count(),
+        5
+    );
     // Unsupported grids and maps give errors that name them.
     let f = VdbFile::open(data("cpp/cpp_unsupported.vdb")).unwrap();
     for (grid, what) in [

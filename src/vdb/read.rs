@@ -299,7 +299,8 @@ impl VdbFile {
                 let bp = r.i64("block position")?;
                 let ep = r.i64("end position")?;
                 let here = r.offset() as i64;
-                if gp < here || bp < gp || ep < bp || ep as u64 > len {
+                // Instances have no blocks of their own: their block position is 0.
+                if gp < here || ep < gp || (bp != 0 && (bp < gp || bp > ep)) || ep as u64 > len {
                     return Err(VdbError::Format {
                         path: path.to_path_buf(),
                         offset: at,

@@ -1,7 +1,7 @@
 // Writes VDB fixtures that pyopenvdb cannot make (double and vec3d grids, zip and blosc
 // without active-mask compression, rotated maps (OpenVDB stores the unitary and translation
 // maps given here as AffineMap and UniformScaleTranslateMap), a frustum map, int32 and bool
-// grids) with real OpenVDB's C++ API, and prints OpenVDB's figures for every grid as JSON
+// grids, an instanced grid) with real OpenVDB's C++ API, and prints OpenVDB's figures for every grid as JSON
 // lines (the definitions of truth.jsonl).
 //
 // Build and run (needs Debian's libopenvdb-dev, libboost-dev and g++; CI does not need them:
@@ -120,6 +120,12 @@ int main(int argc, char** argv) {
                                   [](double x) { return Vec3s(float(x), 1.0f, float(-x)); }, rng);
     fv->setTransform(affine->copy());
 
+    // A grid sharing the tree of "density": OpenVDB writes it as an instance (no tree of its
+    // own, only a reference to its parent's).
+    auto inst = f->copyGrid();
+    inst->setName("density_instance");
+    inst->setTransform(math::Transform::createLinearTransform(0.5));
+
     struct Case { const char* name; uint32_t comp; bool half; };
     Case cases[] = {
         {"cpp_zip.vdb", io::COMPRESS_ZIP, false},
@@ -133,13 +139,14 @@ int main(int argc, char** argv) {
             g->setSaveFloatAsHalf(c.half);
         io::File file(out + "/" + c.name);
         file.setCompression(c.comp);
-        GridPtrVec grids{d, v, f, fv};
+        inst->setSaveFloatAsHalf(c.half);
+        GridPtrVec grids{d, v, f, fv, inst};
         file.write(grids);
         file.close();
         // Read back with OpenVDB and print its figures.
         io::File in(out + "/" + c.name);
         in.open(false);
-        for (auto name : {"temperature", "vel64", "density", "velocity"}) {
+        for (auto name : {"temperature", "vel64", "density", "velocity", "density_instance"}) {
             GridBase::Ptr b = in.readGrid(name);
             if (auto g = gridPtrCast<DoubleGrid>(b)) printStats(c.name, *g, 1);
             if (auto g = gridPtrCast<Vec3DGrid>(b)) printStats(c.name, *g, 3);
