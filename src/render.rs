@@ -97,14 +97,15 @@ impl std::fmt::Display for RenderSummary {
             self.threads
         )?;
         let t = &self.tracking;
-        if t.lookups > 0 || t.real_collisions > 0 {
+        if t.lookups > 0 || t.real_collisions > 0 || t.transmittance_lookups > 0 {
             write!(
                 f,
-                " | tracking: {} lookups, {} real + {} null collisions, {:.2} lookups per real collision, {} bound violations",
+                " | tracking: {} free-flight lookups ({} real + {} null collisions, {:.2} lookups per real collision), {} transmittance lookups, {} bound violations",
                 t.lookups,
                 t.real_collisions,
                 t.null_collisions,
                 t.lookups as f64 / t.real_collisions.max(1) as f64,
+                t.transmittance_lookups,
                 t.violations
             )?;
         }

@@ -68,8 +68,10 @@ impl DensityCoefficients {
 /// Counters for the speed/accuracy measurements.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TrackingStats {
-    /// Density lookups.
+    /// Density lookups while sampling free-flight distances.
     pub lookups: u64,
+    /// Density lookups while estimating transmittance (shadow rays).
+    pub transmittance_lookups: u64,
     /// Real (scattering) collisions.
     pub real_collisions: u64,
     /// Null collisions.
@@ -84,6 +86,7 @@ impl TrackingStats {
     /// Adds `o` into `self`.
     pub fn merge(&mut self, o: &TrackingStats) {
         self.lookups += o.lookups;
+        self.transmittance_lookups += o.transmittance_lookups;
         self.real_collisions += o.real_collisions;
         self.null_collisions += o.null_collisions;
         self.violations += o.violations;
@@ -314,7 +317,7 @@ where
                     let mut depth = 0.0f32;
                     for i in 0..n {
                         depth += density(seg.t0 + (i as f32 + offset) * dt) * dt;
-                        stats.lookups += 1;
+                        stats.transmittance_lookups += 1;
                     }
                     tr *= (st * depth).map(|x| (-x).exp());
                 }
@@ -336,9 +339,8 @@ where
                                 break;
                             }
                             let d = density(t);
-                            stats.lookups += 1;
-                            stats.null_collisions += 1;
-                            if d > seg.max || d < seg.min {
+                            stats.transmittance_lookups += 1;
+                                                        if d > seg.max || d < seg.min {
                                 stats.violations += 1;
                             }
                             tr *= Rgb::ONE - st * ((d - control) / majorant);

@@ -167,6 +167,21 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
                 (Shape::Mesh(box_mesh(b)), false)
             }
         };
+        // Exit-point NEE needs a scattering boundary: behind an index-matched one (no surface,
+        // or a dielectric of IOR 1) it would never happen, so NEE moves to the interior
+        // vertices, where transparent shadows through such a boundary are exact.
+        let index_matched = matches!(&surface, ObjectSurface::Null) || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
+        let nee = if medium.is_some() && index_matched && nee == NeeStrategy::ExitPoint {
+            if desc.interior.as_ref().is_some_and(|i| i.nee.is_some()) {
+                warnings.push(format!(
+                    "{}:{line}: {name}: nee = \"exit\" behind an index-matched boundary finds no exit vertices; using \"interior\"",
+                    ctx.path.display()
+                ));
+            }
+            NeeStrategy::Interior
+        } else {
+            nee
+        };
         if medium.is_some() && !surface.transmits() {
             warnings.push(format!("{}:{line}: {name}: has an interior but its surface does not transmit light; the interior is never reached", ctx.path.display()));
         }
