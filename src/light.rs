@@ -97,8 +97,13 @@ impl EnvironmentMap {
         if sin_theta <= 1e-6 || pdf_uv <= 0.0 {
             return None;
         }
-        let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
-        Some((d, self.lookup(uv), pdf))
+        // Evaluate the pdf and radiance through the direction, exactly as `pdf` and `radiance`
+        // do for MIS, so that both strategies agree even at cell boundaries.
+        let pdf = self.pdf(d);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        Some((d, self.radiance(d), pdf))
     }
 
     fn pdf(&self, d: Vec3) -> f32 {
