@@ -172,7 +172,27 @@ pub struct HeterogeneousMedium {
 impl HeterogeneousMedium {
     /// Appends the majorant segments of `[t0, t1]` along `ray` to `out`.
     pub fn segments(&self, ray: &Ray, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
+        let start = out.len();
         self.pyramid.segments(ray, t0, t1, self.tracking.majorant, out);
+        if !self.coefficients.base_t.is_black() && t1.is_finite() {
+            // A combined interior: the homogeneous part also fills the empty space the
+            // pyramid skipped.
+            let zero = |a: f32, b: f32| MajorantSegment { t0: a, t1: b, min: 0.0, max: 0.0, mean: 0.0 };
+            let mut filled = Vec::with_capacity(out.len() - start + 4);
+            let mut t = t0;
+            for s in &out[start..] {
+                if s.t0 > t {
+                    filled.push(zero(t, s.t0));
+                }
+                filled.push(*s);
+                t = t.max(s.t1);
+            }
+            if t < t1 {
+                filled.push(zero(t, t1));
+            }
+            out.truncate(start);
+            out.extend(filled);
+        }
     }
 
     /// A density lookup along `ray`, by distance.
@@ -230,7 +250,7 @@ impl Medium {
         match self {
             Medium::Absorbing { sigma_a } => *sigma_a,
             Medium::Homogeneous(h) => h.coefficients.sigma_t(),
-            Medium::Heterogeneous(h) => h.coefficients.sigma_t * h.pyramid.global_bounds().max,
+            Medium::Heterogeneous(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
         }
     }
 

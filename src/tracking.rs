@@ -48,20 +48,51 @@ impl MajorantSegment {
     }
 }
 
-/// Optical coefficients per unit density.
+/// Optical coefficients: σ_t(x) = base_t + d(x)·σ_t⁰ and σ_s(x) = base_s + d(x)·σ_s⁰. The
+/// constant part is a homogeneous medium the density field is added to (the notes' combined
+/// interiors, §2.4.1: a homogeneous ocean with voxel foam); it is zero for plain voxel media.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DensityCoefficients {
     /// Extinction per unit density (1/length).
     pub sigma_t: Rgb,
     /// Scattering per unit density (1/length).
     pub sigma_s: Rgb,
+    /// Constant extinction added everywhere on the ray (1/length).
+    pub base_t: Rgb,
+    /// Constant scattering added everywhere on the ray (1/length).
+    pub base_s: Rgb,
 }
 
 impl DensityCoefficients {
-    /// The largest channel of σ_t (the majorant is `segment.max × this`).
+    /// Coefficients proportional to the density, without a constant part.
+    #[must_use]
+    pub fn new(sigma_t: Rgb, sigma_s: Rgb) -> Self {
+        DensityCoefficients { sigma_t, sigma_s, base_t: Rgb::ZERO, base_s: Rgb::ZERO }
+    }
+    /// The largest channel of σ_t⁰.
     #[must_use]
     pub fn max_sigma_t(&self) -> f32 {
         self.sigma_t.max_component()
+    }
+    /// σ_t at density `d`.
+    #[must_use]
+    pub fn sigma_t_at(&self, d: f32) -> Rgb {
+        self.base_t + self.sigma_t * d
+    }
+    /// σ_s at density `d`.
+    #[must_use]
+    pub fn sigma_s_at(&self, d: f32) -> Rgb {
+        self.base_s + self.sigma_s * d
+    }
+    /// The scalar majorant of a segment: max over channels of σ_t at the segment's max density.
+    #[must_use]
+    pub fn majorant(&self, seg: &MajorantSegment) -> f32 {
+        self.sigma_t_at(seg.max).max_component()
+    }
+    /// True when nothing attenuates on the segment.
+    #[must_use]
+    pub fn is_void(&self, seg: &MajorantSegment) -> bool {
+        seg.max <= 0.0 && seg.min >= 0.0 && self.base_t.is_black()
     }
 }
 
@@ -165,35 +196,32 @@ where
 {
     let probs = hero_probabilities(beta, coeff);
     let hero = pick_channel(probs, u());
-    let st = coeff.sigma_t;
-    let ss = coeff.sigma_s;
-    let s_max = coeff.max_sigma_t();
     let mut chain = MisChain { f: Rgb::ONE, p: Rgb::ONE };
     for seg in segments {
         stats.segments += 1;
         let len = seg.length();
-        if len <= 0.0 || seg.max <= 0.0 && seg.min >= 0.0 {
+        if len <= 0.0 || coeff.is_void(&seg) {
             continue;
         }
         if seg.is_homogeneous() {
             // Closed form: constant density, no lookups.
-            let d = seg.max;
-            let sigma_hero = d * st[hero];
+            let sigma_t = coeff.sigma_t_at(seg.max);
+            let sigma_hero = sigma_t[hero];
             let t_local = if sigma_hero > 0.0 { -(-u()).ln_1p() / sigma_hero } else { f32::INFINITY };
             if t_local < len {
-                let tr = (st * d * t_local).map(|x| (-x).exp());
-                chain.f *= ss * d * tr;
-                chain.p *= st * d * tr;
+                let tr = (sigma_t * t_local).map(|x| (-x).exp());
+                chain.f *= coeff.sigma_s_at(seg.max) * tr;
+                chain.p *= sigma_t * tr;
                 stats.real_collisions += 1;
                 return Flight::Scatter { t: seg.t0 + t_local, weight: chain.weight(probs) };
             }
-            let tr = (st * d * len).map(|x| (-x).exp());
+            let tr = (sigma_t * len).map(|x| (-x).exp());
             chain.f *= tr;
             chain.p *= tr;
             chain.renormalise();
             continue;
         }
-        let majorant = seg.max * s_max;
+        let majorant = coeff.majorant(&seg);
         if !(majorant > 0.0) || !majorant.is_finite() {
             continue;
         }
@@ -208,7 +236,7 @@ where
             if d > seg.max || d < seg.min {
                 stats.violations += 1;
             }
-            let sigma_t = st * d;
+            let sigma_t = coeff.sigma_t_at(d);
             let sigma_n = Rgb::splat(majorant) - sigma_t;
             // Decision probabilities of each channel as hero (weighted tracking: |σ_t| vs |σ_n|).
             let p_real = Rgb([0, 1, 2].map(|k| {
@@ -221,7 +249,7 @@ where
                 }
             }));
             if u() < p_real[hero] {
-                chain.f *= ss * d;
+                chain.f *= coeff.sigma_s_at(d);
                 chain.p *= p_real * majorant;
                 stats.real_collisions += 1;
                 return Flight::Scatter { t, weight: chain.weight(probs) };
@@ -297,17 +325,17 @@ where
     let st = coeff.sigma_t;
     let s_max = coeff.max_sigma_t();
     let mut tr = Rgb::ONE;
-    if s_max <= 0.0 {
+    if s_max <= 0.0 && coeff.base_t.is_black() {
         return tr;
     }
     for seg in segments {
         stats.segments += 1;
         let len = seg.length();
-        if len <= 0.0 || seg.max <= 0.0 && seg.min >= 0.0 {
+        if len <= 0.0 || coeff.is_void(&seg) {
             continue;
         }
-        if seg.is_homogeneous() {
-            tr *= (st * (seg.max * len)).map(|x| (-x).exp());
+        if seg.is_homogeneous() || s_max <= 0.0 {
+            tr *= (coeff.sigma_t_at(seg.max) * len).map(|x| (-x).exp());
         } else {
             match mode {
                 TransmittanceMode::RayMarch { step } => {
@@ -319,7 +347,7 @@ where
                         depth += density(seg.t0 + (i as f32 + offset) * dt) * dt;
                         stats.transmittance_lookups += 1;
                     }
-                    tr *= (st * depth).map(|x| (-x).exp());
+                    tr *= (st * depth + coeff.base_t * len).map(|x| (-x).exp());
                 }
                 TransmittanceMode::Ratio | TransmittanceMode::ResidualRatio(_) => {
                     let control = match mode {
@@ -327,8 +355,9 @@ where
                         _ => 0.0,
                     };
                     let residual_bound = (seg.max - control).max(control - seg.min).max(0.0);
-                    if control != 0.0 {
-                        tr *= (st * (control * len)).map(|x| (-x).exp());
+                    let analytic = coeff.sigma_t_at(control) * len;
+                    if !analytic.is_black() {
+                        tr *= analytic.map(|x| (-x).exp());
                     }
                     let majorant = residual_bound * s_max;
                     if majorant > 0.0 && majorant.is_finite() {
@@ -374,14 +403,12 @@ where
     let probs = hero_probabilities(beta, coeff);
     let hero = pick_channel(probs, u());
     let target = -(-u()).ln_1p();
-    let st = coeff.sigma_t;
-    let ss = coeff.sigma_s;
-    let mut depth = 0.0f32; // ∫ density
+    let mut tau = Rgb::ZERO; // optical depth per channel
     let offset = u();
     for seg in segments {
         stats.segments += 1;
         let len = seg.length();
-        if len <= 0.0 || seg.max <= 0.0 && seg.min >= 0.0 {
+        if len <= 0.0 || coeff.is_void(&seg) {
             continue;
         }
         let n = (len / step.max(1e-12)).ceil().clamp(1.0, 1e7) as u32;
@@ -393,21 +420,22 @@ where
                 stats.lookups += 1;
                 density(seg.t0 + (i as f32 + offset) * dt)
             };
-            let next = depth + d * dt;
-            if next * st[hero] >= target && d > 0.0 {
-                // Collide inside this step (linear within the step).
-                let frac = ((target / st[hero] - depth) / d).clamp(0.0, dt);
+            // Optical depth per channel so far is st·depth + base·length.
+            let sigma = coeff.sigma_t_at(d);
+            let next = tau + sigma * dt;
+            if next[hero] >= target && sigma[hero] > 0.0 {
+                // Collide inside this step (constant coefficients within the step).
+                let frac = ((target - tau[hero]) / sigma[hero]).clamp(0.0, dt);
                 let t = seg.t0 + i as f32 * dt + frac;
-                let tau = depth + d * frac;
-                let tr = (st * tau).map(|x| (-x).exp());
-                let pdf: f32 = (0..3).map(|k| probs[k] * st[k] * d * tr[k]).sum();
+                let tr = (tau + sigma * frac).map(|x| (-x).exp());
+                let pdf: f32 = (0..3).map(|k| probs[k] * sigma[k] * tr[k]).sum();
                 stats.real_collisions += 1;
-                return Flight::Scatter { t, weight: if pdf > 0.0 { ss * d * tr / pdf } else { Rgb::ZERO } };
+                return Flight::Scatter { t, weight: if pdf > 0.0 { coeff.sigma_s_at(d) * tr / pdf } else { Rgb::ZERO } };
             }
-            depth = next;
+            tau = next;
         }
     }
-    let tr = (st * depth).map(|x| (-x).exp());
+    let tr = tau.map(|x| (-x).exp());
     let prob: f32 = (0..3).map(|k| probs[k] * tr[k]).sum();
     Flight::Escape { weight: if prob > 0.0 { tr / prob } else { Rgb::ZERO } }
 }

@@ -30,7 +30,7 @@ fn ramp_segments(n: usize, bound_scale: f32) -> Vec<MajorantSegment> {
 }
 
 fn grey(s: f32) -> DensityCoefficients {
-    DensityCoefficients { sigma_t: Rgb::splat(s), sigma_s: Rgb::splat(s * 0.7) }
+    DensityCoefficients::new(Rgb::splat(s), Rgb::splat(s * 0.7))
 }
 
 fn mean_se(n: usize, mut f: impl FnMut(&mut Rng) -> Rgb) -> (Rgb, Rgb) {
@@ -66,7 +66,7 @@ fn expected_ramp_tr(coeff: &DensityCoefficients) -> Rgb {
 
 #[test]
 fn transmittance_estimators_are_unbiased_on_a_linear_ramp() {
-    let coeff = DensityCoefficients { sigma_t: Rgb::new(0.5, 1.0, 1.7), sigma_s: Rgb::new(0.4, 0.5, 1.0) };
+    let coeff = DensityCoefficients::new(Rgb::new(0.5, 1.0, 1.7), Rgb::new(0.4, 0.5, 1.0));
     let expect = expected_ramp_tr(&coeff);
     for segs in [1usize, 4, 16] {
         for mode in [
@@ -121,7 +121,7 @@ fn ratio_tracking_has_zero_variance_when_the_majorant_is_tight() {
 
 #[test]
 fn delta_tracking_escape_and_scatter_weights_are_unbiased() {
-    let coeff = DensityCoefficients { sigma_t: Rgb::new(0.3, 1.0, 2.0), sigma_s: Rgb::new(0.3, 0.6, 1.9) };
+    let coeff = DensityCoefficients::new(Rgb::new(0.3, 1.0, 2.0), Rgb::new(0.3, 0.6, 1.9));
     let segments = ramp_segments(5, 1.0);
     let expect_tr = expected_ramp_tr(&coeff);
     for beta in [Rgb::ONE, Rgb::new(0.05, 1.0, 0.4)] {
@@ -179,7 +179,7 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
 fn delta_tracking_distances_follow_the_analytic_cdf() {
     // Grey medium: the collision density is σ(t) e^{-τ(t)}; bin t and the escape event.
     let s = 0.9f32;
-    let coeff = DensityCoefficients { sigma_t: Rgb::splat(s), sigma_s: Rgb::splat(s) };
+    let coeff = DensityCoefficients::new(Rgb::splat(s), Rgb::splat(s));
     let segments = ramp_segments(4, 1.0);
     let bins = 20usize;
     let n = 200_000usize;
@@ -202,4 +202,34 @@ fn delta_tracking_distances_follow_the_analytic_cdf() {
     }
     // 20 degrees of freedom: P(χ² > 52.4) ≈ 1e-4.
     assert!(chi2 < 52.4, "chi2 = {chi2}, counts {counts:?}");
+}
+
+#[test]
+fn combined_media_add_a_homogeneous_part_everywhere() {
+    // σ_t(x) = base + d(x)·σ⁰ with zero-density gaps between segments filled by the caller.
+    let mut coeff = DensityCoefficients::new(Rgb::new(0.5, 1.0, 1.5), Rgb::new(0.4, 0.8, 1.0));
+    coeff.base_t = Rgb::new(0.7, 0.2, 0.4);
+    coeff.base_s = Rgb::new(0.5, 0.1, 0.3);
+    let mut segments = ramp_segments(3, 1.0);
+    // A density-free stretch after the ramp: only the homogeneous part attenuates there.
+    segments.push(MajorantSegment { t0: L, t1: L + 1.0, min: 0.0, max: 0.0, mean: 0.0 });
+    let expect = Rgb([0, 1, 2].map(|c| (-(coeff.sigma_t[c] as f64) * ramp_depth(L) - coeff.base_t[c] as f64 * (L as f64 + 1.0)).exp() as f32));
+    let density = |t: f32| if t < L { ramp(t) } else { 0.0 };
+    for mode in [TransmittanceMode::Ratio, TransmittanceMode::ResidualRatio(ControlVariate::Novak)] {
+        let (m, se) = mean_se(100_000, |rng| {
+            let mut st = TrackingStats::default();
+            let mut u = || rng.next_f32();
+            transmittance(segments.iter().copied(), &coeff, density, mode, &mut u, &mut st)
+        });
+        check(m, se, expect, &format!("combined {mode:?}"));
+    }
+    let (m, se) = mean_se(200_000, |rng| {
+        let mut st = TrackingStats::default();
+        let mut u = || rng.next_f32();
+        match delta_track(segments.iter().copied(), &coeff, density, Rgb::ONE, &mut u, &mut st) {
+            Flight::Escape { weight } => weight,
+            Flight::Scatter { .. } => Rgb::ZERO,
+        }
+    });
+    check(m, se, expect, "combined delta tracking escape");
 }

@@ -176,7 +176,7 @@ fn grids_from_vdb(path: &Path, only: Option<&str>) -> Result<Vec<(String, Hetero
         let medium = HeterogeneousMedium {
             field: DensityField::Grid { grid: g.grid, channel: 0 },
             pyramid,
-            coefficients: DensityCoefficients { sigma_t: crate::spectrum::Rgb::ONE, sigma_s: crate::spectrum::Rgb::ONE },
+            coefficients: DensityCoefficients::new(crate::spectrum::Rgb::ONE, crate::spectrum::Rgb::ONE),
             phase: crate::phase::PhaseFunction::henyey_greenstein(0.0)?,
             tracking: TrackingConfig::default(),
         };

@@ -484,6 +484,8 @@ fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc, xf: Mat4, 
         ("bound_max", i.bound_max.is_some()),
         ("trial_samples", i.trial_samples.is_some()),
         ("safety", i.safety.is_some()),
+        ("base_albedo", i.base_albedo.is_some()),
+        ("base_attenuation", i.base_attenuation.is_some()),
     ];
     if matches!(i.kind.as_str(), "absorption" | "homogeneous") {
         reject_unused(ctx, line, &owner, &i.kind, &heterogeneous_keys)?;
@@ -494,11 +496,22 @@ fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc, xf: Mat4, 
             let mode = albedo_mode(ctx, line, &owner, i)?;
             let phase = build_phase(ctx, line, &owner, i.phase.as_ref())?;
             let per_unit = Coefficients::from_artist(albedo, attenuation, density, mode, phase.mean_cosine());
-            let coefficients = crate::tracking::DensityCoefficients { sigma_t: per_unit.sigma_t(), sigma_s: per_unit.sigma_s };
+            let mut coefficients = crate::tracking::DensityCoefficients::new(per_unit.sigma_t(), per_unit.sigma_s);
+            if i.base_albedo.is_some() || i.base_attenuation.is_some() {
+                // The combined interior: a homogeneous medium plus the density field (notes §2.4.1).
+                let ba = check_finite_rgb(ctx, line, &format!("{owner}.base_albedo"), color(i.base_albedo, Rgb::splat(0.8)), 0.0, 1.0)?;
+                let bt = color(i.base_attenuation, Rgb::ONE);
+                if bt.0.iter().any(|v| !(*v > 0.0)) {
+                    return Err(ctx.invalid(line, format!("{owner}.base_attenuation = {:?}: every channel must be a distance > 0", bt.0)));
+                }
+                let base = Coefficients::from_artist(ba, bt, 1.0, mode, phase.mean_cosine());
+                coefficients.base_t = base.sigma_t();
+                coefficients.base_s = base.sigma_s;
+            }
             let tracking = build_tracking(ctx, line, &owner, i.tracking.as_ref())?;
             let xf = glam::DAffine3::from_mat4(xf.as_dmat4());
             let (field, pyramid) = if i.kind == "voxel" {
-                reject_unused(ctx, line, &owner, "voxel", &heterogeneous_keys[3..])?;
+                reject_unused(ctx, line, &owner, "voxel", &heterogeneous_keys[3..11])?;
                 build_voxel_field(ctx, line, &owner, i, xf)?
             } else {
                 reject_unused(ctx, line, &owner, "fbm", &heterogeneous_keys[..2])?;

@@ -213,6 +213,10 @@ pub struct InteriorDesc {
     pub trial_samples: Option<u32>,
     /// Safety factor ≥ 1 on estimated bounds.
     pub safety: Option<f32>,
+    /// Albedo of a homogeneous medium added to the density field (combined interiors).
+    pub base_albedo: Option<ColorValue>,
+    /// Attenuation distance of that homogeneous medium.
+    pub base_attenuation: Option<ColorValue>,
 }
 
 /// `tracking = { ... }`: estimator choices of a heterogeneous interior.
