@@ -14,7 +14,7 @@ use crate::math::Ray;
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
 use crate::tracking::{DensityCoefficients, MajorantSegment, TransmittanceMode};
-use crate::volume::FbmField;
+use crate::volume::{FbmField, LazyFbmGrid};
 
 /// How the artist's albedo maps to the single-scattering albedo σ_s/σ_t.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -151,6 +151,8 @@ pub enum DensityField {
     },
     /// Procedural fBm evaluated directly (exact, slow).
     Procedural(Box<FbmField>),
+    /// Procedural fBm baked lazily into bricks where lookups go.
+    LazyBaked(Box<LazyFbmGrid>),
 }
 
 /// A heterogeneous interior: σ_t(x) = d(x)·σ_t⁰ and σ_s(x) = d(x)·σ_s⁰ with the density d(x)
@@ -201,6 +203,12 @@ impl HeterogeneousMedium {
         match &self.field {
             DensityField::Grid { grid, channel } => RayLookup::Grid(RayDensity::new(grid, *channel, ray)),
             DensityField::Procedural(f) => RayLookup::Procedural { field: f, ray: *ray },
+            DensityField::LazyBaked(g) => {
+                let w2i = g.world_to_index();
+                let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
+                let d = w2i.transform_vector3(ray.d.as_dvec3()).as_vec3();
+                RayLookup::Lazy { grid: g, o, d }
+            }
         }
     }
 }
@@ -209,6 +217,15 @@ impl HeterogeneousMedium {
 pub enum RayLookup<'a> {
     /// Trilinear grid lookups with a coherent accessor.
     Grid(RayDensity<'a>),
+    /// Lazily baked bricks (index-space ray).
+    Lazy {
+        /// The bricks.
+        grid: &'a LazyFbmGrid,
+        /// Ray origin, index space.
+        o: glam::Vec3,
+        /// Ray direction, index space.
+        d: glam::Vec3,
+    },
     /// Direct procedural evaluation.
     Procedural {
         /// The field.
@@ -224,6 +241,7 @@ impl RayLookup<'_> {
         match self {
             RayLookup::Grid(g) => g.at(t),
             RayLookup::Procedural { field, ray } => field.density_world(ray.at(t)),
+            RayLookup::Lazy { grid, o, d } => grid.sample_trilinear_index(*o + *d * t),
         }
     }
 }

@@ -291,3 +291,120 @@ pub fn procedural_pyramid(field: &FbmField, lattice: &ProceduralLattice, bound: 
     };
     Ok(pyramid)
 }
+
+/// A procedural field baked lazily: each 8³ brick of the lattice is evaluated the first time a
+/// lookup touches it ("only where rays go"), then reused. Lookups are trilinear in index space,
+/// like a baked [`SparseGrid`]. Thread-safe (bricks are `OnceLock`s).
+#[derive(Debug)]
+pub struct LazyFbmGrid {
+    field: FbmField,
+    key_lo: IVec3,
+    dims: IVec3,
+    bricks: Vec<std::sync::OnceLock<Box<[f32]>>>,
+    index_to_rest: DAffine3,
+    world_to_index: DAffine3,
+}
+
+impl Clone for LazyFbmGrid {
+    fn clone(&self) -> Self {
+        LazyFbmGrid {
+            field: self.field.clone(),
+            key_lo: self.key_lo,
+            dims: self.dims,
+            bricks: (0..self.bricks.len()).map(|_| std::sync::OnceLock::new()).collect(),
+            index_to_rest: self.index_to_rest,
+            world_to_index: self.world_to_index,
+        }
+    }
+}
+
+impl LazyFbmGrid {
+    /// Prepares lazy baking of `field` over `lattice` (nothing is evaluated yet).
+    pub fn new(field: FbmField, lattice: &ProceduralLattice) -> Result<Self, VolumeError> {
+        let (key_lo, key_hi) = lattice.brick_keys();
+        let dims = key_hi - key_lo + IVec3::ONE;
+        let n = dims.x as usize * dims.y as usize * dims.z as usize;
+        if n > 1 << 26 {
+            return Err(VolumeError::Parameter { name: "voxel_size", value: n as f64, allowed: "too small for lazy baking: more than 2^26 bricks" });
+        }
+        let index_to_rest = field.world_to_rest * lattice.index_to_world;
+        Ok(LazyFbmGrid {
+            field,
+            key_lo,
+            dims,
+            bricks: (0..n).map(|_| std::sync::OnceLock::new()).collect(),
+            index_to_rest,
+            world_to_index: lattice.index_to_world.inverse(),
+        })
+    }
+
+    /// World → index map.
+    #[must_use]
+    pub fn world_to_index(&self) -> DAffine3 {
+        self.world_to_index
+    }
+
+    /// Bricks evaluated so far.
+    #[must_use]
+    pub fn baked_bricks(&self) -> usize {
+        self.bricks.iter().filter(|b| b.get().is_some()).count()
+    }
+
+    /// Bricks of the lattice.
+    #[must_use]
+    pub fn total_bricks(&self) -> usize {
+        self.bricks.len()
+    }
+
+    fn brick(&self, key: IVec3) -> Option<&[f32]> {
+        let c = key - self.key_lo;
+        if c.cmplt(IVec3::ZERO).any() || c.cmpge(self.dims).any() {
+            return None;
+        }
+        let i = (c.z as usize * self.dims.y as usize + c.y as usize) * self.dims.x as usize + c.x as usize;
+        Some(self.bricks[i].get_or_init(|| {
+            let mut v = vec![0.0f32; 512];
+            for x in 0..BRICK_DIM {
+                for y in 0..BRICK_DIM {
+                    for z in 0..BRICK_DIM {
+                        let ijk = key * BRICK_DIM + IVec3::new(x, y, z);
+                        v[((x << 6) | (y << 3) | z) as usize] = self.field.density_rest(self.index_to_rest.transform_point3(ijk.as_dvec3()));
+                    }
+                }
+            }
+            v.into_boxed_slice()
+        }))
+    }
+
+    /// Voxel value (0 outside the lattice).
+    #[must_use]
+    pub fn value(&self, ijk: IVec3) -> f32 {
+        match self.brick(ijk >> 3) {
+            Some(b) => {
+                let l = ijk & 7;
+                b[((l.x << 6) | (l.y << 3) | l.z) as usize]
+            }
+            None => 0.0,
+        }
+    }
+
+    /// Trilinear lookup at index-space `p` (voxel centres at integers).
+    #[must_use]
+    pub fn sample_trilinear_index(&self, p: Vec3) -> f32 {
+        let f = p.floor();
+        let i = f.as_ivec3();
+        let t = p - f;
+        let mut acc = 0.0f32;
+        for dz in 0..2 {
+            for dy in 0..2 {
+                for dx in 0..2 {
+                    let w = (if dx == 1 { t.x } else { 1.0 - t.x }) * (if dy == 1 { t.y } else { 1.0 - t.y }) * (if dz == 1 { t.z } else { 1.0 - t.z });
+                    if w > 0.0 {
+                        acc += w * self.value(i + IVec3::new(dx, dy, dz));
+                    }
+                }
+            }
+        }
+        acc
+    }
+}

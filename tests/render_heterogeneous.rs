@@ -103,3 +103,12 @@ fn exact_fbm_with_estimated_bounds_agrees_with_finely_baked_fbm() {
     // 4 trial samples with no safety margin do get violated; tracking must stay unbiased.
     assert!(sa.tracking.violations > 0, "the test should exercise violated bounds");
 }
+
+#[test]
+fn lazily_baked_fbm_agrees_with_eagerly_baked_fbm() {
+    // Same lattice, same trilinear values: only the majorants differ (estimated vs exact).
+    let (a, _) = run(&fbm_scene(r#"evaluation = "lazy", voxel_size = 0.02, bound = "analytic""#), 9);
+    let (b, _) = run(&fbm_scene(r#"evaluation = "baked", voxel_size = 0.02"#), 10);
+    let z = compare(&a, &b).expect("compare").z_test.expect("variance");
+    assert!(z.consistent, "lazy vs baked: {z:?}");
+}

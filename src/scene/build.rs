@@ -651,7 +651,7 @@ fn build_fbm_field(
             let pyramid = crate::majorant::MajorantPyramid::from_grid(&grid, 0).map_err(|e| bad(&e))?;
             Ok((DensityField::Grid { grid, channel: 0 }, pyramid))
         }
-        "exact" => {
+        "lazy" | "exact" => {
             let bound = match i.bound.as_deref().unwrap_or("estimated") {
                 "analytic" => ProceduralBound::Analytic,
                 "artist" => {
@@ -663,9 +663,14 @@ fn build_fbm_field(
                 other => return Err(ctx.invalid(line, format!("{owner}.bound = \"{other}\" is unknown (expected \"analytic\", \"artist\" or \"estimated\")"))),
             };
             let pyramid = procedural_pyramid(&field, &lattice, bound, 0x5eed).map_err(|e| bad(&e))?;
-            Ok((DensityField::Procedural(Box::new(field)), pyramid))
+            if i.evaluation.as_deref() == Some("lazy") {
+                let lazy = crate::volume::LazyFbmGrid::new(field, &lattice).map_err(|e| bad(&e))?;
+                Ok((DensityField::LazyBaked(Box::new(lazy)), pyramid))
+            } else {
+                Ok((DensityField::Procedural(Box::new(field)), pyramid))
+            }
         }
-        other => Err(ctx.invalid(line, format!("{owner}.evaluation = \"{other}\" is unknown (expected \"baked\" or \"exact\")"))),
+        other => Err(ctx.invalid(line, format!("{owner}.evaluation = \"{other}\" is unknown (expected \"baked\", \"lazy\" or \"exact\")"))),
     }
 }
 
