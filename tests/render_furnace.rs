@@ -9,7 +9,11 @@ use velour::render::{render, RenderOptions};
 use velour::scene::load_scene_str;
 
 fn render_scene(text: &str, threads: usize) -> Film {
-    let scene = load_scene_str(text, Path::new("test.toml")).expect("scene");
+    render_scene_at(text, Path::new("test.toml"), threads)
+}
+
+fn render_scene_at(text: &str, path: &Path, threads: usize) -> Film {
+    let scene = load_scene_str(text, path).expect("scene");
     let opts = RenderOptions { threads, ..RenderOptions::default() };
     let (film, summary) = render(&scene, &opts).expect("render");
     assert_eq!(summary.non_finite, 0, "non-finite samples");
@@ -122,11 +126,12 @@ interior = {{ type = "absorption", attenuation = [{}, {}, {}] }}
 
 #[test]
 fn images_are_bit_identical_across_thread_counts() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml")).expect("scene");
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml"));
+    let text = std::fs::read_to_string(path).expect("scene");
     let text = text.replace("width = 320", "width = 40").replace("height = 240", "height = 30").replace("spp = 32", "spp = 4");
-    let a = render_scene(&text, 1);
-    let b = render_scene(&text, 2);
-    let c = render_scene(&text, 3);
+    let a = render_scene_at(&text, path, 1);
+    let b = render_scene_at(&text, path, 2);
+    let c = render_scene_at(&text, path, 3);
     for y in 0..30 {
         for x in 0..40 {
             let (ma, mb, mc) = (a.mean(x, y), b.mean(x, y), c.mean(x, y));
