@@ -11,7 +11,7 @@
 
 use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::bsdf::Surface;
-use crate::math::{offset_ray_origin, Frame, Ray, Vec3};
+use crate::math::{Frame, Ray, Vec3};
 use crate::medium::{sample_free_flight, FreeFlight, FreeFlightMethod, Medium, NeeStrategy};
 use crate::phase::PhaseFunction;
 use crate::tracking::{delta_track, ray_march_free_flight, transmittance, Flight, MajorantSegment, TrackingStats};
@@ -317,7 +317,7 @@ fn shadow_transmittance(
         if remaining <= 0.0 {
             return tr;
         }
-        origin = offset_ray_origin(h.p, h.ng, dir);
+        origin = h.spawn_origin(dir);
     }
     Rgb::ZERO
 }
@@ -515,7 +515,7 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
                 if crossings > 64 * MAX_NESTING as u32 + max_depth {
                     break;
                 }
-                ray = Ray::new(offset_ray_origin(hit.p, hit.ng, ray.d), ray.d);
+                ray = Ray::new(hit.spawn_origin(ray.d), ray.d);
                 continue;
             }
         }
@@ -558,7 +558,7 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
                                 s.remove(oi);
                             }
                         }
-                        (offset_ray_origin(p, ng, wi), s)
+                        (hit.spawn_origin(wi), s)
                     },
                     |wi| {
                         // Reject directions on the wrong side of the geometric surface for the lobe.
@@ -603,7 +603,7 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
         } else if bs.is_delta && !from_interior_nee {
             prev.did_nee = false;
         }
-        ray = Ray::new(offset_ray_origin(hit.p, ng, wi), wi);
+        ray = Ray::new(hit.spawn_origin(wi), wi);
         if !russian_roulette(&mut beta, eta_scale, depth, sampler) {
             break;
         }

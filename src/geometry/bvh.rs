@@ -355,6 +355,11 @@ impl SceneGeometry {
         match best {
             Best::Sphere(slot, h) => {
                 let p = &self.prims[slot];
+                // p = c + r n: rounding grows with |c| + r, not with |p|.
+                let p_error = match self.shapes.get(p.shape as usize) {
+                    Some(Shape::Sphere { center, radius }) => crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius),
+                    _ => crate::math::gamma(6) * 4.0 * h.p.abs().max_element(),
+                };
                 Hit {
                     t: h.t,
                     p: h.p,
@@ -363,6 +368,7 @@ impl SceneGeometry {
                     uv: h.uv,
                     shape: p.shape,
                     prim: 0,
+                    p_error,
                 }
             }
             Best::Tri(slot, h) => {
@@ -382,6 +388,8 @@ impl SceneGeometry {
                         uv = t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2;
                     }
                 }
+                // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
+                let p_error = crate::math::gamma(7) * (p.a.abs() * h.b0.abs() + p.b.abs() * h.b1.abs() + p.c.abs() * h.b2.abs()).max_element();
                 Hit {
                     t: h.t,
                     p: pos,
@@ -390,6 +398,7 @@ impl SceneGeometry {
                     uv,
                     shape: p.shape,
                     prim: p.prim,
+                    p_error,
                 }
             }
         }

@@ -238,4 +238,19 @@ pub struct Hit {
     pub shape: u32,
     /// Triangle index within the mesh (0 for spheres).
     pub prim: u32,
+    /// Conservative bound on the absolute rounding error of `p` (world units): spawned rays
+    /// start this far off the surface (plus a few ULPs), see [`Hit::spawn_origin`].
+    pub p_error: f32,
+}
+
+impl Hit {
+    /// Origin for a ray leaving the surface in direction `dir`: moved off the surface along
+    /// the geometric normal by the hit point's error bound, to the side `dir` points to, then
+    /// by a few ULPs (Wächter & Binder 2019), so that neither the surface left nor a nearby
+    /// one can be re-hit or skipped (large spheres have errors far above one ULP of `p`).
+    #[must_use]
+    pub fn spawn_origin(&self, dir: Vec3) -> Vec3 {
+        let n = if self.ng.dot(dir) < 0.0 { -self.ng } else { self.ng };
+        crate::math::offset_ray_origin(self.p + n * self.p_error, self.ng, dir)
+    }
 }
