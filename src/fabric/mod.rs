@@ -32,7 +32,7 @@ pub use fibre_scattering::{
 };
 pub use voxelise::{
     render_preview, voxelise, write_patch_vdb, PreviewImage, PreviewOptions, VoxelStats,
-    VoxelisedPatch, VoxeliseOptions,
+    VoxeliseOptions, VoxelisedPatch,
 };
 pub use weave::{
     generate_patch, FabricPatch, FabricShading, PatchFibre, PileParams, TwillDirection,

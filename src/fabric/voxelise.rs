@@ -181,7 +181,11 @@ pub fn voxelise(
     let h = f64::from(tile.x.max(tile.y)) / f64::from(resolution);
     let nx = ((f64::from(tile.x) / h).round() as i32).max(1);
     let ny = ((f64::from(tile.y) / h).round() as i32).max(1);
-    let hv = DVec3::new(f64::from(tile.x) / f64::from(nx), f64::from(tile.y) / f64::from(ny), h);
+    let hv = DVec3::new(
+        f64::from(tile.x) / f64::from(nx),
+        f64::from(tile.y) / f64::from(ny),
+        h,
+    );
     // Check the fibres, estimate the work.
     let mut max_r = 0.0f32;
     let mut deposits_est = 0.0f64;
@@ -323,12 +327,7 @@ fn cross_section_offsets(r: f32, h: f32) -> Vec<[f32; 2]> {
 }
 
 /// Deposits one fibre; returns the number of line–voxel deposits.
-fn deposit_fibre(
-    map: &mut AccMap,
-    l: &Layout,
-    f: &super::PatchFibre,
-    buf: &mut Vec<f32>,
-) -> u64 {
+fn deposit_fibre(map: &mut AccMap, l: &Layout, f: &super::PatchFibre, buf: &mut Vec<f32>) -> u64 {
     let class = match f.yarn {
         YarnId::Warp(_) => 6,
         YarnId::Weft(_) => 7,
@@ -346,7 +345,14 @@ fn deposit_fibre(
             continue;
         }
         let t = d / len;
-        let tensor = [t.x * t.x, t.x * t.y, t.x * t.z, t.y * t.y, t.y * t.z, t.z * t.z];
+        let tensor = [
+            t.x * t.x,
+            t.x * t.y,
+            t.x * t.z,
+            t.y * t.y,
+            t.y * t.z,
+            t.z * t.z,
+        ];
         let vol = area * len * share;
         let frame = (offsets.len() > 1).then(|| Frame::from_normal(t));
         for o in &offsets {
@@ -547,19 +553,15 @@ fn finish(
     gb.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
     gb.add_channel("tangent", ChannelKind::Vec3, Vec3::ZERO);
     gb.add_channel("id", ChannelKind::Scalar, Vec3::ZERO);
-    let m = DAffine3::from_scale_rotation_translation(
-        hv,
-        glam::DQuat::IDENTITY,
-        origin + 0.5 * hv,
-    );
-    gb.set_index_to_world(m).map_err(|e| {
-        super::invalid("voxel size", format!("{hv} ({e})"), "finite and > 0")
-    })?;
+    let m = DAffine3::from_scale_rotation_translation(hv, glam::DQuat::IDENTITY, origin + 0.5 * hv);
+    gb.set_index_to_world(m)
+        .map_err(|e| super::invalid("voxel size", format!("{hv} ({e})"), "finite and > 0"))?;
     let (mut dep, mut clamped) = (0.0, 0.0);
     for ((key, _), (dens, tan, id, mask, d, c)) in acc.iter().zip(&outs) {
         dep += d;
         clamped += c;
-        gb.fill_brick(DENSITY, *key, dens, *mask).map_err(grid_err)?;
+        gb.fill_brick(DENSITY, *key, dens, *mask)
+            .map_err(grid_err)?;
         gb.fill_brick(TANGENT, *key, tan, *mask).map_err(grid_err)?;
         gb.fill_brick(ID, *key, id, *mask).map_err(grid_err)?;
     }
@@ -686,7 +688,11 @@ pub fn write_patch_vdb(
     half: bool,
 ) -> Result<(), FabricError> {
     if levels.is_empty() {
-        return Err(super::invalid("levels", "[]", "at least one voxelised patch"));
+        return Err(super::invalid(
+            "levels",
+            "[]",
+            "at least one voxelised patch",
+        ));
     }
     let mut names = Vec::new();
     for (i, p) in levels.iter().enumerate() {
@@ -701,7 +707,10 @@ pub fn write_patch_vdb(
             format!("id{suffix}"),
         ]);
     }
-    let id_meta = [MetaEntry::string("velour_id_legend", "0 warp, 1 weft, 2 pile")];
+    let id_meta = [MetaEntry::string(
+        "velour_id_legend",
+        "0 warp, 1 weft, 2 pile",
+    )];
     let tan_meta = [MetaEntry::string(
         "velour_tangent",
         "principal axis of the fibre structure tensor (sign-agnostic)",
@@ -977,8 +986,7 @@ pub fn render_preview(
                 let p = p0 + dir * t;
                 // Footprint of the swatch only.
                 let world = vp.origin.as_vec3() + (p + Vec3::splat(0.5)) * h;
-                if world.x >= 0.0 && world.y >= 0.0 && world.x < extent.x && world.y < extent.y
-                {
+                if world.x >= 0.0 && world.y >= 0.0 && world.x < extent.x && world.y < extent.y {
                     let q = vp.wrap_index(p).round().as_ivec3();
                     let d = acc.value(q);
                     if d > 0.0 {
