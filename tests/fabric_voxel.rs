@@ -334,13 +334,31 @@ fn mips_conserve_volume() {
         0.001,
         9,
     );
-    let vp = voxelise(&custom_patch(vec![f], 1.0), 64, &VoxeliseOptions::default()).unwrap();
+    let vp = voxelise(
+        &custom_patch(vec![f.clone()], 1.0),
+        64,
+        &VoxeliseOptions::default(),
+    )
+    .unwrap();
     let m = vp.mip(2).unwrap();
     for (_, t, id, _) in voxel_values(&m) {
         assert!(t.dot(Vec3::X) > 0.999, "{t}");
         assert_eq!(id, 1.0);
     }
     assert!(vp.mip(13).is_err());
+    let lean = voxelise(
+        &custom_patch(vec![f.clone()], 1.0),
+        64,
+        &VoxeliseOptions {
+            keep_accumulators: false,
+            ..VoxeliseOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(lean.stats(1.0).accumulator_bytes, 0);
+    assert_eq!(lean.volume(), vp.volume());
+    let e = lean.mip(1).unwrap_err();
+    assert!(e.to_string().contains("keep_accumulators"), "{e}");
 }
 
 #[test]

@@ -172,6 +172,7 @@ pub fn run(args: &WeaveArgs) -> CliResult {
     let opts = VoxeliseOptions {
         storage: Storage::F32,
         wrap: true,
+        keep_accumulators: args.mip > 0,
     };
     let vp = voxelise(&patch, args.resolution as u32, &opts)
         .map_err(|e| format!("--resolution {}: {e}", args.resolution))?;

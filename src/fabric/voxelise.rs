@@ -81,6 +81,10 @@ pub struct VoxeliseOptions {
     /// Wrap `x` and `y` modulo the tile (default true). Without wrapping, index space is
     /// unbounded and voxels outside the tile are kept.
     pub wrap: bool,
+    /// Keep the per-voxel accumulators (36 bytes per voxel of every touched brick) so that
+    /// [`VoxelisedPatch::mip`] can sum structure tensors exactly (default true). Without
+    /// them the patch is smaller and `mip` returns an error.
+    pub keep_accumulators: bool,
 }
 
 impl Default for VoxeliseOptions {
@@ -88,6 +92,7 @@ impl Default for VoxeliseOptions {
         VoxeliseOptions {
             storage: Storage::F32,
             wrap: true,
+            keep_accumulators: true,
         }
     }
 }
@@ -120,6 +125,7 @@ pub struct VoxelisedPatch {
     /// Volume-weighted mean fibre radius (world units), used by the preview for extinction.
     pub mean_fibre_radius: f64,
     acc: Vec<(IVec3, BrickAcc)>,
+    has_acc: bool,
 }
 
 /// Figures of a voxelisation, for `velour weave --stats` and benchmarks.
@@ -291,7 +297,7 @@ pub fn voxelise(
     } else {
         f64::from(max_r)
     };
-    finish(
+    let mut vp = finish(
         acc,
         0,
         hv,
@@ -302,7 +308,12 @@ pub fn voxelise(
         opts.storage,
         deposits,
         mean_r,
-    )
+    )?;
+    if !opts.keep_accumulators {
+        vp.acc = Vec::new();
+        vp.has_acc = false;
+    }
+    Ok(vp)
 }
 
 /// Offsets (in the fibre's cross-section frame, world units) of the parallel lines that
@@ -578,6 +589,7 @@ fn finish(
         deposits,
         mean_fibre_radius,
         acc,
+        has_acc: true,
     })
 }
 
@@ -623,10 +635,18 @@ impl VoxelisedPatch {
     /// space beyond the tile (the wrap is then not exact at this level).
     ///
     /// # Errors
-    /// [`FabricError::InvalidParameter`] for `levels > 12`.
+    /// [`FabricError::InvalidParameter`] for `levels > 12`, or for a patch voxelised without
+    /// [`VoxeliseOptions::keep_accumulators`].
     pub fn mip(&self, levels: u32) -> Result<VoxelisedPatch, FabricError> {
         if levels > 12 {
             return Err(super::invalid("mip level", levels, "0..=12"));
+        }
+        if !self.has_acc {
+            return Err(super::invalid(
+                "keep_accumulators",
+                false,
+                "true to build mip levels",
+            ));
         }
         let mut map: AccMap = CoordMap::default();
         for (key, b) in &self.acc {
