@@ -41,10 +41,10 @@ use super::{FabricError, FabricPatch, FabricShading, YarnId};
 use crate::grid::{
     voxel_offset, ChannelKind, CoordMap, SparseGrid, SparseGridBuilder, Storage, BRICK_VOXELS,
 };
-use crate::math::{Frame, Vec3};
+use crate::math::{Frame, Mat3, Vec3};
 use crate::spectrum::Rgb;
 use crate::vdb::{write_vdb, Compression, GridStats, GridToWrite, MetaEntry, WriteOptions};
-use glam::{DAffine3, DMat3, DVec3, IVec3};
+use glam::{DAffine3, DVec3, IVec3};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -67,7 +67,38 @@ pub const MAX_BRICKS: u64 = 400_000;
 /// weighted, so its trace is the deposited volume) and the volume per yarn family.
 const ACC: usize = 9;
 type BrickAcc = Box<[f32]>;
-type AccMap = CoordMap<BrickAcc>;
+
+/// Brick accumulators with a hash index and a one-entry cache (deposits along a fibre hit
+/// the same brick many times in a row).
+#[derive(Default)]
+struct AccMap {
+    index: CoordMap<u32>,
+    bricks: Vec<(IVec3, BrickAcc)>,
+    last: Option<(IVec3, usize)>,
+}
+
+impl AccMap {
+    fn brick(&mut self, key: IVec3) -> &mut [f32] {
+        let i = match self.last {
+            Some((k, i)) if k == key => i,
+            _ => {
+                let bricks = &mut self.bricks;
+                let i = *self.index.entry(key).or_insert_with(|| {
+                    bricks.push((key, new_brick()));
+                    (bricks.len() - 1) as u32
+                }) as usize;
+                self.last = Some((key, i));
+                i
+            }
+        };
+        &mut self.bricks[i].1
+    }
+    fn into_sorted(self) -> Vec<(IVec3, BrickAcc)> {
+        let mut v = self.bricks;
+        v.sort_unstable_by_key(|(k, _)| (k.x, k.y, k.z));
+        v
+    }
+}
 
 fn new_brick() -> BrickAcc {
     vec![0.0f32; BRICK_VOXELS * ACC].into_boxed_slice()
@@ -264,7 +295,7 @@ pub fn voxelise(
         wrap: opts.wrap,
     };
     // Deposit, chunk by chunk, merging in chunk order.
-    let mut total: AccMap = CoordMap::default();
+    let mut total = AccMap::default();
     let mut deposits = 0u64;
     let group = CHUNK_FIBRES * 2 * rayon::current_num_threads().max(1);
     for fibres in patch.fibres.chunks(group) {
@@ -285,8 +316,7 @@ pub fn voxelise(
             merge(&mut total, map);
         }
     }
-    let mut acc: Vec<(IVec3, BrickAcc)> = total.into_iter().collect();
-    acc.sort_unstable_by_key(|(k, _)| (k.x, k.y, k.z));
+    let acc = total.into_sorted();
     let weighted_r: f64 = patch
         .fibres
         .iter()
@@ -421,7 +451,7 @@ fn deposit_line(
             cell.y = cell.y.rem_euclid(l.n.y);
         }
         let w = vol * ds;
-        let brick = map.entry(cell >> 3).or_insert_with(new_brick);
+        let brick = map.brick(cell >> 3);
         let o = voxel_offset(cell & 7) * ACC;
         let v = &mut brick[o..o + ACC];
         for (x, &tt) in v[..6].iter_mut().zip(tensor) {
@@ -434,45 +464,39 @@ fn deposit_line(
 }
 
 fn merge(total: &mut AccMap, part: AccMap) {
-    for (k, b) in part {
-        match total.get_mut(&k) {
-            Some(t) => {
-                for (x, y) in t.iter_mut().zip(b.iter()) {
+    for (k, b) in part.bricks {
+        match total.index.get(&k) {
+            Some(&i) => {
+                for (x, y) in total.bricks[i as usize].1.iter_mut().zip(b.iter()) {
                     *x += *y;
                 }
             }
             None => {
-                total.insert(k, b);
+                total.index.insert(k, total.bricks.len() as u32);
+                total.bricks.push((k, b));
             }
         }
     }
 }
 
 /// Principal eigenvector of a symmetric positive semi-definite 3×3 matrix by repeated
-/// squaring (`M^(2^8)`): the largest column of a high power of `M` lies along the eigenvector
-/// of the largest eigenvalue. Sign: largest component positive.
+/// squaring (`M^(2^6)`, renormalised by the trace): the largest column of a high power of `M`
+/// lies along the eigenvector of the largest eigenvalue (the other directions shrink by
+/// `(λ₂/λ₁)^64`). Sign: largest component positive. Zero for a zero matrix.
 fn principal_axis(s: &[f32]) -> Vec3 {
-    let (xx, xy, xz, yy, yz, zz) = (
-        f64::from(s[0]),
-        f64::from(s[1]),
-        f64::from(s[2]),
-        f64::from(s[3]),
-        f64::from(s[4]),
-        f64::from(s[5]),
-    );
-    let tr = xx + yy + zz;
+    let tr = s[0] + s[3] + s[5];
     if !(tr > 0.0) {
         return Vec3::ZERO;
     }
-    let mut m = DMat3::from_cols(
-        DVec3::new(xx, xy, xz),
-        DVec3::new(xy, yy, yz),
-        DVec3::new(xz, yz, zz),
+    let mut m = Mat3::from_cols(
+        Vec3::new(s[0], s[1], s[2]),
+        Vec3::new(s[1], s[3], s[4]),
+        Vec3::new(s[2], s[4], s[5]),
     ) * (1.0 / tr);
-    for _ in 0..8 {
+    for _ in 0..6 {
         m = m * m;
         let t = m.x_axis.x + m.y_axis.y + m.z_axis.z;
-        if !(t > 0.0) {
+        if !(t > 1e-30) {
             break;
         }
         m *= 1.0 / t;
@@ -484,22 +508,20 @@ fn principal_axis(s: &[f32]) -> Vec3 {
             best = *c;
         }
     }
-    let len = best.length();
-    if !(len > 0.0) {
-        return Vec3::ZERO;
-    }
-    let mut v = (best / len).as_vec3();
-    let big = if v.x.abs() >= v.y.abs() && v.x.abs() >= v.z.abs() {
+    let v = best.normalize_or_zero();
+    let a = v.abs();
+    let big = if a.x >= a.y && a.x >= a.z {
         v.x
-    } else if v.y.abs() >= v.z.abs() {
+    } else if a.y >= a.z {
         v.y
     } else {
         v.z
     };
     if big < 0.0 {
-        v = -v;
+        -v
+    } else {
+        v
     }
-    v
 }
 
 /// Builds the grid of a level from its sorted brick accumulators.
@@ -648,7 +670,7 @@ impl VoxelisedPatch {
                 "true to build mip levels",
             ));
         }
-        let mut map: AccMap = CoordMap::default();
+        let mut map = AccMap::default();
         for (key, b) in &self.acc {
             let base = *key << 3;
             for v in 0..BRICK_VOXELS {
@@ -658,15 +680,14 @@ impl VoxelisedPatch {
                 }
                 let vi = v as i32;
                 let cell = (base + IVec3::new(vi >> 6, (vi >> 3) & 7, vi & 7)) >> levels as i32;
-                let dst = map.entry(cell >> 3).or_insert_with(new_brick);
+                let dst = map.brick(cell >> 3);
                 let o = voxel_offset(cell & 7) * ACC;
                 for (x, y) in dst[o..o + ACC].iter_mut().zip(s) {
                     *x += *y;
                 }
             }
         }
-        let mut acc: Vec<(IVec3, BrickAcc)> = map.into_iter().collect();
-        acc.sort_unstable_by_key(|(k, _)| (k.x, k.y, k.z));
+        let acc = map.into_sorted();
         let f = f64::from(1u32 << levels);
         let div = |n: u32| n.div_ceil(1 << levels);
         finish(
