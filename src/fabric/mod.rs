@@ -14,7 +14,7 @@
 //! * [`fibre_scattering`]: the Chiang et al. 2016 fibre scattering model (R, TT, TRT and the
 //!   residual lobe) plus a Lambertian-cylinder diffuse lobe, as a phase function of fibre
 //!   volumes, and an SGGX fibre microflake alternative.
-//! * [`voxelise`]: coverage-weighted voxelisation of a patch into a [`crate::grid::SparseGrid`]
+//! * [`mod@voxelise`]: coverage-weighted voxelisation of a patch into a [`crate::grid::SparseGrid`]
 //!   (density, mean tangent, yarn id), mip levels, OpenVDB export and a single-scattering
 //!   preview renderer.
 //!
