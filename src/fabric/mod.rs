@@ -14,17 +14,25 @@
 //! * [`fibre_scattering`]: the Chiang et al. 2016 fibre scattering model (R, TT, TRT and the
 //!   residual lobe) plus a Lambertian-cylinder diffuse lobe, as a phase function of fibre
 //!   volumes, and an SGGX fibre microflake alternative.
+//! * [`mod@voxelise`]: coverage-weighted voxelisation of a patch into a [`crate::grid::SparseGrid`]
+//!   (density, mean tangent, yarn id), mip levels, OpenVDB export and a single-scattering
+//!   preview renderer.
 //!
 //! Lengths: the yarn presets are in **centimetres** (the units of the released fits); every
 //! length in this module is in the same unit as the yarn parameters it came from. Use
 //! [`yarn::YarnParams::scaled`] to convert to scene units.
 
 pub mod fibre_scattering;
+pub mod voxelise;
 pub mod weave;
 pub mod yarn;
 
 pub use fibre_scattering::{
     FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, SggxFibrePhase, SggxSample,
+};
+pub use voxelise::{
+    render_preview, voxelise, write_patch_vdb, PreviewImage, PreviewOptions, VoxelStats,
+    VoxeliseOptions, VoxelisedPatch,
 };
 pub use weave::{
     generate_patch, FabricPatch, FabricShading, PatchFibre, PileParams, TwillDirection,
