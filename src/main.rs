@@ -28,7 +28,19 @@ enum Command {
     Diff(cli::diff::DiffArgs),
 }
 
+/// Restores the default SIGPIPE action so that `velour inspect f.vdb | head` ends quietly
+/// instead of panicking on a closed pipe (Rust ignores SIGPIPE by default).
+fn reset_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: `signal` with SIG_DFL only changes this process's signal disposition; it is
+    // called once at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() {
+    reset_sigpipe();
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Render(a) => cli::render::run(a),
