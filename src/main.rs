@@ -24,6 +24,8 @@ enum Command {
     Bench(cli::bench::BenchArgs),
     /// Compare two EXR images (RMSE, relative MSE, bias, per-pixel z-test).
     Diff(cli::diff::DiffArgs),
+    /// Render a high-sample reference image with per-pixel variance (--spp N or --time S).
+    Reference(cli::reference::ReferenceArgs),
 }
 
 fn main() {
@@ -35,6 +37,7 @@ fn main() {
         Command::Weave(a) => cli::weave::run(a),
         Command::Diff(a) => cli::diff::run(a),
         Command::Bench(a) => cli::bench::run(a),
+        Command::Reference(a) => cli::reference::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");
