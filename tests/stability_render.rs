@@ -440,3 +440,67 @@ fn non_scattering_homogeneous_sphere_matches_beer_lambert() {
         failures.join("\n")
     );
 }
+
+/// A lambertian sphere under a uniform environment of radiance 1, seen obliquely from above
+/// (as the shipped scenes see their ground), its top at height `-drop`: the top sees only the
+/// sky (the sphere is convex), so the pixels return the reflectance exactly (NEE and bounce
+/// rays leave the surface upwards and must not hit it again).
+fn lambertian_ground_mean(radius: f64, drop: f64) -> (f64, f64) {
+    let text = format!(
+        r#"
+[camera]
+eye = [0.3, {:e}, 2]
+look_at = [0, {:e}, 0]
+fov = 10
+[film]
+width = 8
+height = 8
+spp = 64
+seed = 2
+max_depth = 100
+[[light]]
+type = "environment"
+radiance = 1.0
+[[object]]
+shape = "sphere"
+center = [0, {:e}, 0]
+radius = {radius:e}
+surface = {{ type = "lambertian", reflectance = 0.5 }}
+"#,
+        1.5 - drop,
+        -drop,
+        -(radius + drop)
+    );
+    let (film, summary) = render_text(&text, &format!("lambertian ground of radius {radius}"));
+    assert_eq!(summary.non_finite, 0);
+    image_mean(&film)[0]
+}
+
+#[test]
+fn lambertian_sphere_top_returns_its_reflectance() {
+    for (radius, drop) in [(10.0, 0.0), (10.0, 0.6), (100.0, 0.6)] {
+        let (m, se) = lambertian_ground_mean(radius, drop);
+        assert!(
+            (m - 0.5).abs() <= 4.5 * se + 1e-4,
+            "radius {radius}: {m} ± {se}, expected 0.5"
+        );
+    }
+}
+
+/// Fails: a lambertian sphere of radius 1000 (the shipped scenes' ground: `center = [0,
+/// -1000.65, 0]`, `radius = 1000`) renders at 0.28–0.37 instead of 0.5 under a white
+/// environment: rays leaving the surface re-hit it. The hit point `center + n·radius` carries
+/// an absolute error of ~ulp(1000) = 6e-5, while `offset_ray_origin` offsets by 256 ulps of the
+/// hit point's own coordinates (~1.5e-5 at |y| = 0.6), so the new origin can lie inside the
+/// sphere. See the report of issue 6 for the proposed fix.
+#[test]
+#[ignore = "bug in geometry::sphere + math::offset_ray_origin: radius-1000 spheres (the shipped ground) self-intersect and render ~0.55-0.75x too dark"]
+fn large_lambertian_sphere_top_returns_its_reflectance() {
+    for (radius, drop) in [(1000.0, 0.0), (1000.0, 0.6), (1000.0, 0.65)] {
+        let (m, se) = lambertian_ground_mean(radius, drop);
+        assert!(
+            (m - 0.5).abs() <= 4.5 * se + 1e-4,
+            "radius {radius} top at {drop}: {m} ± {se}, expected 0.5"
+        );
+    }
+}
