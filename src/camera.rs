@@ -172,7 +172,7 @@ impl Camera {
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
         let v = p - self.eye;
         let z = v.dot(self.forward);
-        if !(z > 0.0) {
+        if z.is_nan() || z <= 0.0 {
             return None;
         }
         let aspect = self.width as f32 / self.height as f32;

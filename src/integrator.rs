@@ -12,7 +12,9 @@
 use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::bsdf::Surface;
 use crate::math::{offset_ray_origin, Frame, Ray, Vec3};
-use crate::medium::{sample_free_flight, FreeFlight, Medium, NeeStrategy};
+use crate::medium::{sample_free_flight, FreeFlight, FreeFlightMethod, Medium, NeeStrategy};
+use crate::phase::PhaseFunction;
+use crate::tracking::{delta_track, ray_march_free_flight, transmittance, Flight, MajorantSegment, TrackingStats};
 use crate::sampling::{power_heuristic, PixelSampler};
 use crate::scene::{Object, ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -34,6 +36,8 @@ pub struct TraceStats {
     pub vertices: u64,
     /// Samples whose radiance was NaN or infinite (dropped, not written).
     pub non_finite: u64,
+    /// Heterogeneous-medium tracking counters (lookups, collisions, bound violations).
+    pub tracking: TrackingStats,
 }
 
 impl TraceStats {
@@ -43,6 +47,7 @@ impl TraceStats {
         self.rays += o.rays;
         self.vertices += o.vertices;
         self.non_finite += o.non_finite;
+        self.tracking.merge(&o.tracking);
     }
 }
 
@@ -154,6 +159,88 @@ fn boundary_surface(obj: &Object, outside_ior: f32) -> Option<Surface> {
     }
 }
 
+/// True when a boundary of transmissive object `oi` does not interact: entering an object
+/// under a higher-priority interior, leaving an object while a higher-priority one governs,
+/// and the inconsistent cases that rounding can produce at silhouettes (entering an object
+/// already entered, leaving one never entered), which pass straight through.
+fn is_false_intersection(scene: &Scene, stack: &InteriorStack, oi: u32, entering: bool) -> bool {
+    let governing = stack.top(&scene.objects, None);
+    if entering {
+        stack.contains(oi) || governing.is_some_and(|g| scene.objects[g as usize].priority > scene.objects[oi as usize].priority)
+    } else {
+        !stack.contains(oi) || governing != Some(oi)
+    }
+}
+
+/// What happened along a ray segment inside an interior.
+enum MediumEvent<'a> {
+    /// A real scattering event at distance `t`.
+    Scatter { t: f32, weight: Rgb, phase: &'a PhaseFunction },
+    /// The ray reached `t_max`.
+    Pass { weight: Rgb },
+}
+
+/// Samples the interior along `ray` up to `t_max` (Algorithm 1, lines 3–11).
+fn sample_medium<'a>(
+    medium: &'a Medium,
+    ray: &Ray,
+    t_max: f32,
+    beta: Rgb,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+    segments: &mut Vec<MajorantSegment>,
+) -> MediumEvent<'a> {
+    match medium {
+        Medium::Absorbing { .. } => MediumEvent::Pass { weight: medium.transmittance(t_max) },
+        Medium::Homogeneous(h) => {
+            let u_channel = sampler.next_1d();
+            let u_dist = sampler.next_1d();
+            match sample_free_flight(&h.coefficients, beta, t_max, u_channel, u_dist) {
+                FreeFlight::Escape { weight } => MediumEvent::Pass { weight },
+                FreeFlight::Scatter { t, weight } => MediumEvent::Scatter { t, weight, phase: &h.phase },
+            }
+        }
+        Medium::Heterogeneous(h) => {
+            segments.clear();
+            h.segments(ray, 0.0, t_max, segments);
+            let mut lookup = h.density_along(ray);
+            let mut u = || sampler.next_1d();
+            let flight = match h.tracking.free_flight {
+                FreeFlightMethod::DeltaTracking => delta_track(segments.iter().copied(), &h.coefficients, |t| lookup.at(t), beta, &mut u, &mut stats.tracking),
+                FreeFlightMethod::RayMarching { step } => {
+                    ray_march_free_flight(segments.iter().copied(), &h.coefficients, |t| lookup.at(t), step, beta, &mut u, &mut stats.tracking)
+                }
+            };
+            match flight {
+                Flight::Escape { weight } => MediumEvent::Pass { weight },
+                Flight::Scatter { t, weight } => MediumEvent::Scatter { t, weight, phase: &h.phase },
+            }
+        }
+    }
+}
+
+/// Transmittance of the interior along `ray` over `[0, t_max]` (closed form for homogeneous
+/// interiors, the interior's transmittance estimator for heterogeneous ones).
+fn medium_transmittance(
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f32,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+    segments: &mut Vec<MajorantSegment>,
+) -> Rgb {
+    match medium {
+        Medium::Absorbing { .. } | Medium::Homogeneous(_) => medium.transmittance(t_max),
+        Medium::Heterogeneous(h) => {
+            segments.clear();
+            h.segments(ray, 0.0, t_max, segments);
+            let mut lookup = h.density_along(ray);
+            let mut u = || sampler.next_1d();
+            transmittance(segments.iter().copied(), &h.coefficients, |t| lookup.at(t), h.tracking.transmittance, &mut u, &mut stats.tracking)
+        }
+    }
+}
+
 /// How a shadow ray treats the dielectric boundaries it meets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum ShadowMode {
@@ -174,8 +261,10 @@ fn shadow_transmittance(
     mut stack: InteriorStack,
     mode: ShadowMode,
     ignore_shape: Option<u32>,
+    sampler: &mut PixelSampler,
     stats: &mut TraceStats,
 ) -> Rgb {
+    let mut segments = Vec::new();
     let mut tr = Rgb::ONE;
     let mut remaining = distance;
     for _ in 0..4 * MAX_NESTING + 8 {
@@ -183,12 +272,7 @@ fn shadow_transmittance(
         let hit = scene.geometry.intersect(&Ray::new(origin, dir), remaining);
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
         if let Some((m, _)) = current_medium(scene, &stack) {
-            if seg.is_infinite() && !m.sigma_t().is_black() {
-                let t = m.transmittance(f32::INFINITY);
-                tr *= t;
-            } else {
-                tr *= m.transmittance(seg);
-            }
+            tr *= medium_transmittance(m, &Ray::new(origin, dir), seg, sampler, stats, &mut segments);
             if tr.is_black() {
                 return Rgb::ZERO;
             }
@@ -207,13 +291,7 @@ fn shadow_transmittance(
             return Rgb::ZERO;
         }
         let entering = dir.dot(h.ng) < 0.0;
-        let governing = stack.top(&scene.objects, None);
-        let is_false = if entering {
-            governing.is_some_and(|g| scene.objects[g as usize].priority > obj.priority)
-        } else {
-            stack.contains(oi) && governing != Some(oi)
-        };
-        if !is_false {
+        if !is_false_intersection(scene, &stack, oi, entering) {
             match &obj.surface {
                 ObjectSurface::Null => {}
                 ObjectSurface::Fixed(_) => return Rgb::ZERO,
@@ -282,7 +360,7 @@ fn estimate_direct(
     let (origin, stack) = shadow_origin(ls.wi);
     let light_shape = scene.shape_owner.iter().position(|o| *o == ShapeOwner::Light(li as u32)).map(|s| s as u32);
     let distance = if ls.distance.is_finite() { ls.distance * (1.0 - 1e-4) } else { f32::INFINITY };
-    let tr = shadow_transmittance(scene, origin, ls.wi, distance, stack, mode, light_shape, stats);
+    let tr = shadow_transmittance(scene, origin, ls.wi, distance, stack, mode, light_shape, sampler, stats);
     if tr.is_black() {
         return Rgb::ZERO;
     }
@@ -350,6 +428,7 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
     let mut aov: Option<Aov> = None;
     // Bound on null/false boundary crossings so that a degenerate scene cannot loop forever.
     let mut crossings = 0u32;
+    let mut segments: Vec<MajorantSegment> = Vec::new();
 
     loop {
         stats.rays += 1;
@@ -358,54 +437,41 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
 
         // 1. The interior the ray travels through (Algorithm 1, lines 3–11).
         if let Some((medium, obj)) = current_medium(scene, &stack) {
-            match medium {
-                Medium::Absorbing { .. } => {
-                    beta *= medium.transmittance(t_hit);
-                }
-                Medium::Homogeneous(h) => {
-                    let u_channel = sampler.next_1d();
-                    let u_dist = sampler.next_1d();
-                    match sample_free_flight(&h.coefficients, beta, t_hit, u_channel, u_dist) {
-                        FreeFlight::Escape { weight } => beta *= weight,
-                        FreeFlight::Scatter { t, weight } => {
-                            beta *= weight;
-                            depth += 1;
-                            stats.vertices += 1;
-                            if depth >= max_depth || beta.is_black() {
-                                break;
-                            }
-                            let p = ray.at(t);
-                            let wo = -ray.d;
-                            if obj.nee == NeeStrategy::Interior {
-                                let phase = &h.phase;
-                                let st = stack;
-                                l += beta
-                                    * estimate_direct(
-                                        scene,
-                                        p,
-                                        |_| (p, st),
-                                        |wi| {
-                                            let v = phase.eval(wo, wi);
-                                            (Rgb::splat(v), phase.pdf(wo, wi))
-                                        },
-                                        ShadowMode::Transparent,
-                                        sampler,
-                                        stats,
-                                    );
-                            }
-                            let ps = h.phase.sample(wo, sampler.next_2d());
-                            if !(ps.pdf > 0.0) {
-                                break;
-                            }
-                            beta *= ps.value / ps.pdf;
-                            prev = PrevVertex { p, pdf: ps.pdf, did_nee: obj.nee == NeeStrategy::Interior };
-                            ray = Ray::new(p, ps.wi);
-                            if !russian_roulette(&mut beta, eta_scale, depth, sampler) {
-                                break;
-                            }
-                            continue;
-                        }
+            match sample_medium(medium, &ray, t_hit, beta, sampler, stats, &mut segments) {
+                MediumEvent::Pass { weight } => beta *= weight,
+                MediumEvent::Scatter { t, weight, phase } => {
+                    beta *= weight;
+                    depth += 1;
+                    stats.vertices += 1;
+                    if depth >= max_depth || beta.is_black() {
+                        break;
                     }
+                    let p = ray.at(t);
+                    let wo = -ray.d;
+                    if obj.nee == NeeStrategy::Interior {
+                        let st = stack;
+                        l += beta
+                            * estimate_direct(
+                                scene,
+                                p,
+                                |_| (p, st),
+                                |wi| (Rgb::splat(phase.eval(wo, wi)), phase.pdf(wo, wi)),
+                                ShadowMode::Transparent,
+                                sampler,
+                                stats,
+                            );
+                    }
+                    let ps = phase.sample(wo, sampler.next_2d());
+                    if !(ps.pdf > 0.0) {
+                        break;
+                    }
+                    beta *= ps.value / ps.pdf;
+                    prev = PrevVertex { p, pdf: ps.pdf, did_nee: obj.nee == NeeStrategy::Interior };
+                    ray = Ray::new(p, ps.wi);
+                    if !russian_roulette(&mut beta, eta_scale, depth, sampler) {
+                        break;
+                    }
+                    continue;
                 }
             }
             if beta.is_black() {
@@ -439,13 +505,7 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
 
         // 4. False intersections with lower-priority boundaries only update the stack.
         if transmits {
-            let governing = stack.top(&scene.objects, None);
-            let is_false = if entering {
-                governing.is_some_and(|g| scene.objects[g as usize].priority > obj.priority)
-            } else {
-                stack.contains(oi) && governing != Some(oi)
-            };
-            if is_false || matches!(obj.surface, ObjectSurface::Null) {
+            if is_false_intersection(scene, &stack, oi, entering) || matches!(obj.surface, ObjectSurface::Null) {
                 if entering {
                     stack.push(oi);
                 } else {

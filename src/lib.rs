@@ -26,6 +26,7 @@ pub mod vdb;
 
 pub mod fabric;
 pub mod medium;
+pub mod volume;
 pub mod majorant;
 pub mod tracking;
 

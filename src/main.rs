@@ -20,6 +20,8 @@ enum Command {
     Convert(cli::convert::ConvertArgs),
     /// Generate a woven fabric patch and write it as OpenVDB grids.
     Weave(cli::weave::WeaveArgs),
+    /// Report majorant-bound tightness and violations per pyramid level (VDB file or scene).
+    Majorants(cli::majorants::MajorantsArgs),
     /// Print paths/s and rays/s rendering a scene (default: the built-in creature).
     Bench(cli::bench::BenchArgs),
     /// Compare two EXR images (RMSE, relative MSE, bias, per-pixel z-test).
@@ -38,6 +40,7 @@ fn main() {
         Command::Diff(a) => cli::diff::run(a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Reference(a) => cli::reference::run(a),
+        Command::Majorants(a) => cli::majorants::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

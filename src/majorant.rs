@@ -290,6 +290,38 @@ impl MajorantPyramid {
         }
     }
 
+    /// World-space box around every non-empty level-0 cell (including the one-voxel apron),
+    /// or `None` when the grid is empty.
+    #[must_use]
+    pub fn world_bounds(&self) -> Option<crate::math::Aabb> {
+        let l0 = self.levels.first()?;
+        let mut lo = IVec3::MAX;
+        let mut hi = IVec3::MIN;
+        for z in 0..l0.dims.z {
+            for y in 0..l0.dims.y {
+                for x in 0..l0.dims.x {
+                    let c = IVec3::new(x, y, z);
+                    if !l0.cells[l0.index(c)].is_empty() {
+                        lo = lo.min(c);
+                        hi = hi.max(c);
+                    }
+                }
+            }
+        }
+        if lo.x > hi.x {
+            return None;
+        }
+        let index_to_world = self.world_to_index.inverse();
+        let a = (self.origin + lo * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
+        let b = (self.origin + (hi + IVec3::ONE) * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
+        let mut out = crate::math::Aabb::EMPTY;
+        for i in 0..8 {
+            let p = DVec3::new(if i & 1 != 0 { b.x } else { a.x }, if i & 2 != 0 { b.y } else { a.y }, if i & 4 != 0 { b.z } else { a.z });
+            out = out.union_point(index_to_world.transform_point3(p).as_vec3());
+        }
+        Some(out)
+    }
+
     /// Per-level cell counts.
     #[must_use]
     pub fn level_reports(&self) -> Vec<LevelReport> {

@@ -8,8 +8,13 @@
 //! Burley 2016 / Wrenninge et al. 2017 (REFERENCES §1.3–1.4), which contains the similarity
 //! relation for anisotropic phase functions. `albedo_mode = "single"` uses the albedo as σ_s/σ_t.
 
+use crate::grid::SparseGrid;
+use crate::majorant::{MajorantMode, MajorantPyramid, RayDensity};
+use crate::math::Ray;
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
+use crate::tracking::{DensityCoefficients, MajorantSegment, TransmittanceMode};
+use crate::volume::FbmField;
 
 /// How the artist's albedo maps to the single-scattering albedo σ_s/σ_t.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -99,6 +104,110 @@ pub struct HomogeneousMedium {
     pub phase: PhaseFunction,
 }
 
+/// How free-flight distances are sampled in a heterogeneous interior.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FreeFlightMethod {
+    /// Delta (Woodcock) tracking over the majorant segments: unbiased.
+    DeltaTracking,
+    /// Fixed-step ray marching: biased, the notes' §2.2.2 baseline.
+    RayMarching {
+        /// Step length, world units.
+        step: f32,
+    },
+}
+
+/// The estimator choices of a heterogeneous interior (speed/accuracy trade; REFERENCES §4).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackingConfig {
+    /// Free-flight sampling.
+    pub free_flight: FreeFlightMethod,
+    /// Transmittance estimation for shadow rays.
+    pub transmittance: TransmittanceMode,
+    /// Which majorants drive both.
+    pub majorant: MajorantMode,
+}
+
+impl Default for TrackingConfig {
+    /// Delta tracking, residual ratio tracking with Novák's control, hierarchical majorants
+    /// down to the brick level.
+    fn default() -> Self {
+        TrackingConfig {
+            free_flight: FreeFlightMethod::DeltaTracking,
+            transmittance: TransmittanceMode::ResidualRatio(crate::tracking::ControlVariate::Novak),
+            majorant: MajorantMode::Hierarchical { finest: 0 },
+        }
+    }
+}
+
+/// Where a heterogeneous interior's density comes from.
+#[derive(Clone, Debug)]
+pub enum DensityField {
+    /// A grid channel (an OpenVDB grid, a baked procedural, a voxelised weave).
+    Grid {
+        /// The grid (its index-to-world map places it in the scene).
+        grid: SparseGrid,
+        /// The density channel.
+        channel: usize,
+    },
+    /// Procedural fBm evaluated directly (exact, slow).
+    Procedural(Box<FbmField>),
+}
+
+/// A heterogeneous interior: σ_t(x) = d(x)·σ_t⁰ and σ_s(x) = d(x)·σ_s⁰ with the density d(x)
+/// from a [`DensityField`] (the notes' "voxelised" and "heterogeneous scattering" interiors).
+#[derive(Clone, Debug)]
+pub struct HeterogeneousMedium {
+    /// The density.
+    pub field: DensityField,
+    /// Majorant bounds of the density.
+    pub pyramid: MajorantPyramid,
+    /// Coefficients per unit density.
+    pub coefficients: DensityCoefficients,
+    /// Phase function.
+    pub phase: PhaseFunction,
+    /// Estimator choices.
+    pub tracking: TrackingConfig,
+}
+
+impl HeterogeneousMedium {
+    /// Appends the majorant segments of `[t0, t1]` along `ray` to `out`.
+    pub fn segments(&self, ray: &Ray, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
+        self.pyramid.segments(ray, t0, t1, self.tracking.majorant, out);
+    }
+
+    /// A density lookup along `ray`, by distance.
+    #[must_use]
+    pub fn density_along<'a>(&'a self, ray: &Ray) -> RayLookup<'a> {
+        match &self.field {
+            DensityField::Grid { grid, channel } => RayLookup::Grid(RayDensity::new(grid, *channel, ray)),
+            DensityField::Procedural(f) => RayLookup::Procedural { field: f, ray: *ray },
+        }
+    }
+}
+
+/// Density lookups along one ray.
+pub enum RayLookup<'a> {
+    /// Trilinear grid lookups with a coherent accessor.
+    Grid(RayDensity<'a>),
+    /// Direct procedural evaluation.
+    Procedural {
+        /// The field.
+        field: &'a FbmField,
+        /// The ray.
+        ray: Ray,
+    },
+}
+
+impl RayLookup<'_> {
+    /// Density at distance `t`.
+    pub fn at(&mut self, t: f32) -> f32 {
+        match self {
+            RayLookup::Grid(g) => g.at(t),
+            RayLookup::Procedural { field, ray } => field.density_world(ray.at(t)),
+        }
+    }
+}
+
 /// An interior: what fills an object (notes §2.4.1).
 #[derive(Clone, Debug)]
 pub enum Medium {
@@ -109,19 +218,24 @@ pub enum Medium {
     },
     /// Homogeneous scattering (most skin, water).
     Homogeneous(HomogeneousMedium),
+    /// Spatially varying density (voxel data or procedural noise).
+    Heterogeneous(Box<HeterogeneousMedium>),
 }
 
 impl Medium {
-    /// Extinction coefficient (homogeneous media).
+    /// Extinction coefficient of homogeneous media (the largest one, over the majorant, for
+    /// heterogeneous media).
     #[must_use]
     pub fn sigma_t(&self) -> Rgb {
         match self {
             Medium::Absorbing { sigma_a } => *sigma_a,
             Medium::Homogeneous(h) => h.coefficients.sigma_t(),
+            Medium::Heterogeneous(h) => h.coefficients.sigma_t * h.pyramid.global_bounds().max,
         }
     }
 
-    /// Transmittance `exp(−σ_t d)` along a straight segment of length `d` (world units).
+    /// Transmittance `exp(−σ_t d)` along a straight segment of length `d` (world units) of a
+    /// homogeneous medium.
     #[must_use]
     pub fn transmittance(&self, d: f32) -> Rgb {
         if d <= 0.0 {
@@ -137,6 +251,7 @@ impl Medium {
         match self {
             Medium::Absorbing { .. } => false,
             Medium::Homogeneous(h) => !h.coefficients.sigma_s.is_black(),
+            Medium::Heterogeneous(h) => !h.coefficients.sigma_s.is_black(),
         }
     }
 }

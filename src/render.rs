@@ -77,6 +77,8 @@ pub struct RenderSummary {
     pub non_finite: u64,
     /// Threads used.
     pub threads: usize,
+    /// Heterogeneous-medium tracking counters.
+    pub tracking: crate::tracking::TrackingStats,
 }
 
 impl std::fmt::Display for RenderSummary {
@@ -93,7 +95,20 @@ impl std::fmt::Display for RenderSummary {
             self.mean_path_length,
             self.non_finite,
             self.threads
-        )
+        )?;
+        let t = &self.tracking;
+        if t.lookups > 0 || t.real_collisions > 0 {
+            write!(
+                f,
+                " | tracking: {} lookups, {} real + {} null collisions, {:.2} lookups per real collision, {} bound violations",
+                t.lookups,
+                t.real_collisions,
+                t.null_collisions,
+                t.lookups as f64 / t.real_collisions.max(1) as f64,
+                t.violations
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -216,6 +231,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<(Film, RenderSum
         mean_path_length: if stats.paths > 0 { stats.vertices as f64 / stats.paths as f64 } else { 0.0 },
         non_finite: stats.non_finite + film.dropped_samples(),
         threads,
+        tracking: stats.tracking,
     };
     Ok((film, summary))
 }

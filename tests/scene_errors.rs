@@ -47,7 +47,7 @@ fn misspelt_key_names_file_line_and_key() {
 fn misspelt_key_in_inline_table_is_reported() {
     let text = BASE.replace("roughness = 0.3", "rougness = 0.3");
     let e = err(&text);
-    assert!(e.contains("rougness") && e.contains("bad.toml:17"), "{e}");
+    assert!(e.contains("rougness") && e.contains("bad.toml:16"), "{e}");
 }
 
 #[test]

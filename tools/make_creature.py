@@ -15,6 +15,10 @@ Writes into scenes/meshes/ (relative to the repository root, or --out DIR):
                          circumradius), and that each bone lies inside the skin.
   backdrop.ply           open studio sweep (floor curving into a back wall), normals toward
                          the subject.
+  sphere.ply             icosphere of radius 0.5 at the origin (5120 triangles, exact radial
+                         normals, spherical UVs like the analytic sphere's): the tessellated
+                         twin of `Shape::Sphere { center: 0, radius: 0.5 }` for the
+                         sphere-of-skin scene, to compare mesh and analytic renders.
 
 Every file has per-vertex normals (area weighted) and UVs. Plain Python 3, no packages.
 Usage: python3 tools/make_creature.py [--out DIR] [--no-check]
@@ -26,6 +30,7 @@ import struct
 import sys
 
 CLEARANCE = 0.012  # minimum skin-to-bone and bone-to-bone distance (scene units)
+MAX_DIHEDRAL = 60.0  # largest allowed angle (degrees) between normals of adjacent faces
 
 # ----------------------------------------------------------------------------- vectors
 
@@ -226,7 +231,7 @@ def skull_radius(u):
     for d in D_CHEEK:
         r += bump(u, d, 0.22, 0.02)
     for d in D_HORN:
-        r += bump(u, d, 0.09, 0.08)
+        r += bump(u, d, 0.12, 0.08)
     return r
 
 
@@ -237,19 +242,63 @@ def radial_mesh(subdiv, radius_fn, centre):
 
 
 def mandible(centre):
-    """A rod bent into a horseshoe around a vertical axis: chin forward (+z)."""
-    dirs, faces = icosphere(3)
-    big_r = 0.13
-    half_len = 0.19
+    """A capsule-shaped rod (elliptical section, rounded ends) bent into a horseshoe around a
+    vertical axis: chin forward (+z), tapering toward the ends."""
+    big_r, half_len, cap = 0.13, 0.19, 0.022
+    n_psi, n_cap, n_body = 16, 6, 24
+    body = half_len - cap
+    prof = [(-half_len, 0.0)]
+    for k in range(1, n_cap + 1):
+        th = 0.5 * math.pi * k / n_cap
+        prof.append((-body - cap * math.cos(th), math.sin(th)))
+    for j in range(1, n_body):
+        prof.append((-body + 2 * body * j / n_body, 1.0))
+    for k in range(n_cap, 0, -1):
+        th = 0.5 * math.pi * k / n_cap
+        prof.append((body + cap * math.cos(th), math.sin(th)))
+    prof.append((half_len, 0.0))
     verts = []
-    for x, y, z in dirs:
-        a, b, s = x * 0.026, y * 0.016, z * half_len  # across, up, along
-        phi = s / big_r
-        taper = 1.0 - 0.35 * abs(s) / half_len
-        rr = big_r + a * taper
-        verts.append((centre[0] + rr * math.sin(phi), centre[1] + b * taper + 0.055 * (phi / 1.5) ** 2,
-                      centre[2] - big_r + rr * math.cos(phi)))
+    ring_start = []
+    for s, rho in prof:
+        ring_start.append(len(verts))
+        n = 1 if rho == 0.0 else n_psi
+        for i in range(n):
+            psi = 2 * math.pi * i / n
+            taper = 1.0 - 0.35 * abs(s) / half_len
+            a = rho * math.cos(psi) * 0.026 * taper
+            b = rho * math.sin(psi) * 0.016 * taper
+            phi = s / big_r
+            rr = big_r + a
+            verts.append((centre[0] + rr * math.sin(phi), centre[1] + b + 0.055 * (phi / 1.5) ** 2,
+                          centre[2] - big_r + rr * math.cos(phi)))
+    faces = []
+    last = len(prof) - 1
+    for i in range(n_psi):
+        j = (i + 1) % n_psi
+        faces.append((0, ring_start[1] + j, ring_start[1] + i))
+        faces.append((ring_start[last], ring_start[last - 1] + i, ring_start[last - 1] + j))
+    for r in range(1, last - 1):
+        a0, b0 = ring_start[r], ring_start[r + 1]
+        for i in range(n_psi):
+            j = (i + 1) % n_psi
+            faces += [(a0 + i, a0 + j, b0 + j), (a0 + i, b0 + j, b0 + i)]
     return verts, faces
+
+
+def max_dihedral_deg(verts, faces):
+    """Largest angle between the normals of two triangles sharing an edge."""
+    normals = [normalize(cross(sub(verts[b], verts[a]), sub(verts[c], verts[a]))) for a, b, c in faces]
+    edge_face = {}
+    worst = 0.0
+    for fi, f in enumerate(faces):
+        for k in range(3):
+            e = (min(f[k], f[(k + 1) % 3]), max(f[k], f[(k + 1) % 3]))
+            if e in edge_face:
+                c = max(-1.0, min(1.0, dot(normals[fi], normals[edge_face[e]])))
+                worst = max(worst, math.degrees(math.acos(c)))
+            else:
+                edge_face[e] = fi
+    return worst
 
 
 def vertebrae(start, direction, count, spacing):
@@ -491,6 +540,12 @@ def main():
                 raise SystemExit(f"check failed: {name} is not closed")
             if signed_volume(v, f) <= 0:
                 raise SystemExit(f"check failed: {name} is not wound outward")
+            # Offsetting a spawned ray along the normal (Waechter & Binder) can land on the
+            # wrong side next to features sharper than 90 degrees: keep the meshes smooth.
+            worst = max_dihedral_deg(v, f)
+            if worst > MAX_DIHEDRAL:
+                raise SystemExit(f"check failed: {name} has adjacent faces {worst:.1f} degrees apart")
+            print(f"{name}: largest angle between adjacent face normals {worst:.1f} degrees")
         comps = components(bone_f)
         if len(comps) != 5:
             raise SystemExit(f"check failed: expected 5 bone components, found {len(comps)}")
@@ -515,6 +570,16 @@ def main():
                   len(bone_f)))
     sizes.append(("backdrop.ply", write_ply(os.path.join(out, "backdrop.ply"), bd_v, bd_f, bd_n, bd_uv),
                   len(bd_f)))
+    sp_dirs, sp_f = icosphere(4)
+    sp_v = round_verts([mul(u, 0.5) for u in sp_dirs])
+    sp_uv = []
+    for u in sp_dirs:
+        phi = math.atan2(u[2], u[0]) % (2 * math.pi)
+        sp_uv.append((phi / (2 * math.pi), math.acos(max(-1.0, min(1.0, u[1]))) / math.pi))
+    if check and not (is_closed(sp_f) and signed_volume(sp_v, sp_f) > 0):
+        raise SystemExit("check failed: sphere")
+    sizes.append(("sphere.ply", write_ply(os.path.join(out, "sphere.ply"), sp_v, sp_f, sp_dirs, sp_uv),
+                  len(sp_f)))
     for name, size, nf in sizes:
         print(f"wrote {name}: {nf} triangles, {size} bytes")
     print("skin bounds:", [round(min(v[k] for v in skin_v), 3) for k in range(3)],

@@ -98,22 +98,49 @@ fn fmt3(v: &[f64; 3], n: usize) -> String {
 pub fn run(args: &InspectArgs) -> CliResult {
     let file = VdbFile::open(&args.file)?;
     let fname = args.file.display().to_string();
+    let mut buf = String::new();
+    macro_rules! outln {
+        ($($t:tt)*) => {{
+            use std::fmt::Write as _;
+            let _ = writeln!(buf, $($t)*);
+        }};
+    }
+    let mut stdout = std::io::stdout();
+    let mut flush = |buf: &mut String| -> std::io::Result<()> {
+        use std::io::Write as _;
+        stdout.write_all(buf.as_bytes())?;
+        buf.clear();
+        stdout.flush()
+    };
     if !args.json {
-        println!(
+        outln!(
             "{fname}: OpenVDB file version {}, written by library {}.{}",
-            file.version, file.library_version.0, file.library_version.1
+            file.version,
+            file.library_version.0,
+            file.library_version.1
         );
     }
-    for g in file.read_all()? {
+    let mut failures = Vec::new();
+    for i in 0..file.grid_names().len() {
+        let g = match file.read_index(i) {
+            Ok(g) => g,
+            Err(e) => {
+                // Report the grid and go on with the others; fail at the end.
+                eprintln!("error: {e}");
+                failures.push(e.to_string());
+                continue;
+            }
+        };
         let s = g.stats();
         if args.json {
-            println!("{}", grid_json(&fname, &g, &s));
+            outln!("{}", grid_json(&fname, &g, &s));
+            flush(&mut buf)?;
             continue;
         }
         let n = s.components;
         let m = g.grid.index_to_world();
-        println!("grid '{}'", g.name);
-        println!(
+        outln!("grid '{}'", g.name);
+        outln!(
             "  value type:     {}{}",
             g.value_type.name(),
             if g.saved_as_half {
@@ -122,29 +149,29 @@ pub fn run(args: &InspectArgs) -> CliResult {
                 ""
             }
         );
-        println!("  class:          {}", g.class);
-        println!(
+        outln!("  class:          {}", g.class);
+        outln!(
             "  compression:    {}",
             compression_name(g.compression_flags)
         );
-        println!(
+        outln!(
             "  transform:      {} voxel size {:?}",
             g.map.type_name(),
             g.grid.voxel_size().to_array()
         );
-        println!(
+        outln!(
             "    index (0,0,0) -> world {:?}",
             m.transform_point3(glam::DVec3::ZERO).to_array()
         );
-        println!(
+        outln!(
             "    linear part rows {:?}",
             m.matrix3.transpose().to_cols_array_2d()
         );
-        println!(
+        outln!(
             "  background:     {}",
             fmt3(&g.grid.background_vec3(0).as_dvec3().to_array(), n)
         );
-        println!(
+        outln!(
             "  active voxels:  {} (root tiles {}, 128^3 tiles {}, 8^3 tiles {}, leaf voxels {})",
             s.active_voxels,
             s.active_voxels_by_level[0],
@@ -152,19 +179,34 @@ pub fn run(args: &InspectArgs) -> CliResult {
             s.active_voxels_by_level[2],
             s.active_voxels_by_level[3]
         );
-        println!("  leaf count:     {}", s.leaf_count);
+        outln!("  leaf count:     {}", s.leaf_count);
         if let Some((a, b)) = s.active_bbox {
-            println!("  active bbox:    {:?} -> {:?}", a.to_array(), b.to_array());
+            outln!("  active bbox:    {:?} -> {:?}", a.to_array(), b.to_array());
         }
-        println!("  min:            {}", fmt3(&s.min, n));
-        println!("  max:            {}", fmt3(&s.max, n));
-        println!("  sum:            {}", fmt3(&s.sum, n));
+        if s.min[0] <= s.max[0] {
+            outln!("  min:            {}", fmt3(&s.min, n));
+            outln!("  max:            {}", fmt3(&s.max, n));
+            outln!("  sum:            {}", fmt3(&s.sum, n));
+        } else {
+            outln!("  min, max, sum:  no finite active values");
+        }
         if s.non_finite > 0 {
-            println!(
+            outln!(
                 "  WARNING: {} active values are NaN or infinite (left out of min/max/sum)",
                 s.non_finite
             );
         }
+        flush(&mut buf)?;
+    }
+    flush(&mut buf)?;
+    if !failures.is_empty() {
+        return Err(format!(
+            "{}: {} of {} grids could not be read (see above)",
+            fname,
+            failures.len(),
+            file.grid_names().len()
+        )
+        .into());
     }
     Ok(())
 }

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod convert;
 pub mod diff;
 pub mod inspect;
+pub mod majorants;
 pub mod reference;
 pub mod render;
 pub mod weave;

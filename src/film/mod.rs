@@ -128,9 +128,8 @@ impl Pixel {
             self.m2[c] += d * (x - self.mean[c]);
             self.albedo[c] += finite_or_zero(s.albedo.0[c]);
         }
-        let n = s.normal.to_array();
-        for c in 0..3 {
-            self.normal[c] += finite_or_zero(n[c]);
+        for (sum, v) in self.normal.iter_mut().zip(s.normal.to_array()) {
+            *sum += finite_or_zero(v);
         }
         if s.depth.is_finite() && s.depth >= 0.0 {
             self.hits += 1;
@@ -512,7 +511,7 @@ impl Film {
         path: &Path,
         attributes: &BTreeMap<String, String>,
     ) -> Result<(), FilmError> {
-        image_io::write_exr(path, &self.to_exr_image(attributes))?;
+        image_io::write_exr_owned(path, self.to_exr_image(attributes))?;
         Ok(())
     }
 

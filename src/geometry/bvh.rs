@@ -129,6 +129,27 @@ fn node_hits(
     hit_mask
 }
 
+/// Depth (in nodes) of a compressed wide BVH.
+fn cwbvh_depth(bvh: &CwBvh) -> usize {
+    if bvh.nodes.is_empty() {
+        return 0;
+    }
+    let mut max = 0;
+    let mut stack = vec![(0u32, 1usize)];
+    while let Some((i, d)) = stack.pop() {
+        max = max.max(d);
+        let Some(node) = bvh.nodes.get(i as usize) else {
+            continue;
+        };
+        for c in 0..8 {
+            if !node.is_leaf(c) && !node.is_child_empty(c) {
+                stack.push((node.child_node_index(c), d + 1));
+            }
+        }
+    }
+    max
+}
+
 impl SceneGeometry {
     /// Validates the shapes, orients every closed mesh outward
     /// ([`super::TriangleMesh::make_outward`]), and builds one BVH over all triangles and
@@ -146,10 +167,14 @@ impl SceneGeometry {
                     topologies.push(Some(topo));
                 }
                 Shape::Sphere { center, radius } => {
-                    if !center.is_finite() || !radius.is_finite() || *radius <= 0.0 {
+                    let far = center.abs().max_element() + *radius > super::mesh::MAX_COORDINATE;
+                    if !center.is_finite() || !radius.is_finite() || *radius <= 0.0 || far {
                         return Err(GeometryError::InvalidShape {
                             shape: i,
-                            message: format!("sphere needs a finite centre and radius > 0 (got {center:?}, {radius})"),
+                            message: format!(
+                                "sphere needs a finite centre, a radius > 0 and coordinates within ±{:e} (got {center:?}, {radius})",
+                                super::mesh::MAX_COORDINATE
+                            ),
                         });
                     }
                     topologies.push(None);
@@ -246,7 +271,12 @@ impl SceneGeometry {
     #[must_use]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
-        if !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || !(t_max > 0.0) {
+        if !ray.o.is_finite()
+            || !ray.d.is_finite()
+            || ray.d == Vec3::ZERO
+            || t_max.is_nan()
+            || t_max <= 0.0
+        {
             return None;
         }
         let sr = ShearedRay::new(ray);
@@ -285,7 +315,12 @@ impl SceneGeometry {
         let Some(bvh) = self.bvh.as_ref() else {
             return false;
         };
-        if !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || !(t_max > 0.0) {
+        if !ray.o.is_finite()
+            || !ray.d.is_finite()
+            || ray.d == Vec3::ZERO
+            || t_max.is_nan()
+            || t_max <= 0.0
+        {
             return false;
         }
         let sr = ShearedRay::new(ray);
@@ -370,6 +405,12 @@ impl SceneGeometry {
     #[must_use]
     pub fn shape_count(&self) -> usize {
         self.shapes.len()
+    }
+
+    /// Depth of the BVH in nodes (diagnostics; 0 when empty).
+    #[must_use]
+    pub fn bvh_depth(&self) -> usize {
+        self.bvh.as_ref().map_or(0, cwbvh_depth)
     }
 
     /// Number of BVH primitives (triangles plus spheres).

@@ -47,6 +47,22 @@ impl MeshTopology {
     }
 }
 
+impl std::fmt::Display for MeshTopology {
+    /// A one-line summary for warnings, e.g. "open: 12 boundary edges, 0 non-manifold
+    /// edges, 0 inconsistently wound edges (of 3000 edges)".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: {} boundary edges, {} non-manifold edges, {} inconsistently wound edges (of {} edges)",
+            if self.is_closed() { "closed" } else { "open" },
+            self.boundary_edges,
+            self.non_manifold_edges,
+            self.inconsistent_edges,
+            self.edges
+        )
+    }
+}
+
 impl TriangleMesh {
     /// Checks internal consistency: attribute lengths, index range, finite values.
     /// `shape` is the index reported in the error.
@@ -68,6 +84,15 @@ impl TriangleMesh {
         }
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             return bad(format!("vertex {i} has a non-finite position"));
+        }
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| p.abs().max_element() > MAX_COORDINATE)
+        {
+            return bad(format!(
+                "vertex {i} lies beyond ±{MAX_COORDINATE:e} (world units)"
+            ));
         }
         for (f, tri) in self.indices.iter().enumerate() {
             if let Some(&i) = tri.iter().find(|&&i| i as usize >= n) {
@@ -223,6 +248,10 @@ impl TriangleMesh {
         a as f32
     }
 }
+
+/// Largest accepted coordinate magnitude: beyond it f32 spacing exceeds 1e8 units and box
+/// arithmetic in the BVH could overflow.
+pub(crate) const MAX_COORDINATE: f32 = 1e15;
 
 fn bits(x: f32) -> u32 {
     // +0 and -0 weld together.

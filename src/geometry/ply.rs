@@ -30,7 +30,8 @@ const FACE_LISTS: [&str; 2] = ["vertex_indices", "vertex_index"];
 /// The `vertex` element must have scalar `x`, `y`, `z`; `nx`, `ny`, `nz` (all three) are
 /// read as normals and `u`/`v`, `s`/`t`, `texture_u`/`texture_v` or `texture_s`/`texture_t`
 /// as texture coordinates when present. The `face` element must have an integer list
-/// `vertex_indices` (or `vertex_index`); polygons are fan-triangulated. Other elements and
+/// `vertex_indices` (or `vertex_index`); polygons are fan-triangulated and triangles with a
+/// repeated index (zero area by construction) are dropped. Other elements and
 /// properties are ignored. Errors (never panics) name the file and the problem: missing
 /// file, malformed or truncated data, data left after the declared counts, missing
 /// properties, non-finite values, faces with fewer than 3 or out-of-range indices.

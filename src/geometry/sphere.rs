@@ -30,7 +30,7 @@ pub fn intersect_sphere(ray: &Ray, center: Vec3, radius: f32, t_max: f32) -> Opt
     let l_len = l.length();
     // r² − |l|² as a product of sum and difference (one rounding on the small factor).
     let disc = (radius - l_len) * (radius + l_len);
-    if !(disc >= 0.0) {
+    if disc.is_nan() || disc < 0.0 {
         return None;
     }
     let f_len = f.length();
@@ -53,7 +53,7 @@ pub fn intersect_sphere(ray: &Ray, center: Vec3, radius: f32, t_max: f32) -> Opt
     };
     let mut dir = ray.at(t) - center;
     let len = dir.length();
-    if !(len > 0.0) {
+    if len.is_nan() || len <= 0.0 {
         return None;
     }
     dir /= len;

@@ -6,17 +6,28 @@ use super::{
 };
 use glam::{IVec3, Vec3};
 
-/// A lookup handle on one channel of a [`SparseGrid`] that remembers the last brick it
-/// visited: coherent lookups (along a ray, within a brick) skip the topology walk.
-/// Cheap to create; not shared between threads (make one per thread).
+/// Brick values of the accessor's channel.
+#[derive(Clone, Copy, Debug)]
+enum Vals<'a> {
+    F32(&'a [f32]),
+    F16(&'a [half::f16]),
+}
+
+/// A lookup handle on one channel of a [`SparseGrid`] that remembers the last brick and the
+/// last block it visited: coherent lookups (along a ray, within a brick or block) skip the
+/// hash-map walk. Cheap to create; not shared between threads (make one per thread).
 #[derive(Clone, Debug)]
 pub struct Accessor<'a> {
     grid: &'a SparseGrid,
-    channel: usize,
+    vals: Vals<'a>,
+    tiles: &'a [f32],
     comps: usize,
     key: IVec3,
     /// Brick index, or `TILE_BIT | tile` for a constant cell.
     entry: u32,
+    block_key: IVec3,
+    /// Block index, or `TILE_BIT | tile` for a constant block (or root tile / background).
+    block_entry: u32,
 }
 
 const NO_KEY: IVec3 = IVec3::new(i32::MIN, i32::MIN, i32::MIN);
@@ -28,13 +39,20 @@ impl<'a> Accessor<'a> {
     /// If `channel` is out of range (programming error).
     #[must_use]
     pub fn new(grid: &'a SparseGrid, channel: usize) -> Self {
-        let comps = grid.channels[channel].kind.components();
+        let ch = &grid.channels[channel];
+        let vals = match &ch.values {
+            Values::F32(v) => Vals::F32(v),
+            Values::F16(v) => Vals::F16(v),
+        };
         Accessor {
             grid,
-            channel,
-            comps,
+            vals,
+            tiles: &ch.tile_values,
+            comps: ch.kind.components(),
             key: NO_KEY,
             entry: TILE_BIT,
+            block_key: NO_KEY,
+            block_entry: TILE_BIT,
         }
     }
 
@@ -44,42 +62,66 @@ impl<'a> Accessor<'a> {
         self.grid
     }
 
-    #[inline]
+    #[inline(always)]
     fn resolve(&mut self, key: IVec3) -> u32 {
         if key == self.key {
             return self.entry;
         }
-        let g = self.grid;
         let block_key = key >> (BLOCK_LOG2 - BRICK_LOG2);
-        let e = match g.block_map.get(&block_key) {
-            Some(&e) if e & TILE_BIT != 0 => e,
-            Some(&e) => g.blocks[e as usize][block_slot(key)],
-            None => {
-                if g.root_tiles.is_empty() {
-                    TILE_BIT
-                } else {
-                    g.root_tiles
-                        .get(&(key >> (ROOT_LOG2 - BRICK_LOG2)))
-                        .map_or(TILE_BIT, |&t| TILE_BIT | t)
-                }
-            }
+        if block_key != self.block_key {
+            self.block_entry = self.resolve_block(block_key);
+            self.block_key = block_key;
+        }
+        let be = self.block_entry;
+        let e = if be & TILE_BIT != 0 {
+            be
+        } else {
+            self.grid.blocks[be as usize][block_slot(key)]
         };
         self.key = key;
         self.entry = e;
         e
     }
 
+    /// Like `resolve`, but leaves the brick cache alone (the block cache is updated).
+    #[inline(always)]
+    fn peek(&mut self, key: IVec3) -> u32 {
+        let block_key = key >> (BLOCK_LOG2 - BRICK_LOG2);
+        if block_key != self.block_key {
+            self.block_entry = self.resolve_block(block_key);
+            self.block_key = block_key;
+        }
+        let be = self.block_entry;
+        if be & TILE_BIT != 0 {
+            be
+        } else {
+            self.grid.blocks[be as usize][block_slot(key)]
+        }
+    }
+
+    #[cold]
+    fn resolve_block(&self, block_key: IVec3) -> u32 {
+        let g = self.grid;
+        match g.block_map.get(&block_key) {
+            Some(&e) => e,
+            None if g.root_tiles.is_empty() => TILE_BIT,
+            None => g
+                .root_tiles
+                .get(&(block_key >> (ROOT_LOG2 - BLOCK_LOG2)))
+                .map_or(TILE_BIT, |&t| TILE_BIT | t),
+        }
+    }
+
     /// Component `c` at brick entry `e`, voxel offset `v`.
-    #[inline]
+    #[inline(always)]
     fn fetch(&self, e: u32, v: usize, c: usize) -> f32 {
-        let ch = &self.grid.channels[self.channel];
         if e & TILE_BIT != 0 {
-            return ch.tile_values[(e & !TILE_BIT) as usize * self.comps + c];
+            return self.tiles[(e & !TILE_BIT) as usize * self.comps + c];
         }
         let i = (e as usize * BRICK_VOXELS + v) * self.comps + c;
-        match &ch.values {
-            Values::F32(s) => s[i],
-            Values::F16(s) => s[i].to_f32(),
+        match self.vals {
+            Vals::F32(s) => s[i],
+            Vals::F16(s) => s[i].to_f32(),
         }
     }
 
@@ -116,9 +158,7 @@ impl<'a> Accessor<'a> {
     /// centres at integer coordinates, as OpenVDB's `BoxSampler`).
     #[inline]
     pub fn sample_trilinear(&mut self, p: Vec3) -> f32 {
-        let f = p.floor();
-        let i = f.as_ivec3();
-        let t = p - f;
+        let (i, t) = floor_frac(p);
         let l = i & 7;
         let mut c = [0.0f32; 8];
         if l.x < 7 && l.y < 7 && l.z < 7 {
@@ -126,18 +166,17 @@ impl<'a> Accessor<'a> {
             if e & TILE_BIT != 0 {
                 return self.fetch(e, 0, 0);
             }
-            let ch = &self.grid.channels[self.channel];
             let base = e as usize * BRICK_VOXELS + voxel_offset(l);
             const OFF: [usize; 8] = [0, 1, 8, 9, 64, 65, 72, 73];
             if self.comps == 1 {
-                match &ch.values {
-                    Values::F32(s) => {
+                match self.vals {
+                    Vals::F32(s) => {
                         let s = &s[base..base + 74];
                         for k in 0..8 {
                             c[k] = s[OFF[k]];
                         }
                     }
-                    Values::F16(s) => {
+                    Vals::F16(s) => {
                         let s = &s[base..base + 74];
                         for k in 0..8 {
                             c[k] = s[OFF[k]].to_f32();
@@ -150,9 +189,36 @@ impl<'a> Accessor<'a> {
                 }
             }
         } else {
+            // The 8 corners straddle 2 to 8 bricks: resolve the first through the cache and
+            // each neighbour once, without evicting the first (the next lookup is most
+            // likely in it).
+            let k0 = i >> BRICK_LOG2;
+            let e0 = self.resolve(k0);
+            let i1 = i.wrapping_add(IVec3::ONE);
+            let l1 = i1 & 7;
+            let cx = usize::from(l.x == 7);
+            let cy = usize::from(l.y == 7);
+            let cz = usize::from(l.z == 7);
+            // e[(dx & cx) << 2 | (dy & cy) << 1 | (dz & cz)]
+            let mut e = [e0; 8];
+            for n in 1..8usize {
+                let (nx, ny, nz) = (n >> 2, (n >> 1) & 1, n & 1);
+                if nx <= cx && ny <= cy && nz <= cz {
+                    let d = IVec3::new(nx as i32, ny as i32, nz as i32);
+                    e[n] = self.peek(k0 + d);
+                }
+            }
+            if e0 & TILE_BIT != 0 && e.iter().all(|&x| x == e0) {
+                // One constant tile (or the background) under all 8 corners.
+                return self.fetch(e0, 0, 0);
+            }
             for (k, ck) in c.iter_mut().enumerate() {
-                let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
-                *ck = self.value(i.wrapping_add(d));
+                let (dx, dy, dz) = (k >> 2, (k >> 1) & 1, k & 1);
+                let ent = e[((dx & cx) << 2) | ((dy & cy) << 1) | (dz & cz)];
+                let off = ((if dx == 1 { l1.x } else { l.x }) << 6)
+                    | ((if dy == 1 { l1.y } else { l.y }) << 3)
+                    | (if dz == 1 { l1.z } else { l.z });
+                *ck = self.fetch(ent, off as usize, 0);
             }
         }
         trilerp(&c, t)
@@ -160,9 +226,7 @@ impl<'a> Accessor<'a> {
 
     /// Trilinear interpolation of a vector channel at index-space point `p`.
     pub fn sample_trilinear_vec3(&mut self, p: Vec3) -> Vec3 {
-        let f = p.floor();
-        let i = f.as_ivec3();
-        let t = p - f;
+        let (i, t) = floor_frac(p);
         let mut c = [[0.0f32; 8]; 3];
         for k in 0..8 {
             let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
@@ -173,6 +237,20 @@ impl<'a> Accessor<'a> {
         }
         Vec3::new(trilerp(&c[0], t), trilerp(&c[1], t), trilerp(&c[2], t))
     }
+}
+
+/// Integer floor and fractional part of each coordinate, without a libm call (the x86-64
+/// baseline has no rounding instruction). Saturates outside the `i32` range; NaN gives 0.
+#[inline(always)]
+fn floor_frac(p: Vec3) -> (IVec3, Vec3) {
+    let t = p.as_ivec3(); // truncation toward zero, saturating
+    let tf = t.as_vec3();
+    let i = t - IVec3::new(
+        i32::from(tf.x > p.x),
+        i32::from(tf.y > p.y),
+        i32::from(tf.z > p.z),
+    );
+    (i, p - i.as_vec3())
 }
 
 /// Trilinear blend of corner values `c[(dx << 2) | (dy << 1) | dz]` with weights `t`.

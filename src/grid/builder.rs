@@ -226,6 +226,8 @@ impl SparseGridBuilder {
             let n = ch.kind.components();
             let tv = &ch.tile_values[t * n..t * n + n];
             match &mut ch.values {
+                Values::F32(v) if n == 1 => v.resize(v.len() + BRICK_VOXELS, tv[0]),
+                Values::F16(v) if n == 1 => v.resize(v.len() + BRICK_VOXELS, f16::from_f32(tv[0])),
                 Values::F32(v) => {
                     for _ in 0..BRICK_VOXELS {
                         v.extend_from_slice(tv);
@@ -338,6 +340,42 @@ impl SparseGridBuilder {
             }
         }
         Ok(b)
+    }
+
+    /// Reserves room for `additional` more bricks (avoids regrowing storage when the brick
+    /// count is known, e.g. when loading a VDB file).
+    pub fn reserve_bricks(&mut self, additional: usize) {
+        let g = &mut self.grid;
+        g.brick_origin.reserve(additional);
+        g.brick_mask.reserve(additional);
+        for ch in &mut g.channels {
+            let n = additional * BRICK_VOXELS * ch.kind.components();
+            match &mut ch.values {
+                Values::F32(v) => v.reserve(n),
+                Values::F16(v) => v.reserve(n),
+            }
+        }
+    }
+
+    /// Sets the active mask of brick `b` (an index returned by [`SparseGridBuilder::brick`]).
+    ///
+    /// # Panics
+    /// If `b` is not a brick index (programming error).
+    pub fn set_brick_mask(&mut self, b: usize, mask: [u64; 8]) {
+        self.grid.brick_mask[b] = mask;
+    }
+
+    /// Mutable access to all brick values of channel `c` (brick `b`, voxel `v`, component
+    /// `k` at `(b * 512 + v) * components + k`), for filling many bricks at once (e.g. in
+    /// parallel).
+    ///
+    /// # Panics
+    /// If `c` is not a channel (programming error).
+    pub fn values_mut(&mut self, c: usize) -> super::ValuesMut<'_> {
+        match &mut self.grid.channels[c].values {
+            Values::F32(v) => super::ValuesMut::F32(v),
+            Values::F16(v) => super::ValuesMut::F16(v),
+        }
     }
 
     /// Finishes the grid.

@@ -85,8 +85,8 @@ pub enum GridError {
         key: IVec3,
     },
     /// A non-invertible or non-finite index-to-world map.
-    #[error("index-to-world map is not invertible or not finite: {0:?}")]
-    BadTransform(DAffine3),
+    #[error("index-to-world map is not invertible or not finite: {0}")]
+    BadTransform(String),
     /// Too many bricks or tiles for 31-bit indices.
     #[error("grid too large: more than 2^31 bricks or tiles")]
     TooLarge,
@@ -200,6 +200,16 @@ impl BrickData<'_> {
             BrickData::F16(s) => s[v * comps + c].to_f32(),
         }
     }
+}
+
+/// Mutable brick values of one channel, in the channel's storage (see
+/// [`SparseGridBuilder::values_mut`]).
+#[derive(Debug)]
+pub enum ValuesMut<'a> {
+    /// 32-bit storage.
+    F32(&'a mut [f32]),
+    /// 16-bit storage.
+    F16(&'a mut [f16]),
 }
 
 /// What covers a brick-sized cell of index space.
@@ -374,7 +384,7 @@ impl SparseGrid {
     pub fn set_index_to_world(&mut self, m: DAffine3) -> Result<(), GridError> {
         let det = m.matrix3.determinant();
         if !det.is_finite() || det.abs() < 1e-300 || !m.translation.is_finite() {
-            return Err(GridError::BadTransform(m));
+            return Err(GridError::BadTransform(format!("{m:?}")));
         }
         self.index_to_world = m;
         self.world_to_index = m.inverse();
@@ -566,20 +576,22 @@ impl SparseGrid {
         let mut lo = IVec3::MAX;
         let mut hi = IVec3::MIN;
         for (b, m) in self.brick_mask.iter().enumerate() {
-            if m.iter().all(|&w| w == 0) {
+            // Word x of the mask holds the voxels of slab x; bit (y << 3) | z within it.
+            let Some(x0) = m.iter().position(|&w| w != 0) else {
                 continue;
-            }
+            };
+            let x1 = 7 - m.iter().rev().position(|&w| w != 0).unwrap_or(0);
+            let yz = m.iter().fold(0u64, |a, &w| a | w);
+            let ys: Vec<i32> = (0..8).filter(|y| (yz >> (8 * y)) & 0xff != 0).collect();
+            let zbits = (0..8).fold(0u64, |a, y| a | ((yz >> (8 * y)) & 0xff));
+            let (y0, y1) = (ys[0], ys[ys.len() - 1]);
+            let (z0, z1) = (
+                zbits.trailing_zeros() as i32,
+                63 - zbits.leading_zeros() as i32,
+            );
             let o = self.brick_origin[b];
-            for (wi, &w) in m.iter().enumerate() {
-                let mut w = w;
-                while w != 0 {
-                    let v = (wi * 64 + w.trailing_zeros() as usize) as i32;
-                    w &= w - 1;
-                    let p = o + IVec3::new(v >> 6, (v >> 3) & 7, v & 7);
-                    lo = lo.min(p);
-                    hi = hi.max(p);
-                }
-            }
+            lo = lo.min(o + IVec3::new(x0 as i32, y0, z0));
+            hi = hi.max(o + IVec3::new(x1 as i32, y1, z1));
         }
         for t in self.tiles() {
             if t.active {
@@ -625,6 +637,8 @@ impl SparseGrid {
     }
 
     /// Value of voxel `ijk` in channel 0 (active or not; tiles and background outside bricks).
+    /// This and the other channel-0 conveniences below panic if the grid has no channel
+    /// (a programming error); use an [`Accessor`] for repeated lookups.
     #[must_use]
     pub fn value_at(&self, ijk: IVec3) -> f32 {
         self.accessor(0).value(ijk)

@@ -14,10 +14,11 @@
 //! The z-test (after the per-pixel render tests of Mitsuba 3) runs when both images hold a
 //! variance channel for every compared channel (`variance.R` for `R`; `L.variance.X` for `L.X`),
 //! the variance of each pixel *estimate* (sample variance / sample count, what
-//! [`crate::film::Film`] writes). Then `z = d / sqrt(var_a + var_b)`. With the per-pixel sample
-//! counts of both images (`samples.N`, written by the film) the two-sided tail probabilities of
-//! `z` are taken from Student's t with the Welch-Satterthwaite degrees of freedom, since the
-//! variances are themselves estimated; otherwise from the normal distribution. The verdict is
+//! [`crate::film::Film`] writes). Then `z = d / sqrt(var_a + var_b)`. With per-pixel sample
+//! counts (`samples.N`, written by the film) in either image, the two-sided tail probabilities
+//! of `z` are taken from Student's t with the Welch-Satterthwaite degrees of freedom, since the
+//! variances are themselves estimated (an image without counts, e.g. a converged reference, is
+//! taken to know its variance exactly); otherwise from the normal distribution. The verdict is
 //! "consistent" unless one of two tests rejects at an overall false-alarm rate of
 //! [`VERDICT_ALPHA`] (split evenly between the tests and, by Bonferroni, between channels):
 //! - tail test: per channel, the number of pixels beyond the `|z| > 3` tail (probability
@@ -104,7 +105,8 @@ pub struct ChannelStats {
 pub struct ZTest {
     /// Variance channel names used (same names in A and B).
     pub variance_channels: Vec<String>,
-    /// True when both images carry [`SAMPLES_CHANNEL`], so tails come from Student's t.
+    /// True when either image carries [`SAMPLES_CHANNEL`], so tails come from Student's t (an
+    /// image without it is taken to know its variance exactly).
     pub uses_sample_counts: bool,
     /// Pixel-channels tested.
     pub tested: u64,
@@ -179,7 +181,6 @@ struct Prepared<'a> {
     a: Side<'a>,
     b: Side<'a>,
     pixels: usize,
-    width: u32,
 }
 
 /// The channel names compared for a layer: its R/G/B (or X/Y/Z) triple when present, else all
@@ -280,7 +281,6 @@ fn prepare<'a>(
         a: sa,
         b: sb,
         pixels,
-        width: a.width,
     })
 }
 
@@ -304,6 +304,8 @@ impl Prepared<'_> {
 
     /// The z-score of channel `c` at pixel `i`, or `None` when untestable.
     fn z_at(&self, c: usize, i: usize) -> Option<ZOutcome> {
+        /// Relative difference treated as float rounding (a few f32 ulps).
+        const ROUNDING_FLOOR: f64 = 1e-6;
         let (va, vb) = (self.a.variances.as_ref()?, self.b.variances.as_ref()?);
         let (a, b) = (
             f64::from(self.a.values[c][i]),
@@ -318,11 +320,18 @@ impl Prepared<'_> {
         }
         let na = self.a.samples.map(|s| f64::from(s[i]));
         let nb = self.b.samples.map(|s| f64::from(s[i]));
-        if na.is_some_and(|n| !(n >= 2.0)) || nb.is_some_and(|n| !(n >= 2.0)) {
+        // (NaN counts are caught too: they are not >= 2.)
+        let too_few = |n: Option<f64>| n.is_some_and(|n| n.is_nan() || n < 2.0);
+        if too_few(na) || too_few(nb) {
             return None;
         }
-        let var = va + vb;
         let d = a - b;
+        // Values stored as f32 carry rounding of about 1e-7 relative: a difference below that
+        // floor is not evidence of bias, however small the estimated variances are (e.g.
+        // pixels that every sample estimates to within rounding).
+        let floor = (ROUNDING_FLOOR * a.abs().max(b.abs())).powi(2);
+        let var = if d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) && va + vb < floor { 0.0 } else { va + vb };
+        let d = if var == 0.0 && d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) { 0.0 } else { d };
         if var == 0.0 {
             let z = if d == 0.0 {
                 0.0
@@ -339,19 +348,20 @@ impl Prepared<'_> {
         }
         let z = d / var.sqrt();
         let az = z.abs();
-        let (above_2, above_3) = match (na, nb) {
-            (Some(na), Some(nb)) if az > 2.0 => {
-                // Welch-Satterthwaite degrees of freedom of var_a + var_b.
-                let denom = va * va / (na - 1.0) + vb * vb / (nb - 1.0);
-                let dof = if denom > 0.0 {
-                    var * var / denom
-                } else {
-                    f64::INFINITY
-                };
-                let p = student_t_two_sided_tail(az, dof);
-                (p < P_ABOVE_2, p < P_ABOVE_3)
-            }
-            _ => (az > 2.0, az > 3.0),
+        let (above_2, above_3) = if (na.is_some() || nb.is_some()) && az > 2.0 {
+            // Welch-Satterthwaite degrees of freedom of var_a + var_b; an image without sample
+            // counts is taken to know its variance exactly.
+            let term = |v: f64, n: Option<f64>| n.map_or(0.0, |n| v * v / (n - 1.0));
+            let denom = term(va, na) + term(vb, nb);
+            let dof = if denom > 0.0 {
+                var * var / denom
+            } else {
+                f64::INFINITY
+            };
+            let p = student_t_two_sided_tail(az, dof);
+            (p < P_ABOVE_2, p < P_ABOVE_3)
+        } else {
+            (az > 2.0, az > 3.0)
         };
         Some(ZOutcome {
             z,
@@ -480,7 +490,7 @@ fn z_test(p: &Prepared<'_>) -> ZTest {
     };
     ZTest {
         variance_channels: p.variance_names.clone(),
-        uses_sample_counts: p.a.samples.is_some() && p.b.samples.is_some(),
+        uses_sample_counts: p.a.samples.is_some() || p.b.samples.is_some(),
         tested,
         untestable,
         zero_variance: zero_var,
@@ -604,7 +614,7 @@ pub fn error_map(
     };
     Ok(ErrorMap {
         width: a.width,
-        height: p.pixels.checked_div(p.width as usize).unwrap_or(0) as u32,
+        height: a.height,
         rgb8,
         mode,
         scale: used_scale,
@@ -762,7 +772,7 @@ pub fn normal_two_sided_tail(z: f64) -> f64 {
 /// normal tail).
 #[must_use]
 pub fn student_t_two_sided_tail(t: f64, dof: f64) -> f64 {
-    if t.is_nan() || !(dof > 0.0) {
+    if t.is_nan() || dof.is_nan() || dof <= 0.0 {
         return 1.0;
     }
     if t.is_infinite() {

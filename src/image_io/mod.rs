@@ -395,6 +395,11 @@ pub(crate) fn write_atomically(
 /// renamed. Channels must hold `width * height` samples and the size must be within
 /// [`MAX_SIDE`] / [`MAX_PIXELS`].
 pub fn write_exr(path: &Path, image: &ExrImage) -> Result<(), ImageError> {
+    write_exr_owned(path, image.clone())
+}
+
+/// [`write_exr`] taking the image by value, which saves a copy of every channel.
+pub fn write_exr_owned(path: &Path, image: ExrImage) -> Result<(), ImageError> {
     validate_size(path, image.width, image.height)?;
     if image.channels.is_empty() {
         return Err(invalid(path, "an EXR image needs at least one channel"));
@@ -407,7 +412,7 @@ pub fn write_exr(path: &Path, image: &ExrImage) -> Result<(), ImageError> {
     }
     let n = image.pixel_count();
     let mut list = Vec::with_capacity(image.channels.len());
-    for (name, samples) in &image.channels {
+    for (name, samples) in image.channels {
         if samples.len() != n {
             return Err(invalid(
                 path,
@@ -417,7 +422,7 @@ pub fn write_exr(path: &Path, image: &ExrImage) -> Result<(), ImageError> {
                 ),
             ));
         }
-        let text = Text::new_or_none(name)
+        let text = Text::new_or_none(&name)
             .filter(|_| !name.is_empty())
             .ok_or_else(|| {
                 invalid(
@@ -425,7 +430,7 @@ pub fn write_exr(path: &Path, image: &ExrImage) -> Result<(), ImageError> {
                     format!("channel name {name:?} is empty or not Latin-1"),
                 )
             })?;
-        list.push(AnyChannel::new(text, FlatSamples::F32(samples.clone())));
+        list.push(AnyChannel::new(text, FlatSamples::F32(samples)));
     }
     let mut attributes = LayerAttributes::default();
     for (k, v) in &image.attributes {

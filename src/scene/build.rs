@@ -8,8 +8,8 @@ use crate::bsdf::{MicrofacetDistribution, Surface};
 use crate::camera::Camera;
 use crate::geometry::{load_ply, SceneGeometry, Shape};
 use crate::light::{EnvironmentMap, Light, LightSampler};
-use crate::math::{Mat4, Vec3};
-use crate::medium::{AlbedoMode, Coefficients, HomogeneousMedium, Medium, NeeStrategy};
+use crate::math::{Aabb, Mat4, Vec3};
+use crate::medium::{AlbedoMode, Coefficients, DensityField, FreeFlightMethod, HeterogeneousMedium, HomogeneousMedium, Medium, NeeStrategy, TrackingConfig};
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
 
@@ -135,15 +135,37 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
         let line = ctx.line_of(spanned.span().start);
         let desc = spanned.get_ref();
         let name = desc.name.clone().unwrap_or_else(|| format!("object {}", index + 1));
-        let (shape, open_mesh) = build_shape(ctx, line, &name, desc)?;
+        let (xf, uniform) = object_transform(ctx, line, &name, desc)?;
+        let rest = build_rest_shape(ctx, line, &name, desc, uniform)?;
         let (surface, ior) = build_surface(ctx, line, &name, desc.surface.as_ref())?;
         let (medium, nee) = match &desc.interior {
             Some(interior) => {
-                let (m, nee) = build_medium(ctx, line, &name, interior)?;
+                let (m, nee) = build_medium(ctx, line, &name, interior, xf, rest.bounds())?;
                 media.push(m);
                 (Some((media.len() - 1) as u32), nee)
             }
             None => (None, NeeStrategy::ExitPoint),
+        };
+        let (shape, open_mesh) = match rest {
+            RestShape::Mesh(mut mesh) => {
+                mesh.transform(xf);
+                let closed = mesh.is_closed();
+                if closed {
+                    mesh.make_outward();
+                }
+                (Shape::Mesh(mesh), !closed)
+            }
+            RestShape::Sphere { center, radius } => {
+                let scale = uniform.unwrap_or(1.0).abs();
+                (Shape::Sphere { center: xf.transform_point3(center), radius: radius * scale }, false)
+            }
+            RestShape::Bounds => {
+                let Some(Medium::Heterogeneous(h)) = medium.map(|m| &media[m as usize]) else {
+                    return Err(ctx.invalid(line, format!("{name}: shape \"bounds\" needs a \"voxel\" or \"fbm\" interior")));
+                };
+                let b = h.pyramid.world_bounds().ok_or_else(|| ctx.invalid(line, format!("{name}: the interior's grid is empty")))?;
+                (Shape::Mesh(box_mesh(b)), false)
+            }
         };
         if medium.is_some() && !surface.transmits() {
             warnings.push(format!("{}:{line}: {name}: has an interior but its surface does not transmit light; the interior is never reached", ctx.path.display()));
@@ -264,30 +286,62 @@ fn object_transform(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc) -> Resul
     Ok((Mat4::from_translation(t) * rot * Mat4::from_scale(s), uniform))
 }
 
-fn build_shape(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc) -> Result<(Shape, bool), SceneError> {
-    let (m, uniform) = object_transform(ctx, line, name, d)?;
+/// A shape in the object's rest space.
+enum RestShape {
+    Mesh(crate::geometry::TriangleMesh),
+    Sphere { center: Vec3, radius: f32 },
+    /// The world box of the interior's grid.
+    Bounds,
+}
+
+impl RestShape {
+    fn bounds(&self) -> Option<Aabb> {
+        match self {
+            RestShape::Mesh(m) => Some(m.bounds()),
+            RestShape::Sphere { center, radius } => Some(Aabb { min: *center - Vec3::splat(*radius), max: *center + Vec3::splat(*radius) }),
+            RestShape::Bounds => None,
+        }
+    }
+}
+
+/// A closed, outward-wound box mesh.
+fn box_mesh(b: Aabb) -> crate::geometry::TriangleMesh {
+    let c = |i: usize| Vec3::new(if i & 1 != 0 { b.max.x } else { b.min.x }, if i & 2 != 0 { b.max.y } else { b.min.y }, if i & 4 != 0 { b.max.z } else { b.min.z });
+    let positions = (0..8).map(c).collect();
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let mut indices = Vec::new();
+    for q in quads {
+        indices.push([q[0], q[1], q[2]]);
+        indices.push([q[0], q[2], q[3]]);
+    }
+    let mut mesh = crate::geometry::TriangleMesh { positions, normals: None, uvs: None, indices };
+    mesh.make_outward();
+    mesh
+}
+
+fn build_rest_shape(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc, uniform: Option<f32>) -> Result<RestShape, SceneError> {
     match d.shape.as_str() {
         "mesh" => {
             reject_unused(ctx, line, name, "mesh", &[("center", d.center.is_some()), ("radius", d.radius.is_some())])?;
             let file = d.file.as_ref().ok_or_else(|| ctx.invalid(line, format!("{name}: shape \"mesh\" needs `file`")))?;
             let path = ctx.resolve(file);
-            let mut mesh = load_ply(&path).map_err(|e| ctx.invalid(line, format!("{name}: {e}")))?;
-            mesh.transform(m);
-            let closed = mesh.is_closed();
-            if closed {
-                mesh.make_outward();
-            }
-            Ok((Shape::Mesh(mesh), !closed))
+            let mesh = load_ply(&path).map_err(|e| ctx.invalid(line, format!("{name}: {e}")))?;
+            Ok(RestShape::Mesh(mesh))
         }
         "sphere" => {
             reject_unused(ctx, line, name, "sphere", &[("file", d.file.is_some())])?;
-            let c = vec3(ctx, line, &format!("{name}: center"), d.center.unwrap_or([0.0; 3]))?;
-            let r = check_range(ctx, line, &format!("{name}: radius"), d.radius.unwrap_or(1.0), 1e-9, 1e9)?;
-            let scale = uniform.ok_or_else(|| ctx.invalid(line, format!("{name}: a sphere needs a uniform scale")))?;
-            let center = m.transform_point3(c);
-            Ok((Shape::Sphere { center, radius: r * scale.abs() }, false))
+            let center = vec3(ctx, line, &format!("{name}: center"), d.center.unwrap_or([0.0; 3]))?;
+            let radius = check_range(ctx, line, &format!("{name}: radius"), d.radius.unwrap_or(1.0), 1e-9, 1e9)?;
+            if uniform.is_none() {
+                return Err(ctx.invalid(line, format!("{name}: a sphere needs a uniform scale")));
+            }
+            Ok(RestShape::Sphere { center, radius })
         }
-        other => Err(ctx.invalid(line, format!("{name}: shape = \"{other}\" is unknown (expected \"mesh\" or \"sphere\")"))),
+        "bounds" => {
+            reject_unused(ctx, line, name, "bounds", &[("file", d.file.is_some()), ("center", d.center.is_some()), ("radius", d.radius.is_some())])?;
+            Ok(RestShape::Bounds)
+        }
+        other => Err(ctx.invalid(line, format!("{name}: shape = \"{other}\" is unknown (expected \"mesh\", \"sphere\" or \"bounds\")"))),
     }
 }
 
@@ -393,7 +447,7 @@ fn build_medium_nee(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Res
     }
 }
 
-fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Result<(Medium, NeeStrategy), SceneError> {
+fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc, xf: Mat4, rest_bounds: Option<Aabb>) -> Result<(Medium, NeeStrategy), SceneError> {
     let owner = format!("{name}: interior");
     let density = check_range(ctx, line, &format!("{owner}.density"), i.density.unwrap_or(1.0), 0.0, 1e12)?;
     let attenuation = color(i.attenuation, Rgb::ONE);
@@ -403,7 +457,41 @@ fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Result<
         }
     }
     let nee = build_medium_nee(ctx, line, name, i)?;
+    let heterogeneous_keys = [
+        ("file", i.file.is_some()),
+        ("grid", i.grid.is_some()),
+        ("tracking", i.tracking.is_some()),
+        ("noise", i.noise.is_some()),
+        ("evaluation", i.evaluation.is_some()),
+        ("voxel_size", i.voxel_size.is_some()),
+        ("bound", i.bound.is_some()),
+        ("bound_min", i.bound_min.is_some()),
+        ("bound_max", i.bound_max.is_some()),
+        ("trial_samples", i.trial_samples.is_some()),
+        ("safety", i.safety.is_some()),
+    ];
+    if matches!(i.kind.as_str(), "absorption" | "homogeneous") {
+        reject_unused(ctx, line, &owner, &i.kind, &heterogeneous_keys)?;
+    }
     match i.kind.as_str() {
+        "voxel" | "fbm" => {
+            let albedo = check_finite_rgb(ctx, line, &format!("{owner}.albedo"), color(i.albedo, Rgb::splat(0.8)), 0.0, 1.0)?;
+            let mode = albedo_mode(ctx, line, &owner, i)?;
+            let phase = build_phase(ctx, line, &owner, i.phase.as_ref())?;
+            let per_unit = Coefficients::from_artist(albedo, attenuation, density, mode, phase.mean_cosine());
+            let coefficients = crate::tracking::DensityCoefficients { sigma_t: per_unit.sigma_t(), sigma_s: per_unit.sigma_s };
+            let tracking = build_tracking(ctx, line, &owner, i.tracking.as_ref())?;
+            let xf = glam::DAffine3::from_mat4(xf.as_dmat4());
+            let (field, pyramid) = if i.kind == "voxel" {
+                reject_unused(ctx, line, &owner, "voxel", &heterogeneous_keys[3..])?;
+                build_voxel_field(ctx, line, &owner, i, xf)?
+            } else {
+                reject_unused(ctx, line, &owner, "fbm", &heterogeneous_keys[..2])?;
+                let rb = rest_bounds.ok_or_else(|| ctx.invalid(line, format!("{owner}: an fbm interior needs a mesh or sphere shape to bound it")))?;
+                build_fbm_field(ctx, line, &owner, i, xf, rb)?
+            };
+            Ok((Medium::Heterogeneous(Box::new(HeterogeneousMedium { field, pyramid, coefficients, phase, tracking })), nee))
+        }
         "absorption" => {
             reject_unused(ctx, line, &owner, "absorption", &[("albedo", i.albedo.is_some()), ("albedo_mode", i.albedo_mode.is_some()), ("phase", i.phase.is_some())])?;
             let sigma_a = attenuation.map(|d| if d.is_infinite() { 0.0 } else { density / d });
@@ -411,11 +499,7 @@ fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Result<
         }
         "homogeneous" => {
             let albedo = check_finite_rgb(ctx, line, &format!("{owner}.albedo"), color(i.albedo, Rgb::splat(0.8)), 0.0, 1.0)?;
-            let mode = match i.albedo_mode.as_deref().unwrap_or("multiple") {
-                "multiple" => AlbedoMode::MultipleScattering,
-                "single" => AlbedoMode::SingleScattering,
-                other => return Err(ctx.invalid(line, format!("{owner}.albedo_mode = \"{other}\" is unknown (expected \"multiple\" or \"single\")"))),
-            };
+            let mode = albedo_mode(ctx, line, &owner, i)?;
             let phase = build_phase(ctx, line, &owner, i.phase.as_ref())?;
             let coefficients = Coefficients::from_artist(albedo, attenuation, density, mode, phase.mean_cosine());
             if !coefficients.sigma_t().is_finite() {
@@ -423,7 +507,137 @@ fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Result<
             }
             Ok((Medium::Homogeneous(HomogeneousMedium { coefficients, phase }), nee))
         }
-        other => Err(ctx.invalid(line, format!("{owner}.type = \"{other}\" is unknown (expected \"absorption\" or \"homogeneous\")"))),
+        other => Err(ctx.invalid(line, format!("{owner}.type = \"{other}\" is unknown (expected \"absorption\", \"homogeneous\", \"voxel\" or \"fbm\")"))),
+    }
+}
+
+fn albedo_mode(ctx: &Ctx, line: usize, owner: &str, i: &InteriorDesc) -> Result<AlbedoMode, SceneError> {
+    match i.albedo_mode.as_deref().unwrap_or("multiple") {
+        "multiple" => Ok(AlbedoMode::MultipleScattering),
+        "single" => Ok(AlbedoMode::SingleScattering),
+        other => Err(ctx.invalid(line, format!("{owner}.albedo_mode = \"{other}\" is unknown (expected \"multiple\" or \"single\")"))),
+    }
+}
+
+fn build_tracking(ctx: &Ctx, line: usize, owner: &str, t: Option<&super::desc::TrackingDesc>) -> Result<TrackingConfig, SceneError> {
+    use crate::majorant::MajorantMode;
+    use crate::tracking::{ControlVariate, TransmittanceMode};
+    let mut cfg = TrackingConfig::default();
+    let Some(t) = t else { return Ok(cfg) };
+    let step = match t.step {
+        Some(s) => Some(check_range(ctx, line, &format!("{owner}.tracking.step"), s, 1e-9, 1e9)?),
+        None => None,
+    };
+    let need_step = || step.ok_or_else(|| ctx.invalid(line, format!("{owner}.tracking: ray marching needs `step` (world units)")));
+    cfg.free_flight = match t.free_flight.as_deref().unwrap_or("delta") {
+        "delta" => FreeFlightMethod::DeltaTracking,
+        "ray_march" => FreeFlightMethod::RayMarching { step: need_step()? },
+        other => return Err(ctx.invalid(line, format!("{owner}.tracking.free_flight = \"{other}\" is unknown (expected \"delta\" or \"ray_march\")"))),
+    };
+    let control = match t.control.as_deref().unwrap_or("novak") {
+        "novak" => ControlVariate::Novak,
+        "mean" => ControlVariate::Mean,
+        "minorant" => ControlVariate::Minorant,
+        other => return Err(ctx.invalid(line, format!("{owner}.tracking.control = \"{other}\" is unknown (expected \"novak\", \"mean\" or \"minorant\")"))),
+    };
+    cfg.transmittance = match t.transmittance.as_deref().unwrap_or("residual") {
+        "residual" => TransmittanceMode::ResidualRatio(control),
+        "ratio" => TransmittanceMode::Ratio,
+        "ray_march" => TransmittanceMode::RayMarch { step: need_step()? },
+        other => return Err(ctx.invalid(line, format!("{owner}.tracking.transmittance = \"{other}\" is unknown (expected \"residual\", \"ratio\" or \"ray_march\")"))),
+    };
+    let level = t.level.unwrap_or(0);
+    if level > 20 {
+        return Err(ctx.invalid(line, format!("{owner}.tracking.level = {level} is outside [0, 20]")));
+    }
+    cfg.majorant = match t.majorant.as_deref().unwrap_or("pyramid") {
+        "pyramid" => MajorantMode::Hierarchical { finest: level },
+        "global" => MajorantMode::Global,
+        other => return Err(ctx.invalid(line, format!("{owner}.tracking.majorant = \"{other}\" is unknown (expected \"pyramid\" or \"global\")"))),
+    };
+    Ok(cfg)
+}
+
+fn build_voxel_field(ctx: &Ctx, line: usize, owner: &str, i: &InteriorDesc, xf: glam::DAffine3) -> Result<(DensityField, crate::majorant::MajorantPyramid), SceneError> {
+    let file = i.file.as_ref().ok_or_else(|| ctx.invalid(line, format!("{owner}: a voxel interior needs `file` (an OpenVDB file)")))?;
+    let path = ctx.resolve(file);
+    let name = i.grid.as_deref().unwrap_or("density");
+    let mut grids = crate::vdb::read_vdb_grids(&path, &[name]).map_err(|e| ctx.invalid(line, format!("{owner}: {e}")))?;
+    let vg = grids.pop().ok_or_else(|| ctx.invalid(line, format!("{owner}: {}: no grid {name}", path.display())))?;
+    vg.check_finite().map_err(|e| ctx.invalid(line, format!("{owner}: {}: {e}", path.display())))?;
+    if vg.grid.channel_kind(0) != Some(crate::grid::ChannelKind::Scalar) {
+        return Err(ctx.invalid(line, format!("{owner}: {}: grid `{name}` is not a scalar grid ({})", path.display(), vg.value_type.name())));
+    }
+    let stats = vg.stats();
+    if stats.min[0] < 0.0 || vg.grid.background(0) < 0.0 {
+        return Err(ctx.invalid(line, format!("{owner}: {}: grid `{name}` has negative densities (min {})", path.display(), stats.min[0])));
+    }
+    let mut grid = vg.grid;
+    let placed = xf * grid.index_to_world();
+    grid.set_index_to_world(placed).map_err(|e| ctx.invalid(line, format!("{owner}: placing grid `{name}`: {e}")))?;
+    let pyramid = crate::majorant::MajorantPyramid::from_grid(&grid, 0).map_err(|e| ctx.invalid(line, format!("{owner}: grid `{name}`: {e}")))?;
+    Ok((DensityField::Grid { grid, channel: 0 }, pyramid))
+}
+
+fn build_fbm_field(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    i: &InteriorDesc,
+    xf: glam::DAffine3,
+    rest_bounds: Aabb,
+) -> Result<(DensityField, crate::majorant::MajorantPyramid), SceneError> {
+    use crate::volume::{bake_fbm, procedural_pyramid, FbmField, FbmParams, ProceduralBound, ProceduralLattice};
+    let d = FbmParams::default();
+    let n = i.noise.clone().unwrap_or(super::desc::NoiseDesc {
+        frequency: None,
+        octaves: None,
+        lacunarity: None,
+        gain: None,
+        amplitude: None,
+        offset: None,
+        min: None,
+        max: None,
+        seed: None,
+    });
+    let params = FbmParams {
+        frequency: n.frequency.unwrap_or(d.frequency),
+        octaves: n.octaves.unwrap_or(d.octaves),
+        lacunarity: n.lacunarity.unwrap_or(d.lacunarity),
+        gain: n.gain.unwrap_or(d.gain),
+        amplitude: n.amplitude.unwrap_or(d.amplitude),
+        offset: n.offset.unwrap_or(d.offset),
+        min: n.min.unwrap_or(d.min),
+        max: n.max.unwrap_or(d.max),
+        seed: n.seed.unwrap_or(d.seed),
+    };
+    let bad = |e: &dyn std::fmt::Display| ctx.invalid(line, format!("{owner}: {e}"));
+    let field = FbmField::new(params, xf).map_err(|e| bad(&e))?;
+    let extent = rest_bounds.extent().max_element().max(1e-9);
+    let voxel_size = check_range(ctx, line, &format!("{owner}.voxel_size"), i.voxel_size.unwrap_or(extent / 128.0), extent * 1e-4, extent)?;
+    let lattice = ProceduralLattice::new(rest_bounds, voxel_size, xf).map_err(|e| bad(&e))?;
+    match i.evaluation.as_deref().unwrap_or("baked") {
+        "baked" => {
+            reject_unused(ctx, line, owner, "fbm (baked)", &[("bound", i.bound.is_some()), ("bound_min", i.bound_min.is_some()), ("bound_max", i.bound_max.is_some()), ("trial_samples", i.trial_samples.is_some()), ("safety", i.safety.is_some())])?;
+            let grid = bake_fbm(&field, &lattice).map_err(|e| bad(&e))?;
+            let pyramid = crate::majorant::MajorantPyramid::from_grid(&grid, 0).map_err(|e| bad(&e))?;
+            Ok((DensityField::Grid { grid, channel: 0 }, pyramid))
+        }
+        "exact" => {
+            let bound = match i.bound.as_deref().unwrap_or("estimated") {
+                "analytic" => ProceduralBound::Analytic,
+                "artist" => {
+                    let min = i.bound_min.unwrap_or(0.0);
+                    let max = i.bound_max.ok_or_else(|| ctx.invalid(line, format!("{owner}: bound = \"artist\" needs `bound_max` (and optionally `bound_min`)")))?;
+                    ProceduralBound::Artist { min, max }
+                }
+                "estimated" => ProceduralBound::Estimated { samples: i.trial_samples.unwrap_or(32), safety: i.safety.unwrap_or(1.25) },
+                other => return Err(ctx.invalid(line, format!("{owner}.bound = \"{other}\" is unknown (expected \"analytic\", \"artist\" or \"estimated\")"))),
+            };
+            let pyramid = procedural_pyramid(&field, &lattice, bound, 0x5eed).map_err(|e| bad(&e))?;
+            Ok((DensityField::Procedural(Box::new(field)), pyramid))
+        }
+        other => Err(ctx.invalid(line, format!("{owner}.evaluation = \"{other}\" is unknown (expected \"baked\" or \"exact\")"))),
     }
 }
 

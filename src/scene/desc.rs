@@ -115,7 +115,7 @@ pub struct LightDesc {
 pub struct ObjectDesc {
     /// A name used in messages.
     pub name: Option<String>,
-    /// "mesh" or "sphere".
+    /// "mesh", "sphere" or "bounds" (the box around a voxel interior's grid).
     pub shape: String,
     /// PLY file (mesh), relative to the scene file's folder.
     pub file: Option<String>,
@@ -176,7 +176,7 @@ pub struct CoatDesc {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InteriorDesc {
-    /// "absorption" or "homogeneous".
+    /// "absorption", "homogeneous", "voxel" or "fbm".
     #[serde(rename = "type")]
     pub kind: String,
     /// Artist albedo in [0, 1] (homogeneous).
@@ -191,6 +191,70 @@ pub struct InteriorDesc {
     pub phase: Option<PhaseDesc>,
     /// "exit" or "interior".
     pub nee: Option<String>,
+    /// OpenVDB file (voxel), relative to the scene file.
+    pub file: Option<String>,
+    /// Grid name in the file (voxel; default "density").
+    pub grid: Option<String>,
+    /// Estimator choices (voxel, fbm).
+    pub tracking: Option<TrackingDesc>,
+    /// Noise parameters (fbm).
+    pub noise: Option<NoiseDesc>,
+    /// "baked" (default) or "exact" (fbm).
+    pub evaluation: Option<String>,
+    /// Voxel size of the baked/bounding lattice in the object's rest space (fbm).
+    pub voxel_size: Option<f32>,
+    /// "analytic", "artist" or "estimated" (fbm, exact evaluation).
+    pub bound: Option<String>,
+    /// Artist minimum density (bound = "artist").
+    pub bound_min: Option<f32>,
+    /// Artist maximum density (bound = "artist").
+    pub bound_max: Option<f32>,
+    /// Trial samples per brick (bound = "estimated").
+    pub trial_samples: Option<u32>,
+    /// Safety factor ≥ 1 on estimated bounds.
+    pub safety: Option<f32>,
+}
+
+/// `tracking = { ... }`: estimator choices of a heterogeneous interior.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackingDesc {
+    /// "delta" (default) or "ray_march".
+    pub free_flight: Option<String>,
+    /// "residual" (default), "ratio" or "ray_march".
+    pub transmittance: Option<String>,
+    /// Control variate of residual ratio tracking: "novak" (default), "mean" or "minorant".
+    pub control: Option<String>,
+    /// "pyramid" (default) or "global".
+    pub majorant: Option<String>,
+    /// Finest pyramid level used (0 = bricks; default 0).
+    pub level: Option<u8>,
+    /// Ray-marching step, world units.
+    pub step: Option<f32>,
+}
+
+/// `noise = { ... }`: procedural fBm density.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseDesc {
+    /// Base frequency, 1/length in rest space.
+    pub frequency: Option<f32>,
+    /// Octaves.
+    pub octaves: Option<u32>,
+    /// Frequency multiplier per octave.
+    pub lacunarity: Option<f32>,
+    /// Amplitude multiplier per octave.
+    pub gain: Option<f32>,
+    /// Noise scale.
+    pub amplitude: Option<f32>,
+    /// Offset added to the scaled noise.
+    pub offset: Option<f32>,
+    /// Lower clamp.
+    pub min: Option<f32>,
+    /// Upper clamp.
+    pub max: Option<f32>,
+    /// Seed.
+    pub seed: Option<u32>,
 }
 
 /// `phase = { ... }`.

@@ -41,6 +41,22 @@ fn codec_name(code: u8) -> &'static str {
 /// A message describing the first inconsistency (truncation, size mismatch, unsupported
 /// codec or filter).
 pub fn decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    decompress_into(src, expected, &mut out, &mut Vec::new())?;
+    Ok(out)
+}
+
+/// As [`decompress`], into `out` (resized to `expected`), with `tmp` as scratch space; both
+/// buffers are reused between calls.
+///
+/// # Errors
+/// As [`decompress`].
+pub fn decompress_into(
+    src: &[u8],
+    expected: usize,
+    out: &mut Vec<u8>,
+    tmp: &mut Vec<u8>,
+) -> Result<(), String> {
     if src.len() < HEADER {
         return Err(format!(
             "blosc frame of {} bytes is shorter than its 16-byte header",
@@ -67,14 +83,16 @@ pub fn decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         ));
     }
     let src = &src[..cbytes];
+    out.clear();
     if flags & FLAG_MEMCPY != 0 {
-        return src
+        let d = src
             .get(HEADER..HEADER + nbytes)
-            .map(<[u8]>::to_vec)
-            .ok_or_else(|| "truncated uncompressed blosc frame".to_string());
+            .ok_or("truncated uncompressed blosc frame")?;
+        out.extend_from_slice(d);
+        return Ok(());
     }
     if nbytes == 0 {
-        return Ok(Vec::new());
+        return Ok(());
     }
     if flags & FLAG_BITSHUFFLE != 0 {
         return Err("blosc bit-shuffle filter is not supported".into());
@@ -89,8 +107,7 @@ pub fn decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
             "blosc frame too short for its {nblocks} block offsets"
         ));
     }
-    let mut out = vec![0u8; nbytes];
-    let mut tmp = Vec::new();
+    out.resize(nbytes, 0);
     for bi in 0..nblocks {
         let start = u32_at(src, HEADER + 4 * bi).unwrap_or(0) as usize;
         let bsize = blocksize.min(nbytes - bi * blocksize);
@@ -99,7 +116,7 @@ pub fn decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
             && !leftover
             && typesize <= 16
             && blocksize / typesize >= 128
-            && bsize % typesize == 0
+            && bsize.is_multiple_of(typesize)
         {
             typesize
         } else {
@@ -130,12 +147,12 @@ pub fn decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String> {
         }
         let dst = &mut out[bi * blocksize..bi * blocksize + bsize];
         if flags & FLAG_SHUFFLE != 0 && typesize > 1 {
-            unshuffle(typesize, &tmp, dst);
+            unshuffle(typesize, tmp, dst);
         } else {
-            dst.copy_from_slice(&tmp);
+            dst.copy_from_slice(tmp);
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 fn decode_stream(code: u8, data: &[u8], dst: &mut [u8]) -> Result<(), String> {
@@ -238,9 +255,21 @@ fn blosclz_decompress(src: &[u8], dst: &mut [u8]) -> Result<usize, String> {
 /// `j * n + i` (`n` elements); trailing bytes past the last whole element are unshuffled.
 fn unshuffle(typesize: usize, src: &[u8], dst: &mut [u8]) {
     let n = src.len() / typesize;
-    for i in 0..n {
-        for j in 0..typesize {
-            dst[i * typesize + j] = src[j * n + i];
+    if typesize == 4 {
+        let (s0, rest) = src.split_at(n);
+        let (s1, rest) = rest.split_at(n);
+        let (s2, s3) = rest.split_at(n);
+        for (i, d) in dst[..4 * n].chunks_exact_mut(4).enumerate() {
+            d[0] = s0[i];
+            d[1] = s1[i];
+            d[2] = s2[i];
+            d[3] = s3[i];
+        }
+    } else {
+        for i in 0..n {
+            for j in 0..typesize {
+                dst[i * typesize + j] = src[j * n + i];
+            }
         }
     }
     let tail = n * typesize;
@@ -284,7 +313,7 @@ pub fn compress(src: &[u8], typesize: usize) -> Vec<u8> {
     if nbytes == 0 {
         return memcpy();
     }
-    let split = typesize <= 16 && nbytes / typesize >= 128 && nbytes % typesize == 0;
+    let split = typesize <= 16 && nbytes / typesize >= 128 && nbytes.is_multiple_of(typesize);
     let nsplits = if split { typesize } else { 1 };
     let mut shuffled = vec![0u8; nbytes];
     shuffle(typesize, src, &mut shuffled);

@@ -141,6 +141,7 @@ pub fn read_data<'a>(
     nbytes: usize,
     compression: u32,
     scratch: &mut Vec<u8>,
+    tmp: &mut Vec<u8>,
 ) -> Result<Option<&'a [u8]>, VdbError> {
     if compression & (COMPRESS_BLOSC | COMPRESS_ZIP) == 0 {
         return r.take(nbytes, "node values").map(Some);
@@ -166,7 +167,7 @@ pub fn read_data<'a>(
         msg,
     };
     if compression & COMPRESS_BLOSC != 0 {
-        *scratch = blosc::decompress(src, nbytes).map_err(fail)?;
+        blosc::decompress_into(src, nbytes, scratch, tmp).map_err(fail)?;
     } else {
         scratch.clear();
         scratch.resize(nbytes, 0);
@@ -191,16 +192,81 @@ pub fn read_data<'a>(
 }
 
 /// Context for reading the value arrays of one grid.
+#[derive(Clone)]
 pub struct ValueCodec {
     pub vt: ValueType,
     pub half: bool,
     pub compression: u32,
     pub background: [f32; 3],
     pub scratch: Vec<u8>,
+    pub tmp: Vec<u8>,
     pub temp: Vec<f32>,
 }
 
 impl ValueCodec {
+    /// Skips the value array of a node (as [`ValueCodec::read_values`] would read it)
+    /// without decompressing it.
+    pub fn skip_values(
+        &self,
+        r: &mut Reader<'_>,
+        count: usize,
+        mask: &[u64],
+    ) -> Result<(), VdbError> {
+        let n = self.vt.components();
+        let cb = self.vt.component_bytes();
+        let meta = r.u8("mask-compression flag")?;
+        if meta > NO_MASK_AND_ALL_VALS {
+            return Err(r.err(format!("invalid mask-compression flag {meta}")));
+        }
+        if matches!(
+            meta,
+            NO_MASK_AND_ONE_INACTIVE_VAL | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
+        ) {
+            r.take(n * cb, "inactive value")?;
+            if meta == MASK_AND_TWO_INACTIVE_VALS {
+                r.take(n * cb, "inactive value")?;
+            }
+        }
+        let words = count / 64;
+        if matches!(
+            meta,
+            MASK_AND_NO_INACTIVE_VALS | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
+        ) {
+            r.take(words * 8, "selection mask")?;
+        }
+        let temp_count =
+            if self.compression & COMPRESS_ACTIVE_MASK != 0 && meta != NO_MASK_AND_ALL_VALS {
+                mask[..words].iter().map(|w| w.count_ones() as usize).sum()
+            } else {
+                count
+            };
+        let elem = if self.half { 2 * n } else { cb * n };
+        if self.half && temp_count == 0 {
+            return Ok(());
+        }
+        let nbytes = temp_count * elem;
+        if self.compression & (COMPRESS_BLOSC | COMPRESS_ZIP) == 0 {
+            r.take(nbytes, "node values")?;
+            return Ok(());
+        }
+        let size = r.i64("compressed buffer size")?;
+        if size <= 0 {
+            if size.unsigned_abs() != nbytes as u64 {
+                return Err(r.err(format!(
+                    "stored buffer of {} bytes where {nbytes} were expected",
+                    size.unsigned_abs()
+                )));
+            }
+            r.take(nbytes, "stored node values")?;
+        } else {
+            r.take(
+                usize::try_from(size).unwrap_or(usize::MAX),
+                "compressed node values",
+            )?;
+        }
+        Ok(())
+    }
+
     /// Reads the value array of a node with `count` values and active mask `mask`
     /// (`count / 64` words) into `out` (`count × components` floats).
     pub fn read_values(
@@ -252,7 +318,13 @@ impl ValueCodec {
             let bytes: &[u8] = if self.half && temp_count == 0 {
                 &[]
             } else {
-                match read_data(r, temp_count * elem, self.compression, &mut self.scratch)? {
+                match read_data(
+                    r,
+                    temp_count * elem,
+                    self.compression,
+                    &mut self.scratch,
+                    &mut self.tmp,
+                )? {
                     Some(b) => b,
                     None => &self.scratch,
                 }

@@ -4,6 +4,7 @@ use super::codec::{Reader, ValueCodec};
 use super::{dmat3_is_finite, MetaEntry, ValueType, VdbError, VdbGrid, VdbMap};
 use crate::grid::{ChannelKind, SparseGridBuilder, Storage, TileLevel};
 use glam::{DAffine3, DMat3, DVec3, IVec3, Vec3};
+use rayon::prelude::*;
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -29,6 +30,7 @@ struct Descriptor {
 #[derive(Clone, Debug)]
 pub struct VdbFile {
     path: PathBuf,
+    bytes: Option<std::sync::Arc<Vec<u8>>>,
     len: u64,
     /// File format version (e.g. 224).
     pub version: u32,
@@ -48,18 +50,42 @@ fn io_err(path: &Path, source: std::io::Error) -> VdbError {
     }
 }
 
-fn read_range(f: &mut File, path: &Path, start: u64, len: usize) -> Result<Vec<u8>, VdbError> {
-    f.seek(SeekFrom::Start(start))
-        .map_err(|e| io_err(path, e))?;
-    let mut v = vec![0u8; len];
-    f.read_exact(&mut v).map_err(|e| io_err(path, e))?;
-    Ok(v)
+/// Where the bytes of a VDB file come from.
+enum Source<'a> {
+    File(File),
+    Bytes(&'a [u8]),
+}
+
+fn read_range(
+    f: &mut Source<'_>,
+    path: &Path,
+    start: u64,
+    len: usize,
+) -> Result<Vec<u8>, VdbError> {
+    match f {
+        Source::File(f) => {
+            f.seek(SeekFrom::Start(start))
+                .map_err(|e| io_err(path, e))?;
+            let mut v = vec![0u8; len];
+            f.read_exact(&mut v).map_err(|e| io_err(path, e))?;
+            Ok(v)
+        }
+        Source::Bytes(b) => usize::try_from(start)
+            .ok()
+            .and_then(|s| b.get(s..s.checked_add(len)?))
+            .map(<[u8]>::to_vec)
+            .ok_or_else(|| VdbError::Format {
+                path: path.to_path_buf(),
+                offset: start,
+                msg: "range beyond the data".into(),
+            }),
+    }
 }
 
 /// Parses with `parse` from a chunk of the file at `start`, growing the chunk while the
 /// parser runs out of bytes and the file has more.
 fn parse_growing<T>(
-    f: &mut File,
+    f: &mut Source<'_>,
     path: &Path,
     file_len: u64,
     start: u64,
@@ -190,8 +216,41 @@ impl VdbFile {
     /// header.
     pub fn open(path: impl AsRef<Path>) -> Result<VdbFile, VdbError> {
         let path = path.as_ref();
-        let mut f = File::open(path).map_err(|e| io_err(path, e))?;
+        let f = File::open(path).map_err(|e| io_err(path, e))?;
         let len = f.metadata().map_err(|e| io_err(path, e))?.len();
+        Self::parse_header(path, Source::File(f), len, None)
+    }
+
+    /// Reads a VDB file held in memory; `name` stands for the file's path in messages.
+    ///
+    /// # Errors
+    /// As [`VdbFile::open`].
+    pub fn from_bytes(name: impl AsRef<Path>, bytes: Vec<u8>) -> Result<VdbFile, VdbError> {
+        let bytes = std::sync::Arc::new(bytes);
+        let len = bytes.len() as u64;
+        Self::parse_header(
+            name.as_ref(),
+            Source::Bytes(&bytes.clone()),
+            len,
+            Some(bytes),
+        )
+    }
+
+    fn source(&self) -> Result<Source<'_>, VdbError> {
+        match &self.bytes {
+            Some(b) => Ok(Source::Bytes(b)),
+            None => File::open(&self.path)
+                .map(Source::File)
+                .map_err(|e| io_err(&self.path, e)),
+        }
+    }
+
+    fn parse_header(
+        path: &Path,
+        mut f: Source<'_>,
+        len: u64,
+        bytes: Option<std::sync::Arc<Vec<u8>>>,
+    ) -> Result<VdbFile, VdbError> {
         let (version, library_version, uuid, metadata, count, first) = parse_growing(
             &mut f,
             path,
@@ -240,7 +299,8 @@ impl VdbFile {
                 let bp = r.i64("block position")?;
                 let ep = r.i64("end position")?;
                 let here = r.offset() as i64;
-                if gp < here || bp < gp || ep < bp || ep as u64 > len {
+                // Instances have no blocks of their own: their block position is 0.
+                if gp < here || ep < gp || (bp != 0 && (bp < gp || bp > ep)) || ep as u64 > len {
                     return Err(VdbError::Format {
                         path: path.to_path_buf(),
                         offset: at,
@@ -263,6 +323,7 @@ impl VdbFile {
         }
         Ok(VdbFile {
             path: path.to_path_buf(),
+            bytes,
             len,
             version,
             library_version,
@@ -331,7 +392,7 @@ impl VdbFile {
                 grid: d.name.clone(),
                 type_name: d.type_name.clone(),
             })?;
-        let mut f = File::open(&self.path).map_err(|e| io_err(&self.path, e))?;
+        let mut f = self.source()?;
         let bytes = read_range(
             &mut f,
             &self.path,
@@ -454,6 +515,7 @@ fn read_tree(
         compression,
         background: bg,
         scratch: Vec::new(),
+        tmp: Vec::new(),
         temp: Vec::new(),
     };
     let bgs = &bg[..n];
@@ -545,12 +607,68 @@ fn read_tree(
             }
         }
     }
-    // Leaf buffers, in the same order.
-    let mut vals = vec![0f32; 512 * n];
-    for (o3, m) in leaves {
+    // Leaf buffers, in the same order. Split the stream into per-leaf byte ranges (cheap:
+    // no decompression), create the bricks, then decode the leaves in parallel straight into
+    // their bricks.
+    let mut ranges = Vec::with_capacity(leaves.len());
+    for (_, m) in &leaves {
+        let start = r.pos;
         r.take(64, "leaf value mask")?;
-        codec.read_values(r, 512, &m, &mut vals)?;
-        b.fill_brick(0, o3 >> 3, &vals, m).map_err(gerr)?;
+        codec.skip_values(r, 512, m)?;
+        ranges.push((start, r.pos));
+    }
+    let first = b.grid().brick_count();
+    b.reserve_bricks(leaves.len());
+    let mut in_order = true;
+    for (i, (o3, m)) in leaves.iter().enumerate() {
+        let idx = b.brick(*o3 >> 3).map_err(gerr)?;
+        in_order &= idx == first + i;
+        b.set_brick_mask(idx, *m);
+    }
+    if !in_order {
+        // Duplicate leaves (a damaged file): decode sequentially, the last one wins.
+        let mut vals = vec![0f32; 512 * n];
+        for ((o3, m), &(s0, s1)) in leaves.iter().zip(&ranges) {
+            let mut rr = Reader::new(&r.data[s0..s1], r.base + s0 as u64, path);
+            rr.take(64, "leaf value mask")?;
+            codec.read_values(&mut rr, 512, m, &mut vals)?;
+            b.fill_brick(0, *o3 >> 3, &vals, *m).map_err(gerr)?;
+        }
+        return Ok(b.build());
+    }
+    let data = r.data;
+    let base = r.base;
+    let template = ValueCodec {
+        scratch: Vec::new(),
+        tmp: Vec::new(),
+        temp: Vec::new(),
+        ..codec
+    };
+    let decode =
+        |c: &mut (ValueCodec, Vec<f32>), i: usize, out: &mut [f32]| -> Result<(), VdbError> {
+            let (s0, s1) = ranges[i];
+            let mut rr = Reader::new(&data[s0..s1], base + s0 as u64, path);
+            rr.take(64, "leaf value mask")?;
+            c.0.read_values(&mut rr, 512, &leaves[i].1, out)
+        };
+    let init = || (template.clone(), vec![0f32; 512 * n]);
+    match b.values_mut(0) {
+        crate::grid::ValuesMut::F32(v) => v[first * 512 * n..]
+            .par_chunks_mut(512 * n)
+            .enumerate()
+            .try_for_each_init(init, |c, (i, out)| decode(c, i, out))?,
+        crate::grid::ValuesMut::F16(v) => v[first * 512 * n..]
+            .par_chunks_mut(512 * n)
+            .enumerate()
+            .try_for_each_init(init, |c, (i, out)| {
+                let mut tmp = std::mem::take(&mut c.1);
+                let res = decode(c, i, &mut tmp);
+                for (d, &x) in out.iter_mut().zip(&tmp) {
+                    *d = half::f16::from_f32(x);
+                }
+                c.1 = tmp;
+                res
+            })?,
     }
     Ok(b.build())
 }

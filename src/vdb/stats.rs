@@ -1,6 +1,6 @@
 //! Statistics of active values, with OpenVDB's definitions.
 
-use crate::grid::{SparseGrid, BRICK_VOXELS};
+use crate::grid::{BrickData, SparseGrid, BRICK_VOXELS};
 use glam::IVec3;
 
 /// Statistics of the active values of one channel of a grid, with the definitions of
@@ -76,26 +76,76 @@ impl GridStats {
                 }
             }
         };
+        let mut buf = vec![0f32; BRICK_VOXELS * comps];
         for b in 0..grid.brick_count() {
             let m = grid.brick_active_mask(b);
             let o = grid.brick_origin(b);
-            let data = grid.brick_data(c, b);
-            for v in 0..BRICK_VOXELS {
-                if m[v >> 6] >> (v & 63) & 1 == 0 {
-                    continue;
+            match grid.brick_data(c, b) {
+                BrickData::F32(d) => buf.copy_from_slice(d),
+                BrickData::F16(d) => {
+                    for (x, h) in buf.iter_mut().zip(d) {
+                        *x = h.to_f32();
+                    }
                 }
-                let mut val = [0f32; 3];
-                for (k, x) in val.iter_mut().enumerate().take(comps) {
-                    *x = data.get(v, comps, k);
+            }
+            if comps == 1 {
+                // Scalar fast path: per-brick accumulators, moments relative to the origin.
+                let (mut mn, mut mx) = (s.min[0], s.max[0]);
+                let (mut sum, mut sabs, mut mom) = (0.0f64, 0.0f64, [0.0f64; 3]);
+                let mut count = 0u64;
+                for (wi, &word) in m.iter().enumerate() {
+                    let mut w = word;
+                    while w != 0 {
+                        let v = wi * 64 + w.trailing_zeros() as usize;
+                        w &= w - 1;
+                        let x = f64::from(buf[v]);
+                        if !x.is_finite() {
+                            s.non_finite += 1;
+                            count += 1;
+                            continue;
+                        }
+                        count += 1;
+                        if x < mn {
+                            mn = x;
+                        }
+                        if x > mx {
+                            mx = x;
+                        }
+                        sum += x;
+                        sabs += x.abs();
+                        mom[0] += x * (v >> 6) as f64;
+                        mom[1] += x * ((v >> 3) & 7) as f64;
+                        mom[2] += x * (v & 7) as f64;
+                    }
                 }
-                let p = o + IVec3::new((v >> 6) as i32, ((v >> 3) & 7) as i32, (v & 7) as i32);
-                s.active_voxels_by_level[3] += 1;
-                add(
-                    val,
-                    1.0,
-                    [f64::from(p.x), f64::from(p.y), f64::from(p.z)],
-                    &mut s,
-                );
+                s.min[0] = mn;
+                s.max[0] = mx;
+                s.sum[0] += sum;
+                s.sum_len += sabs;
+                let of = [f64::from(o.x), f64::from(o.y), f64::from(o.z)];
+                for a in 0..3 {
+                    s.moment[a] += mom[a] + of[a] * sum;
+                }
+                s.active_voxels_by_level[3] += count;
+                continue;
+            }
+            for (wi, &word) in m.iter().enumerate() {
+                let mut w = word;
+                while w != 0 {
+                    let v = wi * 64 + w.trailing_zeros() as usize;
+                    w &= w - 1;
+                    let mut val = [0f32; 3];
+                    val[..comps].copy_from_slice(&buf[v * comps..v * comps + comps]);
+                    let v = v as i32;
+                    let p = o + IVec3::new(v >> 6, (v >> 3) & 7, v & 7);
+                    s.active_voxels_by_level[3] += 1;
+                    add(
+                        val,
+                        1.0,
+                        [f64::from(p.x), f64::from(p.y), f64::from(p.z)],
+                        &mut s,
+                    );
+                }
             }
         }
         for t in grid.tiles() {

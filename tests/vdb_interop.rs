@@ -1,0 +1,478 @@
+//! Interoperability with real OpenVDB (Debian's `python3-openvdb` and `libopenvdb-tools`,
+//! installed by `.ci/run`): we read what OpenVDB writes with every codec, half floats, vec3s,
+//! tiles at every level and every linear map, and OpenVDB reads what we write with the same
+//! statistics. These tests fail (they do not skip) when `/usr/bin/python3` cannot import
+//! `pyopenvdb`.
+
+use glam::{DAffine3, DMat3, DVec3, IVec3, Vec3};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use velour::grid::{ChannelKind, SparseGrid, SparseGridBuilder, Storage, TileLevel};
+use velour::sampling::Rng;
+use velour::vdb::{
+    read_vdb, read_vdb_grids, write_vdb, Compression, GridStats, GridToWrite, VdbFile, VdbGrid,
+    WriteOptions,
+};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("velour_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn python(args: &[&str]) -> String {
+    let out = Command::new("/usr/bin/python3")
+        .args(args)
+        .output()
+        .expect("cannot run /usr/bin/python3 (CI installs python3-openvdb)");
+    assert!(
+        out.status.success(),
+        "/usr/bin/python3 {args:?} failed (is python3-openvdb installed?): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Coordinates at which OpenVDB's and our values are compared: noise, tiles of every level
+/// (active and inactive), level-set interiors and far background.
+fn probe_coords() -> Vec<[i32; 3]> {
+    let mut rng = Rng::new(11, 0);
+    let mut v = Vec::new();
+    for _ in 0..400 {
+        let r = |rng: &mut Rng| (rng.next_f32() * 44.0 - 22.0).floor() as i32;
+        v.push([r(&mut rng), r(&mut rng), r(&mut rng)]);
+    }
+    v.extend_from_slice(&[
+        [130, 5, 5],
+        [255, 127, 127],
+        [8197, 5, 5],
+        [8192 + 4095, 4095, 4095],
+        [-8000, 5, 5],
+        [3, 3, 66],
+        [0, 0, -2],
+        [1, 1, -1],
+        [515, 3, 3],
+        [2, 258, 2],
+        [67, 66, 65],
+        [100000, -100000, 7],
+    ]);
+    v
+}
+
+fn write_coords(dir: &Path) -> PathBuf {
+    let p = dir.join("coords.json");
+    std::fs::write(&p, serde_json::to_string(&probe_coords()).unwrap()).unwrap();
+    p
+}
+
+/// OpenVDB's statistics of every grid of `files`, one JSON object per grid.
+fn openvdb_stats(dir: &Path, files: &[PathBuf]) -> Vec<Value> {
+    let coords = write_coords(dir);
+    let script = root().join("tools/vdb/ovdb_stats.py");
+    let mut args = vec![
+        script.to_str().unwrap().to_string(),
+        "--coords".into(),
+        coords.to_str().unwrap().into(),
+    ];
+    args.extend(files.iter().map(|f| f.to_str().unwrap().to_string()));
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    python(&a)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+fn num(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+fn comps(v: &Value) -> Vec<f64> {
+    match v.as_array() {
+        Some(a) => a.iter().map(num).collect(),
+        None => vec![num(v)],
+    }
+}
+
+fn close(a: f64, b: f64, rel: f64, what: &str) {
+    let tol = rel * a.abs().max(b.abs());
+    assert!((a - b).abs() <= tol, "{what}: ours {a} vs OpenVDB {b}");
+}
+
+/// Our grid against OpenVDB's figures for the same file. `values` compares the probes.
+fn compare(t: &Value, g: &VdbGrid, s: &GridStats, what: &str) {
+    let w = |k: &str| format!("{what} [{}] {k}", g.name);
+    assert_eq!(t["name"].as_str().unwrap(), g.name, "{}", w("name"));
+    assert_eq!(
+        t["type"].as_str().unwrap(),
+        g.value_type.name(),
+        "{}",
+        w("type")
+    );
+    assert_eq!(t["class"].as_str().unwrap(), g.class, "{}", w("class"));
+    assert_eq!(
+        t["save_half"].as_bool().unwrap(),
+        g.saved_as_half,
+        "{}",
+        w("half")
+    );
+    assert_eq!(
+        t["active_voxels"].as_u64().unwrap(),
+        s.active_voxels,
+        "{}",
+        w("active voxels")
+    );
+    assert_eq!(
+        t["leaf_count"].as_u64().unwrap(),
+        s.leaf_count,
+        "{}",
+        w("leaf count")
+    );
+    let by: Vec<u64> = t["active_voxels_by_depth"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!(by, s.active_voxels_by_level.to_vec(), "{}", w("by depth"));
+    let bb = t["active_bbox"].as_array().unwrap();
+    let (lo, hi) = s.active_bbox.expect("bbox");
+    assert_eq!(
+        comps(&bb[0]),
+        lo.as_dvec3().to_array().to_vec(),
+        "{}",
+        w("bbox")
+    );
+    assert_eq!(
+        comps(&bb[1]),
+        hi.as_dvec3().to_array().to_vec(),
+        "{}",
+        w("bbox")
+    );
+    let n = s.components;
+    let bg = g.grid.background_vec3(0);
+    assert_eq!(
+        comps(&t["background"]),
+        [bg.x, bg.y, bg.z][..n]
+            .iter()
+            .map(|&x| f64::from(x))
+            .collect::<Vec<_>>(),
+        "{}",
+        w("background")
+    );
+    let (mn, mx, sm) = (comps(&t["min"]), comps(&t["max"]), comps(&t["sum"]));
+    for k in 0..n {
+        close(s.min[k], mn[k], 1e-12, &w("min"));
+        close(s.max[k], mx[k], 1e-12, &w("max"));
+        close(s.sum[k], sm[k], 1e-6, &w("sum"));
+    }
+    if n == 1 {
+        let m = comps(&t["moment"]);
+        let ext = lo.abs().max(hi.abs()).max_element() as f64 + 1.0;
+        for k in 0..3 {
+            assert!(
+                (s.moment[k] - m[k]).abs() <= 1e-7 * s.sum[0].abs() * ext + 1e-9,
+                "{}: {:?} vs {m:?}",
+                w("moment"),
+                s.moment
+            );
+        }
+    } else {
+        close(s.sum_len, num(&t["sum_len"]), 1e-6, &w("sum_len"));
+    }
+    let xf = g.grid.index_to_world();
+    for (key, p) in [
+        ("index_to_world_origin", DVec3::ZERO),
+        ("index_to_world_x1", DVec3::X),
+        ("index_to_world_y1", DVec3::Y),
+        ("index_to_world_z1", DVec3::Z),
+    ] {
+        let want = comps(&t[key]);
+        let got = xf.transform_point3(p);
+        for k in 0..3 {
+            assert!(
+                (got[k] - want[k]).abs() <= 1e-9,
+                "{}: {got} vs {want:?}",
+                w(key)
+            );
+        }
+    }
+    let vals = t["values"].as_array().unwrap();
+    let mut acc = g.grid.accessor(0);
+    for (c, v) in probe_coords().iter().zip(vals) {
+        let ijk = IVec3::from_array(*c);
+        let ours = acc.value_vec3(ijk);
+        let want = comps(v);
+        for k in 0..n {
+            // Compare as f32: the JSON text of an f32 widened to f64 may parse 1 ulp (f64) off.
+            assert_eq!(ours[k], want[k] as f32, "{} at {ijk}", w("value"));
+        }
+    }
+}
+
+fn find<'a>(all: &'a [Value], file: &Path, name: &str) -> &'a Value {
+    all.iter()
+        .find(|t| t["file"].as_str() == file.to_str() && t["name"].as_str() == Some(name))
+        .unwrap_or_else(|| panic!("OpenVDB gave no figures for {} grid {name}", file.display()))
+}
+
+#[test]
+fn we_read_what_openvdb_writes() {
+    let dir = temp_dir("interop_read");
+    let script = root().join("tools/vdb/make_interop.py");
+    let list = python(&[script.to_str().unwrap(), dir.to_str().unwrap()]);
+    let files: Vec<PathBuf> = list.lines().map(PathBuf::from).collect();
+    assert!(files.len() >= 24, "{list}");
+    let theirs = openvdb_stats(&dir, &files);
+    let mut grids_checked = 0;
+    let mut codecs = std::collections::BTreeSet::new();
+    let mut maps = std::collections::BTreeSet::new();
+    for f in &files {
+        let grids = read_vdb(f).unwrap_or_else(|e| panic!("{e}"));
+        for g in &grids {
+            let t = find(&theirs, f, &g.name);
+            compare(t, g, &g.stats(), &f.display().to_string());
+            codecs.insert(g.compression_flags);
+            maps.insert(g.map.type_name());
+            grids_checked += 1;
+        }
+    }
+    // Every codec (none, zip, blosc, each with active masks, and active-mask only) and map.
+    assert_eq!(codecs.into_iter().collect::<Vec<_>>(), vec![0, 2, 3, 6]);
+    for m in [
+        "AffineMap",
+        "UniformScaleMap",
+        "ScaleMap",
+        "ScaleTranslateMap",
+        "UniformScaleTranslateMap",
+    ] {
+        assert!(maps.contains(m), "{m} not covered");
+    }
+    assert!(grids_checked >= 32);
+    // Only the grids asked for are loaded, in the order asked.
+    let multi = dir.join("multi_zip.vdb");
+    let two = read_vdb_grids(&multi, &["vel", "density"]).unwrap();
+    assert_eq!(
+        two.iter().map(|g| g.name.as_str()).collect::<Vec<_>>(),
+        ["vel", "density"]
+    );
+    let e = read_vdb_grids(&multi, &["smoke"]).unwrap_err().to_string();
+    assert!(
+        ["smoke", "density", "temperature", "vel"]
+            .iter()
+            .all(|n| e.contains(n)),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A grid with everything the writer must handle: a root tile, 128^3 and 8^3 tiles (active
+/// and inactive with non-background values), noisy bricks with inactive voxels of many
+/// values, and a rotated map.
+fn rich_grid(storage: Storage) -> SparseGrid {
+    let mut rng = Rng::new(23, 0);
+    let mut b = SparseGridBuilder::new(storage);
+    b.add_channel("density", ChannelKind::Scalar, Vec3::splat(0.0));
+    for x in -13..12 {
+        for y in -7..9 {
+            for z in -5..14 {
+                let p = IVec3::new(x, y, z);
+                let v = rng.next_f32() * 3.0 - 0.5;
+                b.set_value(0, p, v).unwrap();
+                if rng.next_f32() < 0.25 {
+                    b.set_active(p, false).unwrap();
+                }
+            }
+        }
+    }
+    // Bricks whose inactive voxels are all one non-background value (flag 2).
+    for x in 32..40 {
+        for y in 0..8 {
+            for z in 0..8 {
+                b.set_value(0, IVec3::new(x, y, z), 0.9).unwrap();
+            }
+        }
+    }
+    b.set_active(IVec3::new(33, 1, 1), false).unwrap();
+    b.set_tile(TileLevel::Root, IVec3::new(2, 0, 0), &[0.25], true)
+        .unwrap();
+    b.set_tile(TileLevel::Root, IVec3::new(-2, 0, 0), &[3.0], false)
+        .unwrap();
+    b.set_tile(TileLevel::Block, IVec3::new(1, 0, 0), &[1.5], true)
+        .unwrap();
+    b.set_tile(TileLevel::Block, IVec3::new(0, 2, 0), &[-2.0], false)
+        .unwrap();
+    b.set_tile(TileLevel::Brick, IVec3::new(0, 0, 8), &[0.75], true)
+        .unwrap();
+    b.set_tile(TileLevel::Brick, IVec3::new(0, 0, 9), &[0.5], false)
+        .unwrap();
+    let m = DAffine3 {
+        matrix3: DMat3::from_rotation_y(0.4) * DMat3::from_diagonal(DVec3::new(0.1, 0.1, 0.2)),
+        translation: DVec3::new(0.5, -1.0, 2.0),
+    };
+    b.set_index_to_world(m).unwrap();
+    b.build()
+}
+
+fn vec_grid() -> SparseGrid {
+    let mut rng = Rng::new(29, 0);
+    let mut b = SparseGridBuilder::new(Storage::F32);
+    b.add_channel("velocity", ChannelKind::Vec3, Vec3::ZERO);
+    for x in -9..9 {
+        for y in -5..9 {
+            for z in 0..11 {
+                let v = Vec3::new(rng.next_f32() - 0.5, rng.next_f32(), rng.next_f32() * 2.0);
+                b.set_value_vec3(0, IVec3::new(x, y, z), v).unwrap();
+            }
+        }
+    }
+    b.set_tile(
+        TileLevel::Brick,
+        IVec3::new(8, 8, 8),
+        &[1.0, -2.0, 0.5],
+        true,
+    )
+    .unwrap();
+    b.set_index_to_world(DAffine3::from_translation(DVec3::new(1.0, 2.0, 3.0)))
+        .unwrap();
+    b.build()
+}
+
+#[test]
+fn openvdb_reads_what_we_write() {
+    let dir = temp_dir("interop_write");
+    let rich = rich_grid(Storage::F32);
+    let vel = vec_grid();
+    let fixture = read_vdb(root().join("tests/data/vdb/tiles_internal.vdb"))
+        .unwrap()
+        .remove(0);
+    let mut files = Vec::new();
+    let mut expected: Vec<(PathBuf, String, GridStats, bool)> = Vec::new();
+    let mut k = 0;
+    for compression in [Compression::None, Compression::Zip, Compression::Blosc] {
+        for active_mask in [false, true] {
+            for half in [false, true] {
+                let opts = WriteOptions {
+                    compression,
+                    active_mask,
+                };
+                let path = dir.join(format!("ours_{k}.vdb"));
+                k += 1;
+                let grids = [
+                    GridToWrite {
+                        class: "fog volume",
+                        half,
+                        ..GridToWrite::new("density", &rich)
+                    },
+                    GridToWrite {
+                        half,
+                        ..GridToWrite::new("velocity", &vel)
+                    },
+                    GridToWrite {
+                        class: &fixture.class,
+                        map: Some(fixture.map),
+                        ..GridToWrite::new("tiles", &fixture.grid)
+                    },
+                ];
+                write_vdb(&path, &grids, &opts).unwrap();
+                for g in &grids {
+                    expected.push((
+                        path.clone(),
+                        g.name.to_string(),
+                        GridStats::compute(g.grid, 0),
+                        g.half,
+                    ));
+                }
+                files.push(path);
+            }
+        }
+    }
+    let theirs = openvdb_stats(&dir, &files);
+    for (path, name, src_stats, half) in &expected {
+        let ours = VdbFile::open(path).unwrap().read_grid(name).unwrap();
+        let t = find(&theirs, path, name);
+        // OpenVDB and our reader agree on our file, values included...
+        compare(
+            t,
+            &ours,
+            &ours.stats(),
+            &format!("our file {}", path.display()),
+        );
+        // ...and, at full precision, the figures are those of the grid we wrote.
+        let s = ours.stats();
+        assert_eq!(s.active_voxels, src_stats.active_voxels);
+        assert_eq!(s.leaf_count, src_stats.leaf_count);
+        if !half {
+            assert_eq!(&s, src_stats, "{} {name}", path.display());
+        } else {
+            for c in 0..s.components {
+                let h = |x: f64| f64::from(half::f16::from_f32(x as f32).to_f32());
+                assert_eq!(s.min[c], h(src_stats.min[c]));
+                assert_eq!(s.max[c], h(src_stats.max[c]));
+                close(s.sum[c], src_stats.sum[c], 1e-3, "half sum");
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn convert_command_rewrites_every_grid() {
+    use velour::cli::convert::{run, ConvertArgs};
+    let dir = temp_dir("convert");
+    let mut files = Vec::new();
+    let mut cases = Vec::new();
+    for (input, half, codec) in [
+        ("sphere_fog.vdb", false, "zip"),
+        ("velocity_vec3s.vdb", true, "blosc"),
+        ("xform_scaletranslate.vdb", false, "none"),
+        ("noise_fbm_half.vdb", false, "zip"),
+    ] {
+        let src = root().join("tests/data/vdb").join(input);
+        let out = dir.join(format!("conv_{input}"));
+        run(&ConvertArgs {
+            input: src.clone(),
+            output: out.clone(),
+            half,
+            compression: codec.into(),
+            no_active_mask: false,
+        })
+        .unwrap();
+        files.push(out.clone());
+        cases.push((src, out, half));
+    }
+    let theirs = openvdb_stats(&dir, &files);
+    for (src, out, half) in &cases {
+        let a = read_vdb(src).unwrap().remove(0);
+        let b = read_vdb(out).unwrap().remove(0);
+        assert_eq!(a.name, b.name);
+        assert_eq!(a.class, b.class);
+        assert_eq!(a.value_type, b.value_type);
+        assert_eq!(a.map, b.map);
+        assert_eq!(b.saved_as_half, *half || a.saved_as_half);
+        if !half {
+            assert_eq!(a.stats(), b.stats(), "{}", out.display());
+        }
+        compare(
+            find(&theirs, out, &b.name),
+            &b,
+            &b.stats(),
+            &out.display().to_string(),
+        );
+    }
+    let e = run(&ConvertArgs {
+        input: dir.join("missing.vdb"),
+        output: dir.join("x.vdb"),
+        half: false,
+        compression: "zip".into(),
+        no_active_mask: false,
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("missing.vdb"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
