@@ -246,6 +246,7 @@ pub fn render_budget(
         },
         non_finite: stats.non_finite + film.dropped_samples(),
         threads,
+        tracking: stats.tracking,
     };
     Ok(BudgetResult {
         film,
