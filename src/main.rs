@@ -28,6 +28,8 @@ enum Command {
     Diff(cli::diff::DiffArgs),
     /// Render a high-sample reference image with per-pixel variance (--spp N or --time S).
     Reference(cli::reference::ReferenceArgs),
+    /// Measure error against time for each estimator configuration of a scene (CSV + SVG).
+    Tradeoff(cli::tradeoff::TradeoffArgs),
 }
 
 fn main() {
@@ -40,6 +42,7 @@ fn main() {
         Command::Diff(a) => cli::diff::run(a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Reference(a) => cli::reference::run(a),
+        Command::Tradeoff(a) => cli::tradeoff::run(a),
         Command::Majorants(a) => cli::majorants::run(a),
     };
     if let Err(e) = result {

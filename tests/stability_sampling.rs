@@ -6,6 +6,8 @@
 //! non-negative where the estimator is non-negative; energy bounded; estimators unbiased
 //! against their closed forms (z-tests at 4.5 σ with fixed seeds).
 
+#![allow(clippy::needless_range_loop)]
+
 use velour::bsdf::{MicrofacetDistribution, Surface};
 use velour::math::{Vec2, Vec3};
 use velour::medium::{sample_free_flight, Coefficients, FreeFlight};
