@@ -206,12 +206,14 @@ def translate(scene_path, width, height, max_depth):
                 raise Unsupported(f"{name}: non-uniform sphere scale")
             c = m @ np.array(list(o.get("center", [0, 0, 0])) + [1.0])
             shape = {"type": "sphere", "center": c[:3].tolist(), "radius": float(o.get("radius", 1.0)) * abs(sc[0])}
-        else:
+        elif o["shape"] == "mesh":
             shape = {
                 "type": "ply",
                 "filename": os.path.join(folder, o["file"]),
                 "to_world": mi.ScalarTransform4f(m.tolist()),
             }
+        else:
+            raise Unsupported(f"{name}: shape {o['shape']!r} (e.g. the bounds of a voxel interior) is not translated")
         shape["bsdf"] = boundary_bsdf(o, name)
         med = interior_medium(o, name)
         if med is not None:
