@@ -26,6 +26,10 @@ enum Command {
     Bench(cli::bench::BenchArgs),
     /// Compare two EXR images (RMSE, relative MSE, bias, per-pixel z-test).
     Diff(cli::diff::DiffArgs),
+    /// Render a high-sample reference image with per-pixel variance (--spp N or --time S).
+    Reference(cli::reference::ReferenceArgs),
+    /// Measure error against time for each estimator configuration of a scene (CSV + SVG).
+    Tradeoff(cli::tradeoff::TradeoffArgs),
 }
 
 /// Restores the default SIGPIPE action so that `velour inspect f.vdb | head` ends quietly
@@ -49,6 +53,8 @@ fn main() {
         Command::Weave(a) => cli::weave::run(a),
         Command::Diff(a) => cli::diff::run(a),
         Command::Bench(a) => cli::bench::run(a),
+        Command::Reference(a) => cli::reference::run(a),
+        Command::Tradeoff(a) => cli::tradeoff::run(a),
         Command::Majorants(a) => cli::majorants::run(a),
     };
     if let Err(e) = result {

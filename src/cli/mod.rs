@@ -6,7 +6,9 @@ pub mod convert;
 pub mod diff;
 pub mod inspect;
 pub mod majorants;
+pub mod reference;
 pub mod render;
+pub mod tradeoff;
 pub mod weave;
 
 /// The result of a subcommand: any error is printed by `main` and the process exits non-zero.

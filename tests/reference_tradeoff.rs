@@ -1,0 +1,181 @@
+//! `velour tradeoff`: the configurations offered for heterogeneous and homogeneous scenes,
+//! edited scenes that load, and the CLI end to end (CSV, SVG, most efficient configuration).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use velour::cli::tradeoff::{apply, configurations, csv, most_efficient, svg_plot, Measurement};
+use velour::scene::{load_scene, load_scene_str};
+
+fn velour() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_velour"))
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("velour-tradeoff-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+const CLOUD: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cloud.toml");
+const FBM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fbm_creature.toml");
+const SKIN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
+
+fn configs_of(path: &str) -> (toml::Table, Vec<velour::cli::tradeoff::Configuration>) {
+    let text = std::fs::read_to_string(path).expect("scene");
+    let doc: toml::Table = toml::from_str(&text).expect("toml");
+    let scene = load_scene(Path::new(path)).expect("load");
+    let c = configurations(&doc, &scene, &[]);
+    (doc, c)
+}
+
+#[test]
+fn heterogeneous_scenes_get_every_estimator_and_all_edits_load() {
+    for path in [CLOUD, FBM] {
+        let (doc, configs) = configs_of(path);
+        let names: Vec<&str> = configs.iter().map(|c| c.name.as_str()).collect();
+        for want in [
+            "scene file",
+            "delta + ratio",
+            "global majorant",
+            "pyramid L1",
+            "ray marching",
+            "NEE exit",
+            "NEE interior",
+        ] {
+            assert!(
+                names.iter().any(|n| n.contains(want)),
+                "{path}: no configuration {want:?} in {names:?}"
+            );
+        }
+        assert_eq!(
+            names.iter().any(|n| n.contains("exact procedural")),
+            path == FBM,
+            "{names:?}"
+        );
+        // Every edit of the cloud; for the (slow to bake) fbm creature, the procedural ones.
+        for c in configs
+            .iter()
+            .filter(|c| path == CLOUD || c.name.contains("procedural") || c.name.contains("step"))
+        {
+            let text = apply(&doc, c).expect("apply");
+            let scene = load_scene_str(&text, Path::new(path))
+                .unwrap_or_else(|e| panic!("{path}: {}: {e}", c.name));
+            assert!(!scene.media.is_empty());
+        }
+    }
+}
+
+#[test]
+fn homogeneous_scenes_only_vary_nee() {
+    let (_, configs) = configs_of(SKIN);
+    let names: Vec<&str> = configs.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["scene file", "NEE exit", "NEE interior"]);
+}
+
+#[test]
+fn csv_svg_and_the_most_efficient_configuration() {
+    let row = |config: &str, budget: f64, seconds: f64, rmse: f64| Measurement {
+        config: config.into(),
+        budget,
+        unit: "seconds",
+        seconds,
+        spp: 4,
+        rmse,
+        rel_mse: rmse * rmse,
+        bias: 0.0,
+        efficiency: 1.0 / (rmse * rmse * seconds),
+        lookups_per_path: 3.0,
+        non_finite: 0,
+    };
+    let rows = vec![
+        row("a", 1.0, 1.0, 0.2),
+        row("a", 2.0, 2.0, 0.15),
+        row("b", 1.0, 1.0, 0.1),
+        row("b", 2.0, 2.0, 0.09),
+    ];
+    assert_eq!(most_efficient(&rows).map(|m| m.config.as_str()), Some("b"));
+    let c = csv(&rows);
+    assert_eq!(c.lines().count(), 5);
+    assert!(c.starts_with(
+        "config,budget,unit,seconds,spp,rmse,rel_mse,bias,efficiency,lookups_per_path,non_finite"
+    ));
+    let svg = svg_plot(&rows, "t <&>");
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert_eq!(svg.matches("<polyline").count(), 2);
+    assert!(svg.contains("t &lt;&amp;&gt;"));
+}
+
+#[test]
+fn tradeoff_cli_end_to_end() {
+    let dir = temp_dir("cli");
+    let reference = dir.join("ref.exr");
+    let o = velour()
+        .args([
+            "reference",
+            CLOUD,
+            "--spp",
+            "8",
+            "--width",
+            "12",
+            "--height",
+            "9",
+            "--threads",
+            "2",
+            "-q",
+            "-o",
+        ])
+        .arg(&reference)
+        .output()
+        .expect("run velour reference");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.join("t");
+    let o = velour()
+        .args([
+            "tradeoff",
+            CLOUD,
+            "--budgets",
+            "1,2",
+            "--unit",
+            "spp",
+            "--only",
+            "scene file,delta + ratio,step",
+            "--steps",
+            "0.05",
+            "--threads",
+            "2",
+            "--reference",
+        ])
+        .arg(&reference)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .expect("run velour tradeoff");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("most efficient at 2 spp:"), "{stdout}");
+    let table = std::fs::read_to_string(out.join("tradeoff.csv")).expect("csv");
+    // 3 configurations (scene file, delta + ratio, one ray-marching step) × 2 budgets.
+    assert_eq!(table.lines().count(), 1 + 3 * 2, "{table}");
+    for line in table.lines().skip(1) {
+        let f: Vec<&str> = line.rsplitn(11, ',').collect();
+        let rmse: f64 = f[5].parse().expect("rmse");
+        assert!(rmse.is_finite() && rmse > 0.0, "{line}");
+    }
+    assert!(std::fs::read_to_string(out.join("tradeoff.svg"))
+        .expect("svg")
+        .contains("<polyline"));
+
+    let o = velour()
+        .args(["tradeoff", CLOUD, "--unit", "hours", "--reference"])
+        .arg(&reference)
+        .output()
+        .expect("run");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--unit"));
+    let o = velour()
+        .args(["tradeoff", CLOUD, "--budgets", "0", "--reference"])
+        .arg(&reference)
+        .output()
+        .expect("run");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--budgets"));
+}

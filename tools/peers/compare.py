@@ -1,0 +1,435 @@
+#!/usr/bin/env python3
+"""Render velour scenes with velour and with Mitsuba 3 on the same machine and compare them.
+
+For each scene (a velour TOML file):
+  1. translate it into a Mitsuba 3 scene dictionary (camera, film, lights, spheres, PLY meshes,
+     lambertian / dielectric / rough dielectric / null boundaries, homogeneous and absorbing
+     interiors; see docs/peers.md for the conventions that must match);
+  2. render it with the velour binary (`velour render --spp N`), which writes the per-pixel
+     variance of the mean;
+  3. render it with Mitsuba (`volpathmis`, box filter, independent sampler) in K passes of
+     N/K samples with different seeds; the per-pixel mean is the mean of the passes and its
+     variance is the batch-means variance (sample variance of the K pass images / K);
+  4. compare per pixel and channel with z = (a - b) / sqrt(var_a + var_b) and report the
+     fraction of |z| beyond 2 and 3, mean z, mean z^2, the aggregate bias z per channel
+     (sum(a - b) / sqrt(sum(var_a + var_b))), and `velour diff --json`'s verdict (Student's t
+     with the sample counts). Pixel-channels with zero variance in both images (constant
+     background) are not z-tested; they must agree to 1e-6 relative ("untested_different"
+     counts those that do not);
+  5. report efficiency = 1 / (MSE x time) for each renderer, where MSE is estimated by the mean
+     over pixels and channels of the variance of the pixel mean (both estimators are unbiased,
+     which step 4 checks, so MSE = variance) and time is the wall time of one render of all
+     the samples (velour: the render loop time it prints; Mitsuba: one mi.render call with
+     all the samples, timed separately from the passes), and the ratio velour / Mitsuba.
+
+Results are printed as a Markdown table and written as JSON and Markdown to --out.
+Needs: mitsuba, numpy, OpenEXR (tools/peers/run.sh installs them in a venv).
+"""
+
+import argparse
+import json
+import math
+import os
+import platform
+import re
+import subprocess
+import sys
+import time
+import tomllib
+
+import numpy as np
+
+
+class Unsupported(Exception):
+    """A velour feature without a faithful Mitsuba equivalent."""
+
+
+# --------------------------------------------------------------------------------------------
+# Scene translation
+# --------------------------------------------------------------------------------------------
+
+def colour(v, default):
+    if v is None:
+        v = default
+    if isinstance(v, (int, float)):
+        return [float(v)] * 3
+    return [float(x) for x in v]
+
+
+def rgb(v):
+    return {"type": "rgb", "value": v}
+
+
+def rot_matrix(deg):
+    """velour's rotation: about x, then y, then z (R = Rz Ry Rx), angles in degrees."""
+    rx, ry, rz = (math.radians(a) for a in deg)
+    cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+def object_matrix(o):
+    t = np.array(o.get("translate", [0, 0, 0]), dtype=float)
+    s = o.get("scale", 1.0)
+    s = np.array([s] * 3 if isinstance(s, (int, float)) else s, dtype=float)
+    m = np.eye(4)
+    m[:3, :3] = rot_matrix(o.get("rotate", [0, 0, 0])) @ np.diag(s)
+    m[:3, 3] = t
+    return m, s
+
+
+SMOOTH_ALPHA = 1e-3  # velour: below alpha = roughness^2 = 1e-3 a dielectric is smooth
+
+
+def boundary_bsdf(o, name):
+    surf = o.get("surface")
+    if surf is None:
+        return {"type": "null"}
+    kind = surf["type"]
+    if "coat" in surf:
+        raise Unsupported(f"{name}: coats have no Mitsuba equivalent in this translator")
+    if kind == "lambertian":
+        return {"type": "diffuse", "reflectance": rgb(colour(surf.get("reflectance"), 0.8))}
+    if kind == "dielectric":
+        ior = float(surf.get("ior", 1.4))
+        r = float(surf.get("roughness", 0.0))
+        alpha = r * r
+        tint = colour(surf.get("tint"), 1.0)
+        if abs(ior - 1.0) < 1e-6:
+            if tint != [1.0, 1.0, 1.0]:
+                raise Unsupported(f"{name}: index-matched tinted boundary")
+            return {"type": "null"}
+        d = {"int_ior": ior, "ext_ior": 1.0, "specular_transmittance": rgb(tint)}
+        if alpha < SMOOTH_ALPHA:
+            d["type"] = "dielectric"
+        else:
+            d["type"] = "roughdielectric"
+            d["alpha"] = alpha
+            d["distribution"] = surf.get("distribution", "ggx")
+            d["sample_visible"] = True
+        return d
+    raise Unsupported(f"{name}: surface type {kind!r} has no faithful Mitsuba equivalent here")
+
+
+def interior_medium(o, name):
+    i = o.get("interior")
+    if i is None:
+        return None
+    att = colour(i.get("attenuation"), 1.0)
+    density = float(i.get("density", 1.0))
+    sigma_t = [density / a for a in att]
+    # Mitsuba reads an RGB sigma_t as a reflectance-like spectrum in [0, 1]: pass the largest
+    # channel as `scale` and the normalised colour.
+    scale = max(sigma_t) if max(sigma_t) > 0 else 1.0
+    sig = [x / scale for x in sigma_t]
+    if i["type"] == "absorption":
+        return {"type": "homogeneous", "sigma_t": rgb(sig), "scale": scale, "albedo": rgb([0.0, 0.0, 0.0])}
+    if i["type"] != "homogeneous":
+        raise Unsupported(f"{name}: interior type {i['type']!r}")
+    if i.get("albedo_mode", "multiple") != "single":
+        raise Unsupported(f"{name}: albedo_mode = \"multiple\" (van de Hulst inversion); use \"single\" for comparisons")
+    albedo = [min(max(a, 0.0), 1.0 - 1e-6) for a in colour(i.get("albedo"), 0.8)]
+    phase = i.get("phase", {})
+    ptype = phase.get("type", "hg")
+    if ptype == "hg":
+        g = max(-0.99, min(0.99, float(phase.get("g", 0.0))))  # velour clamps |g| to 0.99
+        ph = {"type": "hg", "g": g} if g != 0.0 else {"type": "isotropic"}
+    else:
+        ph = {
+            "type": "blendphase",
+            "weight": 1.0 - float(phase.get("w", 0.5)),  # Mitsuba: weight of the second phase
+            "phase1": {"type": "hg", "g": float(phase["g1"])},
+            "phase2": {"type": "hg", "g": float(phase["g2"])},
+        }
+    return {"type": "homogeneous", "sigma_t": rgb(sig), "scale": scale, "albedo": rgb(albedo), "phase": ph}
+
+
+def translate(scene_path, width, height, max_depth):
+    """velour TOML -> (Mitsuba dict, notes). Raises Unsupported for features without a match."""
+    import mitsuba as mi
+
+    with open(scene_path, "rb") as f:
+        s = tomllib.load(f)
+    folder = os.path.dirname(os.path.abspath(scene_path))
+    cam = s["camera"]
+    if cam.get("type", "pinhole") != "pinhole" or float(cam.get("aperture_radius", 0.0)) > 0.0:
+        raise Unsupported("thin-lens cameras are not translated")
+    film = s.get("film", {})
+    d = {
+        "type": "scene",
+        "integrator": {"type": "volpathmis", "max_depth": int(max_depth or film.get("max_depth", 256))},
+        "sensor": {
+            "type": "perspective",
+            "fov": float(cam.get("fov", 40.0)),
+            "fov_axis": "y",
+            "to_world": mi.ScalarTransform4f().look_at(origin=cam["eye"], target=cam["look_at"], up=cam.get("up", [0, 1, 0])),
+            "film": {
+                "type": "hdrfilm",
+                "width": width,
+                "height": height,
+                "rfilter": {"type": "box"},
+                "pixel_format": "rgb",
+                "component_format": "float32",
+            },
+            "sampler": {"type": "independent", "sample_count": 1},
+        },
+    }
+    for k, l in enumerate(s.get("light", [])):
+        kind = l["type"]
+        if kind == "environment":
+            d[f"light{k}"] = {"type": "constant", "radiance": rgb(colour(l.get("radiance"), 1.0))}
+        elif kind == "distant":
+            if float(l.get("angular_radius", 0.0)) > 0.0:
+                raise Unsupported("distant lights with an angular radius (Mitsuba's directional is a delta light)")
+            to_light = np.array(l["direction"], dtype=float)
+            to_light /= np.linalg.norm(to_light)
+            d[f"light{k}"] = {"type": "directional", "direction": (-to_light).tolist(), "irradiance": rgb(colour(l.get("irradiance"), 3.0))}
+        elif kind == "sphere":
+            d[f"light{k}"] = {
+                "type": "sphere",
+                "center": l.get("center", [0, 0, 0]),
+                "radius": float(l.get("radius", 0.1)),
+                "emitter": {"type": "area", "radiance": rgb(colour(l.get("radiance"), 10.0))},
+            }
+        else:
+            raise Unsupported(f"light type {kind!r}")
+    priorities = {int(o.get("priority", 0)) for o in s.get("object", []) if o.get("interior")}
+    if len(priorities) > 1:
+        raise Unsupported("nested interiors with priorities (Mitsuba has no priority nesting)")
+    for k, o in enumerate(s.get("object", [])):
+        name = o.get("name", f"object {k}")
+        m, sc = object_matrix(o)
+        if o["shape"] == "sphere":
+            if not np.allclose(sc, sc[0]):
+                raise Unsupported(f"{name}: non-uniform sphere scale")
+            c = m @ np.array(list(o.get("center", [0, 0, 0])) + [1.0])
+            shape = {"type": "sphere", "center": c[:3].tolist(), "radius": float(o.get("radius", 1.0)) * abs(sc[0])}
+        elif o["shape"] == "mesh":
+            shape = {
+                "type": "ply",
+                "filename": os.path.join(folder, o["file"]),
+                "to_world": mi.ScalarTransform4f(m.tolist()),
+            }
+        else:
+            raise Unsupported(f"{name}: shape {o['shape']!r} (e.g. the bounds of a voxel interior) is not translated")
+        shape["bsdf"] = boundary_bsdf(o, name)
+        med = interior_medium(o, name)
+        if med is not None:
+            shape["interior"] = med
+        d[f"object{k}"] = shape
+    return d
+
+
+# --------------------------------------------------------------------------------------------
+# Rendering
+# --------------------------------------------------------------------------------------------
+
+def read_velour_exr(path):
+    import OpenEXR
+
+    ch = OpenEXR.File(path, separate_channels=True).channels()
+    mean = np.stack([ch[c].pixels for c in "RGB"], axis=-1).astype(np.float64)
+    var = np.stack([ch[f"variance.{c}"].pixels for c in "RGB"], axis=-1).astype(np.float64)
+    n = ch["samples.N"].pixels.astype(np.float64)
+    return mean, var, n
+
+
+def write_velour_layout_exr(path, mean, var, n):
+    """Writes an EXR with velour's channel names (R, G, B, variance.*, samples.N) so that
+    `velour diff` can test it."""
+    import OpenEXR
+
+    chans = {}
+    for i, c in enumerate("RGB"):
+        chans[c] = np.ascontiguousarray(mean[..., i].astype(np.float32))
+        chans[f"variance.{c}"] = np.ascontiguousarray(var[..., i].astype(np.float32))
+    chans["samples.N"] = np.ascontiguousarray(np.full(mean.shape[:2], n, dtype=np.float32))
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    OpenEXR.File(header, chans).write(path)
+
+
+def render_velour(velour, scene, out, spp, width, height, threads, seed, max_depth):
+    cmd = [velour, "render", scene, "--spp", str(spp), "--width", str(width), "--height", str(height),
+           "--threads", str(threads), "--seed", str(seed), "-q", "-o", out]
+    if max_depth:
+        cmd += ["--max-depth", str(max_depth)]
+    p = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    m = re.search(r"time ([0-9.]+) s", p.stdout)
+    seconds = float(m.group(1)) if m else float("nan")
+    mean, var, n = read_velour_exr(out)
+    return mean, var, seconds
+
+
+def render_mitsuba(scene_dict, spp, passes, seed0):
+    import mitsuba as mi
+
+    per_pass = max(1, spp // passes)
+    scene_dict = dict(scene_dict)
+    scene_dict["sensor"] = dict(scene_dict["sensor"])
+    scene_dict["sensor"]["sampler"] = {"type": "independent", "sample_count": per_pass}
+    scene = mi.load_dict(scene_dict)
+    images = []
+    seconds = 0.0
+    for k in range(passes):
+        t0 = time.perf_counter()
+        img = mi.render(scene, seed=seed0 + k, spp=per_pass)
+        arr = np.array(img, dtype=np.float64)
+        seconds += time.perf_counter() - t0
+        images.append(arr[..., :3])
+    stack = np.stack(images)
+    mean = stack.mean(axis=0)
+    var = stack.var(axis=0, ddof=1) / passes
+    # The time of one render of all the samples (what a user would run), for the efficiency.
+    t0 = time.perf_counter()
+    mi.render(scene, seed=seed0 + passes, spp=per_pass * passes)
+    single = time.perf_counter() - t0
+    return mean, var, seconds, single, per_pass * passes
+
+
+# --------------------------------------------------------------------------------------------
+# Statistics
+# --------------------------------------------------------------------------------------------
+
+def z_summary(a, va, b, vb):
+    tot = va + vb
+    ok = (tot > 0) & np.isfinite(a) & np.isfinite(b) & np.isfinite(tot)
+    z = np.zeros_like(a)
+    z[ok] = (a[ok] - b[ok]) / np.sqrt(tot[ok])
+    zt = z[ok]
+    # Pixels with zero variance in both (constant background) must agree to float rounding
+    # (Mitsuba's RGB -> spectrum -> RGB round trip and the pass averaging differ by ~1 ulp).
+    close = np.abs(a - b) <= 1e-6 * np.maximum(np.abs(a), np.abs(b)) + 1e-12
+    both_zero = (~ok) & close
+    bias = []
+    for c in range(3):
+        okc = ok[..., c]
+        num = (a[..., c][okc] - b[..., c][okc]).sum()
+        den = math.sqrt(tot[..., c][okc].sum()) if okc.any() else 0.0
+        bias.append(float(num / den) if den > 0 else 0.0)
+    return {
+        "tested": int(ok.sum()),
+        "untested_equal": int(both_zero.sum()),
+        "untested_different": int(((~ok) & ~close).sum()),
+        "frac_above_2": float((np.abs(zt) > 2).mean()) if zt.size else 0.0,
+        "frac_above_3": float((np.abs(zt) > 3).mean()) if zt.size else 0.0,
+        "mean_z": float(zt.mean()) if zt.size else 0.0,
+        "mean_z2": float((zt * zt).mean()) if zt.size else 0.0,
+        "bias_z": bias,
+    }
+
+
+def velour_diff(velour, a, b):
+    p = subprocess.run([velour, "diff", "--json", a, b], capture_output=True, text=True)
+    if p.returncode != 0:
+        return {"error": p.stderr.strip()}
+    j = json.loads(p.stdout)
+    return {"verdict": j.get("verdict"), "rmse": j.get("rmse"), "rel_mse": j.get("rel_mse")}
+
+
+def machine():
+    cpu = platform.processor() or ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "system": platform.platform()}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scenes", nargs="+", help="velour scene files (TOML)")
+    ap.add_argument("--velour", required=True, help="path of the velour binary")
+    ap.add_argument("--out", required=True, help="output folder (EXRs, results.json, results.md)")
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--passes", type=int, default=16, help="Mitsuba passes for the batch variance")
+    ap.add_argument("--width", type=int, default=96)
+    ap.add_argument("--height", type=int, default=72)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--max-depth", type=int, default=0, help="override film.max_depth in both renderers")
+    args = ap.parse_args()
+
+    import drjit as dr
+    import mitsuba as mi
+
+    mi.set_variant("scalar_rgb")
+    dr.set_thread_count(args.threads)
+    os.makedirs(args.out, exist_ok=True)
+    results = {"machine": machine(), "mitsuba": mi.__version__, "settings": vars(args), "scenes": []}
+    for scene in args.scenes:
+        name = os.path.splitext(os.path.basename(scene))[0]
+        entry = {"scene": scene, "name": name}
+        try:
+            md = translate(scene, args.width, args.height, args.max_depth)
+        except Unsupported as e:
+            entry["skipped"] = str(e)
+            results["scenes"].append(entry)
+            print(f"{name}: skipped: {e}", file=sys.stderr)
+            continue
+        vel_exr = os.path.join(args.out, f"{name}.velour.exr")
+        mts_exr = os.path.join(args.out, f"{name}.mitsuba.exr")
+        va_mean, va_var, va_t = render_velour(args.velour, scene, vel_exr, args.spp, args.width, args.height, args.threads, 1, args.max_depth)
+        mb_mean, mb_var, mb_t_passes, mb_t, mb_spp = render_mitsuba(md, args.spp, args.passes, 1000)
+        write_velour_layout_exr(mts_exr, mb_mean, mb_var, args.passes)
+        z = z_summary(va_mean, va_var, mb_mean, mb_var)
+        mse_v = float(va_var.mean())
+        mse_m = float(mb_var.mean())
+        eff_v = 1.0 / (mse_v * va_t) if mse_v > 0 and va_t > 0 else float("inf")
+        eff_m = 1.0 / (mse_m * mb_t) if mse_m > 0 and mb_t > 0 else float("inf")
+        entry.update({
+            "spp": args.spp,
+            "velour_seconds": va_t,
+            "mitsuba_seconds": mb_t,
+            "mitsuba_seconds_in_passes": mb_t_passes,
+            "mitsuba_spp": mb_spp,
+            "velour_mean": va_mean.mean(axis=(0, 1)).tolist(),
+            "mitsuba_mean": mb_mean.mean(axis=(0, 1)).tolist(),
+            "velour_mse": mse_v,
+            "mitsuba_mse": mse_m,
+            "efficiency_ratio": eff_v / eff_m if math.isfinite(eff_v) and math.isfinite(eff_m) else None,
+            "z": z,
+            "velour_diff": velour_diff(args.velour, vel_exr, mts_exr),
+        })
+        results["scenes"].append(entry)
+        print(f"{name}: velour {va_t:.2f} s, mitsuba {mb_t:.2f} s, z>2 {100 * z['frac_above_2']:.2f}%, z>3 {100 * z['frac_above_3']:.2f}%, "
+              f"bias z {['%.2f' % b for b in z['bias_z']]}, efficiency ratio {entry['efficiency_ratio']}", file=sys.stderr)
+    with open(os.path.join(args.out, "results.json"), "w") as f:
+        json.dump(results, f, indent=2)
+    md = markdown(results)
+    with open(os.path.join(args.out, "results.md"), "w") as f:
+        f.write(md)
+    print(md)
+
+
+def markdown(results):
+    m = results["machine"]
+    st = results["settings"]
+    lines = [
+        f"Mitsuba {results['mitsuba']} (`scalar_rgb`, `volpathmis`) vs velour; {st['width']}x{st['height']}, "
+        f"{st['spp']} spp each (Mitsuba in {st['passes']} passes), {st['threads']} threads; {m['cpu']}, {m['cores']} cores.",
+        "",
+        "| scene | velour s | Mitsuba s | mean RGB velour | mean RGB Mitsuba | \\|z\\|>2 (4.55%) | \\|z\\|>3 (0.27%) | mean z² | bias z (R, G, B) | velour diff | efficiency velour/Mitsuba |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for e in results["scenes"]:
+        if "skipped" in e:
+            lines.append(f"| {e['name']} | skipped: {e['skipped']} | | | | | | | | | |")
+            continue
+        z = e["z"]
+        fmt = lambda v: ", ".join(f"{x:.4f}" for x in v)
+        eff = e["efficiency_ratio"]
+        lines.append(
+            f"| {e['name']} | {e['velour_seconds']:.2f} | {e['mitsuba_seconds']:.2f} | {fmt(e['velour_mean'])} | {fmt(e['mitsuba_mean'])} | "
+            f"{100 * z['frac_above_2']:.2f}% | {100 * z['frac_above_3']:.2f}% | {z['mean_z2']:.3f} | {', '.join(f'{b:+.2f}' for b in z['bias_z'])} | "
+            f"{e['velour_diff'].get('verdict', e['velour_diff'].get('error'))} | {'n/a' if eff is None else f'{eff:.2f}'} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    main()
