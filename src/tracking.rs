@@ -225,12 +225,15 @@ where
         if !(majorant > 0.0) || !majorant.is_finite() {
             continue;
         }
-        let mut t = seg.t0;
+        // Distance from the segment start: keeps advancing where a step is below half an ulp
+        // of the absolute distance (far from the origin).
+        let mut local = 0.0f32;
         loop {
-            t += -(-u()).ln_1p() / majorant;
-            if t >= seg.t1 {
+            local += -(-u()).ln_1p() / majorant;
+            if local >= len {
                 break;
             }
+            let t = seg.t0 + local;
             let d = density(t);
             stats.lookups += 1;
             if d > seg.max || d < seg.min {
@@ -361,12 +364,13 @@ where
                     }
                     let majorant = residual_bound * s_max;
                     if majorant > 0.0 && majorant.is_finite() {
-                        let mut t = seg.t0;
+                        let mut local = 0.0f32;
                         loop {
-                            t += -(-u()).ln_1p() / majorant;
-                            if t >= seg.t1 {
+                            local += -(-u()).ln_1p() / majorant;
+                            if local >= len {
                                 break;
                             }
+                            let t = seg.t0 + local;
                             let d = density(t);
                             stats.transmittance_lookups += 1;
                                                         if d > seg.max || d < seg.min {

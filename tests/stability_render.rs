@@ -330,7 +330,7 @@ fn absorbing_sphere_matches_beer_lambert() {
 /// coordinate is below 1/32): 0.76 % of a 2e-3 chord, so e^{−σ 2R} is overestimated (σ_a = 1e3:
 /// 0.1374 instead of 0.1353). See the report of issue 6 for the proposed fix.
 #[test]
-#[ignore = "bug in math::offset_ray_origin: absolute 1.5e-5 offset near the origin shortens media chords at scene scale 1e-3 (0.76 % optical depth)"]
+
 fn absorbing_sphere_matches_beer_lambert_at_millimetre_scale() {
     absorbing_sweep(&SCALES[..1]);
 }
@@ -494,7 +494,7 @@ fn lambertian_sphere_top_returns_its_reflectance() {
 /// hit point's own coordinates (~1.5e-5 at |y| = 0.6), so the new origin can lie inside the
 /// sphere. See the report of issue 6 for the proposed fix.
 #[test]
-#[ignore = "bug in geometry::sphere + math::offset_ray_origin: radius-1000 spheres (the shipped ground) self-intersect and render ~0.55-0.75x too dark"]
+
 fn large_lambertian_sphere_top_returns_its_reflectance() {
     for (radius, drop) in [(1000.0, 0.0), (1000.0, 0.6), (1000.0, 0.65)] {
         let (m, se) = lambertian_ground_mean(radius, drop);
