@@ -14,10 +14,12 @@ use crate::bsdf::Surface;
 use crate::math::{Frame, Ray, Vec3};
 use crate::medium::{sample_free_flight, FreeFlight, FreeFlightMethod, Medium, NeeStrategy};
 use crate::phase::PhaseFunction;
-use crate::tracking::{delta_track, ray_march_free_flight, transmittance, Flight, MajorantSegment, TrackingStats};
 use crate::sampling::{power_heuristic, PixelSampler};
 use crate::scene::{Object, ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
+use crate::tracking::{
+    delta_track, ray_march_free_flight, transmittance, Flight, MajorantSegment, TrackingStats,
+};
 
 /// The deepest nesting of interiors tracked; deeper entries are ignored.
 pub const MAX_NESTING: usize = 16;
@@ -73,7 +75,10 @@ pub struct InteriorStack {
 
 impl Default for InteriorStack {
     fn default() -> Self {
-        InteriorStack { entries: [0; MAX_NESTING], len: 0 }
+        InteriorStack {
+            entries: [0; MAX_NESTING],
+            len: 0,
+        }
     }
 }
 
@@ -132,7 +137,8 @@ impl InteriorStack {
     /// IOR of the medium around, ignoring `exclude` (1 for vacuum).
     #[must_use]
     pub fn ior(&self, objects: &[Object], exclude: Option<u32>) -> f32 {
-        self.top(objects, exclude).map_or(1.0, |o| objects[o as usize].ior)
+        self.top(objects, exclude)
+            .map_or(1.0, |o| objects[o as usize].ior)
     }
 }
 
@@ -166,7 +172,10 @@ fn boundary_surface(obj: &Object, outside_ior: f32) -> Option<Surface> {
 fn is_false_intersection(scene: &Scene, stack: &InteriorStack, oi: u32, entering: bool) -> bool {
     let governing = stack.top(&scene.objects, None);
     if entering {
-        stack.contains(oi) || governing.is_some_and(|g| scene.objects[g as usize].priority > scene.objects[oi as usize].priority)
+        stack.contains(oi)
+            || governing.is_some_and(|g| {
+                scene.objects[g as usize].priority > scene.objects[oi as usize].priority
+            })
     } else {
         !stack.contains(oi) || governing != Some(oi)
     }
@@ -175,7 +184,11 @@ fn is_false_intersection(scene: &Scene, stack: &InteriorStack, oi: u32, entering
 /// What happened along a ray segment inside an interior.
 enum MediumEvent<'a> {
     /// A real scattering event at distance `t`.
-    Scatter { t: f32, weight: Rgb, phase: &'a PhaseFunction },
+    Scatter {
+        t: f32,
+        weight: Rgb,
+        phase: &'a PhaseFunction,
+    },
     /// The ray reached `t_max`.
     Pass { weight: Rgb },
 }
@@ -191,13 +204,19 @@ fn sample_medium<'a>(
     segments: &mut Vec<MajorantSegment>,
 ) -> MediumEvent<'a> {
     match medium {
-        Medium::Absorbing { .. } => MediumEvent::Pass { weight: medium.transmittance(t_max) },
+        Medium::Absorbing { .. } => MediumEvent::Pass {
+            weight: medium.transmittance(t_max),
+        },
         Medium::Homogeneous(h) => {
             let u_channel = sampler.next_1d();
             let u_dist = sampler.next_1d();
             match sample_free_flight(&h.coefficients, beta, t_max, u_channel, u_dist) {
                 FreeFlight::Escape { weight } => MediumEvent::Pass { weight },
-                FreeFlight::Scatter { t, weight } => MediumEvent::Scatter { t, weight, phase: &h.phase },
+                FreeFlight::Scatter { t, weight } => MediumEvent::Scatter {
+                    t,
+                    weight,
+                    phase: &h.phase,
+                },
             }
         }
         Medium::Heterogeneous(h) => {
@@ -206,14 +225,31 @@ fn sample_medium<'a>(
             let mut lookup = h.density_along(ray);
             let mut u = || sampler.next_1d();
             let flight = match h.tracking.free_flight {
-                FreeFlightMethod::DeltaTracking => delta_track(segments.iter().copied(), &h.coefficients, |t| lookup.at(t), beta, &mut u, &mut stats.tracking),
-                FreeFlightMethod::RayMarching { step } => {
-                    ray_march_free_flight(segments.iter().copied(), &h.coefficients, |t| lookup.at(t), step, beta, &mut u, &mut stats.tracking)
-                }
+                FreeFlightMethod::DeltaTracking => delta_track(
+                    segments.iter().copied(),
+                    &h.coefficients,
+                    |t| lookup.at(t),
+                    beta,
+                    &mut u,
+                    &mut stats.tracking,
+                ),
+                FreeFlightMethod::RayMarching { step } => ray_march_free_flight(
+                    segments.iter().copied(),
+                    &h.coefficients,
+                    |t| lookup.at(t),
+                    step,
+                    beta,
+                    &mut u,
+                    &mut stats.tracking,
+                ),
             };
             match flight {
                 Flight::Escape { weight } => MediumEvent::Pass { weight },
-                Flight::Scatter { t, weight } => MediumEvent::Scatter { t, weight, phase: &h.phase },
+                Flight::Scatter { t, weight } => MediumEvent::Scatter {
+                    t,
+                    weight,
+                    phase: &h.phase,
+                },
             }
         }
     }
@@ -236,7 +272,14 @@ fn medium_transmittance(
             h.segments(ray, 0.0, t_max, segments);
             let mut lookup = h.density_along(ray);
             let mut u = || sampler.next_1d();
-            transmittance(segments.iter().copied(), &h.coefficients, |t| lookup.at(t), h.tracking.transmittance, &mut u, &mut stats.tracking)
+            transmittance(
+                segments.iter().copied(),
+                &h.coefficients,
+                |t| lookup.at(t),
+                h.tracking.transmittance,
+                &mut u,
+                &mut stats.tracking,
+            )
         }
     }
 }
@@ -272,7 +315,14 @@ fn shadow_transmittance(
         let hit = scene.geometry.intersect(&Ray::new(origin, dir), remaining);
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
         if let Some((m, _)) = current_medium(scene, &stack) {
-            tr *= medium_transmittance(m, &Ray::new(origin, dir), seg, sampler, stats, &mut segments);
+            tr *= medium_transmittance(
+                m,
+                &Ray::new(origin, dir),
+                seg,
+                sampler,
+                stats,
+                &mut segments,
+            );
             if tr.is_black() {
                 return Rgb::ZERO;
             }
@@ -303,7 +353,11 @@ fn shadow_transmittance(
                     let eta = d.ior / outside;
                     let cos = dir.dot(h.ng).abs();
                     // Fresnel seen from the side the shadow ray comes from.
-                    let f = if entering { fresnel_dielectric(cos, eta) } else { fresnel_dielectric(cos, 1.0 / eta) };
+                    let f = if entering {
+                        fresnel_dielectric(cos, eta)
+                    } else {
+                        fresnel_dielectric(cos, 1.0 / eta)
+                    };
                     tr *= d.tint * (1.0 - f);
                 }
             }
@@ -347,9 +401,13 @@ fn estimate_direct(
 ) -> Rgb {
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
-    let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else { return Rgb::ZERO };
+    let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
+        return Rgb::ZERO;
+    };
     let light = &scene.lights[li];
-    let Some(ls) = light.sample_li(p, u) else { return Rgb::ZERO };
+    let Some(ls) = light.sample_li(p, u) else {
+        return Rgb::ZERO;
+    };
     if ls.pdf <= 0.0 || ls.radiance.is_black() {
         return Rgb::ZERO;
     }
@@ -358,14 +416,36 @@ fn estimate_direct(
         return Rgb::ZERO;
     }
     let (origin, stack) = shadow_origin(ls.wi);
-    let light_shape = scene.shape_owner.iter().position(|o| *o == ShapeOwner::Light(li as u32)).map(|s| s as u32);
-    let distance = if ls.distance.is_finite() { ls.distance * (1.0 - 1e-4) } else { f32::INFINITY };
-    let tr = shadow_transmittance(scene, origin, ls.wi, distance, stack, mode, light_shape, sampler, stats);
+    let light_shape = scene
+        .shape_owner
+        .iter()
+        .position(|o| *o == ShapeOwner::Light(li as u32))
+        .map(|s| s as u32);
+    let distance = if ls.distance.is_finite() {
+        ls.distance * (1.0 - 1e-4)
+    } else {
+        f32::INFINITY
+    };
+    let tr = shadow_transmittance(
+        scene,
+        origin,
+        ls.wi,
+        distance,
+        stack,
+        mode,
+        light_shape,
+        sampler,
+        stats,
+    );
     if tr.is_black() {
         return Rgb::ZERO;
     }
     let light_pdf = p_sel * ls.pdf;
-    let w = if ls.is_delta { 1.0 } else { power_heuristic(light_pdf, scatter_pdf) };
+    let w = if ls.is_delta {
+        1.0
+    } else {
+        power_heuristic(light_pdf, scatter_pdf)
+    };
     f * tr * ls.radiance * (w / light_pdf)
 }
 
@@ -403,7 +483,12 @@ fn emitted(scene: &Scene, dir: Vec3, prev: &PrevVertex, sphere_light: Option<usi
 }
 
 /// Traces one camera path and returns its radiance estimate and AOVs.
-pub fn trace_path(scene: &Scene, camera_ray: Ray, sampler: &mut PixelSampler, stats: &mut TraceStats) -> PathResult {
+pub fn trace_path(
+    scene: &Scene,
+    camera_ray: Ray,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+) -> PathResult {
     let (radiance, aov) = radiance(scene, camera_ray, sampler, stats);
     stats.paths += 1;
     let radiance = if radiance.is_finite() {
@@ -412,19 +497,33 @@ pub fn trace_path(scene: &Scene, camera_ray: Ray, sampler: &mut PixelSampler, st
         stats.non_finite += 1;
         Rgb::ZERO
     };
-    PathResult { radiance, albedo: aov.0, normal: aov.1, depth: aov.2 }
+    PathResult {
+        radiance,
+        albedo: aov.0,
+        normal: aov.1,
+        depth: aov.2,
+    }
 }
 
 type Aov = (Rgb, Vec3, f32);
 
-fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut TraceStats) -> (Rgb, Aov) {
+fn radiance(
+    scene: &Scene,
+    mut ray: Ray,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+) -> (Rgb, Aov) {
     let max_depth = scene.film.max_depth;
     let mut l = Rgb::ZERO;
     let mut beta = Rgb::ONE;
     let mut eta_scale = 1.0f32;
     let mut stack = InteriorStack::new();
     let mut depth = 0u32;
-    let mut prev = PrevVertex { p: ray.o, pdf: 0.0, did_nee: false };
+    let mut prev = PrevVertex {
+        p: ray.o,
+        pdf: 0.0,
+        did_nee: false,
+    };
     let mut aov: Option<Aov> = None;
     // Bound on null/false boundary crossings so that a degenerate scene cannot loop forever.
     let mut crossings = 0u32;
@@ -466,7 +565,11 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
                         break;
                     }
                     beta *= ps.value / ps.pdf;
-                    prev = PrevVertex { p, pdf: ps.pdf, did_nee: obj.nee == NeeStrategy::Interior };
+                    prev = PrevVertex {
+                        p,
+                        pdf: ps.pdf,
+                        did_nee: obj.nee == NeeStrategy::Interior,
+                    };
                     ray = Ray::new(p, ps.wi);
                     if !russian_roulette(&mut beta, eta_scale, depth, sampler) {
                         break;
@@ -505,7 +608,9 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
 
         // 4. False intersections with lower-priority boundaries only update the stack.
         if transmits {
-            if is_false_intersection(scene, &stack, oi, entering) || matches!(obj.surface, ObjectSurface::Null) {
+            if is_false_intersection(scene, &stack, oi, entering)
+                || matches!(obj.surface, ObjectSurface::Null)
+            {
                 if entering {
                     stack.push(oi);
                 } else {
@@ -522,9 +627,15 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
 
         // 5. A true surface interaction.
         let outside_ior = stack.ior(&scene.objects, Some(oi));
-        let Some(surface) = boundary_surface(obj, outside_ior) else { break };
+        let Some(surface) = boundary_surface(obj, outside_ior) else {
+            break;
+        };
         // Opaque surfaces are two-sided: seen from behind, flip the frame.
-        let (ng, ns) = if !transmits && !entering { (-hit.ng, -hit.ns) } else { (hit.ng, hit.ns) };
+        let (ng, ns) = if !transmits && !entering {
+            (-hit.ng, -hit.ns)
+        } else {
+            (hit.ng, hit.ns)
+        };
         let frame = Frame::from_normal(ns);
         let wo = -ray.d;
         let wo_local = frame.to_local(wo);
@@ -539,7 +650,8 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
 
         // The interior we arrived from: if it does NEE at interior vertices, the light is
         // already accounted for through transparent shadows; no exit-point NEE here.
-        let from_interior_nee = !entering && transmits && obj.nee == NeeStrategy::Interior && obj.medium.is_some();
+        let from_interior_nee =
+            !entering && transmits && obj.nee == NeeStrategy::Interior && obj.medium.is_some();
         let do_nee = !surface.is_delta() && !from_interior_nee;
         if do_nee {
             let st = stack;
@@ -579,7 +691,9 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
 
         let uc = sampler.next_1d();
         let u = sampler.next_2d();
-        let Some(bs) = surface.sample(wo_local, uc, u) else { break };
+        let Some(bs) = surface.sample(wo_local, uc, u) else {
+            break;
+        };
         if !(bs.pdf > 0.0) || bs.weight.is_black() {
             break;
         }
@@ -599,7 +713,11 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
             }
         }
         if !(bs.is_delta || from_interior_nee) {
-            prev = PrevVertex { p: hit.p, pdf: bs.pdf, did_nee: do_nee };
+            prev = PrevVertex {
+                p: hit.p,
+                pdf: bs.pdf,
+                did_nee: do_nee,
+            };
         } else if bs.is_delta && !from_interior_nee {
             prev.did_nee = false;
         }
@@ -615,7 +733,12 @@ fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut PixelSampler, stats: &mut
 /// [`RR_START_DEPTH`] events (pbrt-v4's rule; the η-scale undoes the radiance compression of
 /// refraction so that entering skin does not trigger spurious termination). Returns false
 /// when the path is terminated.
-fn russian_roulette(beta: &mut Rgb, eta_scale: f32, depth: u32, sampler: &mut PixelSampler) -> bool {
+fn russian_roulette(
+    beta: &mut Rgb,
+    eta_scale: f32,
+    depth: u32,
+    sampler: &mut PixelSampler,
+) -> bool {
     if beta.is_black() || !beta.is_finite() {
         return false;
     }

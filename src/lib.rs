@@ -25,10 +25,10 @@ pub mod phase;
 pub mod vdb;
 
 pub mod fabric;
-pub mod medium;
-pub mod volume;
 pub mod majorant;
+pub mod medium;
 pub mod tracking;
+pub mod volume;
 
 pub mod light;
 

@@ -4,7 +4,9 @@
 
 use crate::image_io::LatLongMap;
 use crate::math::{Frame, Vec2, Vec3, PI};
-use crate::sampling::{sample_uniform_cone, sample_uniform_sphere, uniform_cone_pdf, Distribution2D};
+use crate::sampling::{
+    sample_uniform_cone, sample_uniform_sphere, uniform_cone_pdf, Distribution2D,
+};
 use crate::spectrum::Rgb;
 
 /// A direction sampled towards a light.
@@ -48,7 +50,12 @@ impl EnvironmentMap {
             }
         }
         let distribution = Distribution2D::new(&weights, w, h);
-        EnvironmentMap { map, scale, rotation: rotation_deg.to_radians(), distribution }
+        EnvironmentMap {
+            map,
+            scale,
+            rotation: rotation_deg.to_radians(),
+            distribution,
+        }
     }
 
     /// Direction → (u, v) in [0,1)²: θ = acos(y) from +y (v = θ/π), φ = atan2(z, x) from +x
@@ -62,7 +69,10 @@ impl EnvironmentMap {
         if phi < 0.0 {
             phi += 2.0 * PI;
         }
-        Vec2::new((phi / (2.0 * PI)).min(0.999_999_9), (theta / PI).min(0.999_999_9))
+        Vec2::new(
+            (phi / (2.0 * PI)).min(0.999_999_9),
+            (theta / PI).min(0.999_999_9),
+        )
     }
 
     fn uv_to_dir(&self, uv: Vec2) -> (Vec3, f32) {
@@ -107,7 +117,9 @@ impl EnvironmentMap {
     }
 
     fn pdf(&self, d: Vec3) -> f32 {
-        let Some(dist) = self.distribution.as_ref() else { return 0.0 };
+        let Some(dist) = self.distribution.as_ref() else {
+            return 0.0;
+        };
         let uv = self.dir_to_uv(d);
         let sin_theta = (uv.y * PI).sin();
         if sin_theta <= 1e-6 {
@@ -152,8 +164,16 @@ impl Light {
     /// degrees (0 = delta light) and irradiance at normal incidence.
     #[must_use]
     pub fn distant(to_light: Vec3, irradiance: Rgb, angular_radius_deg: f32) -> Self {
-        let cos_radius = if angular_radius_deg > 0.0 { angular_radius_deg.to_radians().cos() } else { 1.0 };
-        Light::Distant { to_light: to_light.normalize(), irradiance, cos_radius }
+        let cos_radius = if angular_radius_deg > 0.0 {
+            angular_radius_deg.to_radians().cos()
+        } else {
+            1.0
+        };
+        Light::Distant {
+            to_light: to_light.normalize(),
+            irradiance,
+            cos_radius,
+        }
     }
 
     /// True for infinitely distant lights (reached by rays that escape the scene).
@@ -175,15 +195,37 @@ impl Light {
         match self {
             Light::ConstantEnvironment { radiance } => {
                 let wi = sample_uniform_sphere(u);
-                Some(LightSample { wi, distance: f32::INFINITY, radiance: *radiance, pdf: 1.0 / (4.0 * PI), is_delta: false })
+                Some(LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance: *radiance,
+                    pdf: 1.0 / (4.0 * PI),
+                    is_delta: false,
+                })
             }
             Light::EnvironmentMap(env) => {
                 let (wi, radiance, pdf) = env.sample(u)?;
-                Some(LightSample { wi, distance: f32::INFINITY, radiance, pdf, is_delta: false })
+                Some(LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance,
+                    pdf,
+                    is_delta: false,
+                })
             }
-            Light::Distant { to_light, irradiance, cos_radius } => {
+            Light::Distant {
+                to_light,
+                irradiance,
+                cos_radius,
+            } => {
                 if *cos_radius >= 1.0 {
-                    return Some(LightSample { wi: *to_light, distance: f32::INFINITY, radiance: *irradiance, pdf: 1.0, is_delta: true });
+                    return Some(LightSample {
+                        wi: *to_light,
+                        distance: f32::INFINITY,
+                        radiance: *irradiance,
+                        pdf: 1.0,
+                        is_delta: true,
+                    });
                 }
                 let local = sample_uniform_cone(u, *cos_radius);
                 let wi = Frame::from_normal(*to_light).to_world(local).normalize();
@@ -195,7 +237,11 @@ impl Light {
                     is_delta: false,
                 })
             }
-            Light::Sphere { center, radius, radiance } => {
+            Light::Sphere {
+                center,
+                radius,
+                radiance,
+            } => {
                 let to_c = *center - p;
                 let dc2 = to_c.length_squared();
                 let r2 = radius * radius;
@@ -214,7 +260,13 @@ impl Light {
                 let b = wi.dot(to_c);
                 let disc = (r2 - (to_c - wi * b).length_squared()).max(0.0);
                 let distance = (b - disc.sqrt()).max(0.0);
-                Some(LightSample { wi, distance, radiance: *radiance, pdf: uniform_cone_pdf(cos_max), is_delta: false })
+                Some(LightSample {
+                    wi,
+                    distance,
+                    radiance: *radiance,
+                    pdf: uniform_cone_pdf(cos_max),
+                    is_delta: false,
+                })
             }
         }
     }
@@ -225,7 +277,11 @@ impl Light {
         match self {
             Light::ConstantEnvironment { .. } => 1.0 / (4.0 * PI),
             Light::EnvironmentMap(env) => env.pdf(wi),
-            Light::Distant { to_light, cos_radius, .. } => {
+            Light::Distant {
+                to_light,
+                cos_radius,
+                ..
+            } => {
                 if *cos_radius >= 1.0 || wi.dot(*to_light) < *cos_radius {
                     0.0
                 } else {
@@ -254,7 +310,11 @@ impl Light {
         match self {
             Light::ConstantEnvironment { radiance } => *radiance,
             Light::EnvironmentMap(env) => env.radiance(d),
-            Light::Distant { to_light, irradiance, cos_radius } => {
+            Light::Distant {
+                to_light,
+                irradiance,
+                cos_radius,
+            } => {
                 if *cos_radius < 1.0 && d.dot(*to_light) >= *cos_radius {
                     Self::distant_radiance(*irradiance, *cos_radius)
                 } else {
@@ -272,11 +332,14 @@ impl Light {
         match self {
             Light::ConstantEnvironment { radiance } => radiance.average() * PI * area,
             Light::EnvironmentMap(env) => {
-                let mean = env.map.texels.iter().map(|t| t.average()).sum::<f32>() / env.map.texels.len().max(1) as f32;
+                let mean = env.map.texels.iter().map(|t| t.average()).sum::<f32>()
+                    / env.map.texels.len().max(1) as f32;
                 mean * env.scale * PI * area
             }
             Light::Distant { irradiance, .. } => irradiance.average() * area,
-            Light::Sphere { radius, radiance, .. } => radiance.average() * PI * 4.0 * PI * radius * radius,
+            Light::Sphere {
+                radius, radiance, ..
+            } => radiance.average() * PI * 4.0 * PI * radius * radius,
         }
     }
 }
@@ -292,7 +355,10 @@ impl LightSampler {
     /// Builds the selection distribution (uniform when every estimate is zero).
     #[must_use]
     pub fn new(lights: &[Light], scene_radius: f32) -> Self {
-        let mut w: Vec<f32> = lights.iter().map(|l| l.power_estimate(scene_radius).max(0.0)).collect();
+        let mut w: Vec<f32> = lights
+            .iter()
+            .map(|l| l.power_estimate(scene_radius).max(0.0))
+            .collect();
         let sum: f32 = w.iter().sum();
         if !(sum > 0.0) || !sum.is_finite() {
             w = vec![1.0; lights.len()];
@@ -314,7 +380,11 @@ impl LightSampler {
         if self.cdf.is_empty() {
             return None;
         }
-        let i = self.cdf.iter().position(|&c| u < c).unwrap_or(self.cdf.len() - 1);
+        let i = self
+            .cdf
+            .iter()
+            .position(|&c| u < c)
+            .unwrap_or(self.cdf.len() - 1);
         Some((i, self.probabilities[i]))
     }
 

@@ -4,7 +4,11 @@ use clap::{Parser, Subcommand};
 use velour::cli;
 
 #[derive(Parser)]
-#[command(name = "velour", version, about = "Monte-Carlo volumetric path tracer for translucent creatures, fabric and OpenVDB volumes")]
+#[command(
+    name = "velour",
+    version,
+    about = "Monte-Carlo volumetric path tracer for translucent creatures, fabric and OpenVDB volumes"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -24,7 +24,9 @@ pub const MAX_LEVEL0_CELLS: usize = 1 << 24;
 #[derive(Debug, thiserror::Error)]
 pub enum MajorantError {
     /// The grid spans too much index space for a dense level 0.
-    #[error("the grid spans {cells} bricks of index space; the majorant pyramid supports at most {max}")]
+    #[error(
+        "the grid spans {cells} bricks of index space; the majorant pyramid supports at most {max}"
+    )]
     TooLarge {
         /// Level-0 cells needed.
         cells: usize,
@@ -58,7 +60,11 @@ impl Bounds {
     /// The bounds of a constant value.
     #[must_use]
     pub fn constant(v: f32) -> Self {
-        Bounds { min: v, max: v, mean: v }
+        Bounds {
+            min: v,
+            max: v,
+            mean: v,
+        }
     }
     /// True when the value is known to be zero everywhere in the region.
     #[must_use]
@@ -146,7 +152,11 @@ impl MajorantPyramid {
         let key_hi = (hi + IVec3::ONE) >> 3;
         let mut acc = grid.accessor(channel);
         Self::from_brick_bounds(key_lo, key_hi, background, world_to_index, |key| {
-            let mut nodes = [Node::Tile { tile: 0, level: crate::grid::TileLevel::Root, active: false }; 27];
+            let mut nodes = [Node::Tile {
+                tile: 0,
+                level: crate::grid::TileLevel::Root,
+                active: false,
+            }; 27];
             let mut all_tiles = true;
             let mut i = 0;
             for dz in -1..=1 {
@@ -161,7 +171,11 @@ impl MajorantPyramid {
             }
             let own = nodes[13];
             if all_tiles {
-                let mut b = Bounds { min: f32::INFINITY, max: f32::NEG_INFINITY, mean: 0.0 };
+                let mut b = Bounds {
+                    min: f32::INFINITY,
+                    max: f32::NEG_INFINITY,
+                    mean: 0.0,
+                };
                 for n in nodes {
                     if let Node::Tile { tile, .. } = n {
                         let v = grid.tile_value(channel, tile);
@@ -175,7 +189,11 @@ impl MajorantPyramid {
                 return b;
             }
             let base = key << 3;
-            let mut b = Bounds { min: f32::INFINITY, max: f32::NEG_INFINITY, mean: 0.0 };
+            let mut b = Bounds {
+                min: f32::INFINITY,
+                max: f32::NEG_INFINITY,
+                mean: 0.0,
+            };
             for z in -1..=BRICK_DIM {
                 for y in -1..=BRICK_DIM {
                     for x in -1..=BRICK_DIM {
@@ -206,7 +224,12 @@ impl MajorantPyramid {
     /// An empty pyramid (the value is `background` everywhere).
     #[must_use]
     pub fn empty(background: f32, world_to_index: DAffine3) -> Self {
-        MajorantPyramid { origin: IVec3::ZERO, levels: Vec::new(), background, world_to_index }
+        MajorantPyramid {
+            origin: IVec3::ZERO,
+            levels: Vec::new(),
+            background,
+            world_to_index,
+        }
     }
 
     /// Builds a pyramid from per-brick bounds for brick keys (voxel coordinate >> 3) in
@@ -221,39 +244,65 @@ impl MajorantPyramid {
         let dims = key_hi - key_lo + IVec3::ONE;
         let cells = dims.x as usize * dims.y as usize * dims.z as usize;
         if dims.min_element() <= 0 || cells > MAX_LEVEL0_CELLS {
-            return Err(MajorantError::TooLarge { cells, max: MAX_LEVEL0_CELLS });
+            return Err(MajorantError::TooLarge {
+                cells,
+                max: MAX_LEVEL0_CELLS,
+            });
         }
-        let mut level0 = Level { dims, cells: vec![Bounds::constant(0.0); cells] };
+        let mut level0 = Level {
+            dims,
+            cells: vec![Bounds::constant(0.0); cells],
+        };
         for z in 0..dims.z {
             for y in 0..dims.y {
                 for x in 0..dims.x {
                     let c = IVec3::new(x, y, z);
                     let key = key_lo + c;
                     let b = bounds_of(key);
-                    if !(b.min.is_finite() && b.max.is_finite() && b.mean.is_finite()) || b.min > b.max {
-                        return Err(MajorantError::InvalidBound { brick: key.to_array(), min: b.min, max: b.max });
+                    if !(b.min.is_finite() && b.max.is_finite() && b.mean.is_finite())
+                        || b.min > b.max
+                    {
+                        return Err(MajorantError::InvalidBound {
+                            brick: key.to_array(),
+                            min: b.min,
+                            max: b.max,
+                        });
                     }
                     let i = level0.index(c);
-                    level0.cells[i] = Bounds { mean: b.mean.clamp(b.min, b.max), ..b };
+                    level0.cells[i] = Bounds {
+                        mean: b.mean.clamp(b.min, b.max),
+                        ..b
+                    };
                 }
             }
         }
         let mut levels = vec![level0];
         while levels.last().is_some_and(|l| l.dims.max_element() > 1) {
-            let child = levels.last().expect("non-empty");
+            let Some(child) = levels.last() else { break };
             let pd = (child.dims + IVec3::ONE) / 2;
-            let mut parent = Level { dims: pd, cells: vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize] };
+            let mut parent = Level {
+                dims: pd,
+                cells: vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize],
+            };
             for z in 0..pd.z {
                 for y in 0..pd.y {
                     for x in 0..pd.x {
-                        let mut b = Bounds { min: f32::INFINITY, max: f32::NEG_INFINITY, mean: 0.0 };
+                        let mut b = Bounds {
+                            min: f32::INFINITY,
+                            max: f32::NEG_INFINITY,
+                            mean: 0.0,
+                        };
                         let mut n = 0.0f32;
                         for dz in 0..2 {
                             for dy in 0..2 {
                                 for dx in 0..2 {
                                     let c = IVec3::new(2 * x + dx, 2 * y + dy, 2 * z + dz);
                                     // Cells beyond the child box hold the background.
-                                    let cb = if c.cmplt(child.dims).all() { child.cells[child.index(c)] } else { Bounds::constant(background) };
+                                    let cb = if c.cmplt(child.dims).all() {
+                                        child.cells[child.index(c)]
+                                    } else {
+                                        Bounds::constant(background)
+                                    };
                                     b.min = b.min.min(cb.min);
                                     b.max = b.max.max(cb.max);
                                     b.mean += cb.mean;
@@ -269,7 +318,12 @@ impl MajorantPyramid {
             }
             levels.push(parent);
         }
-        Ok(MajorantPyramid { origin: key_lo << 3, levels, background, world_to_index })
+        Ok(MajorantPyramid {
+            origin: key_lo << 3,
+            levels,
+            background,
+            world_to_index,
+        })
     }
 
     /// Number of levels (0 when empty).
@@ -284,7 +338,11 @@ impl MajorantPyramid {
         match self.levels.last() {
             Some(top) => {
                 let b = top.cells[0];
-                Bounds { min: b.min.min(self.background), max: b.max.max(self.background), mean: b.mean }
+                Bounds {
+                    min: b.min.min(self.background),
+                    max: b.max.max(self.background),
+                    mean: b.mean,
+                }
             }
             None => Bounds::constant(self.background),
         }
@@ -316,7 +374,11 @@ impl MajorantPyramid {
         let b = (self.origin + (hi + IVec3::ONE) * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
         let mut out = crate::math::Aabb::EMPTY;
         for i in 0..8 {
-            let p = DVec3::new(if i & 1 != 0 { b.x } else { a.x }, if i & 2 != 0 { b.y } else { a.y }, if i & 4 != 0 { b.z } else { a.z });
+            let p = DVec3::new(
+                if i & 1 != 0 { b.x } else { a.x },
+                if i & 2 != 0 { b.y } else { a.y },
+                if i & 4 != 0 { b.z } else { a.z },
+            );
             out = out.union_point(index_to_world.transform_point3(p).as_vec3());
         }
         Some(out)
@@ -333,7 +395,11 @@ impl MajorantPyramid {
                 cell_voxels: BRICK_DIM << i,
                 cells: l.cells.len(),
                 occupied: l.cells.iter().filter(|b| !b.is_empty()).count(),
-                homogeneous: l.cells.iter().filter(|b| !b.is_empty() && b.min == b.max).count(),
+                homogeneous: l
+                    .cells
+                    .iter()
+                    .filter(|b| !b.is_empty() && b.min == b.max)
+                    .count(),
             })
             .collect()
     }
@@ -341,7 +407,9 @@ impl MajorantPyramid {
     /// Bounds of the level-`level` cell containing voxel `ijk` (background outside).
     #[must_use]
     pub fn bounds_at_voxel(&self, level: usize, ijk: IVec3) -> Bounds {
-        let Some(l) = self.levels.get(level) else { return Bounds::constant(self.background) };
+        let Some(l) = self.levels.get(level) else {
+            return Bounds::constant(self.background);
+        };
         let c = (ijk - self.origin) >> (3 + level as i32);
         if c.cmplt(IVec3::ZERO).any() || c.cmpge(l.dims).any() {
             return Bounds::constant(self.background);
@@ -359,7 +427,14 @@ impl MajorantPyramid {
 
     /// Appends to `out` the segments covering `[t_min, t_max]` of `ray` (world space).
     /// Segments of zero density are skipped; the others tile their part of the interval.
-    pub fn segments(&self, ray: &Ray, t_min: f32, t_max: f32, mode: MajorantMode, out: &mut Vec<MajorantSegment>) {
+    pub fn segments(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        mode: MajorantMode,
+        out: &mut Vec<MajorantSegment>,
+    ) {
         if !(t_max > t_min) {
             return;
         }
@@ -368,9 +443,21 @@ impl MajorantPyramid {
                 let b = self.global_bounds();
                 if !b.is_empty() {
                     if t_max.is_finite() || self.background != 0.0 {
-                        out.push(MajorantSegment { t0: t_min, t1: t_max, min: b.min, max: b.max, mean: b.mean });
+                        out.push(MajorantSegment {
+                            t0: t_min,
+                            t1: t_max,
+                            min: b.min,
+                            max: b.max,
+                            mean: b.mean,
+                        });
                     } else if let Some((a, c)) = self.clip(ray, t_min, t_max) {
-                        out.push(MajorantSegment { t0: a, t1: c, min: b.min, max: b.max, mean: b.mean });
+                        out.push(MajorantSegment {
+                            t0: a,
+                            t1: c,
+                            min: b.min,
+                            max: b.max,
+                            mean: b.mean,
+                        });
                     }
                 }
             }
@@ -383,7 +470,17 @@ impl MajorantPyramid {
                 let (o, d) = self.ray_to_index(ray);
                 let top = self.levels.len() - 1;
                 let finest = (finest as usize).min(top);
-                self.walk(top, IVec3::ZERO, self.levels[top].dims, a as f64, c as f64, o, d, finest, out);
+                self.walk(
+                    top,
+                    IVec3::ZERO,
+                    self.levels[top].dims,
+                    a as f64,
+                    c as f64,
+                    o,
+                    d,
+                    finest,
+                    out,
+                );
                 self.push_background(c, t_max, out);
             }
         }
@@ -391,7 +488,13 @@ impl MajorantPyramid {
 
     fn push_background(&self, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
         if self.background != 0.0 && t1 > t0 {
-            out.push(MajorantSegment { t0, t1, min: self.background, max: self.background, mean: self.background });
+            out.push(MajorantSegment {
+                t0,
+                t1,
+                min: self.background,
+                max: self.background,
+                mean: self.background,
+            });
         }
     }
 
@@ -424,7 +527,18 @@ impl MajorantPyramid {
 
     /// DDA over level `level` restricted to cells in `[cmin, cmax)` and `t ∈ [t0, t1]`.
     #[allow(clippy::too_many_arguments)]
-    fn walk(&self, level: usize, cmin: IVec3, cmax: IVec3, t0: f64, t1: f64, o: DVec3, d: DVec3, finest: usize, out: &mut Vec<MajorantSegment>) {
+    fn walk(
+        &self,
+        level: usize,
+        cmin: IVec3,
+        cmax: IVec3,
+        t0: f64,
+        t1: f64,
+        o: DVec3,
+        d: DVec3,
+        finest: usize,
+        out: &mut Vec<MajorantSegment>,
+    ) {
         let lv = &self.levels[level];
         let cmax = cmax.min(lv.dims);
         let size = (BRICK_DIM << level) as f64;
@@ -432,7 +546,10 @@ impl MajorantPyramid {
         // Start cell: the one containing the midpoint of a tiny step into the interval.
         let t_probe = t0 + (t1 - t0) * 1e-6;
         let p = o + d * t_probe;
-        let mut cell = ((p - base) / size).floor().as_ivec3().clamp(cmin, cmax - IVec3::ONE);
+        let mut cell = ((p - base) / size)
+            .floor()
+            .as_ivec3()
+            .clamp(cmin, cmax - IVec3::ONE);
         let mut step = IVec3::ZERO;
         let mut t_next = DVec3::splat(f64::INFINITY);
         let mut t_delta = DVec3::splat(f64::INFINITY);
@@ -460,14 +577,37 @@ impl MajorantPyramid {
             let b = lv.cells[lv.index(cell)];
             if !b.is_empty() && t_exit > t {
                 if level <= finest || b.min == b.max {
-                    let seg = MajorantSegment { t0: t as f32, t1: t_exit as f32, min: b.min, max: b.max, mean: b.mean };
+                    let seg = MajorantSegment {
+                        t0: t as f32,
+                        t1: t_exit as f32,
+                        min: b.min,
+                        max: b.max,
+                        mean: b.mean,
+                    };
                     match out.last_mut() {
-                        Some(last) if last.t1 == seg.t0 && last.min == seg.min && last.max == seg.max && last.mean == seg.mean => last.t1 = seg.t1,
+                        Some(last)
+                            if last.t1 == seg.t0
+                                && last.min == seg.min
+                                && last.max == seg.max
+                                && last.mean == seg.mean =>
+                        {
+                            last.t1 = seg.t1
+                        }
                         _ => out.push(seg),
                     }
                 } else {
                     let child_min = cell * 2;
-                    self.walk(level - 1, child_min, child_min + IVec3::splat(2), t, t_exit, o, d, finest, out);
+                    self.walk(
+                        level - 1,
+                        child_min,
+                        child_min + IVec3::splat(2),
+                        t,
+                        t_exit,
+                        o,
+                        d,
+                        finest,
+                        out,
+                    );
                 }
             }
             t = t_exit;
@@ -494,7 +634,11 @@ impl<'a> RayDensity<'a> {
         let w2i = grid.world_to_index();
         let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
         let d = w2i.transform_vector3(ray.d.as_dvec3()).as_vec3();
-        RayDensity { accessor: grid.accessor(channel), o, d }
+        RayDensity {
+            accessor: grid.accessor(channel),
+            o,
+            d,
+        }
     }
     /// Trilinear density at distance `t`.
     pub fn at(&mut self, t: f32) -> f32 {

@@ -81,15 +81,27 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
     const FLOAT_SCALE: f32 = 1.0 / 16_777_216.0;
     const INT_SCALE: f32 = 256.0;
     let n = if ng.dot(dir) < 0.0 { -ng } else { ng };
-    let of_i = [(INT_SCALE * n.x) as i32, (INT_SCALE * n.y) as i32, (INT_SCALE * n.z) as i32];
+    let of_i = [
+        (INT_SCALE * n.x) as i32,
+        (INT_SCALE * n.y) as i32,
+        (INT_SCALE * n.z) as i32,
+    ];
     let pa = p.to_array();
     let na = n.to_array();
     let mut out = [0.0f32; 3];
     for k in 0..3 {
         let bits = pa[k].to_bits() as i32;
-        let shifted = if pa[k] < 0.0 { bits.wrapping_sub(of_i[k]) } else { bits.wrapping_add(of_i[k]) };
+        let shifted = if pa[k] < 0.0 {
+            bits.wrapping_sub(of_i[k])
+        } else {
+            bits.wrapping_add(of_i[k])
+        };
         let p_i = f32::from_bits(shifted as u32);
-        out[k] = if pa[k].abs() < ORIGIN { pa[k] + FLOAT_SCALE * na[k] } else { p_i };
+        out[k] = if pa[k].abs() < ORIGIN {
+            pa[k] + FLOAT_SCALE * na[k]
+        } else {
+            p_i
+        };
     }
     Vec3::from_array(out)
 }
@@ -144,16 +156,25 @@ pub struct Aabb {
 
 impl Aabb {
     /// The empty box (min = +∞, max = −∞).
-    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
     /// Grows the box to contain `p`.
     #[must_use]
     pub fn union_point(self, p: Vec3) -> Aabb {
-        Aabb { min: self.min.min(p), max: self.max.max(p) }
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
     }
     /// Smallest box containing both.
     #[must_use]
     pub fn union(self, o: Aabb) -> Aabb {
-        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
     }
     /// True when `min <= max` on every axis.
     #[must_use]

@@ -84,14 +84,27 @@ impl Coefficients {
     /// σ_t = density / attenuation, σ_s = α σ_t, σ_a = σ_t − σ_s, where α is `albedo` itself or
     /// its van de Hulst inversion (see [`AlbedoMode`]).
     #[must_use]
-    pub fn from_artist(albedo: Rgb, attenuation: Rgb, density: f32, mode: AlbedoMode, g: f32) -> Self {
+    pub fn from_artist(
+        albedo: Rgb,
+        attenuation: Rgb,
+        density: f32,
+        mode: AlbedoMode,
+        g: f32,
+    ) -> Self {
         let sigma_t = attenuation.map(|d| if d.is_infinite() { 0.0 } else { density / d });
         let alpha = match mode {
-            AlbedoMode::MultipleScattering => albedo.map(|a| single_scattering_albedo_from_multiple(a, g)),
-            AlbedoMode::SingleScattering => albedo.map(|a| a.clamp(0.0, MAX_SINGLE_SCATTERING_ALBEDO)),
+            AlbedoMode::MultipleScattering => {
+                albedo.map(|a| single_scattering_albedo_from_multiple(a, g))
+            }
+            AlbedoMode::SingleScattering => {
+                albedo.map(|a| a.clamp(0.0, MAX_SINGLE_SCATTERING_ALBEDO))
+            }
         };
         let sigma_s = sigma_t * alpha;
-        Coefficients { sigma_a: (sigma_t - sigma_s).clamp_zero(), sigma_s }
+        Coefficients {
+            sigma_a: (sigma_t - sigma_s).clamp_zero(),
+            sigma_s,
+        }
     }
 }
 
@@ -175,11 +188,18 @@ impl HeterogeneousMedium {
     /// Appends the majorant segments of `[t0, t1]` along `ray` to `out`.
     pub fn segments(&self, ray: &Ray, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
         let start = out.len();
-        self.pyramid.segments(ray, t0, t1, self.tracking.majorant, out);
+        self.pyramid
+            .segments(ray, t0, t1, self.tracking.majorant, out);
         if !self.coefficients.base_t.is_black() && t1.is_finite() {
             // A combined interior: the homogeneous part also fills the empty space the
             // pyramid skipped.
-            let zero = |a: f32, b: f32| MajorantSegment { t0: a, t1: b, min: 0.0, max: 0.0, mean: 0.0 };
+            let zero = |a: f32, b: f32| MajorantSegment {
+                t0: a,
+                t1: b,
+                min: 0.0,
+                max: 0.0,
+                mean: 0.0,
+            };
             let mut filled = Vec::with_capacity(out.len() - start + 4);
             let mut t = t0;
             for s in &out[start..] {
@@ -201,8 +221,13 @@ impl HeterogeneousMedium {
     #[must_use]
     pub fn density_along<'a>(&'a self, ray: &Ray) -> RayLookup<'a> {
         match &self.field {
-            DensityField::Grid { grid, channel } => RayLookup::Grid(RayDensity::new(grid, *channel, ray)),
-            DensityField::Procedural(f) => RayLookup::Procedural { field: f, ray: *ray },
+            DensityField::Grid { grid, channel } => {
+                RayLookup::Grid(RayDensity::new(grid, *channel, ray))
+            }
+            DensityField::Procedural(f) => RayLookup::Procedural {
+                field: f,
+                ray: *ray,
+            },
             DensityField::LazyBaked(g) => {
                 let w2i = g.world_to_index();
                 let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
@@ -280,7 +305,8 @@ impl Medium {
             return Rgb::ONE;
         }
         // Guard 0·∞ (σ_t = 0 with an infinite segment): REFERENCES §8.
-        self.sigma_t().map(|s| if s == 0.0 { 1.0 } else { (-s * d).exp() })
+        self.sigma_t()
+            .map(|s| if s == 0.0 { 1.0 } else { (-s * d).exp() })
     }
 
     /// True when the medium can scatter light.
@@ -332,7 +358,13 @@ pub fn channel_probabilities(beta: Rgb, alpha: Rgb) -> [f32; 3] {
 /// choosing the channel by throughput with one-sample MIS (balance heuristic) over channels
 /// (REFERENCES §4.6). `u_channel` and `u_distance` are uniform in [0, 1).
 #[must_use]
-pub fn sample_free_flight(coeff: &Coefficients, beta: Rgb, t_max: f32, u_channel: f32, u_distance: f32) -> FreeFlight {
+pub fn sample_free_flight(
+    coeff: &Coefficients,
+    beta: Rgb,
+    t_max: f32,
+    u_channel: f32,
+    u_distance: f32,
+) -> FreeFlight {
     let sigma_t = coeff.sigma_t();
     let alpha = coeff.sigma_s.safe_div(sigma_t);
     let p = channel_probabilities(beta, alpha);
@@ -344,14 +376,21 @@ pub fn sample_free_flight(coeff: &Coefficients, beta: Rgb, t_max: f32, u_channel
         2
     };
     let st = sigma_t[channel];
-    let t = if st > 0.0 { -(-u_distance).ln_1p() / st } else { f32::INFINITY };
+    let t = if st > 0.0 {
+        -(-u_distance).ln_1p() / st
+    } else {
+        f32::INFINITY
+    };
     if t < t_max {
         let tr = sigma_t.map(|s| (-s * t).exp());
         let pdf: f32 = (0..3).map(|k| p[k] * sigma_t[k] * tr[k]).sum();
         if !(pdf > 0.0) {
             return FreeFlight::Escape { weight: Rgb::ZERO };
         }
-        FreeFlight::Scatter { t, weight: coeff.sigma_s * tr / pdf }
+        FreeFlight::Scatter {
+            t,
+            weight: coeff.sigma_s * tr / pdf,
+        }
     } else {
         let tr = sigma_t.map(|s| if s == 0.0 { 1.0 } else { (-s * t_max).exp() });
         let prob: f32 = (0..3).map(|k| p[k] * tr[k]).sum();

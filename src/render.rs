@@ -58,7 +58,12 @@ pub struct RenderOptions {
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { threads: 0, progress: false, output: None, checkpoint_interval: Duration::from_secs(20) }
+        RenderOptions {
+            threads: 0,
+            progress: false,
+            output: None,
+            checkpoint_interval: Duration::from_secs(20),
+        }
     }
 }
 
@@ -122,7 +127,10 @@ pub fn png_path_for(exr: &Path) -> PathBuf {
 fn write_outputs(film: &Film, exr: &Path, exposure: f32) -> Result<(), RenderError> {
     if let Some(dir) = exr.parent() {
         if !dir.as_os_str().is_empty() {
-            std::fs::create_dir_all(dir).map_err(|source| RenderError::Io { path: dir.to_path_buf(), source })?;
+            std::fs::create_dir_all(dir).map_err(|source| RenderError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?;
         }
     }
     film.write_exr(exr)?;
@@ -131,7 +139,16 @@ fn write_outputs(film: &Film, exr: &Path, exposure: f32) -> Result<(), RenderErr
 }
 
 /// Renders one sample range of one tile; returns the samples pixel by pixel in sample order.
-fn render_tile(scene: &Scene, x0: u32, y0: u32, x1: u32, y1: u32, s0: u32, s1: u32, stats: &mut TraceStats) -> Vec<PixelSample> {
+fn render_tile(
+    scene: &Scene,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    s0: u32,
+    s1: u32,
+    stats: &mut TraceStats,
+) -> Vec<PixelSample> {
     let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0) * (s1 - s0)) as usize);
     for y in y0..y1 {
         for x in x0..x1 {
@@ -141,7 +158,12 @@ fn render_tile(scene: &Scene, x0: u32, y0: u32, x1: u32, y1: u32, s0: u32, s1: u
                 let lens = sampler.next_2d();
                 let ray = scene.camera.generate_ray(film_pos, lens);
                 let r = trace_path(scene, ray, &mut sampler, stats);
-                out.push(PixelSample { radiance: r.radiance, albedo: r.albedo, normal: r.normal, depth: r.depth });
+                out.push(PixelSample {
+                    radiance: r.radiance,
+                    albedo: r.albedo,
+                    normal: r.normal,
+                    depth: r.depth,
+                });
             }
         }
     }
@@ -150,11 +172,17 @@ fn render_tile(scene: &Scene, x0: u32, y0: u32, x1: u32, y1: u32, s0: u32, s1: u
 
 /// Renders `scene` and returns the film and a summary. Writes checkpoints and the final image
 /// to `options.output` when set.
-pub fn render(scene: &Scene, options: &RenderOptions) -> Result<(Film, RenderSummary), RenderError> {
+pub fn render(
+    scene: &Scene,
+    options: &RenderOptions,
+) -> Result<(Film, RenderSummary), RenderError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.threads)
         .build()
-        .map_err(|e| RenderError::ThreadPool { threads: options.threads, message: e.to_string() })?;
+        .map_err(|e| RenderError::ThreadPool {
+            threads: options.threads,
+            message: e.to_string(),
+        })?;
     let threads = pool.current_num_threads();
     let (w, h) = (scene.film.width, scene.film.height);
     let spp = scene.film.spp;
@@ -168,8 +196,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<(Film, RenderSum
     let bar = if options.progress {
         let b = indicatif::ProgressBar::new(w as u64 * h as u64 * spp as u64);
         b.set_style(
-            indicatif::ProgressStyle::with_template("{bar:40} {percent:>3}% {pos}/{len} samples, {elapsed_precise} elapsed, eta {eta}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {percent:>3}% {pos}/{len} samples, {elapsed_precise} elapsed, eta {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         Some(b)
     } else {
@@ -229,7 +259,11 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<(Film, RenderSum
         seconds,
         samples: stats.paths,
         rays: stats.rays,
-        mean_path_length: if stats.paths > 0 { stats.vertices as f64 / stats.paths as f64 } else { 0.0 },
+        mean_path_length: if stats.paths > 0 {
+            stats.vertices as f64 / stats.paths as f64
+        } else {
+            0.0
+        },
         non_finite: stats.non_finite + film.dropped_samples(),
         threads,
         tracking: stats.tracking,

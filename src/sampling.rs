@@ -51,7 +51,11 @@ impl PixelSampler {
     #[must_use]
     pub fn new(seed: u64, px: u32, py: u32, sample_index: u32) -> Self {
         let pixel_seed = hash_words(&[seed, ((px as u64) << 32) | py as u64]);
-        PixelSampler { pixel_seed, sample_index, dimension: 0 }
+        PixelSampler {
+            pixel_seed,
+            sample_index,
+            dimension: 0,
+        }
     }
     /// The next uniform number in `[0, 1)`.
     pub fn next_1d(&mut self) -> f32 {
@@ -87,7 +91,10 @@ impl Rng {
     /// A generator seeded from `seed` and stream `stream`.
     #[must_use]
     pub fn new(seed: u64, stream: u64) -> Self {
-        let mut r = Rng { state: 0, inc: (stream << 1) | 1 };
+        let mut r = Rng {
+            state: 0,
+            inc: (stream << 1) | 1,
+        };
         r.next_u32();
         r.state = r.state.wrapping_add(mix64(seed));
         r.next_u32();
@@ -96,7 +103,9 @@ impl Rng {
     /// 32 random bits.
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
-        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
+        self.state = old
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(self.inc);
         let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
         let rot = (old >> 59) as u32;
         xorshifted.rotate_right(rot)
@@ -251,7 +260,14 @@ impl Distribution2D {
         for c in marginal_cdf.iter_mut() {
             *c = (*c as f64 / acc) as f32;
         }
-        Some(Distribution2D { width, height, conditional_cdf, conditional_integral, marginal_cdf, marginal_integral: acc as f32 })
+        Some(Distribution2D {
+            width,
+            height,
+            conditional_cdf,
+            conditional_integral,
+            marginal_cdf,
+            marginal_integral: acc as f32,
+        })
     }
 
     fn sample_cdf(cdf: &[f32], u: f32) -> (usize, f32) {
@@ -272,7 +288,11 @@ impl Distribution2D {
             i += 1;
         }
         let width = cdf[i + 1] - cdf[i];
-        let du = if width > 0.0 { ((u - cdf[i]) / width).clamp(0.0, ONE_MINUS_EPSILON) } else { 0.5 };
+        let du = if width > 0.0 {
+            ((u - cdf[i]) / width).clamp(0.0, ONE_MINUS_EPSILON)
+        } else {
+            0.5
+        };
         (i, du)
     }
 
@@ -282,7 +302,10 @@ impl Distribution2D {
         let (y, dy) = Self::sample_cdf(&self.marginal_cdf, u.y);
         let row = &self.conditional_cdf[y * (self.width + 1)..(y + 1) * (self.width + 1)];
         let (x, dx) = Self::sample_cdf(row, u.x);
-        let p = Vec2::new((x as f32 + dx) / self.width as f32, (y as f32 + dy) / self.height as f32);
+        let p = Vec2::new(
+            (x as f32 + dx) / self.width as f32,
+            (y as f32 + dy) / self.height as f32,
+        );
         (p, self.pdf(p))
     }
 

@@ -93,7 +93,13 @@ impl Rgb {
     /// Channel-wise division that yields 0 where the divisor is 0.
     #[must_use]
     pub fn safe_div(self, d: Rgb) -> Self {
-        Rgb([0, 1, 2].map(|i| if d.0[i] != 0.0 { self.0[i] / d.0[i] } else { 0.0 }))
+        Rgb([0, 1, 2].map(|i| {
+            if d.0[i] != 0.0 {
+                self.0[i] / d.0[i]
+            } else {
+                0.0
+            }
+        }))
     }
 }
 

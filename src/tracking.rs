@@ -67,7 +67,12 @@ impl DensityCoefficients {
     /// Coefficients proportional to the density, without a constant part.
     #[must_use]
     pub fn new(sigma_t: Rgb, sigma_s: Rgb) -> Self {
-        DensityCoefficients { sigma_t, sigma_s, base_t: Rgb::ZERO, base_s: Rgb::ZERO }
+        DensityCoefficients {
+            sigma_t,
+            sigma_s,
+            base_t: Rgb::ZERO,
+            base_s: Rgb::ZERO,
+        }
     }
     /// The largest channel of σ_t⁰.
     #[must_use]
@@ -188,7 +193,14 @@ impl MisChain {
 /// channels). `density(t)` returns the density at distance `t`; `u()` returns uniform numbers
 /// in [0, 1). Unbiased for any segment bounds: where `density > max` (an estimated bound that
 /// is violated) the null weight turns negative (weighted tracking) and the violation is counted.
-pub fn delta_track<S, D, U>(segments: S, coeff: &DensityCoefficients, mut density: D, beta: Rgb, u: &mut U, stats: &mut TrackingStats) -> Flight
+pub fn delta_track<S, D, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    mut density: D,
+    beta: Rgb,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Flight
 where
     S: IntoIterator<Item = MajorantSegment>,
     D: FnMut(f32) -> f32,
@@ -196,7 +208,10 @@ where
 {
     let probs = hero_probabilities(beta, coeff);
     let hero = pick_channel(probs, u());
-    let mut chain = MisChain { f: Rgb::ONE, p: Rgb::ONE };
+    let mut chain = MisChain {
+        f: Rgb::ONE,
+        p: Rgb::ONE,
+    };
     for seg in segments {
         stats.segments += 1;
         let len = seg.length();
@@ -207,13 +222,20 @@ where
             // Closed form: constant density, no lookups.
             let sigma_t = coeff.sigma_t_at(seg.max);
             let sigma_hero = sigma_t[hero];
-            let t_local = if sigma_hero > 0.0 { -(-u()).ln_1p() / sigma_hero } else { f32::INFINITY };
+            let t_local = if sigma_hero > 0.0 {
+                -(-u()).ln_1p() / sigma_hero
+            } else {
+                f32::INFINITY
+            };
             if t_local < len {
                 let tr = (sigma_t * t_local).map(|x| (-x).exp());
                 chain.f *= coeff.sigma_s_at(seg.max) * tr;
                 chain.p *= sigma_t * tr;
                 stats.real_collisions += 1;
-                return Flight::Scatter { t: seg.t0 + t_local, weight: chain.weight(probs) };
+                return Flight::Scatter {
+                    t: seg.t0 + t_local,
+                    weight: chain.weight(probs),
+                };
             }
             let tr = (sigma_t * len).map(|x| (-x).exp());
             chain.f *= tr;
@@ -255,7 +277,10 @@ where
                 chain.f *= coeff.sigma_s_at(d);
                 chain.p *= p_real * majorant;
                 stats.real_collisions += 1;
-                return Flight::Scatter { t, weight: chain.weight(probs) };
+                return Flight::Scatter {
+                    t,
+                    weight: chain.weight(probs),
+                };
             }
             chain.f *= sigma_n;
             chain.p *= (Rgb::ONE - p_real) * majorant;
@@ -266,7 +291,9 @@ where
             }
         }
     }
-    Flight::Escape { weight: chain.weight(probs) }
+    Flight::Escape {
+        weight: chain.weight(probs),
+    }
 }
 
 /// How the control density of residual ratio tracking is chosen per segment.
@@ -319,7 +346,14 @@ fn control_density(seg: &MajorantSegment, cv: ControlVariate) -> f32 {
 /// for any bounds (factors turn negative where a bound is violated); ray marching is biased.
 /// Russian roulette (pbrt-v4's rule: below 0.05, stop with probability 0.75) keeps long
 /// rays cheap without bias.
-pub fn transmittance<S, D, U>(segments: S, coeff: &DensityCoefficients, mut density: D, mode: TransmittanceMode, u: &mut U, stats: &mut TrackingStats) -> Rgb
+pub fn transmittance<S, D, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    mut density: D,
+    mode: TransmittanceMode,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Rgb
 where
     S: IntoIterator<Item = MajorantSegment>,
     D: FnMut(f32) -> f32,
@@ -373,7 +407,7 @@ where
                             let t = seg.t0 + local;
                             let d = density(t);
                             stats.transmittance_lookups += 1;
-                                                        if d > seg.max || d < seg.min {
+                            if d > seg.max || d < seg.min {
                                 stats.violations += 1;
                             }
                             tr *= Rgb::ONE - st * ((d - control) / majorant);
@@ -398,7 +432,15 @@ where
 /// Fixed-step ray-marching free flight (the biased baseline of the notes §2.2.2): accumulates
 /// the hero channel's optical depth in steps of `step` until it exceeds an exponential sample,
 /// then weights with one-sample MIS over channels as for homogeneous media.
-pub fn ray_march_free_flight<S, D, U>(segments: S, coeff: &DensityCoefficients, mut density: D, step: f32, beta: Rgb, u: &mut U, stats: &mut TrackingStats) -> Flight
+pub fn ray_march_free_flight<S, D, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    mut density: D,
+    step: f32,
+    beta: Rgb,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Flight
 where
     S: IntoIterator<Item = MajorantSegment>,
     D: FnMut(f32) -> f32,
@@ -434,12 +476,21 @@ where
                 let tr = (tau + sigma * frac).map(|x| (-x).exp());
                 let pdf: f32 = (0..3).map(|k| probs[k] * sigma[k] * tr[k]).sum();
                 stats.real_collisions += 1;
-                return Flight::Scatter { t, weight: if pdf > 0.0 { coeff.sigma_s_at(d) * tr / pdf } else { Rgb::ZERO } };
+                return Flight::Scatter {
+                    t,
+                    weight: if pdf > 0.0 {
+                        coeff.sigma_s_at(d) * tr / pdf
+                    } else {
+                        Rgb::ZERO
+                    },
+                };
             }
             tau = next;
         }
     }
     let tr = tau.map(|x| (-x).exp());
     let prob: f32 = (0..3).map(|k| probs[k] * tr[k]).sum();
-    Flight::Escape { weight: if prob > 0.0 { tr / prob } else { Rgb::ZERO } }
+    Flight::Escape {
+        weight: if prob > 0.0 { tr / prob } else { Rgb::ZERO },
+    }
 }

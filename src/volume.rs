@@ -60,14 +60,30 @@ pub struct FbmParams {
 
 impl Default for FbmParams {
     fn default() -> Self {
-        FbmParams { frequency: 4.0, octaves: 5, lacunarity: 2.0, gain: 0.5, amplitude: 1.0, offset: 0.5, min: 0.0, max: 1.0, seed: 1 }
+        FbmParams {
+            frequency: 4.0,
+            octaves: 5,
+            lacunarity: 2.0,
+            gain: 0.5,
+            amplitude: 1.0,
+            offset: 0.5,
+            min: 0.0,
+            max: 1.0,
+            seed: 1,
+        }
     }
 }
 
 impl FbmParams {
     /// Checks every parameter, naming the first bad one.
     pub fn validate(&self) -> Result<(), VolumeError> {
-        let bad = |name, value: f32, allowed| Err(VolumeError::Parameter { name, value: value as f64, allowed });
+        let bad = |name, value: f32, allowed| {
+            Err(VolumeError::Parameter {
+                name,
+                value: value as f64,
+                allowed,
+            })
+        };
         if !(self.frequency > 0.0 && self.frequency.is_finite()) {
             return bad("noise.frequency", self.frequency, "must be finite and > 0");
         }
@@ -84,7 +100,11 @@ impl FbmParams {
             return bad("noise.amplitude/offset", self.amplitude, "must be finite");
         }
         if !(self.min >= 0.0 && self.min.is_finite()) {
-            return bad("noise.min", self.min, "must be finite and ≥ 0 (densities are never negative)");
+            return bad(
+                "noise.min",
+                self.min,
+                "must be finite and ≥ 0 (densities are never negative)",
+            );
         }
         if !(self.max >= self.min && self.max.is_finite()) {
             return bad("noise.max", self.max, "must be finite and ≥ noise.min");
@@ -97,7 +117,11 @@ impl FbmParams {
     pub fn analytic_bounds(&self) -> Bounds {
         let lo = (self.offset - self.amplitude.abs()).clamp(self.min, self.max);
         let hi = (self.offset + self.amplitude.abs()).clamp(self.min, self.max);
-        Bounds { min: lo, max: hi, mean: self.offset.clamp(lo, hi) }
+        Bounds {
+            min: lo,
+            max: hi,
+            mean: self.offset.clamp(lo, hi),
+        }
     }
 }
 
@@ -121,7 +145,12 @@ impl FbmField {
             .set_frequency(params.frequency as f64)
             .set_lacunarity(params.lacunarity as f64)
             .set_persistence(params.gain as f64);
-        Ok(FbmField { params, noise, world_to_rest: rest_to_world.inverse(), rest_to_world })
+        Ok(FbmField {
+            params,
+            noise,
+            world_to_rest: rest_to_world.inverse(),
+            rest_to_world,
+        })
     }
 
     /// Parameters.
@@ -186,18 +215,34 @@ pub struct ProceduralLattice {
 
 impl ProceduralLattice {
     /// Voxels of size `voxel_size` over `rest_bounds` (rest space), placed by `rest_to_world`.
-    pub fn new(rest_bounds: Aabb, voxel_size: f32, rest_to_world: DAffine3) -> Result<Self, VolumeError> {
+    pub fn new(
+        rest_bounds: Aabb,
+        voxel_size: f32,
+        rest_to_world: DAffine3,
+    ) -> Result<Self, VolumeError> {
         if !(voxel_size > 0.0 && voxel_size.is_finite()) {
-            return Err(VolumeError::Parameter { name: "voxel_size", value: voxel_size as f64, allowed: "must be finite and > 0" });
+            return Err(VolumeError::Parameter {
+                name: "voxel_size",
+                value: voxel_size as f64,
+                allowed: "must be finite and > 0",
+            });
         }
         let lo = (rest_bounds.min / voxel_size).floor().as_ivec3() - IVec3::ONE;
         let hi = (rest_bounds.max / voxel_size).ceil().as_ivec3() + IVec3::ONE;
         let n = (hi - lo + IVec3::ONE).as_dvec3();
         if n.x * n.y * n.z > 2.0e9 {
-            return Err(VolumeError::Parameter { name: "voxel_size", value: voxel_size as f64, allowed: "too small for the object: more than 2e9 voxels" });
+            return Err(VolumeError::Parameter {
+                name: "voxel_size",
+                value: voxel_size as f64,
+                allowed: "too small for the object: more than 2e9 voxels",
+            });
         }
         let index_to_world = rest_to_world * DAffine3::from_scale(DVec3::splat(voxel_size as f64));
-        Ok(ProceduralLattice { lo, hi, index_to_world })
+        Ok(ProceduralLattice {
+            lo,
+            hi,
+            index_to_world,
+        })
     }
 
     fn brick_keys(&self) -> (IVec3, IVec3) {
@@ -238,9 +283,11 @@ pub fn bake_fbm(field: &FbmField, lattice: &ProceduralLattice) -> Result<SparseG
         .collect();
     let mut b = SparseGridBuilder::new(Storage::F32);
     let c = b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
-    b.set_index_to_world(lattice.index_to_world).map_err(|e| VolumeError::Grid(e.to_string()))?;
+    b.set_index_to_world(lattice.index_to_world)
+        .map_err(|e| VolumeError::Grid(e.to_string()))?;
     for (key, values) in bricks {
-        b.fill_brick(c, key, &values, [u64::MAX; 8]).map_err(|e| VolumeError::Grid(e.to_string()))?;
+        b.fill_brick(c, key, &values, [u64::MAX; 8])
+            .map_err(|e| VolumeError::Grid(e.to_string()))?;
     }
     Ok(b.build())
 }
@@ -248,23 +295,42 @@ pub fn bake_fbm(field: &FbmField, lattice: &ProceduralLattice) -> Result<SparseG
 /// The majorant pyramid of a directly evaluated field, with per-brick bounds from `bound`.
 /// Returns the pyramid and, for estimated bounds, nothing else: violations are counted while
 /// tracking.
-pub fn procedural_pyramid(field: &FbmField, lattice: &ProceduralLattice, bound: ProceduralBound, seed: u64) -> Result<MajorantPyramid, VolumeError> {
+pub fn procedural_pyramid(
+    field: &FbmField,
+    lattice: &ProceduralLattice,
+    bound: ProceduralBound,
+    seed: u64,
+) -> Result<MajorantPyramid, VolumeError> {
     let (klo, khi) = lattice.brick_keys();
     let world_to_index = lattice.index_to_world.inverse();
     let analytic = field.params.analytic_bounds();
     let index_to_rest = field.world_to_rest * lattice.index_to_world;
     let pyramid = match bound {
-        ProceduralBound::Analytic => MajorantPyramid::from_brick_bounds(klo, khi, 0.0, world_to_index, |_| analytic)?,
+        ProceduralBound::Analytic => {
+            MajorantPyramid::from_brick_bounds(klo, khi, 0.0, world_to_index, |_| analytic)?
+        }
         ProceduralBound::Artist { min, max } => {
             if !(min >= 0.0 && max >= min && max.is_finite()) {
-                return Err(VolumeError::Parameter { name: "bound_min/bound_max", value: max as f64, allowed: "need 0 ≤ bound_min ≤ bound_max < ∞" });
+                return Err(VolumeError::Parameter {
+                    name: "bound_min/bound_max",
+                    value: max as f64,
+                    allowed: "need 0 ≤ bound_min ≤ bound_max < ∞",
+                });
             }
-            let b = Bounds { min, max, mean: 0.5 * (min + max) };
+            let b = Bounds {
+                min,
+                max,
+                mean: 0.5 * (min + max),
+            };
             MajorantPyramid::from_brick_bounds(klo, khi, 0.0, world_to_index, |_| b)?
         }
         ProceduralBound::Estimated { samples, safety } => {
             if samples == 0 || samples > 1_000_000 || !(safety >= 1.0 && safety.is_finite()) {
-                return Err(VolumeError::Parameter { name: "trial_samples/safety", value: safety as f64, allowed: "trial_samples in 1..=1000000, safety ≥ 1" });
+                return Err(VolumeError::Parameter {
+                    name: "trial_samples/safety",
+                    value: safety as f64,
+                    allowed: "trial_samples in 1..=1000000, safety ≥ 1",
+                });
             }
             let mut rng = Rng::new(seed, 77);
             MajorantPyramid::from_brick_bounds(klo, khi, 0.0, world_to_index, |key| {
@@ -285,7 +351,11 @@ pub fn procedural_pyramid(field: &FbmField, lattice: &ProceduralLattice, bound: 
                 let widen = 0.5 * (safety - 1.0) * range + (safety - 1.0) * hi;
                 let min = (lo - widen).clamp(analytic.min, analytic.max);
                 let max = (hi + widen).clamp(analytic.min, analytic.max).max(1e-6);
-                Bounds { min: min.min(max), max, mean: mean.clamp(min.min(max), max) }
+                Bounds {
+                    min: min.min(max),
+                    max,
+                    mean: mean.clamp(min.min(max), max),
+                }
             })?
         }
     };
@@ -311,7 +381,9 @@ impl Clone for LazyFbmGrid {
             field: self.field.clone(),
             key_lo: self.key_lo,
             dims: self.dims,
-            bricks: (0..self.bricks.len()).map(|_| std::sync::OnceLock::new()).collect(),
+            bricks: (0..self.bricks.len())
+                .map(|_| std::sync::OnceLock::new())
+                .collect(),
             index_to_rest: self.index_to_rest,
             world_to_index: self.world_to_index,
         }
@@ -325,7 +397,11 @@ impl LazyFbmGrid {
         let dims = key_hi - key_lo + IVec3::ONE;
         let n = dims.x as usize * dims.y as usize * dims.z as usize;
         if n > 1 << 26 {
-            return Err(VolumeError::Parameter { name: "voxel_size", value: n as f64, allowed: "too small for lazy baking: more than 2^26 bricks" });
+            return Err(VolumeError::Parameter {
+                name: "voxel_size",
+                value: n as f64,
+                allowed: "too small for lazy baking: more than 2^26 bricks",
+            });
         }
         let index_to_rest = field.world_to_rest * lattice.index_to_world;
         Ok(LazyFbmGrid {
@@ -361,14 +437,17 @@ impl LazyFbmGrid {
         if c.cmplt(IVec3::ZERO).any() || c.cmpge(self.dims).any() {
             return None;
         }
-        let i = (c.z as usize * self.dims.y as usize + c.y as usize) * self.dims.x as usize + c.x as usize;
+        let i = (c.z as usize * self.dims.y as usize + c.y as usize) * self.dims.x as usize
+            + c.x as usize;
         Some(self.bricks[i].get_or_init(|| {
             let mut v = vec![0.0f32; 512];
             for x in 0..BRICK_DIM {
                 for y in 0..BRICK_DIM {
                     for z in 0..BRICK_DIM {
                         let ijk = key * BRICK_DIM + IVec3::new(x, y, z);
-                        v[((x << 6) | (y << 3) | z) as usize] = self.field.density_rest(self.index_to_rest.transform_point3(ijk.as_dvec3()));
+                        v[((x << 6) | (y << 3) | z) as usize] = self
+                            .field
+                            .density_rest(self.index_to_rest.transform_point3(ijk.as_dvec3()));
                     }
                 }
             }
@@ -398,7 +477,9 @@ impl LazyFbmGrid {
         for dz in 0..2 {
             for dy in 0..2 {
                 for dx in 0..2 {
-                    let w = (if dx == 1 { t.x } else { 1.0 - t.x }) * (if dy == 1 { t.y } else { 1.0 - t.y }) * (if dz == 1 { t.z } else { 1.0 - t.z });
+                    let w = (if dx == 1 { t.x } else { 1.0 - t.x })
+                        * (if dy == 1 { t.y } else { 1.0 - t.y })
+                        * (if dz == 1 { t.z } else { 1.0 - t.z });
                     if w > 0.0 {
                         acc += w * self.value(i + IVec3::new(dx, dy, dz));
                     }

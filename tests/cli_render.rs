@@ -20,17 +20,51 @@ fn renders_the_sphere_scene_to_exr_and_png() {
     let out = dir.join("skin.exr");
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
     let o = velour()
-        .args(["render", scene, "--spp", "2", "--width", "32", "--height", "24", "--seed", "5", "--threads", "2", "-q", "-o"])
+        .args([
+            "render",
+            scene,
+            "--spp",
+            "2",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--seed",
+            "5",
+            "--threads",
+            "2",
+            "-q",
+            "-o",
+        ])
         .arg(&out)
         .output()
         .expect("run velour");
-    assert!(o.status.success(), "stderr: {}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("samples/s") && stdout.contains("rays"), "{stdout}");
+    assert!(
+        stdout.contains("samples/s") && stdout.contains("rays"),
+        "{stdout}"
+    );
     let img = velour::image_io::read_exr(&out).expect("read back");
     assert_eq!((img.width, img.height), (32, 24));
-    for ch in ["R", "G", "B", "variance.R", "albedo.R", "normal.X", "depth.Z"] {
-        assert!(img.channels.keys().any(|k| k == ch || k.ends_with(ch)), "missing channel {ch}: {:?}", img.channels.keys());
+    for ch in [
+        "R",
+        "G",
+        "B",
+        "variance.R",
+        "albedo.R",
+        "normal.X",
+        "depth.Z",
+    ] {
+        assert!(
+            img.channels.keys().any(|k| k == ch || k.ends_with(ch)),
+            "missing channel {ch}: {:?}",
+            img.channels.keys()
+        );
     }
     assert!(out.with_extension("png").exists());
 }
@@ -39,8 +73,16 @@ fn renders_the_sphere_scene_to_exr_and_png() {
 fn bad_scene_fails_with_file_line_and_key() {
     let dir = temp_dir("bad");
     let scene = dir.join("bad.toml");
-    std::fs::write(&scene, "[camera]\neye = [0, 0, 4]\nlook_at = [0, 0, 0]\nfvo = 30\n").expect("write");
-    let o = velour().args(["render", "-q"]).arg(&scene).output().expect("run velour");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 0, 4]\nlook_at = [0, 0, 0]\nfvo = 30\n",
+    )
+    .expect("write");
+    let o = velour()
+        .args(["render", "-q"])
+        .arg(&scene)
+        .output()
+        .expect("run velour");
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("bad.toml:4") && err.contains("fvo"), "{err}");
@@ -49,7 +91,10 @@ fn bad_scene_fails_with_file_line_and_key() {
 #[test]
 fn absurd_overrides_are_refused() {
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
-    let o = velour().args(["render", scene, "--spp", "0", "-q"]).output().expect("run velour");
+    let o = velour()
+        .args(["render", scene, "--spp", "0", "-q"])
+        .output()
+        .expect("run velour");
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--spp"));
 }

@@ -353,7 +353,12 @@ fn committed_meshes_are_valid() {
     let bb = bones.bounds();
     assert!(bb.min.cmpgt(b.min).all() && bb.max.cmplt(b.max).all());
     assert!(back.bounds().min.y < b.min.y);
-    for name in ["creature_skin.ply", "creature_skeleton.ply", "backdrop.ply", "sphere.ply"] {
+    for name in [
+        "creature_skin.ply",
+        "creature_skeleton.ply",
+        "backdrop.ply",
+        "sphere.ply",
+    ] {
         let size = std::fs::metadata(mesh_path(name)).unwrap().len();
         assert!(size < 1_500_000, "{name} is {size} bytes");
     }

@@ -15,19 +15,32 @@ fn test_grid(seed: u64) -> SparseGrid {
     let mut b = SparseGridBuilder::new(Storage::F32);
     let c = b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
     let rot = DAffine3::from_axis_angle(DVec3::new(1.0, 2.0, 0.5).normalize(), 0.7);
-    b.set_index_to_world(DAffine3::from_translation(DVec3::new(0.3, -0.2, 0.1)) * rot * DAffine3::from_scale(DVec3::new(0.05, 0.04, 0.06)))
-        .expect("map");
+    b.set_index_to_world(
+        DAffine3::from_translation(DVec3::new(0.3, -0.2, 0.1))
+            * rot
+            * DAffine3::from_scale(DVec3::new(0.05, 0.04, 0.06)),
+    )
+    .expect("map");
     for _ in 0..40 {
-        let key = IVec3::new((rng.next_u32() % 6) as i32 - 2, (rng.next_u32() % 6) as i32 - 2, (rng.next_u32() % 6) as i32 - 2);
+        let key = IVec3::new(
+            (rng.next_u32() % 6) as i32 - 2,
+            (rng.next_u32() % 6) as i32 - 2,
+            (rng.next_u32() % 6) as i32 - 2,
+        );
         let base = rng.next_f32() * 3.0;
         let values: Vec<f32> = (0..512).map(|_| base * rng.next_f32()).collect();
         b.fill_brick(c, key, &values, [u64::MAX; 8]).expect("brick");
     }
     // Constant 8^3 tiles next to bricks, and a 128^3 tile away from them.
-    for (k, v) in [(IVec3::new(4, 0, 0), 2.5f32), (IVec3::new(-3, 1, 1), 0.7), (IVec3::new(0, 4, 0), 4.0)] {
+    for (k, v) in [
+        (IVec3::new(4, 0, 0), 2.5f32),
+        (IVec3::new(-3, 1, 1), 0.7),
+        (IVec3::new(0, 4, 0), 4.0),
+    ] {
         b.set_tile(TileLevel::Brick, k, &[v], true).expect("tile");
     }
-    b.set_tile(TileLevel::Block, IVec3::new(1, 0, 0), &[1.25], true).expect("block tile");
+    b.set_tile(TileLevel::Block, IVec3::new(1, 0, 0), &[1.25], true)
+        .expect("block tile");
     b.build()
 }
 
@@ -37,7 +50,10 @@ fn check_conservative(grid: &SparseGrid, pyramid: &MajorantPyramid, points: &[Ve
         let ijk = (p + Vec3::splat(0.5)).floor().as_ivec3();
         for level in 0..pyramid.level_count() {
             let b = pyramid.bounds_at_voxel(level, ijk);
-            assert!(v <= b.max * (1.0 + 1e-6) + 1e-7 && v >= b.min * (1.0 - 1e-6) - 1e-7, "value {v} at {p:?} outside level-{level} bounds {b:?}");
+            assert!(
+                v <= b.max * (1.0 + 1e-6) + 1e-7 && v >= b.min * (1.0 - 1e-6) - 1e-7,
+                "value {v} at {p:?} outside level-{level} bounds {b:?}"
+            );
         }
     }
 }
@@ -51,11 +67,19 @@ fn bounds_contain_every_trilinear_value() {
         let mut pts = Vec::new();
         // Random points over the whole region (bricks, tiles, the 128^3 tile, empty space).
         for _ in 0..300_000 {
-            pts.push(Vec3::new(rng.next_f32() * 200.0 - 30.0, rng.next_f32() * 60.0 - 25.0, rng.next_f32() * 60.0 - 25.0));
+            pts.push(Vec3::new(
+                rng.next_f32() * 200.0 - 30.0,
+                rng.next_f32() * 60.0 - 25.0,
+                rng.next_f32() * 60.0 - 25.0,
+            ));
         }
         // Points on brick faces, edges and corners (cell boundaries at 8k − 0.5).
         for _ in 0..200_000 {
-            let k = IVec3::new((rng.next_u32() % 50) as i32 - 20, (rng.next_u32() % 12) as i32 - 4, (rng.next_u32() % 12) as i32 - 4);
+            let k = IVec3::new(
+                (rng.next_u32() % 50) as i32 - 20,
+                (rng.next_u32() % 12) as i32 - 4,
+                (rng.next_u32() % 12) as i32 - 4,
+            );
             let mut p = (k * 8).as_vec3() - Vec3::splat(0.5);
             let axis = (rng.next_u32() % 4) as usize;
             for a in 0..3 {
@@ -89,12 +113,26 @@ fn segments_tile_the_ray_interval() {
     let centre = i2w.transform_point3(DVec3::new(20.0, 8.0, 8.0)).as_vec3();
     let mut rng = Rng::new(3, 3);
     let mut out = Vec::new();
-    let dirs = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, Vec3::new(0.0, -0.0, 1.0)];
+    let dirs = [
+        Vec3::X,
+        Vec3::Y,
+        Vec3::Z,
+        -Vec3::X,
+        Vec3::new(0.0, -0.0, 1.0),
+    ];
     for i in 0..4000 {
-        let d = if i < dirs.len() { dirs[i] } else { velour::sampling::sample_uniform_sphere(rng.next_2d()) };
-        let o = centre - d * (rng.next_f32() * 6.0 + 1.0) + velour::sampling::sample_uniform_sphere(rng.next_2d()) * rng.next_f32();
+        let d = if i < dirs.len() {
+            dirs[i]
+        } else {
+            velour::sampling::sample_uniform_sphere(rng.next_2d())
+        };
+        let o = centre - d * (rng.next_f32() * 6.0 + 1.0)
+            + velour::sampling::sample_uniform_sphere(rng.next_2d()) * rng.next_f32();
         let ray = Ray::new(o, d.normalize());
-        for mode in [MajorantMode::Hierarchical { finest: 0 }, MajorantMode::Hierarchical { finest: 2 }] {
+        for mode in [
+            MajorantMode::Hierarchical { finest: 0 },
+            MajorantMode::Hierarchical { finest: 2 },
+        ] {
             out.clear();
             pyramid.segments(&ray, 0.0, 20.0, mode, &mut out);
             for w in out.windows(2) {
@@ -112,14 +150,21 @@ fn segments_tile_the_ray_interval() {
                     assert!(v == 0.0, "uncovered t = {t} has density {v}");
                 } else if let Some(s) = out.iter().find(|s| t > s.t0 && t < s.t1) {
                     let v = grid.sample_trilinear_world(ray.at(t));
-                    assert!(v <= s.max * (1.0 + 1e-5) + 1e-6 && v >= s.min * (1.0 - 1e-5) - 1e-6, "t {t}: {v} not in {s:?}");
+                    assert!(
+                        v <= s.max * (1.0 + 1e-5) + 1e-6 && v >= s.min * (1.0 - 1e-5) - 1e-6,
+                        "t {t}: {v} not in {s:?}"
+                    );
                 }
             }
             // Consecutive segments touch exactly (no gaps) inside the grid's box.
             for w in out.windows(2) {
                 if (w[1].t0 - w[0].t1).abs() > 1e-5 {
                     let mid = 0.5 * (w[0].t1 + w[1].t0);
-                    assert_eq!(grid.sample_trilinear_world(ray.at(mid)), 0.0, "gap with density at t {mid}");
+                    assert_eq!(
+                        grid.sample_trilinear_world(ray.at(mid)),
+                        0.0,
+                        "gap with density at t {mid}"
+                    );
                 }
             }
         }
@@ -131,12 +176,23 @@ fn homogeneous_tiles_become_closed_form_segments() {
     // A grid that is one constant 128^3 tile: deep inside it, segments are homogeneous.
     let mut b = SparseGridBuilder::new(Storage::F32);
     b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
-    b.set_tile(TileLevel::Block, IVec3::ZERO, &[2.0], true).expect("tile");
+    b.set_tile(TileLevel::Block, IVec3::ZERO, &[2.0], true)
+        .expect("tile");
     let grid = b.build();
     let pyramid = MajorantPyramid::from_grid(&grid, 0).expect("pyramid");
     let ray = Ray::new(Vec3::new(-10.0, 64.0, 64.0), Vec3::X);
     let mut out = Vec::new();
-    pyramid.segments(&ray, 0.0, 200.0, MajorantMode::Hierarchical { finest: 0 }, &mut out);
-    let inner: f32 = out.iter().filter(|s| s.min == s.max && s.max == 2.0).map(|s| s.t1 - s.t0).sum();
+    pyramid.segments(
+        &ray,
+        0.0,
+        200.0,
+        MajorantMode::Hierarchical { finest: 0 },
+        &mut out,
+    );
+    let inner: f32 = out
+        .iter()
+        .filter(|s| s.min == s.max && s.max == 2.0)
+        .map(|s| s.t1 - s.t0)
+        .sum();
     assert!(inner > 100.0, "homogeneous length {inner}: {out:?}");
 }

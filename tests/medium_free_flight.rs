@@ -3,7 +3,8 @@
 //! to the single-scattering albedo times the collision probability.
 
 use velour::medium::{
-    channel_probabilities, multiple_scattering_albedo, sample_free_flight, single_scattering_albedo_from_multiple, Coefficients, FreeFlight,
+    channel_probabilities, multiple_scattering_albedo, sample_free_flight,
+    single_scattering_albedo_from_multiple, Coefficients, FreeFlight,
 };
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
@@ -34,18 +35,28 @@ fn estimate(n: usize, mut f: impl FnMut(&mut Rng) -> Rgb) -> (Rgb, Rgb) {
 fn assert_z(mean: Rgb, se: Rgb, expected: Rgb, what: &str) {
     for c in 0..3 {
         let tol = 4.5 * se[c] + 1e-6;
-        assert!((mean[c] - expected[c]).abs() <= tol, "{what}: channel {c}: {} vs expected {} (4.5 sigma = {tol})", mean[c], expected[c]);
+        assert!(
+            (mean[c] - expected[c]).abs() <= tol,
+            "{what}: channel {c}: {} vs expected {} (4.5 sigma = {tol})",
+            mean[c],
+            expected[c]
+        );
     }
 }
 
 #[test]
 fn escape_weight_is_unbiased_transmittance_for_chromatic_media() {
-    let coeff = Coefficients { sigma_a: Rgb::new(0.2, 1.0, 3.0), sigma_s: Rgb::new(2.0, 1.0, 0.5) };
+    let coeff = Coefficients {
+        sigma_a: Rgb::new(0.2, 1.0, 3.0),
+        sigma_s: Rgb::new(2.0, 1.0, 0.5),
+    };
     for beta in [Rgb::ONE, Rgb::new(1.0, 0.1, 0.01), Rgb::new(0.0, 0.0, 1.0)] {
         let l = 0.7f32;
-        let (mean, se) = estimate(400_000, |rng| match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
-            FreeFlight::Escape { weight } => weight,
-            FreeFlight::Scatter { .. } => Rgb::ZERO,
+        let (mean, se) = estimate(400_000, |rng| {
+            match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
+                FreeFlight::Escape { weight } => weight,
+                FreeFlight::Scatter { .. } => Rgb::ZERO,
+            }
         });
         let expected = coeff.sigma_t().map(|s| (-s * l).exp());
         assert_z(mean, se, expected, "escape");
@@ -55,15 +66,20 @@ fn escape_weight_is_unbiased_transmittance_for_chromatic_media() {
 #[test]
 fn scatter_weights_integrate_to_albedo_times_collision_probability() {
     // E[weight · 1{scatter}] = ∫_0^L σ_s e^{-σ_t t} dt = α (1 − e^{-σ_t L}).
-    let coeff = Coefficients { sigma_a: Rgb::new(0.5, 0.1, 2.0), sigma_s: Rgb::new(1.5, 0.4, 6.0) };
+    let coeff = Coefficients {
+        sigma_a: Rgb::new(0.5, 0.1, 2.0),
+        sigma_s: Rgb::new(1.5, 0.4, 6.0),
+    };
     let l = 0.9f32;
     let beta = Rgb::new(0.3, 1.0, 0.6);
-    let (mean, se) = estimate(400_000, |rng| match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
-        FreeFlight::Scatter { weight, t } => {
-            assert!(t >= 0.0 && t < l);
-            weight
+    let (mean, se) = estimate(400_000, |rng| {
+        match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
+            FreeFlight::Scatter { weight, t } => {
+                assert!(t >= 0.0 && t < l);
+                weight
+            }
+            FreeFlight::Escape { .. } => Rgb::ZERO,
         }
-        FreeFlight::Escape { .. } => Rgb::ZERO,
     });
     let st = coeff.sigma_t();
     let expected = Rgb([0, 1, 2].map(|c| coeff.sigma_s[c] / st[c] * (1.0 - (-st[c] * l).exp())));
@@ -72,7 +88,10 @@ fn scatter_weights_integrate_to_albedo_times_collision_probability() {
 
 #[test]
 fn zero_extinction_never_scatters_and_never_produces_nan() {
-    let coeff = Coefficients { sigma_a: Rgb::ZERO, sigma_s: Rgb::ZERO };
+    let coeff = Coefficients {
+        sigma_a: Rgb::ZERO,
+        sigma_s: Rgb::ZERO,
+    };
     for t_max in [0.0, 1.0, f32::INFINITY] {
         match sample_free_flight(&coeff, Rgb::ONE, t_max, 0.5, 0.5) {
             FreeFlight::Escape { weight } => assert_eq!(weight, Rgb::ONE),
@@ -93,7 +112,10 @@ fn van_de_hulst_inversion_round_trips() {
             let back = multiple_scattering_albedo(alpha, g);
             // Exact up to f32 rounding, except at A = 1 where α is clamped to 1 − 1e-6.
             let tol = if a < 0.99 { 2e-4 } else { 1e-2 };
-            assert!((back - a).abs() < tol, "g {g}: A {a} -> alpha {alpha} -> A {back}");
+            assert!(
+                (back - a).abs() < tol,
+                "g {g}: A {a} -> alpha {alpha} -> A {back}"
+            );
         }
     }
     // Monotone in A.

@@ -14,7 +14,10 @@ fn render_scene(text: &str, threads: usize) -> Film {
 
 fn render_scene_at(text: &str, path: &Path, threads: usize) -> Film {
     let scene = load_scene_str(text, path).expect("scene");
-    let opts = RenderOptions { threads, ..RenderOptions::default() };
+    let opts = RenderOptions {
+        threads,
+        ..RenderOptions::default()
+    };
     let (film, summary) = render(&scene, &opts).expect("render");
     assert_eq!(summary.non_finite, 0, "non-finite samples");
     film
@@ -65,7 +68,10 @@ fn assert_furnace(text: &str, what: &str) {
     for c in 0..3 {
         let (m, se) = image_mean(&film, 24, 24, c);
         // The interior albedo is clamped to 1 − 1e-6 (a loss ≪ 1e-3 for these walks).
-        assert!((m - 1.0).abs() <= 4.5 * se + 2e-3, "{what}: channel {c}: mean {m} ± {se}, expected 1");
+        assert!(
+            (m - 1.0).abs() <= 4.5 * se + 2e-3,
+            "{what}: channel {c}: mean {m} ± {se}, expected 1"
+        );
     }
 }
 
@@ -76,12 +82,22 @@ fn white_furnace_index_matched_exit_nee() {
 
 #[test]
 fn white_furnace_index_matched_interior_nee() {
-    assert_furnace(&furnace_scene("", "interior", 0.5), "index matched, interior NEE");
+    assert_furnace(
+        &furnace_scene("", "interior", 0.5),
+        "index matched, interior NEE",
+    );
 }
 
 #[test]
 fn white_furnace_smooth_dielectric_conserves_energy() {
-    assert_furnace(&furnace_scene(r#"surface = { type = "dielectric", ior = 1.5 }"#, "exit", 0.0), "smooth dielectric");
+    assert_furnace(
+        &furnace_scene(
+            r#"surface = { type = "dielectric", ior = 1.5 }"#,
+            "exit",
+            0.0,
+        ),
+        "smooth dielectric",
+    );
 }
 
 #[test]
@@ -118,7 +134,10 @@ interior = {{ type = "absorption", attenuation = [{}, {}, {}] }}
         for y in 0..4 {
             for x in 0..4 {
                 let v = film.mean(x, y)[c] as f64;
-                assert!((v - expected).abs() < 1e-4 * expected.max(1e-3), "channel {c}: {v} vs {expected}");
+                assert!(
+                    (v - expected).abs() < 1e-4 * expected.max(1e-3),
+                    "channel {c}: {v} vs {expected}"
+                );
             }
         }
     }
@@ -126,9 +145,15 @@ interior = {{ type = "absorption", attenuation = [{}, {}, {}] }}
 
 #[test]
 fn images_are_bit_identical_across_thread_counts() {
-    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml"));
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/skin_sphere.toml"
+    ));
     let text = std::fs::read_to_string(path).expect("scene");
-    let text = text.replace("width = 320", "width = 40").replace("height = 240", "height = 30").replace("spp = 32", "spp = 4");
+    let text = text
+        .replace("width = 320", "width = 40")
+        .replace("height = 240", "height = 30")
+        .replace("spp = 32", "spp = 4");
     let a = render_scene_at(&text, path, 1);
     let b = render_scene_at(&text, path, 2);
     let c = render_scene_at(&text, path, 3);

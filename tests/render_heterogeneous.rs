@@ -59,13 +59,19 @@ fn pyramid_and_global_majorants_agree_and_the_pyramid_saves_lookups() {
     assert!(z.consistent, "pyramid vs global renders disagree: {z:?}");
     let la = sa.tracking.lookups as f64 / sa.tracking.real_collisions.max(1) as f64;
     let lb = sb.tracking.lookups as f64 / sb.tracking.real_collisions.max(1) as f64;
-    assert!(la * 2.0 < lb, "lookups per real collision: pyramid {la:.2}, global {lb:.2}");
+    assert!(
+        la * 2.0 < lb,
+        "lookups per real collision: pyramid {la:.2}, global {lb:.2}"
+    );
 }
 
 #[test]
 fn ratio_and_residual_tracking_agree() {
     let (a, _) = run(&cloud_scene(r#"transmittance = "ratio""#), 4);
-    let (b, _) = run(&cloud_scene(r#"transmittance = "residual", control = "mean""#), 5);
+    let (b, _) = run(
+        &cloud_scene(r#"transmittance = "residual", control = "mean""#),
+        5,
+    );
     let z = compare(&a, &b).expect("compare").z_test.expect("variance");
     assert!(z.consistent, "{z:?}");
 }
@@ -95,19 +101,28 @@ interior = {{ type = "fbm", albedo = 0.7, albedo_mode = "single", attenuation = 
 
 #[test]
 fn exact_fbm_with_estimated_bounds_agrees_with_finely_baked_fbm() {
-    let (a, sa) = run(&fbm_scene(r#"evaluation = "exact", bound = "estimated", trial_samples = 4, safety = 1.0"#), 7);
+    let (a, sa) = run(
+        &fbm_scene(r#"evaluation = "exact", bound = "estimated", trial_samples = 4, safety = 1.0"#),
+        7,
+    );
     let (b, _) = run(&fbm_scene(r#"evaluation = "baked", voxel_size = 0.004"#), 8);
     let cmp = compare(&a, &b).expect("compare");
     let z = cmp.z_test.expect("variance");
     assert!(z.consistent, "exact vs baked: {z:?}");
     // 4 trial samples with no safety margin do get violated; tracking must stay unbiased.
-    assert!(sa.tracking.violations > 0, "the test should exercise violated bounds");
+    assert!(
+        sa.tracking.violations > 0,
+        "the test should exercise violated bounds"
+    );
 }
 
 #[test]
 fn lazily_baked_fbm_agrees_with_eagerly_baked_fbm() {
     // Same lattice, same trilinear values: only the majorants differ (estimated vs exact).
-    let (a, _) = run(&fbm_scene(r#"evaluation = "lazy", voxel_size = 0.02, bound = "analytic""#), 9);
+    let (a, _) = run(
+        &fbm_scene(r#"evaluation = "lazy", voxel_size = 0.02, bound = "analytic""#),
+        9,
+    );
     let (b, _) = run(&fbm_scene(r#"evaluation = "baked", voxel_size = 0.02"#), 10);
     let z = compare(&a, &b).expect("compare").z_test.expect("variance");
     assert!(z.consistent, "lazy vs baked: {z:?}");

@@ -57,7 +57,11 @@ fn out_of_range_parameters_are_refused() {
         ("albedo = 0.8", "albedo = -0.1", "albedo"),
         ("attenuation = 0.5", "attenuation = -1.0", "attenuation"),
         ("attenuation = 0.5", "attenuation = 0.0", "attenuation"),
-        ("attenuation = 0.5", "attenuation = 0.5, density = -2.0", "density"),
+        (
+            "attenuation = 0.5",
+            "attenuation = 0.5, density = -2.0",
+            "density",
+        ),
         ("attenuation = 0.5", "attenuation = nan", "attenuation"),
         ("ior = 1.4", "ior = 0.8", "ior"),
         ("roughness = 0.3", "roughness = 1.5", "roughness"),
@@ -72,10 +76,16 @@ fn out_of_range_parameters_are_refused() {
 
 #[test]
 fn keys_unused_by_the_chosen_type_are_errors() {
-    let text = BASE.replace("roughness = 0.3 }", "roughness = 0.3, transmittance = 0.5 }");
+    let text = BASE.replace(
+        "roughness = 0.3 }",
+        "roughness = 0.3, transmittance = 0.5 }",
+    );
     let e = err(&text);
     assert!(e.contains("transmittance"), "{e}");
-    let text = BASE.replace("attenuation = 0.5 }", "attenuation = 0.5, phase = { g = 0.3, w = 0.5 } }");
+    let text = BASE.replace(
+        "attenuation = 0.5 }",
+        "attenuation = 0.5, phase = { g = 0.3, w = 0.5 } }",
+    );
     let e = err(&text);
     assert!(e.contains("`w`"), "{e}");
 }
@@ -90,7 +100,10 @@ fn unknown_types_list_the_allowed_ones() {
 
 #[test]
 fn missing_files_are_named() {
-    let text = BASE.replace("shape = \"sphere\"", "shape = \"mesh\"\nfile = \"does/not/exist.ply\"");
+    let text = BASE.replace(
+        "shape = \"sphere\"",
+        "shape = \"mesh\"\nfile = \"does/not/exist.ply\"",
+    );
     let e = err(&text);
     assert!(e.contains("does/not/exist.ply"), "{e}");
     match load_scene(Path::new("no/such/scene.toml")) {

@@ -335,7 +335,10 @@ fn tracking_estimators_are_finite_and_unbiased_on_extreme_segments() {
         (1e-3, 0.0, 1e3, 1.0),
     ];
     for (sigma, t0, len, dmax) in cases {
-        let coeff = DensityCoefficients::new(Rgb::new(sigma, 0.5 * sigma, 2.0 * sigma), Rgb::new(sigma, 0.5 * sigma, 2.0 * sigma) * 0.7);
+        let coeff = DensityCoefficients::new(
+            Rgb::new(sigma, 0.5 * sigma, 2.0 * sigma),
+            Rgb::new(sigma, 0.5 * sigma, 2.0 * sigma) * 0.7,
+        );
         let seg = MajorantSegment {
             t0,
             t1: t0 + len,

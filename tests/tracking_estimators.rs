@@ -5,7 +5,8 @@
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
 use velour::tracking::{
-    delta_track, transmittance, ControlVariate, DensityCoefficients, Flight, MajorantSegment, TrackingStats, TransmittanceMode,
+    delta_track, transmittance, ControlVariate, DensityCoefficients, Flight, MajorantSegment,
+    TrackingStats, TransmittanceMode,
 };
 
 const L: f32 = 2.0;
@@ -24,7 +25,13 @@ fn ramp_segments(n: usize, bound_scale: f32) -> Vec<MajorantSegment> {
         .map(|i| {
             let t0 = L * i as f32 / n as f32;
             let t1 = L * (i + 1) as f32 / n as f32;
-            MajorantSegment { t0, t1, min: ramp(t0), max: ramp(t1) * bound_scale, mean: 0.5 * (ramp(t0) + ramp(t1)) }
+            MajorantSegment {
+                t0,
+                t1,
+                min: ramp(t0),
+                max: ramp(t1) * bound_scale,
+                mean: 0.5 * (ramp(t0) + ramp(t1)),
+            }
         })
         .collect()
 }
@@ -56,12 +63,19 @@ fn mean_se(n: usize, mut f: impl FnMut(&mut Rng) -> Rgb) -> (Rgb, Rgb) {
 fn check(m: Rgb, se: Rgb, expect: Rgb, what: &str) {
     for c in 0..3 {
         let tol = 4.5 * se[c] + 1e-5;
-        assert!((m[c] - expect[c]).abs() <= tol, "{what} ch {c}: {} vs {} (tol {tol})", m[c], expect[c]);
+        assert!(
+            (m[c] - expect[c]).abs() <= tol,
+            "{what} ch {c}: {} vs {} (tol {tol})",
+            m[c],
+            expect[c]
+        );
     }
 }
 
 fn expected_ramp_tr(coeff: &DensityCoefficients) -> Rgb {
-    coeff.sigma_t.map(|s| (-(s as f64) * ramp_depth(L)).exp() as f32)
+    coeff
+        .sigma_t
+        .map(|s| (-(s as f64) * ramp_depth(L)).exp() as f32)
 }
 
 #[test]
@@ -79,7 +93,14 @@ fn transmittance_estimators_are_unbiased_on_a_linear_ramp() {
             let (m, se) = mean_se(100_000, |rng| {
                 let mut st = TrackingStats::default();
                 let mut u = || rng.next_f32();
-                transmittance(segments.iter().copied(), &coeff, ramp, mode, &mut u, &mut st)
+                transmittance(
+                    segments.iter().copied(),
+                    &coeff,
+                    ramp,
+                    mode,
+                    &mut u,
+                    &mut st,
+                )
             });
             check(m, se, expect, &format!("{mode:?} with {segs} segments"));
         }
@@ -91,13 +112,32 @@ fn residual_tracking_is_exact_and_lookup_free_on_constant_segments() {
     let coeff = grey(1.3);
     // Piecewise constant: 0.5 on [0,1), 2.0 on [1,2).
     let segments = [
-        MajorantSegment { t0: 0.0, t1: 1.0, min: 0.5, max: 0.5, mean: 0.5 },
-        MajorantSegment { t0: 1.0, t1: 2.0, min: 2.0, max: 2.0, mean: 2.0 },
+        MajorantSegment {
+            t0: 0.0,
+            t1: 1.0,
+            min: 0.5,
+            max: 0.5,
+            mean: 0.5,
+        },
+        MajorantSegment {
+            t0: 1.0,
+            t1: 2.0,
+            min: 2.0,
+            max: 2.0,
+            mean: 2.0,
+        },
     ];
     let mut rng = Rng::new(1, 1);
     let mut u = || rng.next_f32();
     let mut st = TrackingStats::default();
-    let tr = transmittance(segments, &coeff, |_| panic!("no lookup expected"), TransmittanceMode::Ratio, &mut u, &mut st);
+    let tr = transmittance(
+        segments,
+        &coeff,
+        |_| panic!("no lookup expected"),
+        TransmittanceMode::Ratio,
+        &mut u,
+        &mut st,
+    );
     let expect = (-1.3f64 * 2.5).exp() as f32;
     assert!((tr[0] - expect).abs() < 1e-6, "{tr:?} vs {expect}");
     assert_eq!(st.lookups, 0);
@@ -108,14 +148,31 @@ fn ratio_tracking_has_zero_variance_when_the_majorant_is_tight() {
     // A constant density inside loose bounds: residual tracking with the control equal to the
     // density has a zero residual, so every estimate is exactly e^{-σL}.
     let coeff = grey(0.8);
-    let seg = [MajorantSegment { t0: 0.0, t1: 3.0, min: 0.6, max: 1.4, mean: 1.0 }];
+    let seg = [MajorantSegment {
+        t0: 0.0,
+        t1: 3.0,
+        min: 0.6,
+        max: 1.4,
+        mean: 1.0,
+    }];
     let mut rng = Rng::new(2, 2);
     for _ in 0..100 {
         let mut u = || rng.next_f32();
         let mut st = TrackingStats::default();
-        let tr = transmittance(seg, &coeff, |_| 1.0, TransmittanceMode::ResidualRatio(ControlVariate::Mean), &mut u, &mut st);
+        let tr = transmittance(
+            seg,
+            &coeff,
+            |_| 1.0,
+            TransmittanceMode::ResidualRatio(ControlVariate::Mean),
+            &mut u,
+            &mut st,
+        );
         let expect = (-0.8f32 * 3.0).exp();
-        assert!((tr[0] - expect).abs() < 1e-5 * expect.max(1.0), "{} vs {expect}", tr[0]);
+        assert!(
+            (tr[0] - expect).abs() < 1e-5 * expect.max(1.0),
+            "{} vs {expect}",
+            tr[0]
+        );
     }
 }
 
@@ -128,7 +185,14 @@ fn delta_tracking_escape_and_scatter_weights_are_unbiased() {
         let (m, se) = mean_se(200_000, |rng| {
             let mut st = TrackingStats::default();
             let mut u = || rng.next_f32();
-            match delta_track(segments.iter().copied(), &coeff, ramp, beta, &mut u, &mut st) {
+            match delta_track(
+                segments.iter().copied(),
+                &coeff,
+                ramp,
+                beta,
+                &mut u,
+                &mut st,
+            ) {
                 Flight::Escape { weight } => weight,
                 Flight::Scatter { .. } => Rgb::ZERO,
             }
@@ -138,7 +202,14 @@ fn delta_tracking_escape_and_scatter_weights_are_unbiased() {
         let (m, se) = mean_se(200_000, |rng| {
             let mut st = TrackingStats::default();
             let mut u = || rng.next_f32();
-            match delta_track(segments.iter().copied(), &coeff, ramp, beta, &mut u, &mut st) {
+            match delta_track(
+                segments.iter().copied(),
+                &coeff,
+                ramp,
+                beta,
+                &mut u,
+                &mut st,
+            ) {
                 Flight::Scatter { weight, .. } => weight,
                 Flight::Escape { .. } => Rgb::ZERO,
             }
@@ -158,7 +229,14 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
     let (m, se) = mean_se(300_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
-        let f = delta_track(segments.iter().copied(), &coeff, ramp, Rgb::ONE, &mut u, &mut st);
+        let f = delta_track(
+            segments.iter().copied(),
+            &coeff,
+            ramp,
+            Rgb::ONE,
+            &mut u,
+            &mut st,
+        );
         violations += st.violations;
         match f {
             Flight::Escape { weight } => weight,
@@ -170,7 +248,14 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
     let (m, se) = mean_se(300_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
-        transmittance(segments.iter().copied(), &coeff, ramp, TransmittanceMode::Ratio, &mut u, &mut st)
+        transmittance(
+            segments.iter().copied(),
+            &coeff,
+            ramp,
+            TransmittanceMode::Ratio,
+            &mut u,
+            &mut st,
+        )
     });
     check(m, se, expect, "violated ratio tracking");
 }
@@ -188,15 +273,28 @@ fn delta_tracking_distances_follow_the_analytic_cdf() {
     for _ in 0..n {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
-        match delta_track(segments.iter().copied(), &coeff, ramp, Rgb::ONE, &mut u, &mut st) {
-            Flight::Scatter { t, .. } => counts[((t / L * bins as f32) as usize).min(bins - 1)] += 1,
+        match delta_track(
+            segments.iter().copied(),
+            &coeff,
+            ramp,
+            Rgb::ONE,
+            &mut u,
+            &mut st,
+        ) {
+            Flight::Scatter { t, .. } => {
+                counts[((t / L * bins as f32) as usize).min(bins - 1)] += 1
+            }
             Flight::Escape { .. } => counts[bins] += 1,
         }
     }
     let cdf = |t: f32| 1.0 - (-(s as f64) * ramp_depth(t)).exp();
     let mut chi2 = 0.0;
     for (i, &c) in counts.iter().enumerate() {
-        let p = if i < bins { cdf(L * (i + 1) as f32 / bins as f32) - cdf(L * i as f32 / bins as f32) } else { 1.0 - cdf(L) };
+        let p = if i < bins {
+            cdf(L * (i + 1) as f32 / bins as f32) - cdf(L * i as f32 / bins as f32)
+        } else {
+            1.0 - cdf(L)
+        };
         let e = p * n as f64;
         chi2 += (c as f64 - e).powi(2) / e;
     }
@@ -212,21 +310,47 @@ fn combined_media_add_a_homogeneous_part_everywhere() {
     coeff.base_s = Rgb::new(0.5, 0.1, 0.3);
     let mut segments = ramp_segments(3, 1.0);
     // A density-free stretch after the ramp: only the homogeneous part attenuates there.
-    segments.push(MajorantSegment { t0: L, t1: L + 1.0, min: 0.0, max: 0.0, mean: 0.0 });
-    let expect = Rgb([0, 1, 2].map(|c| (-(coeff.sigma_t[c] as f64) * ramp_depth(L) - coeff.base_t[c] as f64 * (L as f64 + 1.0)).exp() as f32));
+    segments.push(MajorantSegment {
+        t0: L,
+        t1: L + 1.0,
+        min: 0.0,
+        max: 0.0,
+        mean: 0.0,
+    });
+    let expect = Rgb([0, 1, 2].map(|c| {
+        (-(coeff.sigma_t[c] as f64) * ramp_depth(L) - coeff.base_t[c] as f64 * (L as f64 + 1.0))
+            .exp() as f32
+    }));
     let density = |t: f32| if t < L { ramp(t) } else { 0.0 };
-    for mode in [TransmittanceMode::Ratio, TransmittanceMode::ResidualRatio(ControlVariate::Novak)] {
+    for mode in [
+        TransmittanceMode::Ratio,
+        TransmittanceMode::ResidualRatio(ControlVariate::Novak),
+    ] {
         let (m, se) = mean_se(100_000, |rng| {
             let mut st = TrackingStats::default();
             let mut u = || rng.next_f32();
-            transmittance(segments.iter().copied(), &coeff, density, mode, &mut u, &mut st)
+            transmittance(
+                segments.iter().copied(),
+                &coeff,
+                density,
+                mode,
+                &mut u,
+                &mut st,
+            )
         });
         check(m, se, expect, &format!("combined {mode:?}"));
     }
     let (m, se) = mean_se(200_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
-        match delta_track(segments.iter().copied(), &coeff, density, Rgb::ONE, &mut u, &mut st) {
+        match delta_track(
+            segments.iter().copied(),
+            &coeff,
+            density,
+            Rgb::ONE,
+            &mut u,
+            &mut st,
+        ) {
             Flight::Escape { weight } => weight,
             Flight::Scatter { .. } => Rgb::ZERO,
         }

@@ -25,8 +25,15 @@ pub struct BenchArgs {
 
 /// Runs `velour bench`.
 pub fn run(args: &BenchArgs) -> CliResult {
-    if args.spp == 0 || args.width == 0 || args.width > 32768 || args.repeat == 0 || args.repeat > 1000 {
-        return Err("--spp, --width and --repeat must be positive (width ≤ 32768, repeat ≤ 1000)".into());
+    if args.spp == 0
+        || args.width == 0
+        || args.width > 32768
+        || args.repeat == 0
+        || args.repeat > 1000
+    {
+        return Err(
+            "--spp, --width and --repeat must be positive (width ≤ 32768, repeat ≤ 1000)".into(),
+        );
     }
     let mut scene = match &args.scene {
         Some(p) => crate::scene::Scene::load(p)?,
@@ -38,13 +45,26 @@ pub fn run(args: &BenchArgs) -> CliResult {
     scene.film.spp = args.spp;
     let mut runs = Vec::new();
     for _ in 0..args.repeat {
-        let (_, s) = render(&scene, &RenderOptions { threads: args.threads, ..RenderOptions::default() })?;
+        let (_, s) = render(
+            &scene,
+            &RenderOptions {
+                threads: args.threads,
+                ..RenderOptions::default()
+            },
+        )?;
         runs.push(s);
     }
     runs.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
     let best = &runs[0];
     let median = &runs[runs.len() / 2];
-    println!("scene: {}  {}x{} @ {} spp, {} threads", scene.source.display(), args.width, height, args.spp, best.threads);
+    println!(
+        "scene: {}  {}x{} @ {} spp, {} threads",
+        scene.source.display(),
+        args.width,
+        height,
+        args.spp,
+        best.threads
+    );
     for (name, s) in [("best", best), ("median", median)] {
         println!(
             "{name:>6}: {:.3} s  {:.1} k paths/s  {:.2} M rays/s  mean path length {:.1}",

@@ -76,11 +76,20 @@ pub struct VolumeFigures {
 pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32) -> VolumeFigures {
     let pyramid = &medium.pyramid;
     let global = pyramid.global_bounds();
-    let bounds = pyramid.world_bounds().unwrap_or(Aabb { min: Vec3::ZERO, max: Vec3::ZERO });
+    let bounds = pyramid.world_bounds().unwrap_or(Aabb {
+        min: Vec3::ZERO,
+        max: Vec3::ZERO,
+    });
     let centre = bounds.center();
     let radius = (bounds.extent().length() * 0.5).max(1e-6);
-    let mut modes: Vec<(String, MajorantMode)> =
-        (0..pyramid.level_count()).map(|l| (format!("level {l}"), MajorantMode::Hierarchical { finest: l as u8 })).collect();
+    let mut modes: Vec<(String, MajorantMode)> = (0..pyramid.level_count())
+        .map(|l| {
+            (
+                format!("level {l}"),
+                MajorantMode::Hierarchical { finest: l as u8 },
+            )
+        })
+        .collect();
     modes.push(("global".to_string(), MajorantMode::Global));
     let reports = pyramid.level_reports();
     let mut levels = Vec::new();
@@ -92,7 +101,8 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
         let mut segs: Vec<MajorantSegment> = Vec::new();
         for _ in 0..rays {
             let d = sample_uniform_sphere(rng.next_2d());
-            let offset = sample_uniform_sphere(rng.next_2d()) * (rng.next_f32().sqrt() * radius * 0.5);
+            let offset =
+                sample_uniform_sphere(rng.next_2d()) * (rng.next_f32().sqrt() * radius * 0.5);
             let ray = Ray::new(centre + offset - d * (2.0 * radius), d);
             segs.clear();
             pyramid.segments(&ray, 0.0, 4.0 * radius, *mode, &mut segs);
@@ -113,38 +123,70 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
         }
         let (cells, occupied, homogeneous) = match reports.get(i) {
             Some(r) if i < reports.len() => (r.cells, r.occupied, r.homogeneous),
-            _ => (1, usize::from(global.max > 0.0), usize::from(global.max > 0.0 && global.min == global.max)),
+            _ => (
+                1,
+                usize::from(global.max > 0.0),
+                usize::from(global.max > 0.0 && global.min == global.max),
+            ),
         };
         levels.push(LevelFigures {
             level: label.clone(),
             cells,
             occupied,
             homogeneous,
-            tightness: if majorant_integral > 0.0 { density_integral / majorant_integral } else { 1.0 },
-            lookups_per_unit_depth: if density_integral > 0.0 { lookup_integral / density_integral } else { 0.0 },
+            tightness: if majorant_integral > 0.0 {
+                density_integral / majorant_integral
+            } else {
+                1.0
+            },
+            lookups_per_unit_depth: if density_integral > 0.0 {
+                lookup_integral / density_integral
+            } else {
+                0.0
+            },
         });
     }
     let (max_violation, violation_samples) = violation_search(medium, samples);
-    VolumeFigures { name: name.to_string(), global_min: global.min, global_max: global.max, levels, max_violation, violation_samples }
+    VolumeFigures {
+        name: name.to_string(),
+        global_min: global.min,
+        global_max: global.max,
+        levels,
+        max_violation,
+        violation_samples,
+    }
 }
 
 /// Samples every occupied level-0 cell densely along random rays and reports the largest excess
 /// of the density over the segment bounds.
 fn violation_search(medium: &HeterogeneousMedium, samples: u32) -> (f64, u64) {
     let pyramid = &medium.pyramid;
-    let Some(bounds) = pyramid.world_bounds() else { return (0.0, 0) };
-    let occupied = pyramid.level_reports().first().map_or(0, |r| r.occupied).max(1);
+    let Some(bounds) = pyramid.world_bounds() else {
+        return (0.0, 0);
+    };
+    let occupied = pyramid
+        .level_reports()
+        .first()
+        .map_or(0, |r| r.occupied)
+        .max(1);
     let rays = ((occupied as u64 * samples as u64) / 64).clamp(64, 200_000);
     let mut rng = Rng::new(99, 5);
     let mut worst = 0.0f64;
     let mut count = 0u64;
     let mut segs = Vec::new();
     for _ in 0..rays {
-        let o = bounds.min + (bounds.max - bounds.min) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let o = bounds.min
+            + (bounds.max - bounds.min) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let d = sample_uniform_sphere(rng.next_2d());
         let ray = Ray::new(o, d);
         segs.clear();
-        pyramid.segments(&ray, 0.0, bounds.extent().length(), MajorantMode::Hierarchical { finest: 0 }, &mut segs);
+        pyramid.segments(
+            &ray,
+            0.0,
+            bounds.extent().length(),
+            MajorantMode::Hierarchical { finest: 0 },
+            &mut segs,
+        );
         let mut lookup = medium.density_along(&ray);
         for s in &segs {
             for _ in 0..4 {
@@ -158,7 +200,10 @@ fn violation_search(medium: &HeterogeneousMedium, samples: u32) -> (f64, u64) {
     (worst, count)
 }
 
-fn grids_from_vdb(path: &Path, only: Option<&str>) -> Result<Vec<(String, HeterogeneousMedium)>, Box<dyn std::error::Error + Send + Sync>> {
+fn grids_from_vdb(
+    path: &Path,
+    only: Option<&str>,
+) -> Result<Vec<(String, HeterogeneousMedium)>, Box<dyn std::error::Error + Send + Sync>> {
     let file = crate::vdb::VdbFile::open(path)?;
     let names: Vec<String> = match only {
         Some(n) => vec![n.to_string()],
@@ -174,9 +219,15 @@ fn grids_from_vdb(path: &Path, only: Option<&str>) -> Result<Vec<(String, Hetero
         g.check_finite()?;
         let pyramid = MajorantPyramid::from_grid(&g.grid, 0)?;
         let medium = HeterogeneousMedium {
-            field: DensityField::Grid { grid: g.grid, channel: 0 },
+            field: DensityField::Grid {
+                grid: g.grid,
+                channel: 0,
+            },
             pyramid,
-            coefficients: DensityCoefficients::new(crate::spectrum::Rgb::ONE, crate::spectrum::Rgb::ONE),
+            coefficients: DensityCoefficients::new(
+                crate::spectrum::Rgb::ONE,
+                crate::spectrum::Rgb::ONE,
+            ),
             phase: crate::phase::PhaseFunction::henyey_greenstein(0.0)?,
             tracking: TrackingConfig::default(),
         };
@@ -205,24 +256,43 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
             }
         }
         if v.is_empty() {
-            return Err(format!("{}: the scene has no heterogeneous (voxel or fbm) interior", args.input.display()).into());
+            return Err(format!(
+                "{}: the scene has no heterogeneous (voxel or fbm) interior",
+                args.input.display()
+            )
+            .into());
         }
         v
     } else {
         grids_from_vdb(&args.input, args.grid.as_deref())?
     };
-    let figures: Vec<VolumeFigures> = volumes.iter().map(|(n, m)| measure(n, m, args.rays, args.samples)).collect();
+    let figures: Vec<VolumeFigures> = volumes
+        .iter()
+        .map(|(n, m)| measure(n, m, args.rays, args.samples))
+        .collect();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&figures)?);
         return Ok(());
     }
     for f in &figures {
-        println!("{}: density in [{}, {}]", f.name, f.global_min, f.global_max);
-        println!("  {:<9} {:>9} {:>9} {:>11} {:>10} {:>16}", "level", "cells", "occupied", "homogeneous", "tightness", "lookups/depth");
+        println!(
+            "{}: density in [{}, {}]",
+            f.name, f.global_min, f.global_max
+        );
+        println!(
+            "  {:<9} {:>9} {:>9} {:>11} {:>10} {:>16}",
+            "level", "cells", "occupied", "homogeneous", "tightness", "lookups/depth"
+        );
         for l in &f.levels {
-            println!("  {:<9} {:>9} {:>9} {:>11} {:>10.4} {:>16.3}", l.level, l.cells, l.occupied, l.homogeneous, l.tightness, l.lookups_per_unit_depth);
+            println!(
+                "  {:<9} {:>9} {:>9} {:>11} {:>10.4} {:>16.3}",
+                l.level, l.cells, l.occupied, l.homogeneous, l.tightness, l.lookups_per_unit_depth
+            );
         }
-        println!("  largest bound violation: {:.3e} (over {} dense samples)", f.max_violation, f.violation_samples);
+        println!(
+            "  largest bound violation: {:.3e} (over {} dense samples)",
+            f.max_violation, f.violation_samples
+        );
     }
     Ok(())
 }

@@ -43,7 +43,9 @@ pub struct RenderArgs {
 }
 
 /// Loads the scene named by `args` (or the default one) and applies the command-line overrides.
-pub fn load_with_overrides(args: &RenderArgs) -> Result<Scene, Box<dyn std::error::Error + Send + Sync>> {
+pub fn load_with_overrides(
+    args: &RenderArgs,
+) -> Result<Scene, Box<dyn std::error::Error + Send + Sync>> {
     let mut scene = match &args.scene {
         Some(p) => Scene::load(p)?,
         None => crate::scene::default_scene()?,
@@ -80,7 +82,11 @@ pub fn load_with_overrides(args: &RenderArgs) -> Result<Scene, Box<dyn std::erro
 /// Runs `velour render`.
 pub fn run(args: &RenderArgs) -> CliResult {
     if !(args.checkpoint > 0.0) || !args.checkpoint.is_finite() {
-        return Err(format!("--checkpoint {} must be a positive number of seconds", args.checkpoint).into());
+        return Err(format!(
+            "--checkpoint {} must be a positive number of seconds",
+            args.checkpoint
+        )
+        .into());
     }
     let scene = load_with_overrides(args)?;
     for w in &scene.warnings {
@@ -102,7 +108,11 @@ pub fn run(args: &RenderArgs) -> CliResult {
         scene.film.seed
     );
     let (_film, summary) = render(&scene, &options)?;
-    println!("wrote {} and {}", output.display(), png_path_for(&output).display());
+    println!(
+        "wrote {} and {}",
+        output.display(),
+        png_path_for(&output).display()
+    );
     println!("{summary}");
     Ok(())
 }

@@ -357,7 +357,9 @@ impl SceneGeometry {
                 let p = &self.prims[slot];
                 // p = c + r n: rounding grows with |c| + r, not with |p|.
                 let p_error = match self.shapes.get(p.shape as usize) {
-                    Some(Shape::Sphere { center, radius }) => crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius),
+                    Some(Shape::Sphere { center, radius }) => {
+                        crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius)
+                    }
                     _ => crate::math::gamma(6) * 4.0 * h.p.abs().max_element(),
                 };
                 Hit {
@@ -389,7 +391,9 @@ impl SceneGeometry {
                     }
                 }
                 // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
-                let p_error = crate::math::gamma(7) * (p.a.abs() * h.b0.abs() + p.b.abs() * h.b1.abs() + p.c.abs() * h.b2.abs()).max_element();
+                let p_error = crate::math::gamma(7)
+                    * (p.a.abs() * h.b0.abs() + p.b.abs() * h.b1.abs() + p.c.abs() * h.b2.abs())
+                        .max_element();
                 Hit {
                     t: h.t,
                     p: pos,

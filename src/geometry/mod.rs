@@ -250,7 +250,11 @@ impl Hit {
     /// one can be re-hit or skipped (large spheres have errors far above one ULP of `p`).
     #[must_use]
     pub fn spawn_origin(&self, dir: Vec3) -> Vec3 {
-        let n = if self.ng.dot(dir) < 0.0 { -self.ng } else { self.ng };
+        let n = if self.ng.dot(dir) < 0.0 {
+            -self.ng
+        } else {
+            self.ng
+        };
         crate::math::offset_ray_origin(self.p + n * self.p_error, self.ng, dir)
     }
 }

@@ -330,8 +330,16 @@ impl Prepared<'_> {
         // floor is not evidence of bias, however small the estimated variances are (e.g.
         // pixels that every sample estimates to within rounding).
         let floor = (ROUNDING_FLOOR * a.abs().max(b.abs())).powi(2);
-        let var = if d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) && va + vb < floor { 0.0 } else { va + vb };
-        let d = if var == 0.0 && d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) { 0.0 } else { d };
+        let var = if d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) && va + vb < floor {
+            0.0
+        } else {
+            va + vb
+        };
+        let d = if var == 0.0 && d.abs() <= ROUNDING_FLOOR * a.abs().max(b.abs()) {
+            0.0
+        } else {
+            d
+        };
         if var == 0.0 {
             let z = if d == 0.0 {
                 0.0

@@ -2,14 +2,22 @@
 
 use std::path::{Path, PathBuf};
 
-use super::desc::{ColorValue, InteriorDesc, LightDesc, ObjectDesc, ScaleValue, SceneFile, SurfaceDesc};
-use super::{CameraParams, DielectricParams, FilmSettings, Object, ObjectSurface, Scene, SceneError, ShapeOwner};
+use super::desc::{
+    ColorValue, InteriorDesc, LightDesc, ObjectDesc, ScaleValue, SceneFile, SurfaceDesc,
+};
+use super::{
+    CameraParams, DielectricParams, FilmSettings, Object, ObjectSurface, Scene, SceneError,
+    ShapeOwner,
+};
 use crate::bsdf::{MicrofacetDistribution, Surface};
 use crate::camera::Camera;
 use crate::geometry::{load_ply, SceneGeometry, Shape};
 use crate::light::{EnvironmentMap, Light, LightSampler};
 use crate::math::{Aabb, Mat4, Vec3};
-use crate::medium::{AlbedoMode, Coefficients, DensityField, FreeFlightMethod, HeterogeneousMedium, HomogeneousMedium, Medium, NeeStrategy, TrackingConfig};
+use crate::medium::{
+    AlbedoMode, Coefficients, DensityField, FreeFlightMethod, HeterogeneousMedium,
+    HomogeneousMedium, Medium, NeeStrategy, TrackingConfig,
+};
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
 
@@ -26,10 +34,18 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn line_of(&self, offset: usize) -> usize {
-        self.text[..offset.min(self.text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+        self.text[..offset.min(self.text.len())]
+            .bytes()
+            .filter(|&b| b == b'\n')
+            .count()
+            + 1
     }
     fn invalid(&self, line: usize, message: impl Into<String>) -> SceneError {
-        SceneError::Invalid { path: self.path.to_path_buf(), line, message: message.into() }
+        SceneError::Invalid {
+            path: self.path.to_path_buf(),
+            line,
+            message: message.into(),
+        }
     }
     fn resolve(&self, file: &str) -> PathBuf {
         let p = Path::new(file);
@@ -43,7 +59,10 @@ impl Ctx<'_> {
 
 /// Reads and builds a scene file.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     load_scene_str(&text, path)
 }
 
@@ -75,10 +94,18 @@ fn parse_error(ctx: &Ctx, e: &toml::de::Error) -> SceneError {
                     break;
                 }
             }
-            return SceneError::Parse { path: ctx.path.to_path_buf(), line, message: format!("unknown key `{key}` ({message})") };
+            return SceneError::Parse {
+                path: ctx.path.to_path_buf(),
+                line,
+                message: format!("unknown key `{key}` ({message})"),
+            };
         }
     }
-    SceneError::Parse { path: ctx.path.to_path_buf(), line, message }
+    SceneError::Parse {
+        path: ctx.path.to_path_buf(),
+        line,
+        message,
+    }
 }
 
 fn color(v: Option<ColorValue>, default: Rgb) -> Rgb {
@@ -89,18 +116,41 @@ fn color(v: Option<ColorValue>, default: Rgb) -> Rgb {
     }
 }
 
-fn check_finite_rgb(ctx: &Ctx, line: usize, what: &str, c: Rgb, min: f32, max: f32) -> Result<Rgb, SceneError> {
+fn check_finite_rgb(
+    ctx: &Ctx,
+    line: usize,
+    what: &str,
+    c: Rgb,
+    min: f32,
+    max: f32,
+) -> Result<Rgb, SceneError> {
     for v in c.0 {
         if !v.is_finite() || v < min || v > max {
-            return Err(ctx.invalid(line, format!("{what} = {:?} is outside [{min}, {max}] (or not finite)", c.0)));
+            return Err(ctx.invalid(
+                line,
+                format!(
+                    "{what} = {:?} is outside [{min}, {max}] (or not finite)",
+                    c.0
+                ),
+            ));
         }
     }
     Ok(c)
 }
 
-fn check_range(ctx: &Ctx, line: usize, what: &str, v: f32, min: f32, max: f32) -> Result<f32, SceneError> {
+fn check_range(
+    ctx: &Ctx,
+    line: usize,
+    what: &str,
+    v: f32,
+    min: f32,
+    max: f32,
+) -> Result<f32, SceneError> {
     if !v.is_finite() || v < min || v > max {
-        return Err(ctx.invalid(line, format!("{what} = {v} is outside [{min}, {max}] (or not finite)")));
+        return Err(ctx.invalid(
+            line,
+            format!("{what} = {v} is outside [{min}, {max}] (or not finite)"),
+        ));
     }
     Ok(v)
 }
@@ -113,10 +163,19 @@ fn vec3(ctx: &Ctx, line: usize, what: &str, v: [f32; 3]) -> Result<Vec3, SceneEr
 }
 
 /// Rejects keys that the chosen `type` does not use (they are almost always mistakes).
-fn reject_unused(ctx: &Ctx, line: usize, owner: &str, kind: &str, present: &[(&str, bool)]) -> Result<(), SceneError> {
+fn reject_unused(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    kind: &str,
+    present: &[(&str, bool)],
+) -> Result<(), SceneError> {
     for (key, is_set) in present {
         if *is_set {
-            return Err(ctx.invalid(line, format!("{owner}: key `{key}` is not used by type \"{kind}\"")));
+            return Err(ctx.invalid(
+                line,
+                format!("{owner}: key `{key}` is not used by type \"{kind}\""),
+            ));
         }
     }
     Ok(())
@@ -134,7 +193,10 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
     for (index, spanned) in file.object.iter().enumerate() {
         let line = ctx.line_of(spanned.span().start);
         let desc = spanned.get_ref();
-        let name = desc.name.clone().unwrap_or_else(|| format!("object {}", index + 1));
+        let name = desc
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("object {}", index + 1));
         let (xf, uniform) = object_transform(ctx, line, &name, desc)?;
         let rest = build_rest_shape(ctx, line, &name, desc, uniform)?;
         let (surface, ior) = build_surface(ctx, line, &name, desc.surface.as_ref())?;
@@ -157,20 +219,32 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
             }
             RestShape::Sphere { center, radius } => {
                 let scale = uniform.unwrap_or(1.0).abs();
-                (Shape::Sphere { center: xf.transform_point3(center), radius: radius * scale }, false)
+                (
+                    Shape::Sphere {
+                        center: xf.transform_point3(center),
+                        radius: radius * scale,
+                    },
+                    false,
+                )
             }
             RestShape::Bounds => {
                 let Some(Medium::Heterogeneous(h)) = medium.map(|m| &media[m as usize]) else {
-                    return Err(ctx.invalid(line, format!("{name}: shape \"bounds\" needs a \"voxel\" or \"fbm\" interior")));
+                    return Err(ctx.invalid(
+                        line,
+                        format!("{name}: shape \"bounds\" needs a \"voxel\" or \"fbm\" interior"),
+                    ));
                 };
-                let b = h.pyramid.world_bounds().ok_or_else(|| ctx.invalid(line, format!("{name}: the interior's grid is empty")))?;
+                let b = h.pyramid.world_bounds().ok_or_else(|| {
+                    ctx.invalid(line, format!("{name}: the interior's grid is empty"))
+                })?;
                 (Shape::Mesh(box_mesh(b)), false)
             }
         };
         // Exit-point NEE needs a scattering boundary: behind an index-matched one (no surface,
         // or a dielectric of IOR 1) it would never happen, so NEE moves to the interior
         // vertices, where transparent shadows through such a boundary are exact.
-        let index_matched = matches!(&surface, ObjectSurface::Null) || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
+        let index_matched = matches!(&surface, ObjectSurface::Null)
+            || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
         let nee = if medium.is_some() && index_matched && nee == NeeStrategy::ExitPoint {
             if desc.interior.as_ref().is_some_and(|i| i.nee.is_some()) {
                 warnings.push(format!(
@@ -186,7 +260,10 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
             warnings.push(format!("{}:{line}: {name}: has an interior but its surface does not transmit light; the interior is never reached", ctx.path.display()));
         }
         if medium.is_none() && matches!(surface, ObjectSurface::Null) {
-            return Err(ctx.invalid(line, format!("{name}: an object needs a surface, an interior, or both")));
+            return Err(ctx.invalid(
+                line,
+                format!("{name}: an object needs a surface, an interior, or both"),
+            ));
         }
         if open_mesh && surface.transmits() {
             warnings.push(format!(
@@ -194,7 +271,14 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
                 ctx.path.display()
             ));
         }
-        objects.push(Object { name, surface, medium, priority: desc.priority.unwrap_or(0), ior, nee });
+        objects.push(Object {
+            name,
+            surface,
+            medium,
+            priority: desc.priority.unwrap_or(0),
+            ior,
+            nee,
+        });
         shapes.push(shape);
         shape_owner.push(ShapeOwner::Object((objects.len() - 1) as u32));
     }
@@ -204,20 +288,43 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
         let line = ctx.line_of(spanned.span().start);
         let light = build_light(ctx, line, spanned.get_ref())?;
         if let Light::Sphere { center, radius, .. } = &light {
-            shapes.push(Shape::Sphere { center: *center, radius: *radius });
+            shapes.push(Shape::Sphere {
+                center: *center,
+                radius: *radius,
+            });
             shape_owner.push(ShapeOwner::Light(lights.len() as u32));
         }
         lights.push(light);
     }
     if lights.is_empty() {
-        warnings.push(format!("{}: the scene has no lights; the image will be black", ctx.path.display()));
+        warnings.push(format!(
+            "{}: the scene has no lights; the image will be black",
+            ctx.path.display()
+        ));
     }
 
-    let geometry = SceneGeometry::build(shapes).map_err(|e| ctx.invalid(1, format!("building the geometry: {e}")))?;
+    let geometry = SceneGeometry::build(shapes)
+        .map_err(|e| ctx.invalid(1, format!("building the geometry: {e}")))?;
     let b = geometry.bounds();
-    let radius = if b.is_valid() { (b.extent().length() * 0.5).max(1e-3) } else { 1.0 };
+    let radius = if b.is_valid() {
+        (b.extent().length() * 0.5).max(1e-3)
+    } else {
+        1.0
+    };
     let light_sampler = LightSampler::new(&lights, radius);
-    Ok(Scene { camera, camera_params, film, lights, light_sampler, geometry, objects, media, shape_owner, warnings, source: ctx.path.to_path_buf() })
+    Ok(Scene {
+        camera,
+        camera_params,
+        film,
+        lights,
+        light_sampler,
+        geometry,
+        objects,
+        media,
+        shape_owner,
+        warnings,
+        source: ctx.path.to_path_buf(),
+    })
 }
 
 fn build_film(ctx: &Ctx, file: &SceneFile) -> Result<FilmSettings, SceneError> {
@@ -230,7 +337,12 @@ fn build_film(ctx: &Ctx, file: &SceneFile) -> Result<FilmSettings, SceneError> {
         output: None,
         exposure: None,
     });
-    let line = ctx.text.lines().position(|l| l.trim() == "[film]").map(|i| i + 1).unwrap_or(1);
+    let line = ctx
+        .text
+        .lines()
+        .position(|l| l.trim() == "[film]")
+        .map(|i| i + 1)
+        .unwrap_or(1);
     let width = f.width.unwrap_or(480);
     let height = f.height.unwrap_or(360);
     for (k, v) in [("film.width", width), ("film.height", height)] {
@@ -244,67 +356,188 @@ fn build_film(ctx: &Ctx, file: &SceneFile) -> Result<FilmSettings, SceneError> {
     }
     let max_depth = f.max_depth.unwrap_or(256);
     if max_depth == 0 || max_depth > 1_000_000 {
-        return Err(ctx.invalid(line, format!("film.max_depth = {max_depth} is outside [1, 1000000]")));
+        return Err(ctx.invalid(
+            line,
+            format!("film.max_depth = {max_depth} is outside [1, 1000000]"),
+        ));
     }
-    let exposure = check_range(ctx, line, "film.exposure", f.exposure.unwrap_or(0.0), -30.0, 30.0)?;
+    let exposure = check_range(
+        ctx,
+        line,
+        "film.exposure",
+        f.exposure.unwrap_or(0.0),
+        -30.0,
+        30.0,
+    )?;
     let output = match &f.output {
         // Outputs are relative to the working directory (inputs to the scene file).
         Some(o) => PathBuf::from(o),
         None => {
-            let stem = ctx.path.file_stem().and_then(|s| s.to_str()).filter(|s| !s.starts_with('<')).unwrap_or("default");
+            let stem = ctx
+                .path
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .filter(|s| !s.starts_with('<'))
+                .unwrap_or("default");
             PathBuf::from("out").join(format!("{stem}.exr"))
         }
     };
-    Ok(FilmSettings { width, height, spp, seed: f.seed.unwrap_or(0), max_depth, output, exposure })
+    Ok(FilmSettings {
+        width,
+        height,
+        spp,
+        seed: f.seed.unwrap_or(0),
+        max_depth,
+        output,
+        exposure,
+    })
 }
 
-fn build_camera(ctx: &Ctx, file: &SceneFile, film: &FilmSettings) -> Result<(Camera, CameraParams), SceneError> {
-    let line = ctx.text.lines().position(|l| l.trim() == "[camera]").map(|i| i + 1).unwrap_or(1);
-    let c = file.camera.clone().ok_or_else(|| ctx.invalid(1, "missing [camera] table"))?;
-    let eye = vec3(ctx, line, "camera.eye", c.eye.ok_or_else(|| ctx.invalid(line, "camera.eye is required"))?)?;
-    let look_at = vec3(ctx, line, "camera.look_at", c.look_at.ok_or_else(|| ctx.invalid(line, "camera.look_at is required"))?)?;
+fn build_camera(
+    ctx: &Ctx,
+    file: &SceneFile,
+    film: &FilmSettings,
+) -> Result<(Camera, CameraParams), SceneError> {
+    let line = ctx
+        .text
+        .lines()
+        .position(|l| l.trim() == "[camera]")
+        .map(|i| i + 1)
+        .unwrap_or(1);
+    let c = file
+        .camera
+        .clone()
+        .ok_or_else(|| ctx.invalid(1, "missing [camera] table"))?;
+    let eye = vec3(
+        ctx,
+        line,
+        "camera.eye",
+        c.eye
+            .ok_or_else(|| ctx.invalid(line, "camera.eye is required"))?,
+    )?;
+    let look_at = vec3(
+        ctx,
+        line,
+        "camera.look_at",
+        c.look_at
+            .ok_or_else(|| ctx.invalid(line, "camera.look_at is required"))?,
+    )?;
     let up = vec3(ctx, line, "camera.up", c.up.unwrap_or([0.0, 1.0, 0.0]))?;
     let fov = check_range(ctx, line, "camera.fov", c.fov.unwrap_or(40.0), 1e-3, 179.0)?;
     let kind = c.kind.as_deref().unwrap_or("pinhole");
     let lens = match kind {
         "pinhole" => {
-            reject_unused(ctx, line, "camera", kind, &[("aperture_radius", c.aperture_radius.is_some()), ("focus_distance", c.focus_distance.is_some())])?;
+            reject_unused(
+                ctx,
+                line,
+                "camera",
+                kind,
+                &[
+                    ("aperture_radius", c.aperture_radius.is_some()),
+                    ("focus_distance", c.focus_distance.is_some()),
+                ],
+            )?;
             None
         }
         "thin_lens" => {
-            let aperture = check_range(ctx, line, "camera.aperture_radius", c.aperture_radius.unwrap_or(0.0), 0.0, 1e6)?;
-            let focus = check_range(ctx, line, "camera.focus_distance", c.focus_distance.unwrap_or((look_at - eye).length()), 1e-6, 1e9)?;
+            let aperture = check_range(
+                ctx,
+                line,
+                "camera.aperture_radius",
+                c.aperture_radius.unwrap_or(0.0),
+                0.0,
+                1e6,
+            )?;
+            let focus = check_range(
+                ctx,
+                line,
+                "camera.focus_distance",
+                c.focus_distance.unwrap_or((look_at - eye).length()),
+                1e-6,
+                1e9,
+            )?;
             Some((aperture, focus))
         }
-        other => return Err(ctx.invalid(line, format!("camera.type = \"{other}\" is unknown (expected \"pinhole\" or \"thin_lens\")"))),
+        other => {
+            return Err(ctx.invalid(
+                line,
+                format!(
+                    "camera.type = \"{other}\" is unknown (expected \"pinhole\" or \"thin_lens\")"
+                ),
+            ))
+        }
     };
-    let params = CameraParams { eye, look_at, up, fov, lens };
-    let cam = params.build(film.width, film.height).map_err(|e| ctx.invalid(line, format!("camera: {e}")))?;
+    let params = CameraParams {
+        eye,
+        look_at,
+        up,
+        fov,
+        lens,
+    };
+    let cam = params
+        .build(film.width, film.height)
+        .map_err(|e| ctx.invalid(line, format!("camera: {e}")))?;
     Ok((cam, params))
 }
 
-fn object_transform(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc) -> Result<(Mat4, Option<f32>), SceneError> {
-    let t = vec3(ctx, line, &format!("{name}: translate"), d.translate.unwrap_or([0.0; 3]))?;
-    let r = vec3(ctx, line, &format!("{name}: rotate"), d.rotate.unwrap_or([0.0; 3]))?;
+fn object_transform(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    d: &ObjectDesc,
+) -> Result<(Mat4, Option<f32>), SceneError> {
+    let t = vec3(
+        ctx,
+        line,
+        &format!("{name}: translate"),
+        d.translate.unwrap_or([0.0; 3]),
+    )?;
+    let r = vec3(
+        ctx,
+        line,
+        &format!("{name}: rotate"),
+        d.rotate.unwrap_or([0.0; 3]),
+    )?;
     let (s, uniform) = match d.scale {
         None => (Vec3::ONE, Some(1.0)),
         Some(ScaleValue::Uniform(u)) => (Vec3::splat(u), Some(u)),
         Some(ScaleValue::PerAxis(a)) => {
             let v = vec3(ctx, line, &format!("{name}: scale"), a)?;
-            (v, if v.x == v.y && v.y == v.z { Some(v.x) } else { None })
+            (
+                v,
+                if v.x == v.y && v.y == v.z {
+                    Some(v.x)
+                } else {
+                    None
+                },
+            )
         }
     };
     if !s.is_finite() || s.abs().min_element() < 1e-12 || s.abs().max_element() > 1e12 {
-        return Err(ctx.invalid(line, format!("{name}: scale {:?} must be finite and non-zero", s.to_array())));
+        return Err(ctx.invalid(
+            line,
+            format!(
+                "{name}: scale {:?} must be finite and non-zero",
+                s.to_array()
+            ),
+        ));
     }
-    let rot = Mat4::from_rotation_z(r.z.to_radians()) * Mat4::from_rotation_y(r.y.to_radians()) * Mat4::from_rotation_x(r.x.to_radians());
-    Ok((Mat4::from_translation(t) * rot * Mat4::from_scale(s), uniform))
+    let rot = Mat4::from_rotation_z(r.z.to_radians())
+        * Mat4::from_rotation_y(r.y.to_radians())
+        * Mat4::from_rotation_x(r.x.to_radians());
+    Ok((
+        Mat4::from_translation(t) * rot * Mat4::from_scale(s),
+        uniform,
+    ))
 }
 
 /// A shape in the object's rest space.
 enum RestShape {
     Mesh(crate::geometry::TriangleMesh),
-    Sphere { center: Vec3, radius: f32 },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+    },
     /// The world box of the interior's grid.
     Bounds,
 }
@@ -313,7 +546,10 @@ impl RestShape {
     fn bounds(&self) -> Option<Aabb> {
         match self {
             RestShape::Mesh(m) => Some(m.bounds()),
-            RestShape::Sphere { center, radius } => Some(Aabb { min: *center - Vec3::splat(*radius), max: *center + Vec3::splat(*radius) }),
+            RestShape::Sphere { center, radius } => Some(Aabb {
+                min: *center - Vec3::splat(*radius),
+                max: *center + Vec3::splat(*radius),
+            }),
             RestShape::Bounds => None,
         }
     }
@@ -321,20 +557,44 @@ impl RestShape {
 
 /// A closed, outward-wound box mesh.
 fn box_mesh(b: Aabb) -> crate::geometry::TriangleMesh {
-    let c = |i: usize| Vec3::new(if i & 1 != 0 { b.max.x } else { b.min.x }, if i & 2 != 0 { b.max.y } else { b.min.y }, if i & 4 != 0 { b.max.z } else { b.min.z });
+    let c = |i: usize| {
+        Vec3::new(
+            if i & 1 != 0 { b.max.x } else { b.min.x },
+            if i & 2 != 0 { b.max.y } else { b.min.y },
+            if i & 4 != 0 { b.max.z } else { b.min.z },
+        )
+    };
     let positions = (0..8).map(c).collect();
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
     let mut indices = Vec::new();
     for q in quads {
         indices.push([q[0], q[1], q[2]]);
         indices.push([q[0], q[2], q[3]]);
     }
-    let mut mesh = crate::geometry::TriangleMesh { positions, normals: None, uvs: None, indices };
+    let mut mesh = crate::geometry::TriangleMesh {
+        positions,
+        normals: None,
+        uvs: None,
+        indices,
+    };
     mesh.make_outward();
     mesh
 }
 
-fn build_rest_shape(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc, uniform: Option<f32>) -> Result<RestShape, SceneError> {
+fn build_rest_shape(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    d: &ObjectDesc,
+    uniform: Option<f32>,
+) -> Result<RestShape, SceneError> {
     match d.shape.as_str() {
         "mesh" => {
             reject_unused(ctx, line, name, "mesh", &[("center", d.center.is_some()), ("radius", d.radius.is_some())])?;
@@ -360,7 +620,12 @@ fn build_rest_shape(ctx: &Ctx, line: usize, name: &str, d: &ObjectDesc, uniform:
     }
 }
 
-fn distribution(ctx: &Ctx, line: usize, name: &str, d: Option<&str>) -> Result<MicrofacetDistribution, SceneError> {
+fn distribution(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    d: Option<&str>,
+) -> Result<MicrofacetDistribution, SceneError> {
     match d.unwrap_or("ggx") {
         "ggx" => Ok(MicrofacetDistribution::Ggx),
         "beckmann" => Ok(MicrofacetDistribution::Beckmann),
@@ -368,17 +633,52 @@ fn distribution(ctx: &Ctx, line: usize, name: &str, d: Option<&str>) -> Result<M
     }
 }
 
-fn build_surface(ctx: &Ctx, line: usize, name: &str, s: Option<&SurfaceDesc>) -> Result<(ObjectSurface, f32), SceneError> {
-    let Some(s) = s else { return Ok((ObjectSurface::Null, 1.0)) };
+fn build_surface(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    s: Option<&SurfaceDesc>,
+) -> Result<(ObjectSurface, f32), SceneError> {
+    let Some(s) = s else {
+        return Ok((ObjectSurface::Null, 1.0));
+    };
     let owner = format!("{name}: surface");
     let bad = |e: &dyn std::fmt::Display| ctx.invalid(line, format!("{owner}: {e}"));
-    let roughness = check_range(ctx, line, &format!("{owner}.roughness"), s.roughness.unwrap_or(0.0), 0.0, 1.0)?;
+    let roughness = check_range(
+        ctx,
+        line,
+        &format!("{owner}.roughness"),
+        s.roughness.unwrap_or(0.0),
+        0.0,
+        1.0,
+    )?;
     let coat = match &s.coat {
         None => None,
         Some(c) => {
-            let ior = check_range(ctx, line, &format!("{owner}.coat.ior"), c.ior.unwrap_or(1.5), 1.0, 4.0)?;
-            let r = check_range(ctx, line, &format!("{owner}.coat.roughness"), c.roughness.unwrap_or(0.1), 0.0, 1.0)?;
-            let w = check_range(ctx, line, &format!("{owner}.coat.weight"), c.weight.unwrap_or(1.0), 0.0, 1.0)?;
+            let ior = check_range(
+                ctx,
+                line,
+                &format!("{owner}.coat.ior"),
+                c.ior.unwrap_or(1.5),
+                1.0,
+                4.0,
+            )?;
+            let r = check_range(
+                ctx,
+                line,
+                &format!("{owner}.coat.roughness"),
+                c.roughness.unwrap_or(0.1),
+                0.0,
+                1.0,
+            )?;
+            let w = check_range(
+                ctx,
+                line,
+                &format!("{owner}.coat.weight"),
+                c.weight.unwrap_or(1.0),
+                0.0,
+                1.0,
+            )?;
             Some((ior, r, w))
         }
     };
@@ -434,37 +734,117 @@ fn build_surface(ctx: &Ctx, line: usize, name: &str, s: Option<&SurfaceDesc>) ->
     }
 }
 
-fn build_phase(ctx: &Ctx, line: usize, owner: &str, p: Option<&super::desc::PhaseDesc>) -> Result<PhaseFunction, SceneError> {
+fn build_phase(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    p: Option<&super::desc::PhaseDesc>,
+) -> Result<PhaseFunction, SceneError> {
     let bad = |e: &dyn std::fmt::Display| ctx.invalid(line, format!("{owner}.phase: {e}"));
-    let Some(p) = p else { return PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e)) };
+    let Some(p) = p else {
+        return PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e));
+    };
     match p.kind.as_deref().unwrap_or("hg") {
         "hg" => {
-            reject_unused(ctx, line, &format!("{owner}.phase"), "hg", &[("g1", p.g1.is_some()), ("g2", p.g2.is_some()), ("w", p.w.is_some())])?;
-            let g = check_range(ctx, line, &format!("{owner}.phase.g"), p.g.unwrap_or(0.0), -1.0, 1.0)?;
+            reject_unused(
+                ctx,
+                line,
+                &format!("{owner}.phase"),
+                "hg",
+                &[
+                    ("g1", p.g1.is_some()),
+                    ("g2", p.g2.is_some()),
+                    ("w", p.w.is_some()),
+                ],
+            )?;
+            let g = check_range(
+                ctx,
+                line,
+                &format!("{owner}.phase.g"),
+                p.g.unwrap_or(0.0),
+                -1.0,
+                1.0,
+            )?;
             PhaseFunction::henyey_greenstein(g).map_err(|e| bad(&e))
         }
         "double_hg" => {
-            reject_unused(ctx, line, &format!("{owner}.phase"), "double_hg", &[("g", p.g.is_some())])?;
-            let g1 = check_range(ctx, line, &format!("{owner}.phase.g1"), p.g1.unwrap_or(0.8), -1.0, 1.0)?;
-            let g2 = check_range(ctx, line, &format!("{owner}.phase.g2"), p.g2.unwrap_or(-0.3), -1.0, 1.0)?;
-            let w = check_range(ctx, line, &format!("{owner}.phase.w"), p.w.unwrap_or(0.7), 0.0, 1.0)?;
+            reject_unused(
+                ctx,
+                line,
+                &format!("{owner}.phase"),
+                "double_hg",
+                &[("g", p.g.is_some())],
+            )?;
+            let g1 = check_range(
+                ctx,
+                line,
+                &format!("{owner}.phase.g1"),
+                p.g1.unwrap_or(0.8),
+                -1.0,
+                1.0,
+            )?;
+            let g2 = check_range(
+                ctx,
+                line,
+                &format!("{owner}.phase.g2"),
+                p.g2.unwrap_or(-0.3),
+                -1.0,
+                1.0,
+            )?;
+            let w = check_range(
+                ctx,
+                line,
+                &format!("{owner}.phase.w"),
+                p.w.unwrap_or(0.7),
+                0.0,
+                1.0,
+            )?;
             PhaseFunction::double_henyey_greenstein(g1, g2, w).map_err(|e| bad(&e))
         }
-        other => Err(ctx.invalid(line, format!("{owner}.phase.type = \"{other}\" is unknown (expected \"hg\" or \"double_hg\")"))),
+        other => Err(ctx.invalid(
+            line,
+            format!(
+                "{owner}.phase.type = \"{other}\" is unknown (expected \"hg\" or \"double_hg\")"
+            ),
+        )),
     }
 }
 
-fn build_medium_nee(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc) -> Result<NeeStrategy, SceneError> {
+fn build_medium_nee(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    i: &InteriorDesc,
+) -> Result<NeeStrategy, SceneError> {
     match i.nee.as_deref().unwrap_or("exit") {
         "exit" => Ok(NeeStrategy::ExitPoint),
         "interior" => Ok(NeeStrategy::Interior),
-        other => Err(ctx.invalid(line, format!("{name}: interior.nee = \"{other}\" is unknown (expected \"exit\" or \"interior\")"))),
+        other => Err(ctx.invalid(
+            line,
+            format!(
+                "{name}: interior.nee = \"{other}\" is unknown (expected \"exit\" or \"interior\")"
+            ),
+        )),
     }
 }
 
-fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc, xf: Mat4, rest_bounds: Option<Aabb>) -> Result<(Medium, NeeStrategy), SceneError> {
+fn build_medium(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    i: &InteriorDesc,
+    xf: Mat4,
+    rest_bounds: Option<Aabb>,
+) -> Result<(Medium, NeeStrategy), SceneError> {
     let owner = format!("{name}: interior");
-    let density = check_range(ctx, line, &format!("{owner}.density"), i.density.unwrap_or(1.0), 0.0, 1e12)?;
+    let density = check_range(
+        ctx,
+        line,
+        &format!("{owner}.density"),
+        i.density.unwrap_or(1.0),
+        0.0,
+        1e12,
+    )?;
     let attenuation = color(i.attenuation, Rgb::ONE);
     for v in attenuation.0 {
         if !(v > 0.0) || v.is_nan() {
@@ -539,7 +919,12 @@ fn build_medium(ctx: &Ctx, line: usize, name: &str, i: &InteriorDesc, xf: Mat4, 
     }
 }
 
-fn albedo_mode(ctx: &Ctx, line: usize, owner: &str, i: &InteriorDesc) -> Result<AlbedoMode, SceneError> {
+fn albedo_mode(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    i: &InteriorDesc,
+) -> Result<AlbedoMode, SceneError> {
     match i.albedo_mode.as_deref().unwrap_or("multiple") {
         "multiple" => Ok(AlbedoMode::MultipleScattering),
         "single" => Ok(AlbedoMode::SingleScattering),
@@ -547,16 +932,35 @@ fn albedo_mode(ctx: &Ctx, line: usize, owner: &str, i: &InteriorDesc) -> Result<
     }
 }
 
-fn build_tracking(ctx: &Ctx, line: usize, owner: &str, t: Option<&super::desc::TrackingDesc>) -> Result<TrackingConfig, SceneError> {
+fn build_tracking(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    t: Option<&super::desc::TrackingDesc>,
+) -> Result<TrackingConfig, SceneError> {
     use crate::majorant::MajorantMode;
     use crate::tracking::{ControlVariate, TransmittanceMode};
     let mut cfg = TrackingConfig::default();
     let Some(t) = t else { return Ok(cfg) };
     let step = match t.step {
-        Some(s) => Some(check_range(ctx, line, &format!("{owner}.tracking.step"), s, 1e-9, 1e9)?),
+        Some(s) => Some(check_range(
+            ctx,
+            line,
+            &format!("{owner}.tracking.step"),
+            s,
+            1e-9,
+            1e9,
+        )?),
         None => None,
     };
-    let need_step = || step.ok_or_else(|| ctx.invalid(line, format!("{owner}.tracking: ray marching needs `step` (world units)")));
+    let need_step = || {
+        step.ok_or_else(|| {
+            ctx.invalid(
+                line,
+                format!("{owner}.tracking: ray marching needs `step` (world units)"),
+            )
+        })
+    };
     cfg.free_flight = match t.free_flight.as_deref().unwrap_or("delta") {
         "delta" => FreeFlightMethod::DeltaTracking,
         "ray_march" => FreeFlightMethod::RayMarching { step: need_step()? },
@@ -576,7 +980,10 @@ fn build_tracking(ctx: &Ctx, line: usize, owner: &str, t: Option<&super::desc::T
     };
     let level = t.level.unwrap_or(0);
     if level > 20 {
-        return Err(ctx.invalid(line, format!("{owner}.tracking.level = {level} is outside [0, 20]")));
+        return Err(ctx.invalid(
+            line,
+            format!("{owner}.tracking.level = {level} is outside [0, 20]"),
+        ));
     }
     cfg.majorant = match t.majorant.as_deref().unwrap_or("pyramid") {
         "pyramid" => MajorantMode::Hierarchical { finest: level },
@@ -586,24 +993,55 @@ fn build_tracking(ctx: &Ctx, line: usize, owner: &str, t: Option<&super::desc::T
     Ok(cfg)
 }
 
-fn build_voxel_field(ctx: &Ctx, line: usize, owner: &str, i: &InteriorDesc, xf: glam::DAffine3) -> Result<(DensityField, crate::majorant::MajorantPyramid), SceneError> {
-    let file = i.file.as_ref().ok_or_else(|| ctx.invalid(line, format!("{owner}: a voxel interior needs `file` (an OpenVDB file)")))?;
+fn build_voxel_field(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    i: &InteriorDesc,
+    xf: glam::DAffine3,
+) -> Result<(DensityField, crate::majorant::MajorantPyramid), SceneError> {
+    let file = i.file.as_ref().ok_or_else(|| {
+        ctx.invalid(
+            line,
+            format!("{owner}: a voxel interior needs `file` (an OpenVDB file)"),
+        )
+    })?;
     let path = ctx.resolve(file);
     let name = i.grid.as_deref().unwrap_or("density");
-    let mut grids = crate::vdb::read_vdb_grids(&path, &[name]).map_err(|e| ctx.invalid(line, format!("{owner}: {e}")))?;
-    let vg = grids.pop().ok_or_else(|| ctx.invalid(line, format!("{owner}: {}: no grid {name}", path.display())))?;
-    vg.check_finite().map_err(|e| ctx.invalid(line, format!("{owner}: {}: {e}", path.display())))?;
+    let mut grids = crate::vdb::read_vdb_grids(&path, &[name])
+        .map_err(|e| ctx.invalid(line, format!("{owner}: {e}")))?;
+    let vg = grids
+        .pop()
+        .ok_or_else(|| ctx.invalid(line, format!("{owner}: {}: no grid {name}", path.display())))?;
+    vg.check_finite()
+        .map_err(|e| ctx.invalid(line, format!("{owner}: {}: {e}", path.display())))?;
     if vg.grid.channel_kind(0) != Some(crate::grid::ChannelKind::Scalar) {
-        return Err(ctx.invalid(line, format!("{owner}: {}: grid `{name}` is not a scalar grid ({})", path.display(), vg.value_type.name())));
+        return Err(ctx.invalid(
+            line,
+            format!(
+                "{owner}: {}: grid `{name}` is not a scalar grid ({})",
+                path.display(),
+                vg.value_type.name()
+            ),
+        ));
     }
     let stats = vg.stats();
     if stats.min[0] < 0.0 || vg.grid.background(0) < 0.0 {
-        return Err(ctx.invalid(line, format!("{owner}: {}: grid `{name}` has negative densities (min {})", path.display(), stats.min[0])));
+        return Err(ctx.invalid(
+            line,
+            format!(
+                "{owner}: {}: grid `{name}` has negative densities (min {})",
+                path.display(),
+                stats.min[0]
+            ),
+        ));
     }
     let mut grid = vg.grid;
     let placed = xf * grid.index_to_world();
-    grid.set_index_to_world(placed).map_err(|e| ctx.invalid(line, format!("{owner}: placing grid `{name}`: {e}")))?;
-    let pyramid = crate::majorant::MajorantPyramid::from_grid(&grid, 0).map_err(|e| ctx.invalid(line, format!("{owner}: grid `{name}`: {e}")))?;
+    grid.set_index_to_world(placed)
+        .map_err(|e| ctx.invalid(line, format!("{owner}: placing grid `{name}`: {e}")))?;
+    let pyramid = crate::majorant::MajorantPyramid::from_grid(&grid, 0)
+        .map_err(|e| ctx.invalid(line, format!("{owner}: grid `{name}`: {e}")))?;
     Ok((DensityField::Grid { grid, channel: 0 }, pyramid))
 }
 
@@ -615,7 +1053,9 @@ fn build_fbm_field(
     xf: glam::DAffine3,
     rest_bounds: Aabb,
 ) -> Result<(DensityField, crate::majorant::MajorantPyramid), SceneError> {
-    use crate::volume::{bake_fbm, procedural_pyramid, FbmField, FbmParams, ProceduralBound, ProceduralLattice};
+    use crate::volume::{
+        bake_fbm, procedural_pyramid, FbmField, FbmParams, ProceduralBound, ProceduralLattice,
+    };
     let d = FbmParams::default();
     let n = i.noise.clone().unwrap_or(super::desc::NoiseDesc {
         frequency: None,
@@ -642,7 +1082,14 @@ fn build_fbm_field(
     let bad = |e: &dyn std::fmt::Display| ctx.invalid(line, format!("{owner}: {e}"));
     let field = FbmField::new(params, xf).map_err(|e| bad(&e))?;
     let extent = rest_bounds.extent().max_element().max(1e-9);
-    let voxel_size = check_range(ctx, line, &format!("{owner}.voxel_size"), i.voxel_size.unwrap_or(extent / 128.0), extent * 1e-4, extent)?;
+    let voxel_size = check_range(
+        ctx,
+        line,
+        &format!("{owner}.voxel_size"),
+        i.voxel_size.unwrap_or(extent / 128.0),
+        extent * 1e-4,
+        extent,
+    )?;
     let lattice = ProceduralLattice::new(rest_bounds, voxel_size, xf).map_err(|e| bad(&e))?;
     match i.evaluation.as_deref().unwrap_or("baked") {
         "baked" => {
@@ -715,14 +1162,26 @@ fn build_light(ctx: &Ctx, line: usize, l: &LightDesc) -> Result<Light, SceneErro
 /// and unpacked into a temporary folder so that it renders from anywhere.
 pub(super) fn default_scene() -> Result<Scene, SceneError> {
     const FILES: [(&str, &[u8]); 3] = [
-        ("creature_skin.ply", include_bytes!("../../scenes/meshes/creature_skin.ply")),
-        ("creature_skeleton.ply", include_bytes!("../../scenes/meshes/creature_skeleton.ply")),
-        ("backdrop.ply", include_bytes!("../../scenes/meshes/backdrop.ply")),
+        (
+            "creature_skin.ply",
+            include_bytes!("../../scenes/meshes/creature_skin.ply"),
+        ),
+        (
+            "creature_skeleton.ply",
+            include_bytes!("../../scenes/meshes/creature_skeleton.ply"),
+        ),
+        (
+            "backdrop.ply",
+            include_bytes!("../../scenes/meshes/backdrop.ply"),
+        ),
     ];
     let text = include_str!("../../scenes/creature.toml");
     let dir = std::env::temp_dir().join(format!("velour-default-scene-{}", std::process::id()));
     let meshes = dir.join("meshes");
-    let io = |path: &Path, source: std::io::Error| SceneError::Io { path: path.to_path_buf(), source };
+    let io = |path: &Path, source: std::io::Error| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     std::fs::create_dir_all(&meshes).map_err(|e| io(&meshes, e))?;
     for (name, bytes) in FILES {
         let p = meshes.join(name);

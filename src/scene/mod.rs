@@ -152,7 +152,16 @@ impl CameraParams {
     pub fn build(&self, width: u32, height: u32) -> Result<Camera, crate::camera::CameraError> {
         match self.lens {
             None => Camera::pinhole(self.eye, self.look_at, self.up, self.fov, width, height),
-            Some((a, f)) => Camera::thin_lens(self.eye, self.look_at, self.up, self.fov, width, height, a, f),
+            Some((a, f)) => Camera::thin_lens(
+                self.eye,
+                self.look_at,
+                self.up,
+                self.fov,
+                width,
+                height,
+                a,
+                f,
+            ),
         }
     }
 }
@@ -192,11 +201,14 @@ impl Scene {
 
     /// Changes the film resolution (and the camera's aspect ratio with it).
     pub fn set_resolution(&mut self, width: u32, height: u32) -> Result<(), SceneError> {
-        let camera = self.camera_params.build(width, height).map_err(|e| SceneError::Invalid {
-            path: self.source.clone(),
-            line: 1,
-            message: format!("camera: {e}"),
-        })?;
+        let camera = self
+            .camera_params
+            .build(width, height)
+            .map_err(|e| SceneError::Invalid {
+                path: self.source.clone(),
+                line: 1,
+                message: format!("camera: {e}"),
+            })?;
         self.camera = camera;
         self.film.width = width;
         self.film.height = height;
