@@ -322,7 +322,9 @@ pub enum TransmittanceMode {
     },
 }
 
-fn control_density(seg: &MajorantSegment, cv: ControlVariate) -> f32 {
+/// The control density of a segment. `sigma_scale` converts density to extinction (the largest
+/// channel of σ_t⁰): Novák's heuristic is written in optical units.
+fn control_density(seg: &MajorantSegment, cv: ControlVariate, sigma_scale: f32) -> f32 {
     match cv {
         ControlVariate::Minorant => seg.min,
         ControlVariate::Mean => seg.mean.clamp(seg.min, seg.max),
@@ -333,7 +335,7 @@ fn control_density(seg: &MajorantSegment, cv: ControlVariate) -> f32 {
             if range <= 0.0 {
                 return seg.min;
             }
-            let exponent = std::f32::consts::LN_2 / (len * range).max(1e-30);
+            let exponent = std::f32::consts::LN_2 / (len * range * sigma_scale).max(1e-30);
             if exponent > 80.0 {
                 return upper;
             }
@@ -388,7 +390,7 @@ where
                 }
                 TransmittanceMode::Ratio | TransmittanceMode::ResidualRatio(_) => {
                     let control = match mode {
-                        TransmittanceMode::ResidualRatio(cv) => control_density(&seg, cv),
+                        TransmittanceMode::ResidualRatio(cv) => control_density(&seg, cv, s_max),
                         _ => 0.0,
                     };
                     let residual_bound = (seg.max - control).max(control - seg.min).max(0.0);
