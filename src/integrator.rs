@@ -182,12 +182,73 @@ fn is_false_intersection(scene: &Scene, stack: &InteriorStack, oi: u32, entering
 }
 
 /// What happened along a ray segment inside an interior.
+/// The phase function at a scattering vertex.
+#[derive(Clone, Copy)]
+enum ScatterPhase<'a> {
+    /// Henyey–Greenstein (single or double).
+    Hg(&'a PhaseFunction),
+    /// A fibre phase function around a tangent (voxelised fabric).
+    Fibre(&'a crate::fabric::FibrePhase, Vec3),
+}
+
+impl ScatterPhase<'_> {
+    /// Value (RGB, 1/sr) and pdf of scattering `wo → wi` (both pointing away).
+    fn eval(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        match self {
+            ScatterPhase::Hg(p) => (Rgb::splat(p.eval(wo, wi)), p.pdf(wo, wi)),
+            ScatterPhase::Fibre(f, t) => (f.eval(wo, wi, *t), f.pdf(wo, wi, *t)),
+        }
+    }
+    /// A sampled direction with its weight (value/pdf) and pdf.
+    fn sample(&self, wo: Vec3, sampler: &mut PixelSampler) -> Option<(Vec3, Rgb, f32)> {
+        match self {
+            ScatterPhase::Hg(p) => {
+                let s = p.sample(wo, sampler.next_2d());
+                (s.pdf > 0.0).then(|| (s.wi, Rgb::splat(s.value / s.pdf), s.pdf))
+            }
+            ScatterPhase::Fibre(f, t) => {
+                let u = [
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                ];
+                let s = f.sample(wo, *t, u)?;
+                (s.pdf > 0.0).then_some((s.wi, s.weight, s.pdf))
+            }
+        }
+    }
+}
+
+/// The fibre phase function and tangent of a voxelised fabric at world point `p`.
+fn fabric_phase<'a>(
+    h: &'a crate::medium::HeterogeneousMedium,
+    p: Vec3,
+) -> Option<ScatterPhase<'a>> {
+    let look = h.fabric.as_ref()?;
+    let crate::medium::DensityField::Grid { grid, .. } = &h.field else {
+        return None;
+    };
+    let t = grid.sample_trilinear_world_vec3(look.tangent_channel, p);
+    let t = t.try_normalize().unwrap_or(Vec3::X);
+    let q = grid.world_to_index_point(p);
+    let id = grid.accessor(look.id_channel).sample_nearest(q).round();
+    let yarn = if id < 0.5 {
+        crate::fabric::YarnId::Warp(0)
+    } else if id < 1.5 {
+        crate::fabric::YarnId::Weft(0)
+    } else {
+        crate::fabric::YarnId::Pile
+    };
+    Some(ScatterPhase::Fibre(look.shading.for_yarn(yarn), t))
+}
+
 enum MediumEvent<'a> {
     /// A real scattering event at distance `t`.
     Scatter {
         t: f32,
         weight: Rgb,
-        phase: &'a PhaseFunction,
+        phase: ScatterPhase<'a>,
     },
     /// The ray reached `t_max`.
     Pass { weight: Rgb },
@@ -215,7 +276,7 @@ fn sample_medium<'a>(
                 FreeFlight::Scatter { t, weight } => MediumEvent::Scatter {
                     t,
                     weight,
-                    phase: &h.phase,
+                    phase: ScatterPhase::Hg(&h.phase),
                 },
             }
         }
@@ -248,7 +309,7 @@ fn sample_medium<'a>(
                 Flight::Scatter { t, weight } => MediumEvent::Scatter {
                     t,
                     weight,
-                    phase: &h.phase,
+                    phase: fabric_phase(h, ray.at(t)).unwrap_or(ScatterPhase::Hg(&h.phase)),
                 },
             }
         }
@@ -554,23 +615,22 @@ fn radiance(
                                 scene,
                                 p,
                                 |_| (p, st),
-                                |wi| (Rgb::splat(phase.eval(wo, wi)), phase.pdf(wo, wi)),
+                                |wi| phase.eval(wo, wi),
                                 ShadowMode::Transparent,
                                 sampler,
                                 stats,
                             );
                     }
-                    let ps = phase.sample(wo, sampler.next_2d());
-                    if !(ps.pdf > 0.0) {
+                    let Some((wi, w, pdf)) = phase.sample(wo, sampler) else {
                         break;
-                    }
-                    beta *= ps.value / ps.pdf;
+                    };
+                    beta *= w;
                     prev = PrevVertex {
                         p,
-                        pdf: ps.pdf,
+                        pdf,
                         did_nee: obj.nee == NeeStrategy::Interior,
                     };
-                    ray = Ray::new(p, ps.wi);
+                    ray = Ray::new(p, wi);
                     if !russian_roulette(&mut beta, eta_scale, depth, sampler) {
                         break;
                     }

@@ -182,6 +182,22 @@ pub struct HeterogeneousMedium {
     pub phase: PhaseFunction,
     /// Estimator choices.
     pub tracking: TrackingConfig,
+    /// Fibre shading of a voxelised fabric (tangent and yarn-id channels of the grid), if any.
+    pub fabric: Option<Box<FabricLook>>,
+}
+
+/// How a voxelised weave patch scatters (course notes §3.2): the fibre phase function of the
+/// yarn family stored in the `id` channel, around the averaged fibre tangent of the `tangent`
+/// channel. Extinction is treated as isotropic (the density already holds the fibre volume
+/// fraction); the direction-dependent projected width of REFERENCES §7.3 is not modelled.
+#[derive(Clone, Debug)]
+pub struct FabricLook {
+    /// Grid channel of the averaged tangent (Vec3).
+    pub tangent_channel: usize,
+    /// Grid channel of the yarn id (0 warp, 1 weft, 2 pile).
+    pub id_channel: usize,
+    /// One fibre phase function per yarn family.
+    pub shading: crate::fabric::FabricShading,
 }
 
 impl HeterogeneousMedium {

@@ -127,3 +127,45 @@ fn lazily_baked_fbm_agrees_with_eagerly_baked_fbm() {
     let z = compare(&a, &b).expect("compare").z_test.expect("variance");
     assert!(z.consistent, "lazy vs baked: {z:?}");
 }
+
+#[test]
+fn fabric_swatch_renders_warp_and_weft_in_their_own_colours() {
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/fabric_swatch.toml"
+    ));
+    let text = std::fs::read_to_string(path).expect("scene");
+    let text = text.replace("resolution = 96", "resolution = 48");
+    let mut scene = load_scene_str(&text, path).expect("scene");
+    scene.set_resolution(40, 30).expect("resolution");
+    scene.film.spp = 8;
+    let (film, summary) = render(&scene, &RenderOptions::default()).expect("render");
+    assert_eq!(summary.non_finite, 0);
+    assert!(summary.tracking.real_collisions > 0);
+    let (mut red, mut white) = (0, 0);
+    for y in 0..30 {
+        for x in 0..40 {
+            let m = film.mean(x, y);
+            assert!(m.is_finite());
+            if m[0] > 2.0 * m[1] && m[0] > 0.05 {
+                red += 1;
+            }
+            if m[0] > 0.2 && m[1] > 0.8 * m[0] && m[2] > 0.6 * m[0] && m[0] > m[2] * 0.9 {
+                white += 1;
+            }
+        }
+    }
+    assert!(
+        red > 20 && white > 20,
+        "red (warp) pixels {red}, light (weft) pixels {white}"
+    );
+    // A bad pattern name is an error naming the allowed ones.
+    let bad = text.replace("pattern = \"twill\"", "pattern = \"herringbone\"");
+    let err = load_scene_str(&bad, path)
+        .expect_err("bad pattern")
+        .to_string();
+    assert!(
+        err.contains("herringbone") && err.contains("plain"),
+        "{err}"
+    );
+}

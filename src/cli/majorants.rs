@@ -230,6 +230,7 @@ fn grids_from_vdb(
             ),
             phase: crate::phase::PhaseFunction::henyey_greenstein(0.0)?,
             tracking: TrackingConfig::default(),
+            fabric: None,
         };
         out.push((n, medium));
     }

@@ -867,10 +867,29 @@ fn build_medium(
         ("base_albedo", i.base_albedo.is_some()),
         ("base_attenuation", i.base_attenuation.is_some()),
     ];
+    let fabric_keys = [
+        ("pattern", i.pattern.is_some()),
+        ("yarn", i.yarn.is_some()),
+        ("resolution", i.resolution.is_some()),
+        ("repeats", i.repeats.is_some()),
+        ("seed", i.seed.is_some()),
+        ("flyaways", i.flyaways.is_some()),
+        ("warp_albedo", i.warp_albedo.is_some()),
+        ("weft_albedo", i.weft_albedo.is_some()),
+    ];
+    if i.kind != "fabric" {
+        reject_unused(ctx, line, &owner, &i.kind, &fabric_keys)?;
+    }
     if matches!(i.kind.as_str(), "absorption" | "homogeneous") {
         reject_unused(ctx, line, &owner, &i.kind, &heterogeneous_keys)?;
     }
     match i.kind.as_str() {
+        "fabric" => {
+            reject_unused(ctx, line, &owner, "fabric", &heterogeneous_keys[..11])?;
+            reject_unused(ctx, line, &owner, "fabric", &[("albedo", i.albedo.is_some()), ("albedo_mode", i.albedo_mode.is_some()), ("phase", i.phase.is_some())])?;
+            let medium = build_fabric(ctx, line, &owner, i, glam::DAffine3::from_mat4(xf.as_dmat4()), attenuation, density)?;
+            Ok((Medium::Heterogeneous(Box::new(medium)), nee))
+        }
         "voxel" | "fbm" => {
             let albedo = check_finite_rgb(ctx, line, &format!("{owner}.albedo"), color(i.albedo, Rgb::splat(0.8)), 0.0, 1.0)?;
             let mode = albedo_mode(ctx, line, &owner, i)?;
@@ -898,7 +917,7 @@ fn build_medium(
                 let rb = rest_bounds.ok_or_else(|| ctx.invalid(line, format!("{owner}: an fbm interior needs a mesh or sphere shape to bound it")))?;
                 build_fbm_field(ctx, line, &owner, i, xf, rb)?
             };
-            Ok((Medium::Heterogeneous(Box::new(HeterogeneousMedium { field, pyramid, coefficients, phase, tracking })), nee))
+            Ok((Medium::Heterogeneous(Box::new(HeterogeneousMedium { field, pyramid, coefficients, phase, tracking, fabric: None })), nee))
         }
         "absorption" => {
             reject_unused(ctx, line, &owner, "absorption", &[("albedo", i.albedo.is_some()), ("albedo_mode", i.albedo_mode.is_some()), ("phase", i.phase.is_some())])?;
@@ -915,7 +934,7 @@ fn build_medium(
             }
             Ok((Medium::Homogeneous(HomogeneousMedium { coefficients, phase }), nee))
         }
-        other => Err(ctx.invalid(line, format!("{owner}.type = \"{other}\" is unknown (expected \"absorption\", \"homogeneous\", \"voxel\" or \"fbm\")"))),
+        other => Err(ctx.invalid(line, format!("{owner}.type = \"{other}\" is unknown (expected \"absorption\", \"homogeneous\", \"voxel\", \"fbm\" or \"fabric\")"))),
     }
 }
 
@@ -991,6 +1010,100 @@ fn build_tracking(
         other => return Err(ctx.invalid(line, format!("{owner}.tracking.majorant = \"{other}\" is unknown (expected \"pyramid\" or \"global\")"))),
     };
     Ok(cfg)
+}
+
+/// A voxelised weave patch (notes §3): generated, voxelised into density/tangent/id channels,
+/// placed by the object transform, shaded with one fibre phase function per yarn family.
+fn build_fabric(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    i: &InteriorDesc,
+    xf: glam::DAffine3,
+    attenuation: Rgb,
+    density: f32,
+) -> Result<HeterogeneousMedium, SceneError> {
+    use crate::fabric::{
+        generate_patch, voxelise, FabricShading, FibrePhaseParams, VoxeliseOptions, WeaveParams,
+        WeavePattern, YarnParams,
+    };
+    let bad = |e: &dyn std::fmt::Display| ctx.invalid(line, format!("{owner}: {e}"));
+    let pattern =
+        WeavePattern::from_name(i.pattern.as_deref().unwrap_or("plain")).map_err(|e| bad(&e))?;
+    let yarn = YarnParams::preset(i.yarn.as_deref().unwrap_or("cotton1")).map_err(|e| bad(&e))?;
+    let resolution = i.resolution.unwrap_or(128);
+    if !(8..=1024).contains(&resolution) {
+        return Err(ctx.invalid(
+            line,
+            format!("{owner}.resolution = {resolution} is outside [8, 1024]"),
+        ));
+    }
+    let repeats = i.repeats.unwrap_or(1);
+    if !(1..=16).contains(&repeats) {
+        return Err(ctx.invalid(
+            line,
+            format!("{owner}.repeats = {repeats} is outside [1, 16]"),
+        ));
+    }
+    let flyaways = check_range(
+        ctx,
+        line,
+        &format!("{owner}.flyaways"),
+        i.flyaways.unwrap_or(1.0),
+        0.0,
+        100.0,
+    )?;
+    let mut params = WeaveParams::new(pattern, yarn);
+    params.repeats = [repeats, repeats];
+    params.flyaway_fraction = flyaways;
+    params.warp_albedo = check_finite_rgb(
+        ctx,
+        line,
+        &format!("{owner}.warp_albedo"),
+        color(i.warp_albedo, params.warp_albedo),
+        0.0,
+        1.0,
+    )?;
+    params.weft_albedo = check_finite_rgb(
+        ctx,
+        line,
+        &format!("{owner}.weft_albedo"),
+        color(i.weft_albedo, params.weft_albedo),
+        0.0,
+        1.0,
+    )?;
+    let patch = generate_patch(&params, i.seed.unwrap_or(1)).map_err(|e| bad(&e))?;
+    let opts = VoxeliseOptions {
+        keep_accumulators: false,
+        ..VoxeliseOptions::default()
+    };
+    let vp = voxelise(&patch, resolution, &opts).map_err(|e| bad(&e))?;
+    let mut grid = vp.grid;
+    let placed = xf * grid.index_to_world();
+    grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
+    let pyramid =
+        crate::majorant::MajorantPyramid::from_grid(&grid, crate::fabric::voxelise::DENSITY)
+            .map_err(|e| bad(&e))?;
+    let shading =
+        FabricShading::from_patch(&FibrePhaseParams::default(), &patch).map_err(|e| bad(&e))?;
+    // The density is the fibre volume fraction; σ_t⁰ = density / attenuation per unit fraction;
+    // the fibre phase functions carry the yarn colours, so σ_s⁰ = σ_t⁰.
+    let sigma_t = attenuation.map(|d| density / d);
+    Ok(HeterogeneousMedium {
+        field: DensityField::Grid {
+            grid,
+            channel: crate::fabric::voxelise::DENSITY,
+        },
+        pyramid,
+        coefficients: crate::tracking::DensityCoefficients::new(sigma_t, sigma_t),
+        phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e))?,
+        tracking: TrackingConfig::default(),
+        fabric: Some(Box::new(crate::medium::FabricLook {
+            tangent_channel: crate::fabric::voxelise::TANGENT,
+            id_channel: crate::fabric::voxelise::ID,
+            shading,
+        })),
+    })
 }
 
 fn build_voxel_field(

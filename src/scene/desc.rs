@@ -217,6 +217,22 @@ pub struct InteriorDesc {
     pub base_albedo: Option<ColorValue>,
     /// Attenuation distance of that homogeneous medium.
     pub base_attenuation: Option<ColorValue>,
+    /// Weave pattern (fabric): "plain", "twill", "basket", "satin" or "velvet".
+    pub pattern: Option<String>,
+    /// Yarn preset (fabric), e.g. "cotton1", "silk", "polyester".
+    pub yarn: Option<String>,
+    /// Voxels across the patch's largest side (fabric).
+    pub resolution: Option<u32>,
+    /// Pattern repeats per side of the patch (fabric).
+    pub repeats: Option<u32>,
+    /// Generator seed (fabric).
+    pub seed: Option<u64>,
+    /// Flyaway fraction (fabric): 0 = none, 1 = as fitted.
+    pub flyaways: Option<f32>,
+    /// Warp yarn colour (fabric).
+    pub warp_albedo: Option<ColorValue>,
+    /// Weft yarn colour (fabric).
+    pub weft_albedo: Option<ColorValue>,
 }
 
 /// `tracking = { ... }`: estimator choices of a heterogeneous interior.
