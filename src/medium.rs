@@ -370,6 +370,18 @@ pub fn channel_probabilities(beta: Rgb, alpha: Rgb) -> [f32; 3] {
     w.map(|x| x / sum)
 }
 
+/// The channel whose cumulative probability interval contains uniform `u`.
+#[must_use]
+pub fn pick_channel(p: [f32; 3], u: f32) -> usize {
+    if u < p[0] {
+        0
+    } else if u < p[0] + p[1] || p[2] == 0.0 {
+        1
+    } else {
+        2
+    }
+}
+
 /// Samples a free-flight distance through a homogeneous medium with spectrally varying σ_t,
 /// choosing the channel by throughput with one-sample MIS (balance heuristic) over channels
 /// (REFERENCES §4.6). `u_channel` and `u_distance` are uniform in [0, 1).
@@ -384,13 +396,7 @@ pub fn sample_free_flight(
     let sigma_t = coeff.sigma_t();
     let alpha = coeff.sigma_s.safe_div(sigma_t);
     let p = channel_probabilities(beta, alpha);
-    let channel = if u_channel < p[0] {
-        0
-    } else if u_channel < p[0] + p[1] || p[2] == 0.0 {
-        1
-    } else {
-        2
-    };
+    let channel = pick_channel(p, u_channel);
     let st = sigma_t[channel];
     let t = if st > 0.0 {
         -(-u_distance).ln_1p() / st

@@ -17,6 +17,7 @@
 //!   control density, and [`TransmittanceMode::RayMarch`] (the biased fixed-step baseline);
 //! - [`ray_march_free_flight`]: the biased fixed-step free-flight baseline.
 
+use crate::medium::pick_channel;
 use crate::spectrum::Rgb;
 
 /// A piece of ray `[t0, t1]` (world distances) over which the density is bounded.
@@ -152,16 +153,6 @@ pub enum Flight {
 /// [`crate::medium::channel_probabilities`]).
 fn hero_probabilities(beta: Rgb, coeff: &DensityCoefficients) -> [f32; 3] {
     crate::medium::channel_probabilities(beta, coeff.sigma_s.safe_div(coeff.sigma_t))
-}
-
-fn pick_channel(p: [f32; 3], u: f32) -> usize {
-    if u < p[0] {
-        0
-    } else if u < p[0] + p[1] || p[2] == 0.0 {
-        1
-    } else {
-        2
-    }
 }
 
 /// Running numerator (per channel contribution) and per-hero-channel path probabilities of a

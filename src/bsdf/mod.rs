@@ -860,6 +860,19 @@ impl Surface {
         reflectance: Rgb,
         roughness: f32,
     ) -> Result<Surface, BsdfError> {
+        Surface::conductor_from_reflectance_with(
+            reflectance,
+            roughness,
+            MicrofacetDistribution::Ggx,
+        )
+    }
+
+    /// [`Surface::conductor_from_reflectance`] with a chosen microfacet distribution.
+    pub fn conductor_from_reflectance_with(
+        reflectance: Rgb,
+        roughness: f32,
+        distribution: MicrofacetDistribution,
+    ) -> Result<Surface, BsdfError> {
         check_rgb_unit("reflectance", reflectance)?;
         let mut eta = Rgb::ZERO;
         let mut k = Rgb::ZERO;
@@ -868,7 +881,7 @@ impl Surface {
             eta[i] = n.max(1e-4);
             k[i] = kk;
         }
-        Surface::conductor(eta, k, roughness, MicrofacetDistribution::Ggx)
+        Surface::conductor(eta, k, roughness, distribution)
     }
 
     /// Adds a secondary specular coat: a GGX reflection lobe with dielectric Fresnel of

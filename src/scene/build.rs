@@ -716,15 +716,7 @@ fn build_surface(
             reject_unused(ctx, line, &owner, "conductor", &[("ior", s.ior.is_some()), ("tint", s.tint.is_some()), ("transmittance", s.transmittance.is_some())])?;
             let r = check_finite_rgb(ctx, line, &format!("{owner}.reflectance"), color(s.reflectance, Rgb::splat(0.9)), 0.0, 1.0)?;
             let dist = distribution(ctx, line, name, s.distribution.as_deref())?;
-            let mut eta = Rgb::ZERO;
-            let mut k = Rgb::ZERO;
-            for c in 0..3 {
-                // Gulbrandsen 2014: (n, k) that reproduce the reflectance at normal incidence.
-                let (n, kk) = crate::bsdf::fresnel::gulbrandsen_eta_k(r[c], r[c]);
-                eta[c] = n.max(1e-4);
-                k[c] = kk;
-            }
-            let surf = Surface::conductor(eta, k, roughness, dist).map_err(|e| bad(&e))?;
+            let surf = Surface::conductor_from_reflectance_with(r, roughness, dist).map_err(|e| bad(&e))?;
             Ok((ObjectSurface::Fixed(with_coat(surf)?), 1.0))
         }
         other => Err(ctx.invalid(
