@@ -46,10 +46,12 @@ pub struct RenderArgs {
 pub fn load_with_overrides(
     args: &RenderArgs,
 ) -> Result<Scene, Box<dyn std::error::Error + Send + Sync>> {
-    let mut scene = match &args.scene {
-        Some(p) => Scene::load(p)?,
-        None => crate::scene::default_scene()?,
+    let overrides = super::reference::SceneOverrides {
+        width: args.width,
+        height: args.height,
+        max_depth: args.max_depth,
     };
+    let mut scene = super::reference::load_scene_with(args.scene.as_deref(), &overrides)?;
     if let Some(spp) = args.spp {
         if spp == 0 || spp > 1 << 24 {
             return Err(format!("--spp {spp} is outside [1, 16777216]").into());
@@ -59,22 +61,8 @@ pub fn load_with_overrides(
     if let Some(seed) = args.seed {
         scene.film.seed = seed;
     }
-    if let Some(d) = args.max_depth {
-        if d == 0 || d > 1_000_000 {
-            return Err(format!("--max-depth {d} is outside [1, 1000000]").into());
-        }
-        scene.film.max_depth = d;
-    }
     if let Some(o) = &args.output {
         scene.film.output = o.clone();
-    }
-    if args.width.is_some() || args.height.is_some() {
-        let w = args.width.unwrap_or(scene.film.width);
-        let h = args.height.unwrap_or(scene.film.height);
-        if w == 0 || h == 0 || w > 32768 || h > 32768 {
-            return Err(format!("--width/--height {w}x{h} outside [1, 32768]").into());
-        }
-        scene.set_resolution(w, h)?;
     }
     Ok(scene)
 }
