@@ -226,21 +226,18 @@ fn fabric_phase<'a>(
     p: Vec3,
 ) -> Option<ScatterPhase<'a>> {
     let look = h.fabric.as_ref()?;
-    let crate::medium::DensityField::Grid { grid, .. } = &h.field else {
-        return None;
-    };
-    let t = grid.sample_trilinear_world_vec3(look.tangent_channel, p);
-    let t = t.try_normalize().unwrap_or(Vec3::X);
-    let q = grid.world_to_index_point(p);
-    let id = grid.accessor(look.id_channel).sample_nearest(q).round();
-    let yarn = if id < 0.5 {
+    let fibre = h.fibre_at(p)?;
+    let yarn = if fibre.id < 0.5 {
         crate::fabric::YarnId::Warp(0)
-    } else if id < 1.5 {
+    } else if fibre.id < 1.5 {
         crate::fabric::YarnId::Weft(0)
     } else {
         crate::fabric::YarnId::Pile
     };
-    Some(ScatterPhase::Fibre(look.shading.for_yarn(yarn), t))
+    Some(ScatterPhase::Fibre(
+        look.shading.for_yarn(yarn),
+        fibre.tangent,
+    ))
 }
 
 enum MediumEvent<'a> {

@@ -166,6 +166,8 @@ pub enum DensityField {
     Procedural(Box<FbmField>),
     /// Procedural fBm baked lazily into bricks where lookups go.
     LazyBaked(Box<LazyFbmGrid>),
+    /// A voxelised weave patch tiled over a mesh shell (notes §3.3).
+    Shell(Box<crate::fabric::FabricShell>),
 }
 
 /// A heterogeneous interior: σ_t(x) = d(x)·σ_t⁰ and σ_s(x) = d(x)·σ_s⁰ with the density d(x)
@@ -190,17 +192,46 @@ pub struct HeterogeneousMedium {
 /// yarn family stored in the `id` channel, around the averaged fibre tangent of the `tangent`
 /// channel. Extinction is treated as isotropic (the density already holds the fibre volume
 /// fraction); the direction-dependent projected width of REFERENCES §7.3 is not modelled.
+/// The channels are those of the grid (a free-standing patch) or of the shell's patch.
 #[derive(Clone, Debug)]
 pub struct FabricLook {
     /// Grid channel of the averaged tangent (Vec3).
     pub tangent_channel: usize,
     /// Grid channel of the yarn id (0 warp, 1 weft, 2 pile).
     pub id_channel: usize,
+    /// Voxel size of the patch in its own units (the unit the tangents are stored in).
+    pub patch_voxel_size: glam::DVec3,
     /// One fibre phase function per yarn family.
     pub shading: crate::fabric::FabricShading,
 }
 
 impl HeterogeneousMedium {
+    /// The fibre frame of a fabric interior at world point `p`: the world-space tangent and
+    /// the yarn id of the nearest patch voxel (`None` for other interiors or outside the
+    /// patch's shell). Tangents are stored in patch units and mapped through the placement,
+    /// so rotated and sheared patches keep their fibre directions.
+    #[must_use]
+    pub fn fibre_at(&self, p: glam::Vec3) -> Option<crate::fabric::FibreVoxel> {
+        let look = self.fabric.as_ref()?;
+        match &self.field {
+            DensityField::Grid { grid, .. } => {
+                let ijk = (grid.world_to_index_point(p) + glam::Vec3::splat(0.5))
+                    .floor()
+                    .as_ivec3();
+                let t = grid.accessor(look.tangent_channel).value_vec3(ijk);
+                let id = grid.accessor(look.id_channel).value(ijk);
+                let index_dir = t.as_dvec3() / look.patch_voxel_size;
+                let world = grid.index_to_world().transform_vector3(index_dir).as_vec3();
+                Some(crate::fabric::FibreVoxel {
+                    tangent: world.try_normalize().unwrap_or(glam::Vec3::X),
+                    id,
+                })
+            }
+            DensityField::Shell(shell) => shell.fibre_at(p),
+            _ => None,
+        }
+    }
+
     /// Appends the majorant segments of `[t0, t1]` along `ray` to `out`.
     pub fn segments(&self, ray: &Ray, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
         let start = out.len();
@@ -244,6 +275,12 @@ impl HeterogeneousMedium {
                 field: f,
                 ray: *ray,
             },
+            DensityField::Shell(shell) => RayLookup::Shell {
+                accessor: shell.density_accessor(),
+                shell,
+                ray: *ray,
+                hint: u32::MAX,
+            },
             DensityField::LazyBaked(g) => {
                 let w2i = g.world_to_index();
                 let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
@@ -274,6 +311,17 @@ pub enum RayLookup<'a> {
         /// The ray.
         ray: Ray,
     },
+    /// A patch tiled over a mesh shell: each point is mapped to the patch (notes §3.3).
+    Shell {
+        /// The shell.
+        shell: &'a crate::fabric::FabricShell,
+        /// Accessor on the patch's density.
+        accessor: crate::grid::Accessor<'a>,
+        /// The ray (world space).
+        ray: Ray,
+        /// The last tetrahedron found.
+        hint: u32,
+    },
 }
 
 impl RayLookup<'_> {
@@ -283,6 +331,12 @@ impl RayLookup<'_> {
             RayLookup::Grid(g) => g.at(t),
             RayLookup::Procedural { field, ray } => field.density_world(ray.at(t)),
             RayLookup::Lazy { grid, o, d } => grid.sample_trilinear_index(*o + *d * t),
+            RayLookup::Shell {
+                shell,
+                accessor,
+                ray,
+                hint,
+            } => shell.density(accessor, ray.at(t), hint),
         }
     }
 }

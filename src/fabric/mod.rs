@@ -17,12 +17,15 @@
 //! * [`mod@voxelise`]: coverage-weighted voxelisation of a patch into a [`crate::grid::SparseGrid`]
 //!   (density, mean tangent, yarn id), mip levels, OpenVDB export and a single-scattering
 //!   preview renderer.
+//! * [`shell`]: a voxelised patch tiled over a mesh shell (draped cloth), with the exact
+//!   shell map from world points to patch voxels.
 //!
 //! Lengths: the yarn presets are in **centimetres** (the units of the released fits); every
 //! length in this module is in the same unit as the yarn parameters it came from. Use
 //! [`yarn::YarnParams::scaled`] to convert to scene units.
 
 pub mod fibre_scattering;
+pub mod shell;
 pub mod voxelise;
 pub mod weave;
 pub mod yarn;
@@ -30,6 +33,7 @@ pub mod yarn;
 pub use fibre_scattering::{
     FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, SggxFibrePhase, SggxSample,
 };
+pub use shell::{FabricShell, FibreVoxel, ShellParams};
 pub use voxelise::{
     render_preview, voxelise, write_patch_vdb, PreviewImage, PreviewOptions, VoxelStats,
     VoxeliseOptions, VoxelisedPatch,

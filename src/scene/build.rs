@@ -202,13 +202,31 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
         let (surface, ior) = build_surface(ctx, line, &name, desc.surface.as_ref())?;
         let (medium, nee) = match &desc.interior {
             Some(interior) => {
-                let (m, nee) = build_medium(ctx, line, &name, interior, xf, rest.bounds())?;
+                let rest_mesh = match &rest {
+                    RestShape::Mesh(m) => Some(m),
+                    _ => None,
+                };
+                let (m, nee) =
+                    build_medium(ctx, line, &name, interior, xf, rest.bounds(), rest_mesh)?;
                 media.push(m);
                 (Some((media.len() - 1) as u32), nee)
             }
             None => (None, NeeStrategy::ExitPoint),
         };
+        let shell_boundary = medium.and_then(|m| match &media[m as usize] {
+            Medium::Heterogeneous(h) => match &h.field {
+                DensityField::Shell(shell) => Some(shell.boundary_mesh().clone()),
+                _ => None,
+            },
+            _ => None,
+        });
         let (shape, open_mesh) = match rest {
+            // A fabric shell: the object is the closed shell around the cloth mesh.
+            RestShape::Mesh(_) if shell_boundary.is_some() => {
+                let mesh = shell_boundary.unwrap_or_default();
+                let closed = mesh.is_closed();
+                (Shape::Mesh(mesh), !closed)
+            }
             RestShape::Mesh(mut mesh) => {
                 mesh.transform(xf);
                 let closed = mesh.is_closed();
@@ -827,6 +845,7 @@ fn build_medium(
     i: &InteriorDesc,
     xf: Mat4,
     rest_bounds: Option<Aabb>,
+    rest_mesh: Option<&crate::geometry::TriangleMesh>,
 ) -> Result<(Medium, NeeStrategy), SceneError> {
     let owner = format!("{name}: interior");
     let density = check_range(
@@ -868,6 +887,7 @@ fn build_medium(
         ("flyaways", i.flyaways.is_some()),
         ("warp_albedo", i.warp_albedo.is_some()),
         ("weft_albedo", i.weft_albedo.is_some()),
+        ("tiles", i.tiles.is_some()),
     ];
     if i.kind != "fabric" {
         reject_unused(ctx, line, &owner, &i.kind, &fabric_keys)?;
@@ -879,7 +899,7 @@ fn build_medium(
         "fabric" => {
             reject_unused(ctx, line, &owner, "fabric", &heterogeneous_keys[..11])?;
             reject_unused(ctx, line, &owner, "fabric", &[("albedo", i.albedo.is_some()), ("albedo_mode", i.albedo_mode.is_some()), ("phase", i.phase.is_some())])?;
-            let medium = build_fabric(ctx, line, &owner, i, glam::DAffine3::from_mat4(xf.as_dmat4()), attenuation, density)?;
+            let medium = build_fabric(ctx, line, &owner, i, xf, rest_mesh, attenuation, density)?;
             Ok((Medium::Heterogeneous(Box::new(medium)), nee))
         }
         "voxel" | "fbm" => {
@@ -1011,7 +1031,8 @@ fn build_fabric(
     line: usize,
     owner: &str,
     i: &InteriorDesc,
-    xf: glam::DAffine3,
+    xf: Mat4,
+    rest_mesh: Option<&crate::geometry::TriangleMesh>,
     attenuation: Rgb,
     density: f32,
 ) -> Result<HeterogeneousMedium, SceneError> {
@@ -1070,22 +1091,63 @@ fn build_fabric(
         ..VoxeliseOptions::default()
     };
     let vp = voxelise(&patch, resolution, &opts).map_err(|e| bad(&e))?;
-    let mut grid = vp.grid;
-    let placed = xf * grid.index_to_world();
-    grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
-    let pyramid =
-        crate::majorant::MajorantPyramid::from_grid(&grid, crate::fabric::voxelise::DENSITY)
+    let patch_voxel_size = vp.voxel_size;
+    let (field, pyramid) = match rest_mesh {
+        None => {
+            if i.tiles.is_some() {
+                return Err(ctx.invalid(
+                    line,
+                    format!(
+                        "{owner}.tiles: only a fabric shell on a mesh is tiled (shape = \"mesh\")"
+                    ),
+                ));
+            }
+            let mut grid = vp.grid;
+            let placed = glam::DAffine3::from_mat4(xf.as_dmat4()) * grid.index_to_world();
+            grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
+            let pyramid = crate::majorant::MajorantPyramid::from_grid(
+                &grid,
+                crate::fabric::voxelise::DENSITY,
+            )
             .map_err(|e| bad(&e))?;
+            let field = DensityField::Grid {
+                grid,
+                channel: crate::fabric::voxelise::DENSITY,
+            };
+            (field, pyramid)
+        }
+        Some(rest) => {
+            // A shell over the cloth mesh (notes §3.3), in world space.
+            let mesh = rest.transformed(xf);
+            let tiles = match i.tiles {
+                Some(super::desc::TilesValue::Uniform(t)) => [t, t],
+                Some(super::desc::TilesValue::PerAxis(t)) => t,
+                None => {
+                    // True size: scene units are the yarn preset's (centimetres).
+                    let per_uv = crate::fabric::shell::world_length_per_uv(&mesh).ok_or_else(|| {
+                        ctx.invalid(line, format!("{owner}: a fabric shell needs a mesh with texture coordinates (u, v) spanning a non-zero area"))
+                    })?;
+                    let tile = patch.tile;
+                    [
+                        ((per_uv / f64::from(tile.x)).round() as f32).max(1.0),
+                        ((per_uv / f64::from(tile.y)).round() as f32).max(1.0),
+                    ]
+                }
+            };
+            let shell =
+                crate::fabric::FabricShell::new(&vp, &mesh, &crate::fabric::ShellParams { tiles })
+                    .map_err(|e| bad(&e))?;
+            let pyramid = shell.majorant_pyramid().map_err(|e| bad(&e))?;
+            (DensityField::Shell(Box::new(shell)), pyramid)
+        }
+    };
     let shading =
         FabricShading::from_patch(&FibrePhaseParams::default(), &patch).map_err(|e| bad(&e))?;
     // The density is the fibre volume fraction; σ_t⁰ = density / attenuation per unit fraction;
     // the fibre phase functions carry the yarn colours, so σ_s⁰ = σ_t⁰.
     let sigma_t = attenuation.map(|d| density / d);
     Ok(HeterogeneousMedium {
-        field: DensityField::Grid {
-            grid,
-            channel: crate::fabric::voxelise::DENSITY,
-        },
+        field,
         pyramid,
         coefficients: crate::tracking::DensityCoefficients::new(sigma_t, sigma_t),
         phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e))?,
@@ -1093,6 +1155,7 @@ fn build_fabric(
         fabric: Some(Box::new(crate::medium::FabricLook {
             tangent_channel: crate::fabric::voxelise::TANGENT,
             id_channel: crate::fabric::voxelise::ID,
+            patch_voxel_size,
             shading,
         })),
     })

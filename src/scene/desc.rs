@@ -25,6 +25,16 @@ pub enum ScaleValue {
     PerAxis([f32; 3]),
 }
 
+/// Tiles given either as one number (both axes) or as `[u, v]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum TilesValue {
+    /// The same count along `u` and `v`.
+    Uniform(f32),
+    /// Per axis.
+    PerAxis([f32; 2]),
+}
+
 /// The whole file.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -233,6 +243,8 @@ pub struct InteriorDesc {
     pub warp_albedo: Option<ColorValue>,
     /// Weft yarn colour (fabric).
     pub weft_albedo: Option<ColorValue>,
+    /// Patch tiles across the unit UV square (fabric shell on a mesh).
+    pub tiles: Option<TilesValue>,
 }
 
 /// `tracking = { ... }`: estimator choices of a heterogeneous interior.

@@ -1,0 +1,670 @@
+//! A voxelised weave patch tiled over a mesh shell (course notes §3.3: "at each sampling
+//! position, project back to the surface and query a voxel position").
+//!
+//! # The shell map
+//! The cloth mesh (with texture coordinates) is the cloth's mid-surface. Each vertex `p` is
+//! offset along its normal `n` (area-weighted over the triangles around the welded position)
+//! to `p − n·T/2` (the bottom) and `p + n·T/2` (the top), so every triangle sweeps a prism of
+//! thickness `T`. Each prism is cut into three tetrahedra with the diagonal of every side quad
+//! chosen by the global vertex order, so neighbouring prisms share their side faces exactly
+//! (the "shell map" of Porumbescu et al. 2005). Inside one tetrahedron the map from world
+//! space to the patch's index space is affine, so "projecting a sample back to the surface"
+//! is exact and costs one 3×3 product once the tetrahedron is found:
+//!
+//! * `u, v` (the mesh's texture coordinates) times `tiles` give the position in patch tiles;
+//!   `x = u·tiles_u·n_x − ½`, `y = v·tiles_v·n_y − ½` in voxel units (voxel centres at
+//!   integers, wrapping modulo `n_x`, `n_y`);
+//! * the height `h ∈ [0, 1]` across the shell gives `z = k_min − 1 + h·(k_max − k_min + 2)`,
+//!   so the shell spans the patch's occupied voxel layers plus one layer on each side (the
+//!   trilinear tails of the outer layers stay inside and the fibre volume is conserved).
+//!
+//! `T` follows from the scale of the tiling: one patch voxel is `L/(tiles·n)` world units
+//! wide, where `L = sqrt(world area / UV area)` is the mesh's mean world length per unit of
+//! UV, and the shell is as many of those (in `z`) as the patch is thick, so the weave keeps its
+//! proportions. Fibre tangents map to the world through the tetrahedron's linear part.
+//!
+//! # Lookups
+//! A uniform grid over the shell's box lists the tetrahedra overlapping each cell; a lookup
+//! tests the last tetrahedron first (tracking steps are short), then the cell's list.
+//! Points in no tetrahedron have zero density. Majorants come from a world-space pyramid of
+//! bricks that overlap the shell, bounded by the patch's maximum density.
+
+use glam::{DMat3, DVec3, IVec3, Mat3, Vec3};
+
+use super::voxelise::{VoxelisedPatch, DENSITY, ID, TANGENT};
+use super::FabricError;
+use crate::geometry::TriangleMesh;
+use crate::grid::{Accessor, SparseGrid};
+use crate::majorant::{Bounds, MajorantPyramid};
+use crate::math::Aabb;
+
+/// Largest number of tetrahedra a shell may have (three per triangle).
+pub const MAX_SHELL_TETS: usize = 30_000_000;
+/// Largest number of point-location cells.
+const MAX_CELLS: usize = 1 << 22;
+/// Largest number of level-0 majorant bricks.
+const MAX_MAJORANT_BRICKS: f64 = 4.0e6;
+
+/// One tetrahedron of the shell, with its affine maps.
+#[derive(Clone, Copy, Debug)]
+struct ShellTet {
+    /// World position of vertex 0.
+    w0: Vec3,
+    /// World → barycentric (λ1, λ2, λ3) of `x − w0`.
+    world_to_bary: Mat3,
+    /// Patch index coordinates of vertex 0 (`x`, `y` reduced modulo the tile).
+    q0: Vec3,
+    /// Barycentric → patch index offsets (columns `q_k − q0`).
+    bary_to_q: Mat3,
+    /// Patch index direction → world direction (the inverse linear part of the map).
+    q_to_world: Mat3,
+}
+
+impl ShellTet {
+    /// Barycentrics `(λ1, λ2, λ3)` of `p`, and whether `p` lies inside (with tolerance).
+    #[inline]
+    fn locate(&self, p: Vec3) -> Option<Vec3> {
+        let l = self.world_to_bary * (p - self.w0);
+        const EPS: f32 = -1e-5;
+        (l.min_element() >= EPS && 1.0 - l.x - l.y - l.z >= EPS).then_some(l)
+    }
+}
+
+/// Parameters of [`FabricShell::new`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShellParams {
+    /// Patch tiles across the unit UV square, per axis (`u`, `v`), each ≥ 1.
+    pub tiles: [f32; 2],
+}
+
+/// A weave patch tiled over a mesh shell; see the module docs.
+#[derive(Clone, Debug)]
+pub struct FabricShell {
+    patch: SparseGrid,
+    dims: IVec3,
+    tets: Vec<ShellTet>,
+    cell_origin: Vec3,
+    inv_cell: f32,
+    cell_dims: IVec3,
+    /// `cell_start[c]..cell_start[c + 1]` indexes `cell_tets`.
+    cell_start: Vec<u32>,
+    cell_tets: Vec<u32>,
+    boundary: TriangleMesh,
+    thickness: f32,
+    voxel_world: f32,
+    bounds: Aabb,
+    density_bounds: Bounds,
+    tiles: [f32; 2],
+}
+
+/// The fibre frame of a voxel: world tangent and yarn-family id (0 warp, 1 weft, 2 pile).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FibreVoxel {
+    /// Unit fibre tangent in world space.
+    pub tangent: Vec3,
+    /// Yarn family id as stored in the patch's `id` channel.
+    pub id: f32,
+}
+
+fn shell_error(name: &str, value: impl std::fmt::Display, allowed: &str) -> FabricError {
+    super::invalid(name, value, allowed)
+}
+
+impl FabricShell {
+    /// Builds the shell of `patch` over `mesh` (world space; needs texture coordinates).
+    ///
+    /// # Errors
+    /// [`FabricError::InvalidParameter`] when the mesh has no texture coordinates or no
+    /// triangle with non-zero UV area, when `tiles` is outside `[1, 1e6]`, when the patch is
+    /// empty or not wrapped, or when the shell would be degenerate;
+    /// [`FabricError::TooLarge`] beyond [`MAX_SHELL_TETS`].
+    pub fn new(
+        patch: &VoxelisedPatch,
+        mesh: &TriangleMesh,
+        params: &ShellParams,
+    ) -> Result<FabricShell, FabricError> {
+        for (k, t) in params.tiles.iter().enumerate() {
+            if !(t.is_finite() && (1.0..=1e6).contains(t)) {
+                return Err(shell_error(
+                    &format!("tiles[{k}]"),
+                    t,
+                    "[1, 1e6] patch tiles per unit of UV",
+                ));
+            }
+        }
+        if !patch.wrapped {
+            return Err(shell_error(
+                "patch.wrap",
+                false,
+                "a tiled shell needs a periodic (wrapped) patch",
+            ));
+        }
+        let uvs = mesh.uvs.as_ref().ok_or_else(|| {
+            shell_error(
+                "mesh.uvs",
+                "none",
+                "a fabric shell needs texture coordinates (u, v) on the mesh",
+            )
+        })?;
+        let tets_needed = mesh.indices.len() * 3;
+        if tets_needed > MAX_SHELL_TETS {
+            return Err(FabricError::TooLarge {
+                name: "mesh triangles".into(),
+                what: "shell tetrahedra".into(),
+                count: tets_needed as u64,
+                limit: MAX_SHELL_TETS as u64,
+            });
+        }
+        let (lo, hi) = patch
+            .grid
+            .active_bbox()
+            .ok_or_else(|| shell_error("patch", "empty", "a patch with fibres"))?;
+        let dims = IVec3::new(patch.dims[0] as i32, patch.dims[1] as i32, hi.z - lo.z + 3);
+        let z_lo = (lo.z - 1) as f32;
+
+        // Scale: world length per unit UV, then the world size of one patch voxel.
+        let len_per_uv = world_length_per_uv(mesh).ok_or_else(|| {
+            shell_error(
+                "mesh.uvs",
+                "zero area",
+                "triangles with non-zero world and UV area",
+            )
+        })?;
+        let vx = len_per_uv / (f64::from(params.tiles[0]) * f64::from(dims.x));
+        let vy = len_per_uv / (f64::from(params.tiles[1]) * f64::from(dims.y));
+        // Patch voxels may be slightly anisotropic (h_x, h_y, h_z); keep the proportions.
+        let h = patch.voxel_size;
+        let scale = (vx / h.x * vy / h.y).sqrt();
+        let voxel_z = h.z * scale;
+        let thickness = voxel_z * f64::from(dims.z);
+
+        let normals = welded_normals(mesh);
+        let canon = welded_ids(mesh);
+        let mut tets = Vec::with_capacity(tets_needed);
+        let period = Vec3::new(dims.x as f32, dims.y as f32, 0.0);
+        let tile_scale = DVec3::new(
+            f64::from(params.tiles[0]) * f64::from(dims.x),
+            f64::from(params.tiles[1]) * f64::from(dims.y),
+            f64::from(dims.z),
+        );
+        for tri in &mesh.indices {
+            // Sort the corners by welded id: the side-quad diagonals then agree between
+            // neighbouring prisms.
+            let mut c = *tri;
+            c.sort_by_key(|&i| canon[i as usize]);
+            let vert = |i: u32, top: bool| {
+                let p = mesh.positions[i as usize].as_dvec3();
+                let n = normals[canon[i as usize] as usize];
+                let s = if top { 0.5 } else { -0.5 };
+                let uv = uvs[i as usize].as_dvec2();
+                let q = DVec3::new(uv.x, uv.y, if top { 1.0 } else { 0.0 }) * tile_scale
+                    + DVec3::new(-0.5, -0.5, f64::from(z_lo));
+                (p + n * (s * thickness), q)
+            };
+            let [a, b, d] = c;
+            let corners = [
+                [
+                    vert(a, false),
+                    vert(b, false),
+                    vert(d, false),
+                    vert(d, true),
+                ],
+                [vert(a, false), vert(b, false), vert(b, true), vert(d, true)],
+                [vert(a, false), vert(a, true), vert(b, true), vert(d, true)],
+            ];
+            for t in corners {
+                if let Some(tet) = make_tet(t, period) {
+                    tets.push(tet);
+                }
+            }
+        }
+        if tets.is_empty() {
+            return Err(shell_error(
+                "mesh",
+                "degenerate",
+                "a mesh whose triangles have non-zero world and UV area",
+            ));
+        }
+        let boundary = shell_boundary(mesh, &canon, &normals, thickness);
+        let bounds = boundary.bounds();
+        let density_bounds = patch_bounds(&patch.grid, dims);
+        let mut shell = FabricShell {
+            patch: patch.grid.clone(),
+            dims,
+            tets,
+            cell_origin: Vec3::ZERO,
+            inv_cell: 1.0,
+            cell_dims: IVec3::ONE,
+            cell_start: Vec::new(),
+            cell_tets: Vec::new(),
+            boundary,
+            thickness: thickness as f32,
+            voxel_world: voxel_z as f32,
+            bounds,
+            density_bounds,
+            tiles: params.tiles,
+        };
+        shell.build_cells();
+        Ok(shell)
+    }
+
+    fn tet_bounds(&self, i: usize) -> Aabb {
+        let t = &self.tets[i];
+        // Vertices: w0 + columns of the inverse of world_to_bary.
+        let m = t.world_to_bary.inverse();
+        let mut b = Aabb::EMPTY.union_point(t.w0);
+        for c in [m.x_axis, m.y_axis, m.z_axis] {
+            b = b.union_point(t.w0 + c);
+        }
+        b
+    }
+
+    fn build_cells(&mut self) {
+        let ext = self.bounds.extent().max(Vec3::splat(1e-6));
+        // About two tetrahedra per cell on average, capped.
+        let target = (self.tets.len() / 2).clamp(1, MAX_CELLS) as f32;
+        let mut cell = (ext.x * ext.y * ext.z / target).cbrt();
+        // Thin shells: no cell finer than a tenth of the thickness.
+        cell = cell
+            .max(self.thickness * 0.1)
+            .max(ext.max_element() / 4096.0);
+        let dims = |c: f32| (ext / c).ceil().as_ivec3().max(IVec3::ONE);
+        while {
+            let d = dims(cell);
+            d.x as usize * d.y as usize * d.z as usize > MAX_CELLS
+        } {
+            cell *= 1.25;
+        }
+        self.cell_origin = self.bounds.min;
+        self.inv_cell = 1.0 / cell;
+        self.cell_dims = dims(cell);
+        let n = self.cell_dims.x as usize * self.cell_dims.y as usize * self.cell_dims.z as usize;
+        let ranges: Vec<(IVec3, IVec3)> = (0..self.tets.len())
+            .map(|i| {
+                let b = self.tet_bounds(i);
+                (self.cell_of(b.min), self.cell_of(b.max))
+            })
+            .collect();
+        let mut count = vec![0u32; n + 1];
+        for (lo, hi) in &ranges {
+            self.for_cells(*lo, *hi, |c| count[c] += 1);
+        }
+        let mut start = Vec::with_capacity(n + 1);
+        let mut acc = 0u32;
+        for c in &count[..n] {
+            start.push(acc);
+            acc += c;
+        }
+        start.push(acc);
+        let mut fill = start.clone();
+        let mut list = vec![0u32; acc as usize];
+        for (i, (lo, hi)) in ranges.iter().enumerate() {
+            self.for_cells(*lo, *hi, |c| {
+                list[fill[c] as usize] = i as u32;
+                fill[c] += 1;
+            });
+        }
+        self.cell_start = start;
+        self.cell_tets = list;
+    }
+
+    fn cell_of(&self, p: Vec3) -> IVec3 {
+        ((p - self.cell_origin) * self.inv_cell)
+            .floor()
+            .as_ivec3()
+            .clamp(IVec3::ZERO, self.cell_dims - IVec3::ONE)
+    }
+
+    fn for_cells(&self, lo: IVec3, hi: IVec3, mut f: impl FnMut(usize)) {
+        let d = self.cell_dims;
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    f(((z * d.y + y) * d.x + x) as usize);
+                }
+            }
+        }
+    }
+
+    /// The tetrahedron containing world point `p` and its barycentrics; `hint` (the last
+    /// tetrahedron found) is tried first and updated.
+    #[inline]
+    fn find(&self, p: Vec3, hint: &mut u32) -> Option<(usize, Vec3)> {
+        if let Some(t) = self.tets.get(*hint as usize) {
+            if let Some(l) = t.locate(p) {
+                return Some((*hint as usize, l));
+            }
+        }
+        let rel = (p - self.cell_origin) * self.inv_cell;
+        if rel.min_element() < 0.0 || !rel.is_finite() {
+            return None;
+        }
+        let c = rel.as_ivec3();
+        if c.cmpge(self.cell_dims).any() {
+            return None;
+        }
+        let d = self.cell_dims;
+        let cell = ((c.z * d.y + c.y) * d.x + c.x) as usize;
+        let (s, e) = (self.cell_start[cell], self.cell_start[cell + 1]);
+        for &i in &self.cell_tets[s as usize..e as usize] {
+            if let Some(l) = self.tets[i as usize].locate(p) {
+                *hint = i;
+                return Some((i as usize, l));
+            }
+        }
+        None
+    }
+
+    /// Patch index coordinates of world point `p` (x, y not yet wrapped), or `None` outside
+    /// the shell. `hint` caches the last tetrahedron.
+    #[inline]
+    pub fn patch_coordinates(&self, p: Vec3, hint: &mut u32) -> Option<Vec3> {
+        let (i, l) = self.find(p, hint)?;
+        let t = &self.tets[i];
+        Some(t.q0 + t.bary_to_q * l)
+    }
+
+    /// Trilinear density of the patch at index point `q`, periodic in `x` and `y`.
+    #[inline]
+    fn density_at_q(&self, acc: &mut Accessor<'_>, q: Vec3) -> f32 {
+        let f = q.floor();
+        let t = q - f;
+        let i = f.as_ivec3();
+        let mut v = [0.0f32; 8];
+        for (k, vk) in v.iter_mut().enumerate() {
+            let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
+            *vk = acc.value(self.wrap(i + d));
+        }
+        let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
+        let y0 = lerp(lerp(v[0], v[4], t.x), lerp(v[2], v[6], t.x), t.y);
+        let y1 = lerp(lerp(v[1], v[5], t.x), lerp(v[3], v[7], t.x), t.y);
+        lerp(y0, y1, t.z)
+    }
+
+    #[inline]
+    fn wrap(&self, i: IVec3) -> IVec3 {
+        IVec3::new(
+            i.x.rem_euclid(self.dims.x),
+            i.y.rem_euclid(self.dims.y),
+            i.z,
+        )
+    }
+
+    /// An accessor on the patch's density channel (one per thread or ray).
+    #[must_use]
+    pub fn density_accessor(&self) -> Accessor<'_> {
+        self.patch.accessor(DENSITY)
+    }
+
+    /// Fibre volume fraction at world point `p` (0 outside the shell).
+    #[inline]
+    pub fn density(&self, acc: &mut Accessor<'_>, p: Vec3, hint: &mut u32) -> f32 {
+        match self.patch_coordinates(p, hint) {
+            Some(q) => self.density_at_q(acc, q),
+            None => 0.0,
+        }
+    }
+
+    /// Fibre tangent (world space) and yarn id of the voxel nearest to world point `p`.
+    #[must_use]
+    pub fn fibre_at(&self, p: Vec3) -> Option<FibreVoxel> {
+        let mut hint = u32::MAX;
+        let (i, l) = self.find(p, &mut hint)?;
+        let t = &self.tets[i];
+        let q = t.q0 + t.bary_to_q * l;
+        let ijk = self.wrap((q + Vec3::splat(0.5)).floor().as_ivec3());
+        let tangent_patch = self.patch.accessor(TANGENT).value_vec3(ijk);
+        let id = self.patch.accessor(ID).value(ijk);
+        // Patch-world tangent → index direction → world.
+        let h = self.patch.voxel_size().as_vec3();
+        let world = t.q_to_world * (tangent_patch / h);
+        Some(FibreVoxel {
+            tangent: world.try_normalize().unwrap_or(Vec3::X),
+            id,
+        })
+    }
+
+    /// The closed boundary of the shell (bottom, top and side walls), outward-wound.
+    #[must_use]
+    pub fn boundary_mesh(&self) -> &TriangleMesh {
+        &self.boundary
+    }
+
+    /// Shell thickness, world units.
+    #[must_use]
+    pub fn thickness(&self) -> f32 {
+        self.thickness
+    }
+
+    /// World size of one patch voxel (along the thickness).
+    #[must_use]
+    pub fn voxel_world_size(&self) -> f32 {
+        self.voxel_world
+    }
+
+    /// Tiles across the unit UV square.
+    #[must_use]
+    pub fn tiles(&self) -> [f32; 2] {
+        self.tiles
+    }
+
+    /// Tetrahedra of the shell map.
+    #[must_use]
+    pub fn tet_count(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// The patch grid (density, tangent, id).
+    #[must_use]
+    pub fn patch(&self) -> &SparseGrid {
+        &self.patch
+    }
+
+    /// Density bounds of the patch (min 0, max, mean over the shell's layers).
+    #[must_use]
+    pub fn density_bounds(&self) -> Bounds {
+        self.density_bounds
+    }
+
+    /// World volume of the shell (sum of its tetrahedra).
+    #[must_use]
+    pub fn volume(&self) -> f64 {
+        self.tets
+            .iter()
+            .map(|t| 1.0 / (6.0 * f64::from(t.world_to_bary.determinant().abs())))
+            .sum()
+    }
+
+    /// A world-space majorant pyramid: bricks overlapping a tetrahedron are bounded by the
+    /// patch's density range, all others are empty.
+    pub fn majorant_pyramid(&self) -> Result<MajorantPyramid, crate::majorant::MajorantError> {
+        let ext = self.bounds.extent().as_dvec3().max(DVec3::splat(1e-9));
+        // Bricks about the thickness, coarser when the box would need too many.
+        let mut brick = f64::from(self.thickness).max(1e-9);
+        let count = |b: f64| (ext / b).ceil().x * (ext / b).ceil().y * (ext / b).ceil().z;
+        while count(brick) > MAX_MAJORANT_BRICKS {
+            brick *= 1.25;
+        }
+        let voxel = brick / 8.0;
+        // Lattice: voxel (0,0,0)'s centre a brick's apron below the box.
+        let origin = self.bounds.min.as_dvec3() - DVec3::splat(brick);
+        let index_to_world = glam::DAffine3::from_translation(origin)
+            * glam::DAffine3::from_scale(DVec3::splat(voxel));
+        let world_to_index = index_to_world.inverse();
+        let key_hi = ((ext + DVec3::splat(2.0 * brick)) / brick)
+            .ceil()
+            .as_ivec3();
+        let dims = key_hi + IVec3::ONE;
+        let mut occupied = vec![false; (dims.x * dims.y * dims.z) as usize];
+        for i in 0..self.tets.len() {
+            let b = self.tet_bounds(i);
+            // Trilinear lookups in the pyramid's own lattice reach half a voxel out.
+            let lo = (world_to_index.transform_point3(b.min.as_dvec3()) - DVec3::splat(1.0)) / 8.0;
+            let hi = (world_to_index.transform_point3(b.max.as_dvec3()) + DVec3::splat(1.0)) / 8.0;
+            let lo = lo.floor().as_ivec3().max(IVec3::ZERO);
+            let hi = hi.floor().as_ivec3().min(key_hi);
+            for z in lo.z..=hi.z {
+                for y in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        occupied[((z * dims.y + y) * dims.x + x) as usize] = true;
+                    }
+                }
+            }
+        }
+        let full = self.density_bounds;
+        MajorantPyramid::from_brick_bounds(IVec3::ZERO, key_hi, 0.0, world_to_index, |k| {
+            if occupied[((k.z * dims.y + k.y) * dims.x + k.x) as usize] {
+                full
+            } else {
+                Bounds::constant(0.0)
+            }
+        })
+    }
+}
+
+/// The mesh's mean world length per unit of texture coordinate, `sqrt(world area / UV
+/// area)`, or `None` without texture coordinates or with zero UV area.
+#[must_use]
+pub fn world_length_per_uv(mesh: &TriangleMesh) -> Option<f64> {
+    let uvs = mesh.uvs.as_ref()?;
+    let (mut area_w, mut area_uv) = (0.0f64, 0.0f64);
+    for tri in &mesh.indices {
+        let p = tri.map(|i| mesh.positions[i as usize].as_dvec3());
+        let t = tri.map(|i| uvs[i as usize].as_dvec2());
+        area_w += (p[1] - p[0]).cross(p[2] - p[0]).length() * 0.5;
+        area_uv += (t[1] - t[0]).perp_dot(t[2] - t[0]).abs() * 0.5;
+    }
+    (area_uv > 0.0 && area_w > 0.0 && area_w.is_finite()).then(|| (area_w / area_uv).sqrt())
+}
+
+/// A tetrahedron from four (world, patch index) corners, or `None` when degenerate.
+fn make_tet(c: [(DVec3, DVec3); 4], period: Vec3) -> Option<ShellTet> {
+    let w = DMat3::from_cols(c[1].0 - c[0].0, c[2].0 - c[0].0, c[3].0 - c[0].0);
+    let q = DMat3::from_cols(c[1].1 - c[0].1, c[2].1 - c[0].1, c[3].1 - c[0].1);
+    let scale_w = (c[1].0 - c[0].0)
+        .length()
+        .max((c[2].0 - c[0].0).length())
+        .max((c[3].0 - c[0].0).length());
+    let dw = w.determinant();
+    let dq = q.determinant();
+    if !(dw.abs() > 1e-12 * scale_w.powi(3)) || !(dq.abs() > 1e-12) || !dw.is_finite() {
+        return None;
+    }
+    let q_to_world = w * q.inverse();
+    // Reduce x, y of the first corner modulo the tile (lookups wrap): keeps f32 precision.
+    let mut q0 = c[0].1.as_vec3();
+    q0.x -= (q0.x / period.x).floor() * period.x;
+    q0.y -= (q0.y / period.y).floor() * period.y;
+    Some(ShellTet {
+        w0: c[0].0.as_vec3(),
+        world_to_bary: w.inverse().as_mat3(),
+        q0,
+        bary_to_q: q.as_mat3(),
+        q_to_world: q_to_world.as_mat3(),
+    })
+}
+
+/// For each vertex, the id of the first vertex at the same position (welds UV seams).
+fn welded_ids(mesh: &TriangleMesh) -> Vec<u32> {
+    let mut first = std::collections::HashMap::with_capacity(mesh.positions.len());
+    mesh.positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let key = [p.x, p.y, p.z].map(|x| if x == 0.0 { 0 } else { x.to_bits() });
+            *first.entry(key).or_insert(i as u32)
+        })
+        .collect()
+}
+
+/// Area-weighted vertex normals over welded positions (indexed by welded id).
+fn welded_normals(mesh: &TriangleMesh) -> Vec<DVec3> {
+    let canon = welded_ids(mesh);
+    let mut n = vec![DVec3::ZERO; mesh.positions.len()];
+    for tri in &mesh.indices {
+        let p = tri.map(|i| mesh.positions[i as usize].as_dvec3());
+        let face = (p[1] - p[0]).cross(p[2] - p[0]);
+        for &i in tri {
+            n[canon[i as usize] as usize] += face;
+        }
+    }
+    n.iter().map(|v| v.normalize_or_zero()).collect()
+}
+
+/// Bottom, top and side walls of the shell, with side quads split like the tetrahedra.
+fn shell_boundary(
+    mesh: &TriangleMesh,
+    canon: &[u32],
+    normals: &[DVec3],
+    thickness: f64,
+) -> TriangleMesh {
+    let nv = mesh.positions.len() as u32;
+    let mut positions = Vec::with_capacity(2 * mesh.positions.len());
+    for s in [-0.5, 0.5] {
+        for (i, p) in mesh.positions.iter().enumerate() {
+            let n = normals[canon[i] as usize];
+            positions.push((p.as_dvec3() + n * (s * thickness)).as_vec3());
+        }
+    }
+    let mut indices = Vec::with_capacity(mesh.indices.len() * 4);
+    // Edges by welded ids; a boundary edge is used by one triangle, in its winding x → y.
+    let mut edges: std::collections::HashMap<(u32, u32), (u32, u32, u32)> =
+        std::collections::HashMap::new();
+    for tri in &mesh.indices {
+        let [a, b, c] = tri.map(|i| canon[i as usize]);
+        if a == b || b == c || a == c {
+            continue;
+        }
+        indices.push([a, c, b]); // bottom, facing −n
+        indices.push([a + nv, b + nv, c + nv]); // top, facing +n
+        for (x, y) in [(a, b), (b, c), (c, a)] {
+            edges.entry((x.min(y), x.max(y))).or_insert((0, x, y)).0 += 1;
+        }
+    }
+    let mut walls: Vec<(u32, u32)> = edges
+        .into_values()
+        .filter(|(n, _, _)| *n == 1)
+        .map(|(_, x, y)| (x, y))
+        .collect();
+    walls.sort_unstable();
+    for (x, y) in walls {
+        // The quad (x_b, y_b, y_t, x_t) faces outward (edge × normal); its diagonal joins the
+        // lower id's bottom to the higher id's top, as in the prisms' tetrahedra.
+        let (xb, yb, xt, yt) = (x, y, x + nv, y + nv);
+        if x < y {
+            indices.push([xb, yb, yt]);
+            indices.push([xb, yt, xt]);
+        } else {
+            indices.push([xb, yb, xt]);
+            indices.push([yb, yt, xt]);
+        }
+    }
+    let mut m = TriangleMesh {
+        positions,
+        normals: None,
+        uvs: None,
+        indices,
+    };
+    m.make_outward();
+    m
+}
+
+/// Density bounds of a patch: 0, the largest voxel value and the mean over the shell layers.
+fn patch_bounds(grid: &SparseGrid, dims: IVec3) -> Bounds {
+    let mut max = 0.0f32;
+    let mut sum = 0.0f64;
+    for b in 0..grid.brick_count() {
+        let data = grid.brick_data(DENSITY, b);
+        for v in 0..crate::grid::BRICK_VOXELS {
+            let x = data.get(v, 1, 0);
+            max = max.max(x);
+            sum += f64::from(x);
+        }
+    }
+    let cells = f64::from(dims.x) * f64::from(dims.y) * f64::from(dims.z);
+    Bounds {
+        min: 0.0,
+        max,
+        mean: ((sum / cells) as f32).clamp(0.0, max),
+    }
+}
