@@ -61,6 +61,20 @@ struct ShellTet {
 }
 
 impl ShellTet {
+    /// The patch `z` range of the tetrahedron (over its four vertices).
+    fn z_range(&self) -> (f32, f32) {
+        let z = [
+            self.q0.z,
+            self.q0.z + self.bary_to_q.x_axis.z,
+            self.q0.z + self.bary_to_q.y_axis.z,
+            self.q0.z + self.bary_to_q.z_axis.z,
+        ];
+        (
+            z.iter().copied().fold(f32::INFINITY, f32::min),
+            z.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+        )
+    }
+
     /// Barycentrics `(λ1, λ2, λ3)` of `p`, and whether `p` lies inside (with tolerance).
     #[inline]
     fn locate(&self, p: Vec3) -> Option<Vec3> {
@@ -94,6 +108,10 @@ pub struct FabricShell {
     voxel_world: f32,
     bounds: Aabb,
     density_bounds: Bounds,
+    /// First patch layer (`z` index) of the shell.
+    layer_lo: i32,
+    /// Per patch layer from `layer_lo`: (max, mean) of the density over the layer.
+    layers: Vec<(f32, f32)>,
     tiles: [f32; 2],
 }
 
@@ -159,7 +177,7 @@ impl FabricShell {
             .grid
             .active_bbox()
             .ok_or_else(|| shell_error("patch", "empty", "a patch with fibres"))?;
-        let dims = IVec3::new(patch.dims[0] as i32, patch.dims[1] as i32, hi.z - lo.z + 3);
+        let dims = IVec3::new(patch.dims[0] as i32, patch.dims[1] as i32, hi.z - lo.z + 2);
         let z_lo = (lo.z - 1) as f32;
 
         // Scale: world length per unit UV, then the world size of one patch voxel.
@@ -227,7 +245,9 @@ impl FabricShell {
         }
         let boundary = shell_boundary(mesh, &canon, &normals, thickness);
         let bounds = boundary.bounds();
-        let density_bounds = patch_bounds(&patch.grid, dims);
+        let layer_lo = lo.z - 1;
+        let layers = layer_stats(&patch.grid, layer_lo, dims);
+        let density_bounds = bounds_over_layers(&layers, 0, layers.len() - 1);
         let mut shell = FabricShell {
             patch: patch.grid.clone(),
             dims,
@@ -242,6 +262,8 @@ impl FabricShell {
             voxel_world: voxel_z as f32,
             bounds,
             density_bounds,
+            layer_lo,
+            layers,
             tiles: params.tiles,
         };
         shell.build_cells();
@@ -479,8 +501,9 @@ impl FabricShell {
     /// patch's density range, all others are empty.
     pub fn majorant_pyramid(&self) -> Result<MajorantPyramid, crate::majorant::MajorantError> {
         let ext = self.bounds.extent().as_dvec3().max(DVec3::splat(1e-9));
-        // Bricks about the thickness, coarser when the box would need too many.
-        let mut brick = f64::from(self.thickness).max(1e-9);
+        // Bricks of a third of the thickness (so their height ranges are narrow), coarser
+        // when the box would need too many.
+        let mut brick = (f64::from(self.thickness) / 3.0).max(1e-9);
         let count = |b: f64| (ext / b).ceil().x * (ext / b).ceil().y * (ext / b).ceil().z;
         while count(brick) > MAX_MAJORANT_BRICKS {
             brick *= 1.25;
@@ -495,26 +518,54 @@ impl FabricShell {
             .ceil()
             .as_ivec3();
         let dims = key_hi + IVec3::ONE;
-        let mut occupied = vec![false; (dims.x * dims.y * dims.z) as usize];
-        for i in 0..self.tets.len() {
+        // Per brick, the range of patch z (height) that the tetrahedra reach inside it: z is
+        // affine in each tetrahedron, so its extremes over the brick box are at box corners.
+        let mut z_range =
+            vec![(f32::INFINITY, f32::NEG_INFINITY); (dims.x * dims.y * dims.z) as usize];
+        let apron = voxel; // trilinear lookups in the pyramid's lattice reach a voxel out
+        for (i, t) in self.tets.iter().enumerate() {
             let b = self.tet_bounds(i);
-            // Trilinear lookups in the pyramid's own lattice reach half a voxel out.
-            let lo = (world_to_index.transform_point3(b.min.as_dvec3()) - DVec3::splat(1.0)) / 8.0;
-            let hi = (world_to_index.transform_point3(b.max.as_dvec3()) + DVec3::splat(1.0)) / 8.0;
+            let lo = (world_to_index.transform_point3(b.min.as_dvec3()) - DVec3::ONE) / 8.0;
+            let hi = (world_to_index.transform_point3(b.max.as_dvec3()) + DVec3::ONE) / 8.0;
             let lo = lo.floor().as_ivec3().max(IVec3::ZERO);
             let hi = hi.floor().as_ivec3().min(key_hi);
+            let m = t.bary_to_q * t.world_to_bary;
+            let row = Vec3::new(m.x_axis.z, m.y_axis.z, m.z_axis.z).as_dvec3();
+            let (tz0, tz1) = t.z_range();
             for z in lo.z..=hi.z {
                 for y in lo.y..=hi.y {
                     for x in lo.x..=hi.x {
-                        occupied[((z * dims.y + y) * dims.x + x) as usize] = true;
+                        let key = IVec3::new(x, y, z);
+                        let bmin = index_to_world.transform_point3((key * 8).as_dvec3())
+                            - DVec3::splat(apron);
+                        let bmax = bmin + DVec3::splat(brick + 2.0 * apron);
+                        let (mut z0, mut z1) = (f64::INFINITY, f64::NEG_INFINITY);
+                        for c in 0..8 {
+                            let p = DVec3::new(
+                                if c & 1 != 0 { bmax.x } else { bmin.x },
+                                if c & 2 != 0 { bmax.y } else { bmin.y },
+                                if c & 4 != 0 { bmax.z } else { bmin.z },
+                            );
+                            let zc = f64::from(t.q0.z) + row.dot(p - t.w0.as_dvec3());
+                            z0 = z0.min(zc);
+                            z1 = z1.max(zc);
+                        }
+                        let (z0, z1) = (z0.max(f64::from(tz0)), z1.min(f64::from(tz1)));
+                        if z0 <= z1 {
+                            let r = &mut z_range[((z * dims.y + y) * dims.x + x) as usize];
+                            r.0 = r.0.min(z0 as f32);
+                            r.1 = r.1.max(z1 as f32);
+                        }
                     }
                 }
             }
         }
-        let full = self.density_bounds;
+        let top = self.layers.len() - 1;
+        let layer = |z: f32| ((z.floor() as i32 - self.layer_lo).max(0) as usize).min(top);
         MajorantPyramid::from_brick_bounds(IVec3::ZERO, key_hi, 0.0, world_to_index, |k| {
-            if occupied[((k.z * dims.y + k.y) * dims.x + k.x) as usize] {
-                full
+            let (z0, z1) = z_range[((k.z * dims.y + k.y) * dims.x + k.x) as usize];
+            if z0 <= z1 {
+                bounds_over_layers(&self.layers, layer(z0), layer(z1))
             } else {
                 Bounds::constant(0.0)
             }
@@ -649,22 +700,42 @@ fn shell_boundary(
     m
 }
 
-/// Density bounds of a patch: 0, the largest voxel value and the mean over the shell layers.
-fn patch_bounds(grid: &SparseGrid, dims: IVec3) -> Bounds {
-    let mut max = 0.0f32;
-    let mut sum = 0.0f64;
+/// Per layer `z = layer_lo + k` (`k < dims.z + 1`, the last one past the shell's top for
+/// trilinear lookups there): the largest and the mean density of the layer.
+fn layer_stats(grid: &SparseGrid, layer_lo: i32, dims: IVec3) -> Vec<(f32, f32)> {
+    let n = dims.z as usize + 1;
+    let mut max = vec![0.0f32; n];
+    let mut sum = vec![0.0f64; n];
     for b in 0..grid.brick_count() {
         let data = grid.brick_data(DENSITY, b);
+        let oz = grid.brick_origin(b).z;
         for v in 0..crate::grid::BRICK_VOXELS {
-            let x = data.get(v, 1, 0);
-            max = max.max(x);
-            sum += f64::from(x);
+            let k = (oz + (v & 7) as i32 - layer_lo) as usize;
+            if k < n {
+                let x = data.get(v, 1, 0);
+                max[k] = max[k].max(x);
+                sum[k] += f64::from(x);
+            }
         }
     }
-    let cells = f64::from(dims.x) * f64::from(dims.y) * f64::from(dims.z);
+    let per_layer = f64::from(dims.x) * f64::from(dims.y);
+    max.into_iter()
+        .zip(sum)
+        .map(|(m, s)| (m, ((s / per_layer) as f32).clamp(0.0, m)))
+        .collect()
+}
+
+/// Bounds of trilinear lookups whose `z` lies between layers `k0` and `k1` (inclusive;
+/// a lookup also reads the layer above its floor).
+fn bounds_over_layers(layers: &[(f32, f32)], k0: usize, k1: usize) -> Bounds {
+    let k1 = (k1 + 1).min(layers.len() - 1);
+    let k0 = k0.min(k1);
+    let slice = &layers[k0..=k1];
+    let max = slice.iter().fold(0.0f32, |m, l| m.max(l.0));
+    let mean = slice.iter().map(|l| l.1).sum::<f32>() / slice.len() as f32;
     Bounds {
         min: 0.0,
         max,
-        mean: ((sum / cells) as f32).clamp(0.0, max),
+        mean: mean.clamp(0.0, max),
     }
 }

@@ -899,6 +899,9 @@ fn build_medium(
         "fabric" => {
             reject_unused(ctx, line, &owner, "fabric", &heterogeneous_keys[..11])?;
             reject_unused(ctx, line, &owner, "fabric", &[("albedo", i.albedo.is_some()), ("albedo_mode", i.albedo_mode.is_some()), ("phase", i.phase.is_some())])?;
+            if rest_mesh.is_none() && rest_bounds.is_some() {
+                return Err(ctx.invalid(line, format!("{owner}: a fabric interior needs shape = \"bounds\" (a free-standing patch) or shape = \"mesh\" (a shell tiled over the mesh's texture coordinates)")));
+            }
             let medium = build_fabric(ctx, line, &owner, i, xf, rest_mesh, attenuation, density)?;
             Ok((Medium::Heterogeneous(Box::new(medium)), nee))
         }
