@@ -201,6 +201,8 @@ pub struct FabricLook {
     pub id_channel: usize,
     /// Voxel size of the patch in its own units (the unit the tangents are stored in).
     pub patch_voxel_size: glam::DVec3,
+    /// The patch's mip level (0 = full resolution; notes §5.3).
+    pub mip_level: u32,
     /// One fibre phase function per yarn family.
     pub shading: crate::fabric::FabricShading,
 }

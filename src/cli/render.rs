@@ -80,6 +80,9 @@ pub fn run(args: &RenderArgs) -> CliResult {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
+    for n in &scene.notes {
+        eprintln!("note: {n}");
+    }
     let output = scene.film.output.clone();
     let options = RenderOptions {
         threads: args.threads,

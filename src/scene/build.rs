@@ -183,6 +183,7 @@ fn reject_unused(
 
 fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
     let mut warnings = Vec::new();
+    let mut notes = Vec::new();
     let film = build_film(ctx, &file)?;
     let (camera, camera_params) = build_camera(ctx, &file, &film)?;
 
@@ -202,17 +203,27 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
         let (surface, ior) = build_surface(ctx, line, &name, desc.surface.as_ref())?;
         let (medium, nee) = match &desc.interior {
             Some(interior) => {
-                let rest_mesh = match &rest {
-                    RestShape::Mesh(m) => Some(m),
-                    _ => None,
+                let placement = Placement {
+                    xf,
+                    rest_bounds: rest.bounds(),
+                    rest_mesh: match &rest {
+                        RestShape::Mesh(m) => Some(m),
+                        _ => None,
+                    },
+                    view: ViewFootprint {
+                        eye: camera_params.eye,
+                        pixel_angle: camera_params.fov.to_radians() / film.height.max(1) as f32,
+                    },
                 };
-                let (m, nee) =
-                    build_medium(ctx, line, &name, interior, xf, rest.bounds(), rest_mesh)?;
+                let (m, nee) = build_medium(ctx, line, &name, interior, &placement)?;
                 media.push(m);
                 (Some((media.len() - 1) as u32), nee)
             }
             None => (None, NeeStrategy::ExitPoint),
         };
+        if let Some(note) = medium.and_then(|m| fabric_note(&media[m as usize])) {
+            notes.push(format!("{name}: {note}"));
+        }
         let shell_boundary = medium.and_then(|m| match &media[m as usize] {
             Medium::Heterogeneous(h) => match &h.field {
                 DensityField::Shell(shell) => Some(shell.boundary_mesh().clone()),
@@ -341,6 +352,7 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
         media,
         shape_owner,
         warnings,
+        notes,
         source: ctx.path.to_path_buf(),
     })
 }
@@ -838,15 +850,37 @@ fn build_medium_nee(
     }
 }
 
+/// Where an interior sits: the object transform and its rest shape, and the camera's view.
+struct Placement<'a> {
+    xf: Mat4,
+    rest_bounds: Option<Aabb>,
+    rest_mesh: Option<&'a crate::geometry::TriangleMesh>,
+    view: ViewFootprint,
+}
+
+/// The camera's eye and the angle one pixel subtends (radians), for mip selection.
+#[derive(Clone, Copy)]
+struct ViewFootprint {
+    eye: Vec3,
+    pixel_angle: f32,
+}
+
+impl ViewFootprint {
+    /// Width of a pixel's footprint at the point of `bounds` nearest to the eye.
+    fn at(&self, bounds: Aabb) -> f32 {
+        let nearest = self.eye.clamp(bounds.min, bounds.max);
+        self.eye.distance(nearest) * self.pixel_angle
+    }
+}
+
 fn build_medium(
     ctx: &Ctx,
     line: usize,
     name: &str,
     i: &InteriorDesc,
-    xf: Mat4,
-    rest_bounds: Option<Aabb>,
-    rest_mesh: Option<&crate::geometry::TriangleMesh>,
+    placement: &Placement<'_>,
 ) -> Result<(Medium, NeeStrategy), SceneError> {
+    let (xf, rest_bounds, rest_mesh) = (placement.xf, placement.rest_bounds, placement.rest_mesh);
     let owner = format!("{name}: interior");
     let density = check_range(
         ctx,
@@ -888,6 +922,7 @@ fn build_medium(
         ("warp_albedo", i.warp_albedo.is_some()),
         ("weft_albedo", i.weft_albedo.is_some()),
         ("tiles", i.tiles.is_some()),
+        ("mip", i.mip.is_some()),
     ];
     if i.kind != "fabric" {
         reject_unused(ctx, line, &owner, &i.kind, &fabric_keys)?;
@@ -902,7 +937,7 @@ fn build_medium(
             if rest_mesh.is_none() && rest_bounds.is_some() {
                 return Err(ctx.invalid(line, format!("{owner}: a fabric interior needs shape = \"bounds\" (a free-standing patch) or shape = \"mesh\" (a shell tiled over the mesh's texture coordinates)")));
             }
-            let medium = build_fabric(ctx, line, &owner, i, xf, rest_mesh, attenuation, density)?;
+            let medium = build_fabric(ctx, line, &owner, i, placement, attenuation, density)?;
             Ok((Medium::Heterogeneous(Box::new(medium)), nee))
         }
         "voxel" | "fbm" => {
@@ -1027,6 +1062,100 @@ fn build_tracking(
     Ok(cfg)
 }
 
+/// How a fabric interior was built, for the render log.
+fn fabric_note(m: &Medium) -> Option<String> {
+    let Medium::Heterogeneous(h) = m else {
+        return None;
+    };
+    let look = h.fabric.as_ref()?;
+    Some(match &h.field {
+        DensityField::Shell(s) => format!(
+            "fabric shell of {} tetrahedra, {} × {} tiles, {:.4} thick, patch mip level {}",
+            s.tet_count(),
+            s.tiles()[0],
+            s.tiles()[1],
+            s.thickness(),
+            look.mip_level
+        ),
+        _ => format!("free-standing fabric patch, mip level {}", look.mip_level),
+    })
+}
+
+/// The coarsest fabric mip level a scene may ask for.
+const MAX_FABRIC_MIP: u32 = 6;
+
+/// Patch tiles across the unit UV square of a shell mesh: the scene's `tiles`, or the weave's
+/// true size with scene units taken as the yarn preset's (centimetres).
+fn shell_tiles(
+    ctx: &Ctx,
+    line: usize,
+    owner: &str,
+    i: &InteriorDesc,
+    mesh: &crate::geometry::TriangleMesh,
+    patch: &crate::fabric::FabricPatch,
+) -> Result<[f32; 2], SceneError> {
+    Ok(match i.tiles {
+        Some(super::desc::TilesValue::Uniform(t)) => [t, t],
+        Some(super::desc::TilesValue::PerAxis(t)) => t,
+        None => {
+            let per_uv = crate::fabric::shell::world_length_per_uv(mesh).ok_or_else(|| {
+                ctx.invalid(line, format!("{owner}: a fabric shell needs a mesh with texture coordinates (u, v) spanning a non-zero area"))
+            })?;
+            [
+                ((per_uv / f64::from(patch.tile.x)).round() as f32).max(1.0),
+                ((per_uv / f64::from(patch.tile.y)).round() as f32).max(1.0),
+            ]
+        }
+    })
+}
+
+/// The world width of one level-0 patch voxel and the world box of the fabric (a shell over
+/// `shell_mesh` with `tiles`, or the patch placed by `xf`).
+fn fabric_voxel_footprint(
+    vp: &crate::fabric::VoxelisedPatch,
+    xf: Mat4,
+    shell_mesh: Option<&crate::geometry::TriangleMesh>,
+    tiles: Option<[f32; 2]>,
+) -> (f32, Aabb) {
+    if let (Some(mesh), Some(t)) = (shell_mesh, tiles) {
+        let per_uv = crate::fabric::shell::world_length_per_uv(mesh).unwrap_or(1.0);
+        let across =
+            (f64::from(t[0]) * f64::from(vp.dims[0]) * f64::from(t[1]) * f64::from(vp.dims[1]))
+                .sqrt();
+        return ((per_uv / across) as f32, mesh.bounds());
+    }
+    let placed = glam::DAffine3::from_mat4(xf.as_dmat4()) * vp.grid.index_to_world();
+    let voxel = placed.matrix3.determinant().abs().cbrt() as f32;
+    let mut b = Aabb::EMPTY;
+    if let Some((lo, hi)) = vp.grid.active_bbox() {
+        for c in 0..8 {
+            let p = glam::IVec3::new(
+                if c & 1 != 0 { hi.x } else { lo.x },
+                if c & 2 != 0 { hi.y } else { lo.y },
+                if c & 4 != 0 { hi.z } else { lo.z },
+            );
+            b = b.union_point(placed.transform_point3(p.as_dvec3()).as_vec3());
+        }
+    }
+    (voxel, b)
+}
+
+/// The coarsest mip level whose voxels are no wider than a pixel's footprint at the fabric's
+/// nearest point (`footprint_in_voxels` level-0 voxels; course notes §5.3), capped at
+/// [`MAX_FABRIC_MIP`] and at the halvings that keep the tile wrap exact.
+fn auto_fabric_mip(vp: &crate::fabric::VoxelisedPatch, footprint_in_voxels: f32) -> u32 {
+    let wanted = if footprint_in_voxels >= 2.0 {
+        footprint_in_voxels.log2().floor() as u32
+    } else {
+        0
+    };
+    let mut l = wanted.min(MAX_FABRIC_MIP);
+    while l > 0 && (vp.dims[0] % (1 << l) != 0 || vp.dims[1] % (1 << l) != 0) {
+        l -= 1;
+    }
+    l
+}
+
 /// A voxelised weave patch (notes §3): generated, voxelised into density/tangent/id channels,
 /// placed by the object transform, shaded with one fibre phase function per yarn family.
 fn build_fabric(
@@ -1034,11 +1163,11 @@ fn build_fabric(
     line: usize,
     owner: &str,
     i: &InteriorDesc,
-    xf: Mat4,
-    rest_mesh: Option<&crate::geometry::TriangleMesh>,
+    placement: &Placement<'_>,
     attenuation: Rgb,
     density: f32,
 ) -> Result<HeterogeneousMedium, SceneError> {
+    let xf = placement.xf;
     use crate::fabric::{
         generate_patch, voxelise, FabricShading, FibrePhaseParams, VoxeliseOptions, WeaveParams,
         WeavePattern, YarnParams,
@@ -1089,13 +1218,30 @@ fn build_fabric(
         1.0,
     )?;
     let patch = generate_patch(&params, i.seed.unwrap_or(1)).map_err(|e| bad(&e))?;
+    let mip = match &i.mip {
+        None => None,
+        Some(super::desc::MipValue::Level(l)) if *l <= MAX_FABRIC_MIP => Some(*l),
+        Some(super::desc::MipValue::Level(l)) => {
+            return Err(ctx.invalid(
+                line,
+                format!("{owner}.mip = {l} is outside [0, {MAX_FABRIC_MIP}] (or \"auto\")"),
+            ));
+        }
+        Some(super::desc::MipValue::Named(n)) if n == "auto" => None,
+        Some(super::desc::MipValue::Named(n)) => {
+            return Err(ctx.invalid(line, format!("{owner}.mip = \"{n}\" is unknown (expected a level 0–{MAX_FABRIC_MIP} or \"auto\")")));
+        }
+    };
+    let auto_mip = matches!(&i.mip, Some(super::desc::MipValue::Named(_)));
     let opts = VoxeliseOptions {
-        keep_accumulators: false,
+        // Mip levels are summed from the fine accumulators.
+        keep_accumulators: auto_mip || mip.is_some_and(|l| l > 0),
         ..VoxeliseOptions::default()
     };
     let vp = voxelise(&patch, resolution, &opts).map_err(|e| bad(&e))?;
-    let patch_voxel_size = vp.voxel_size;
-    let (field, pyramid) = match rest_mesh {
+    // The shell's world mesh and tiles, or the free-standing placement.
+    let shell_mesh = placement.rest_mesh.map(|m| m.transformed(xf));
+    let tiles = match &shell_mesh {
         None => {
             if i.tiles.is_some() {
                 return Err(ctx.invalid(
@@ -1105,6 +1251,36 @@ fn build_fabric(
                     ),
                 ));
             }
+            None
+        }
+        Some(mesh) => Some(shell_tiles(ctx, line, owner, i, mesh, &patch)?),
+    };
+    let level = if auto_mip {
+        let (voxel_world, bounds) = fabric_voxel_footprint(&vp, xf, shell_mesh.as_ref(), tiles);
+        auto_fabric_mip(&vp, placement.view.at(bounds) / voxel_world.max(1e-30))
+    } else {
+        let l = mip.unwrap_or(0);
+        if l > 0 && (vp.dims[0] % (1 << l) != 0 || vp.dims[1] % (1 << l) != 0) {
+            return Err(ctx.invalid(line, format!("{owner}.mip = {l}: the patch has {} × {} voxels across its tile, which {l} halvings do not divide exactly; use a resolution that is a multiple of {}", vp.dims[0], vp.dims[1], 1u32 << l)));
+        }
+        l
+    };
+    let vp = if level > 0 {
+        vp.mip(level).map_err(|e| bad(&e))?
+    } else {
+        vp
+    };
+    let patch_voxel_size = vp.voxel_size;
+    let (field, pyramid) = match (shell_mesh, tiles) {
+        (Some(mesh), Some(tiles)) => {
+            // A shell over the cloth mesh (notes §3.3), in world space.
+            let shell =
+                crate::fabric::FabricShell::new(&vp, &mesh, &crate::fabric::ShellParams { tiles })
+                    .map_err(|e| bad(&e))?;
+            let pyramid = shell.majorant_pyramid().map_err(|e| bad(&e))?;
+            (DensityField::Shell(Box::new(shell)), pyramid)
+        }
+        _ => {
             let mut grid = vp.grid;
             let placed = glam::DAffine3::from_mat4(xf.as_dmat4()) * grid.index_to_world();
             grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
@@ -1118,30 +1294,6 @@ fn build_fabric(
                 channel: crate::fabric::voxelise::DENSITY,
             };
             (field, pyramid)
-        }
-        Some(rest) => {
-            // A shell over the cloth mesh (notes §3.3), in world space.
-            let mesh = rest.transformed(xf);
-            let tiles = match i.tiles {
-                Some(super::desc::TilesValue::Uniform(t)) => [t, t],
-                Some(super::desc::TilesValue::PerAxis(t)) => t,
-                None => {
-                    // True size: scene units are the yarn preset's (centimetres).
-                    let per_uv = crate::fabric::shell::world_length_per_uv(&mesh).ok_or_else(|| {
-                        ctx.invalid(line, format!("{owner}: a fabric shell needs a mesh with texture coordinates (u, v) spanning a non-zero area"))
-                    })?;
-                    let tile = patch.tile;
-                    [
-                        ((per_uv / f64::from(tile.x)).round() as f32).max(1.0),
-                        ((per_uv / f64::from(tile.y)).round() as f32).max(1.0),
-                    ]
-                }
-            };
-            let shell =
-                crate::fabric::FabricShell::new(&vp, &mesh, &crate::fabric::ShellParams { tiles })
-                    .map_err(|e| bad(&e))?;
-            let pyramid = shell.majorant_pyramid().map_err(|e| bad(&e))?;
-            (DensityField::Shell(Box::new(shell)), pyramid)
         }
     };
     let shading =
@@ -1159,6 +1311,7 @@ fn build_fabric(
             tangent_channel: crate::fabric::voxelise::TANGENT,
             id_channel: crate::fabric::voxelise::ID,
             patch_voxel_size,
+            mip_level: level,
             shading,
         })),
     })

@@ -35,6 +35,16 @@ pub enum TilesValue {
     PerAxis([f32; 2]),
 }
 
+/// A fabric mip level: a number, or `"auto"` (chosen from the camera's pixel footprint).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum MipValue {
+    /// A fixed level (0 = full resolution).
+    Level(u32),
+    /// A named choice: `"auto"`.
+    Named(String),
+}
+
 /// The whole file.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -245,6 +255,8 @@ pub struct InteriorDesc {
     pub weft_albedo: Option<ColorValue>,
     /// Patch tiles across the unit UV square (fabric shell on a mesh).
     pub tiles: Option<TilesValue>,
+    /// Mip level of the voxelised patch (fabric): 0–6 or "auto".
+    pub mip: Option<MipValue>,
 }
 
 /// `tracking = { ... }`: estimator choices of a heterogeneous interior.

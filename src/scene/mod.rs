@@ -189,6 +189,9 @@ pub struct Scene {
     pub shape_owner: Vec<ShapeOwner>,
     /// Warnings found while loading (e.g. open meshes used as interior boundaries).
     pub warnings: Vec<String>,
+    /// Facts about how the scene was built (fabric shells: tiles, thickness, mip level),
+    /// printed by `velour render`.
+    pub notes: Vec<String>,
     /// Where the scene came from.
     pub source: PathBuf,
 }
