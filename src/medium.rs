@@ -188,11 +188,21 @@ pub struct HeterogeneousMedium {
     pub fabric: Option<Box<FabricLook>>,
 }
 
+/// How the extinction of a fibre medium depends on the direction of travel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FibreExtinction {
+    /// The same in every direction: σ_t = d·σ_t⁰ with the fibre volume fraction d.
+    Isotropic,
+    /// The projected width of aligned cylinders (REFERENCES §7.3): σ_t(ω) = d·σ_t⁰·sin∠(ω, t),
+    /// so light travelling along the fibres passes. The scene scales σ_t⁰ by 4/π so that the
+    /// extinction averaged over directions equals the isotropic one at the same attenuation.
+    Projected,
+}
+
 /// How a voxelised weave patch scatters (course notes §3.2): the fibre phase function of the
 /// yarn family stored in the `id` channel, around the averaged fibre tangent of the `tangent`
-/// channel. Extinction is treated as isotropic (the density already holds the fibre volume
-/// fraction); the direction-dependent projected width of REFERENCES §7.3 is not modelled.
-/// The channels are those of the grid (a free-standing patch) or of the shell's patch.
+/// channel, with isotropic or fibre-projected extinction ([`FibreExtinction`]). The channels
+/// are those of the grid (a free-standing patch) or of the shell's patch.
 #[derive(Clone, Debug)]
 pub struct FabricLook {
     /// Grid channel of the averaged tangent (Vec3).
@@ -203,6 +213,8 @@ pub struct FabricLook {
     pub patch_voxel_size: glam::DVec3,
     /// The patch's mip level (0 = full resolution; notes §5.3).
     pub mip_level: u32,
+    /// Whether extinction depends on the angle to the fibres.
+    pub extinction: FibreExtinction,
     /// One fibre phase function per yarn family.
     pub shading: crate::fabric::FabricShading,
 }
@@ -217,10 +229,10 @@ impl HeterogeneousMedium {
         let look = self.fabric.as_ref()?;
         match &self.field {
             DensityField::Grid { grid, .. } => {
-                let ijk = (grid.world_to_index_point(p) + glam::Vec3::splat(0.5))
-                    .floor()
-                    .as_ivec3();
-                let t = grid.accessor(look.tangent_channel).value_vec3(ijk);
+                let q = grid.world_to_index_point(p);
+                let mut tangents = grid.accessor(look.tangent_channel);
+                let t = crate::fabric::tangent_near(q, |ijk| tangents.value_vec3(ijk));
+                let ijk = (q + glam::Vec3::splat(0.5)).floor().as_ivec3();
                 let id = grid.accessor(look.id_channel).value(ijk);
                 let index_dir = t.as_dvec3() / look.patch_voxel_size;
                 let world = grid.index_to_world().transform_vector3(index_dir).as_vec3();
@@ -234,11 +246,25 @@ impl HeterogeneousMedium {
         }
     }
 
+    /// The fabric look when its extinction is fibre-projected.
+    fn projected_fibres(&self) -> Option<&FabricLook> {
+        self.fabric
+            .as_deref()
+            .filter(|l| l.extinction == FibreExtinction::Projected)
+    }
+
     /// Appends the majorant segments of `[t0, t1]` along `ray` to `out`.
     pub fn segments(&self, ray: &Ray, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
         let start = out.len();
         self.pyramid
             .segments(ray, t0, t1, self.tracking.majorant, out);
+        if self.projected_fibres().is_some() {
+            // sin∠(ω, t) ∈ [0, 1] scales the density: the maxima still bound it, the minima
+            // do not, and no segment is homogeneous in the closed-form sense.
+            for s in &mut out[start..] {
+                s.min = 0.0;
+            }
+        }
         if !self.coefficients.base_t.is_black() && t1.is_finite() {
             // A combined interior: the homogeneous part also fills the empty space the
             // pyramid skipped.
@@ -270,15 +296,17 @@ impl HeterogeneousMedium {
     #[must_use]
     pub fn density_along<'a>(&'a self, ray: &Ray) -> RayLookup<'a> {
         match &self.field {
-            DensityField::Grid { grid, channel } => {
-                RayLookup::Grid(RayDensity::new(grid, *channel, ray))
-            }
+            DensityField::Grid { grid, channel } => match self.projected_fibres() {
+                Some(look) => RayLookup::FibreGrid(FibreGridLookup::new(grid, *channel, look, ray)),
+                None => RayLookup::Grid(RayDensity::new(grid, *channel, ray)),
+            },
             DensityField::Procedural(f) => RayLookup::Procedural {
                 field: f,
                 ray: *ray,
             },
             DensityField::Shell(shell) => RayLookup::Shell {
                 accessor: shell.density_accessor(),
+                tangents: self.projected_fibres().map(|_| shell.tangent_accessor()),
                 shell,
                 ray: *ray,
                 hint: u32::MAX,
@@ -323,7 +351,59 @@ pub enum RayLookup<'a> {
         ray: Ray,
         /// The last tetrahedron found.
         hint: u32,
+        /// Accessor on the patch's tangents, for fibre-projected extinction.
+        tangents: Option<crate::grid::Accessor<'a>>,
     },
+    /// A fabric grid with fibre-projected extinction.
+    FibreGrid(FibreGridLookup<'a>),
+}
+
+/// Density × sin∠(ray, fibre) along a ray through a free-standing fabric grid
+/// ([`FibreExtinction::Projected`]).
+pub struct FibreGridLookup<'a> {
+    density: crate::grid::Accessor<'a>,
+    tangent: crate::grid::Accessor<'a>,
+    o: glam::Vec3,
+    d: glam::Vec3,
+    /// Patch-unit tangent → world direction (the placement's linear part over the voxel size).
+    tangent_to_world: glam::Mat3,
+    dir: glam::Vec3,
+}
+
+impl<'a> FibreGridLookup<'a> {
+    fn new(grid: &'a SparseGrid, channel: usize, look: &FabricLook, ray: &Ray) -> Self {
+        let w2i = grid.world_to_index();
+        let m = grid.index_to_world().matrix3
+            * glam::DMat3::from_diagonal(look.patch_voxel_size.recip());
+        FibreGridLookup {
+            density: grid.accessor(channel),
+            tangent: grid.accessor(look.tangent_channel),
+            o: w2i.transform_point3(ray.o.as_dvec3()).as_vec3(),
+            d: w2i.transform_vector3(ray.d.as_dvec3()).as_vec3(),
+            tangent_to_world: m.as_mat3(),
+            dir: ray.d.normalize_or_zero(),
+        }
+    }
+
+    fn at(&mut self, t: f32) -> f32 {
+        let p = self.o + self.d * t;
+        let density = self.density.sample_trilinear(p);
+        if !(density > 0.0) {
+            return density;
+        }
+        let local = crate::fabric::tangent_near(p, |ijk| self.tangent.value_vec3(ijk));
+        density * projected_width(self.dir, self.tangent_to_world * local)
+    }
+}
+
+/// `sin∠(dir, tangent)` for a unit `dir`; 1 when the tangent is zero (no fibre direction).
+#[inline]
+#[must_use]
+pub fn projected_width(dir: glam::Vec3, tangent: glam::Vec3) -> f32 {
+    match tangent.try_normalize() {
+        Some(t) => crate::fabric::fibre_scattering::extinction_scale(dir, t),
+        None => 1.0,
+    }
 }
 
 impl RayLookup<'_> {
@@ -338,7 +418,12 @@ impl RayLookup<'_> {
                 accessor,
                 ray,
                 hint,
-            } => shell.density(accessor, ray.at(t), hint),
+                tangents,
+            } => match tangents {
+                None => shell.density(accessor, ray.at(t), hint),
+                Some(tan) => shell.projected_density(accessor, tan, ray.at(t), ray.d, hint),
+            },
+            RayLookup::FibreGrid(g) => g.at(t),
         }
     }
 }

@@ -139,3 +139,33 @@ pub(crate) fn check_positive(name: &str, x: f32, hi: f32) -> Result<(), FabricEr
         Err(invalid(name, x, &format!("(0, {hi}]")))
     }
 }
+
+/// The fibre tangent a lookup at index-space point `p` sees (voxel centres at integers): the
+/// nearest voxel's, or, where that voxel holds no fibre (the fringe of a yarn, reached by the
+/// trilinear density of its neighbours), the tangent of the trilinear corner with the largest
+/// weight that holds one. Zero when no corner does. `fetch` reads a voxel's tangent (and
+/// applies any wrapping).
+#[inline]
+pub fn tangent_near(p: glam::Vec3, mut fetch: impl FnMut(glam::IVec3) -> glam::Vec3) -> glam::Vec3 {
+    let nearest = fetch((p + glam::Vec3::splat(0.5)).floor().as_ivec3());
+    if nearest != glam::Vec3::ZERO {
+        return nearest;
+    }
+    let f = p.floor();
+    let t = p - f;
+    let base = f.as_ivec3();
+    let mut best = (0.0f32, glam::Vec3::ZERO);
+    for k in 0..8 {
+        let d = glam::IVec3::new(k >> 2, (k >> 1) & 1, k & 1);
+        let w = (if d.x == 1 { t.x } else { 1.0 - t.x })
+            * (if d.y == 1 { t.y } else { 1.0 - t.y })
+            * (if d.z == 1 { t.z } else { 1.0 - t.z });
+        if w > best.0 {
+            let v = fetch(base + d);
+            if v != glam::Vec3::ZERO {
+                best = (w, v);
+            }
+        }
+    }
+    best.1
+}

@@ -427,6 +427,37 @@ impl FabricShell {
         }
     }
 
+    /// An accessor on the patch's tangent channel.
+    #[must_use]
+    pub fn tangent_accessor(&self) -> Accessor<'_> {
+        self.patch.accessor(TANGENT)
+    }
+
+    /// Fibre volume fraction at `p` times `sin∠(dir, tangent)` (unit `dir`; REFERENCES §7.3):
+    /// the density seen by light travelling along `dir`, with the tangent of the nearest voxel.
+    #[inline]
+    pub fn projected_density(
+        &self,
+        acc: &mut Accessor<'_>,
+        tangents: &mut Accessor<'_>,
+        p: Vec3,
+        dir: Vec3,
+        hint: &mut u32,
+    ) -> f32 {
+        let Some((i, l)) = self.find(p, hint) else {
+            return 0.0;
+        };
+        let t = &self.tets[i];
+        let q = t.q0 + t.bary_to_q * l;
+        let density = self.density_at_q(acc, q);
+        if !(density > 0.0) {
+            return density;
+        }
+        let local = super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
+        let h = self.patch.voxel_size().as_vec3();
+        density * crate::medium::projected_width(dir, t.q_to_world * (local / h))
+    }
+
     /// Fibre tangent (world space) and yarn id of the voxel nearest to world point `p`.
     #[must_use]
     pub fn fibre_at(&self, p: Vec3) -> Option<FibreVoxel> {
@@ -435,7 +466,8 @@ impl FabricShell {
         let t = &self.tets[i];
         let q = t.q0 + t.bary_to_q * l;
         let ijk = self.wrap((q + Vec3::splat(0.5)).floor().as_ivec3());
-        let tangent_patch = self.patch.accessor(TANGENT).value_vec3(ijk);
+        let mut tangents = self.patch.accessor(TANGENT);
+        let tangent_patch = super::tangent_near(q, |c| tangents.value_vec3(self.wrap(c)));
         let id = self.patch.accessor(ID).value(ijk);
         // Patch-world tangent → index direction → world.
         let h = self.patch.voxel_size().as_vec3();

@@ -923,6 +923,7 @@ fn build_medium(
         ("weft_albedo", i.weft_albedo.is_some()),
         ("tiles", i.tiles.is_some()),
         ("mip", i.mip.is_some()),
+        ("extinction", i.extinction.is_some()),
     ];
     if i.kind != "fabric" {
         reject_unused(ctx, line, &owner, &i.kind, &fabric_keys)?;
@@ -1298,9 +1299,24 @@ fn build_fabric(
     };
     let shading =
         FabricShading::from_patch(&FibrePhaseParams::default(), &patch).map_err(|e| bad(&e))?;
-    // The density is the fibre volume fraction; σ_t⁰ = density / attenuation per unit fraction;
+    // The density is the fibre volume fraction; σ_t⁰ = density / attenuation per unit fraction
+    // (× 4/π with fibre-projected extinction, whose mean over directions is then the same);
     // the fibre phase functions carry the yarn colours, so σ_s⁰ = σ_t⁰.
-    let sigma_t = attenuation.map(|d| density / d);
+    let extinction = match i.extinction.as_deref().unwrap_or("fibre") {
+        "fibre" => crate::medium::FibreExtinction::Projected,
+        "isotropic" => crate::medium::FibreExtinction::Isotropic,
+        other => return Err(ctx.invalid(
+            line,
+            format!(
+                "{owner}.extinction = \"{other}\" is unknown (expected \"fibre\" or \"isotropic\")"
+            ),
+        )),
+    };
+    let scale = match extinction {
+        crate::medium::FibreExtinction::Projected => 4.0 / std::f32::consts::PI,
+        crate::medium::FibreExtinction::Isotropic => 1.0,
+    };
+    let sigma_t = attenuation.map(|d| density * scale / d);
     Ok(HeterogeneousMedium {
         field,
         pyramid,
@@ -1312,6 +1328,7 @@ fn build_fabric(
             id_channel: crate::fabric::voxelise::ID,
             patch_voxel_size,
             mip_level: level,
+            extinction,
             shading,
         })),
     })

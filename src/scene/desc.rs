@@ -257,6 +257,8 @@ pub struct InteriorDesc {
     pub tiles: Option<TilesValue>,
     /// Mip level of the voxelised patch (fabric): 0–6 or "auto".
     pub mip: Option<MipValue>,
+    /// "fibre" (default: projected fibre width) or "isotropic" extinction (fabric).
+    pub extinction: Option<String>,
 }
 
 /// `tracking = { ... }`: estimator choices of a heterogeneous interior.
