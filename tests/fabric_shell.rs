@@ -527,3 +527,99 @@ fn scene_errors_for_fabric_shells() {
     assert!(err.contains("fabric"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn mip_levels_conserve_the_tiled_fibre_volume() {
+    let yarn = YarnParams::preset("cotton1").unwrap();
+    let mut p = WeaveParams::new(WeavePattern::Plain, yarn);
+    p.repeats = [1, 1];
+    let fp = generate_patch(&p, 3).unwrap();
+    let vp0 = voxelise(&fp, 32, &VoxeliseOptions::default()).unwrap();
+    let vp1 = vp0.mip(1).unwrap();
+    let mesh = plane(Vec3::ZERO, Vec3::X, Vec3::Y, Vec2::new(2.0, 2.0), 2);
+    let tiles = ShellParams { tiles: [2.0, 2.0] };
+    let s0 = FabricShell::new(&vp0, &mesh, &tiles).unwrap();
+    let s1 = FabricShell::new(&vp1, &mesh, &tiles).unwrap();
+    assert!((s1.voxel_world_size() / s0.voxel_world_size() - 2.0).abs() < 1e-4);
+    let box_of = |s: &FabricShell| {
+        let t = s.thickness();
+        (Vec3::new(0.0, 0.0, -t / 2.0), Vec3::new(2.0, 2.0, t / 2.0))
+    };
+    let (a0, b0) = box_of(&s0);
+    let (a1, b1) = box_of(&s1);
+    let (v0, e0) = integrate(&s0, a0, b0, 400_000, 21);
+    let (v1, e1) = integrate(&s1, a1, b1, 400_000, 22);
+    let z = (v0 - v1) / (e0 * e0 + e1 * e1).sqrt();
+    assert!(z.abs() < 4.0, "level 0 {v0} ± {e0} vs level 1 {v1} ± {e1}");
+    let expected = patch_volume_world(&vp0, &s0) * 4.0;
+    assert!(
+        (v1 / expected - 1.0).abs() < 0.02,
+        "level 1 {v1} vs {expected}"
+    );
+}
+
+#[test]
+fn scenes_choose_fabric_mip_levels_from_the_pixel_footprint() {
+    let dir = std::env::temp_dir().join(format!("velour_shell_mip_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let ply = dir.join("cloth.ply");
+    // A 4 × 4 cloth with 8 × 8 tiles: level-0 voxels are 4/(8·32) = 0.0156 wide.
+    write_plane_ply(&ply, 0.0, Vec2::new(4.0, 4.0));
+    let scene = |eye_z: f32, mip: &str| {
+        format!(
+            r#"
+[camera]
+eye = [2.0, 2.0, {eye_z}]
+look_at = [2.0, 2.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov = 40
+[film]
+width = 64
+height = 64
+[[light]]
+type = "environment"
+radiance = 1.0
+[[object]]
+name = "cloth"
+shape = "mesh"
+file = "{}"
+interior = {{ type = "fabric", pattern = "plain", resolution = 32, tiles = 8, mip = {mip}, attenuation = 0.01 }}
+"#,
+            ply.display()
+        )
+    };
+    let level = |text: &str| {
+        let s = load_scene_str(text, Path::new("m.toml")).expect("scene");
+        let note = s
+            .notes
+            .iter()
+            .find(|n| n.contains("mip level"))
+            .expect("note")
+            .clone();
+        note.rsplit(' ').next().unwrap().parse::<u32>().unwrap()
+    };
+    // Pixel angle 40°/64 = 0.0109 rad: at distance 1 the footprint is 0.7 voxels (level 0),
+    // at 12 it is 8.4 voxels (level 3), at 1000 it is capped by the 32 voxels across (5).
+    assert_eq!(level(&scene(1.0, "\"auto\"")), 0);
+    assert_eq!(level(&scene(12.0, "\"auto\"")), 3);
+    assert_eq!(level(&scene(1000.0, "\"auto\"")), 5);
+    assert_eq!(level(&scene(1.0, "2")), 2);
+    for (bad, what) in [
+        ("7", "mip = 7"),
+        ("\"fine\"", "\"fine\""),
+        ("-1", "mip = -1"),
+        ("[1, 2]", "`mip` expects"),
+    ] {
+        let err = load_scene_str(&scene(1.0, bad), Path::new("m.toml"))
+            .expect_err(bad)
+            .to_string();
+        assert!(err.contains(what), "{bad}: {err}");
+    }
+    // Level 3 cannot halve 36 voxels three times.
+    let text = scene(1.0, "3").replace("resolution = 32", "resolution = 36");
+    let err = load_scene_str(&text, Path::new("m.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("multiple of 8"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

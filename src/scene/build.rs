@@ -101,6 +101,17 @@ fn parse_error(ctx: &Ctx, e: &toml::de::Error) -> SceneError {
             };
         }
     }
+    // serde's untagged enums say only "data did not match any variant": say what fits.
+    let message = match message
+        .strip_prefix("data did not match any variant of untagged enum ")
+        .map(str::trim)
+    {
+        Some("ColorValue") => "expected a colour: a number or [r, g, b]".to_string(),
+        Some("ScaleValue") => "expected a scale: a number or [x, y, z]".to_string(),
+        Some("TilesValue") => "`tiles` expects a number or [u, v]".to_string(),
+        Some("MipValue") => format!("`mip` expects a level 0–{MAX_FABRIC_MIP} or \"auto\""),
+        _ => message,
+    };
     SceneError::Parse {
         path: ctx.path.to_path_buf(),
         line,
@@ -1221,7 +1232,9 @@ fn build_fabric(
     let patch = generate_patch(&params, i.seed.unwrap_or(1)).map_err(|e| bad(&e))?;
     let mip = match &i.mip {
         None => None,
-        Some(super::desc::MipValue::Level(l)) if *l <= MAX_FABRIC_MIP => Some(*l),
+        Some(super::desc::MipValue::Level(l)) if (0..=i64::from(MAX_FABRIC_MIP)).contains(l) => {
+            Some(*l as u32)
+        }
         Some(super::desc::MipValue::Level(l)) => {
             return Err(ctx.invalid(
                 line,
@@ -1305,12 +1318,14 @@ fn build_fabric(
     let extinction = match i.extinction.as_deref().unwrap_or("fibre") {
         "fibre" => crate::medium::FibreExtinction::Projected,
         "isotropic" => crate::medium::FibreExtinction::Isotropic,
-        other => return Err(ctx.invalid(
-            line,
-            format!(
+        other => {
+            return Err(ctx.invalid(
+                line,
+                format!(
                 "{owner}.extinction = \"{other}\" is unknown (expected \"fibre\" or \"isotropic\")"
             ),
-        )),
+            ))
+        }
     };
     let scale = match extinction {
         crate::medium::FibreExtinction::Projected => 4.0 / std::f32::consts::PI,

@@ -39,8 +39,8 @@ pub enum TilesValue {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(untagged)]
 pub enum MipValue {
-    /// A fixed level (0 = full resolution).
-    Level(u32),
+    /// A fixed level (0 = full resolution; negative values are rejected with the range).
+    Level(i64),
     /// A named choice: `"auto"`.
     Named(String),
 }
