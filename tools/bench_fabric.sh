@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Fabric rendering figures, measured in one run (docs/BENCHMARKS.md):
+#   tools/bench_fabric.sh [SPP] [REFERENCE_SPP]
+# The draped cloth (scenes/draped_cloth.toml) at 240x180: a level-0 reference, then each patch
+# mip level (0, 1, 2, 3 and "auto") and isotropic extinction at SPP samples per pixel: render
+# time, lookups per real collision, and RMSE / bias / z-test against the reference.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+spp=${1:-16}
+ref_spp=${2:-256}
+bin=target/release/velour
+cargo build --release -q
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+# The scene at 240x180 in its own file, so mip = "auto" sees that resolution.
+sed -e 's|file = "meshes/|file = "'"$PWD"'/scenes/meshes/|' -e 's|^width = .*|width = 240|' \
+    -e 's|^height = .*|height = 180|' scenes/draped_cloth.toml > "$tmp/base.toml"
+variant() { # name, extra interior keys
+  sed 's|nee = "interior" }|nee = "interior", '"$2"' }|' "$tmp/base.toml" > "$tmp/$1.toml"
+}
+for m in 0 1 2 3; do variant "mip$m" "mip = $m"; done
+variant auto 'mip = "auto"'
+variant isotropic 'extinction = "isotropic"'
+echo "== reference: mip 0, $ref_spp spp"
+$bin reference "$tmp/mip0.toml" --spp "$ref_spp" -q -o "$tmp/ref.exr" | tail -1
+for v in mip0 mip1 mip2 mip3 auto isotropic; do
+  echo "-- $v, $spp spp"
+  $bin render "$tmp/$v.toml" --spp "$spp" --seed 77 -q -o "$tmp/$v.exr" 2>&1 | grep -E "note|time" | sed 's/| tracking:.*(\(.*\) lookups per real collision.*/| \1 lookups per real collision/'
+  $bin diff "$tmp/$v.exr" "$tmp/ref.exr" --json | python3 -c 'import json,sys; d=json.load(sys.stdin); z=d.get("z_test") or {}; print("   rmse %.5f  rel_mse %.5f  bias %+.5f  z-test %s" % (d["rmse"], d["rel_mse"], d["mean_bias"], "consistent" if z.get("consistent") else "inconsistent"))'
+done
