@@ -444,6 +444,32 @@ def z_summary(a, va, b, vb):
     }
 
 
+def closed_form(scene_path):
+    """A scene's closed-form pixel value, declared in a comment line `# closed-form: R G B`
+    (a number per channel, `-` where there is none): every pixel must have that expected value
+    (a white furnace). None when the scene declares none."""
+    with open(scene_path) as f:
+        for line in f:
+            m = re.match(r"#\s*closed-form:\s*(\S+)\s+(\S+)\s+(\S+)", line)
+            if m:
+                return [None if v == "-" else float(v) for v in m.groups()]
+    return None
+
+
+def closed_form_z(mean, var, expected):
+    """Per channel: (image mean - expected) / its standard error sqrt(sum of pixel variances) / N."""
+    out = []
+    n = mean.shape[0] * mean.shape[1]
+    for c in range(3):
+        if expected[c] is None:
+            out.append(None)
+            continue
+        se = math.sqrt(var[..., c].sum()) / n
+        dev = float(mean[..., c].mean() - expected[c])
+        out.append({"mean": float(mean[..., c].mean()), "se": se, "z": dev / se if se > 0 else (0.0 if dev == 0 else math.copysign(math.inf, dev))})
+    return out
+
+
 def velour_diff(velour, a, b):
     p = subprocess.run([velour, "diff", "--json", a, b], capture_output=True, text=True)
     if p.returncode != 0:
@@ -527,6 +553,10 @@ def main():
             "z": z,
             "velour_diff": velour_diff(args.velour, vel_exr, mts_exr),
         })
+        expected = closed_form(scene)
+        if expected is not None:
+            entry["closed_form"] = {"expected": expected, "velour": closed_form_z(va_mean, va_var, expected),
+                                    "mitsuba": closed_form_z(mb_mean, mb_var, expected)}
         results["scenes"].append(entry)
         print(f"{name}: velour {va_t:.2f} s, mitsuba {mb_t:.2f} s, z>2 {100 * z['frac_above_2']:.2f}%, z>3 {100 * z['frac_above_3']:.2f}%, "
               f"bias z {['%.2f' % b for b in z['bias_z']]}, efficiency ratio {entry['efficiency_ratio']}", file=sys.stderr)
@@ -560,6 +590,18 @@ def markdown(results):
             f"{100 * z['frac_above_2']:.2f}% | {100 * z['frac_above_3']:.2f}% | {z['mean_z2']:.3f} | {', '.join(f'{b:+.2f}' for b in z['bias_z'])} | "
             f"{e['velour_diff'].get('verdict', e['velour_diff'].get('error'))} | {'n/a' if eff is None else f'{eff:.2f}'} |"
         )
+    cf = [e for e in results["scenes"] if "closed_form" in e]
+    if cf:
+        lines += ["", "Closed forms (every pixel's expected value; image mean, its standard error and z = (mean − expected) / error):", "",
+                  "| scene | channel | expected | velour mean ± se | velour z | Mitsuba mean ± se | Mitsuba z |", "|---|---|---|---|---|---|---|"]
+        for e in cf:
+            c = e["closed_form"]
+            for k, ch in enumerate("RGB"):
+                if c["expected"][k] is None:
+                    continue
+                v, m = c["velour"][k], c["mitsuba"][k]
+                lines.append(f"| {e['name']} | {ch} | {c['expected'][k]:g} | {v['mean']:.5f} ± {v['se']:.5f} | {v['z']:+.2f} | "
+                             f"{m['mean']:.5f} ± {m['se']:.5f} | {m['z']:+.2f} |")
     return "\n".join(lines) + "\n"
 
 
