@@ -8,9 +8,9 @@ Translates the scene with compare.py and renders it with Mitsuba in 16 passes fo
 volpathmis with Mitsuba's default Russian roulette (rr_depth 5), volpathmis without roulette,
 volpathmis without next event estimation (`sample_emitters = false` on the media), and volpath with
 the default roulette. Every pixel of a white furnace (albedo 1, environment radiance 1) has the
-expected value 1 in every channel, so the image mean must be 1 within its standard error (the
-spread of the 16 pass means / 4). Prints, per variant, the image mean, its standard error and
-(mean - 1) / error. This is the evidence for docs/peers.md, "Mitsuba's Russian roulette".
+expected value the scene declares (`# closed-form: R G B`, `-` for a channel without one), so the
+image mean must match it within its standard error (the spread of the pass means / sqrt(passes)).
+Prints, per variant, the image mean, its standard error and (mean - expected) / error. This is the evidence for docs/peers.md, "Mitsuba's Russian roulette".
 """
 
 import argparse
@@ -42,6 +42,9 @@ def main():
     dr.set_thread_count(args.threads)
     os.makedirs(args.out, exist_ok=True)
     base, _ = compare.translate(args.scene, args.width, args.height, 1000, args.out)
+    expected = compare.closed_form(args.scene)
+    if expected is None:
+        sys.exit(f"{args.scene} declares no closed form (`# closed-form: R G B`)")
 
     def with_integrator(**kw):
         def f(d):
@@ -71,9 +74,14 @@ def main():
                           for k in range(args.passes)])
         mean = means.mean(axis=0)
         se = means.std(axis=0, ddof=1) / np.sqrt(args.passes)
-        z = np.where(se > 0, (mean - 1.0) / np.where(se > 0, se, 1.0), 0.0)
+        zs = []
+        for c in range(3):
+            if expected[c] is None:
+                zs.append("-")
+            else:
+                zs.append(f"{(mean[c] - expected[c]) / se[c]:+.1f}" if se[c] > 0 else f"{mean[c] - expected[c]:+.1g} (no variance)")
         print(f"  {label:45s} mean {', '.join(f'{m:.5f}' for m in mean)}  +- {', '.join(f'{s:.5f}' for s in se)}  "
-              f"z {', '.join(f'{v:+.1f}' for v in z)}  ({time.perf_counter() - t0:.1f} s)", flush=True)
+              f"z {', '.join(zs)}  ({time.perf_counter() - t0:.1f} s)", flush=True)
 
 
 if __name__ == "__main__":
