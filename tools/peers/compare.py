@@ -4,7 +4,10 @@
 For each scene (a velour TOML file):
   1. translate it into a Mitsuba 3 scene dictionary (camera, film, lights, spheres, PLY meshes,
      lambertian / dielectric / rough dielectric / null boundaries, homogeneous and absorbing
-     interiors; see docs/peers.md for the conventions that must match);
+     interiors, and voxel (OpenVDB) interiors in their bounding box as `heterogeneous` media on a
+     `gridvolume` converted to .vol by vdb_to_vol.py; see docs/peers.md for the conventions that
+     must match). Every converted grid is checked against the OpenVDB-convention trilinear
+     lookup of the original grid at random points before rendering;
   2. render it with the velour binary (`velour render --spp N`), which writes the per-pixel
      variance of the mean;
   3. render it with Mitsuba (`volpathmis`, box filter, independent sampler) in K passes of
@@ -13,9 +16,9 @@ For each scene (a velour TOML file):
   4. compare per pixel and channel with z = (a - b) / sqrt(var_a + var_b) and report the
      fraction of |z| beyond 2 and 3, mean z, mean z^2, the aggregate bias z per channel
      (sum(a - b) / sqrt(sum(var_a + var_b))), and `velour diff --json`'s verdict (Student's t
-     with the sample counts). Pixel-channels with zero variance in both images (constant
-     background) are not z-tested; they must agree to 1e-6 relative ("untested_different"
-     counts those that do not);
+     with the sample counts). Pixel-channels whose standard error is at float-rounding level
+     (<= 1e-6 relative) in both images (constant background) are not z-tested; they must agree
+     to 1e-6 relative ("untested_different" counts those that do not);
   5. report efficiency = 1 / (MSE x time) for each renderer, where MSE is estimated by the mean
      over pixels and channels of the variance of the pixel mean (both estimators are unbiased,
      which step 4 checks, so MSE = variance) and time is the wall time of one render of all
@@ -23,7 +26,8 @@ For each scene (a velour TOML file):
      all the samples, timed separately from the passes), and the ratio velour / Mitsuba.
 
 Results are printed as a Markdown table and written as JSON and Markdown to --out.
-Needs: mitsuba, numpy, OpenEXR (tools/peers/run.sh installs them in a venv).
+Needs: mitsuba, numpy, OpenEXR (tools/peers/run.sh installs them in a venv), and for voxel interiors
+a Python with pyopenvdb (Debian's python3-openvdb; $VELOUR_PEERS_OPENVDB_PYTHON, default /usr/bin/python3).
 """
 
 import argparse
@@ -127,27 +131,122 @@ def interior_medium(o, name):
     if i["type"] == "absorption":
         return {"type": "homogeneous", "sigma_t": rgb(sig), "scale": scale, "albedo": rgb([0.0, 0.0, 0.0])}
     if i["type"] != "homogeneous":
-        raise Unsupported(f"{name}: interior type {i['type']!r}")
+        raise Unsupported(f"{name}: interior type {i['type']!r} (only voxel interiors with shape = \"bounds\" are translated)")
     if i.get("albedo_mode", "multiple") != "single":
         raise Unsupported(f"{name}: albedo_mode = \"multiple\" (van de Hulst inversion); use \"single\" for comparisons")
-    albedo = [min(max(a, 0.0), 1.0 - 1e-6) for a in colour(i.get("albedo"), 0.8)]
+    albedo = single_albedo(i)
+    return {"type": "homogeneous", "sigma_t": rgb(sig), "scale": scale, "albedo": rgb(albedo), "phase": phase_function(i)}
+
+
+def single_albedo(i):
+    # velour clamps the single-scattering albedo to 1 - 1e-6 (MAX_SINGLE_SCATTERING_ALBEDO).
+    return [min(max(a, 0.0), 1.0 - 1e-6) for a in colour(i.get("albedo"), 0.8)]
+
+
+def phase_function(i):
     phase = i.get("phase", {})
     ptype = phase.get("type", "hg")
     if ptype == "hg":
         g = max(-0.99, min(0.99, float(phase.get("g", 0.0))))  # velour clamps |g| to 0.99
-        ph = {"type": "hg", "g": g} if g != 0.0 else {"type": "isotropic"}
-    else:
-        ph = {
+        return {"type": "hg", "g": g} if g != 0.0 else {"type": "isotropic"}
+    if ptype == "double_hg":
+        return {
             "type": "blendphase",
             "weight": 1.0 - float(phase.get("w", 0.5)),  # Mitsuba: weight of the second phase
-            "phase1": {"type": "hg", "g": float(phase["g1"])},
-            "phase2": {"type": "hg", "g": float(phase["g2"])},
+            "phase1": {"type": "hg", "g": max(-0.99, min(0.99, float(phase["g1"])))},
+            "phase2": {"type": "hg", "g": max(-0.99, min(0.99, float(phase["g2"])))},
         }
-    return {"type": "homogeneous", "sigma_t": rgb(sig), "scale": scale, "albedo": rgb(albedo), "phase": ph}
+    raise Unsupported(f"phase type {ptype!r}")
 
 
-def translate(scene_path, width, height, max_depth):
-    """velour TOML -> (Mitsuba dict, notes). Raises Unsupported for features without a match."""
+OPENVDB_PYTHON = os.environ.get("VELOUR_PEERS_OPENVDB_PYTHON", "/usr/bin/python3")
+GRID_CHECK_POINTS = 2000
+
+
+def voxel_medium(o, name, folder, xf, assets, key):
+    """A velour `voxel` interior -> (Mitsuba `heterogeneous` medium, world matrix of the
+    gridvolume's unit cube, grid record). The VDB grid is converted by vdb_to_vol.py (system
+    Python, pyopenvdb) into a .vol holding the samples of index box [lo, lo + res - 1]; the
+    volume's unit cube maps to index [lo - 1/2, lo + res - 1/2] (Mitsuba: sample n of an axis at
+    local (n + 1/2) / res), then through the grid's own transform and the object transform
+    (velour places the grid at `object transform . grid index_to_world`)."""
+    i = o["interior"]
+    if i.get("albedo_mode", "multiple") != "single":
+        raise Unsupported(f"{name}: albedo_mode = \"multiple\" (van de Hulst inversion); use \"single\" for comparisons")
+    for k in ("base_albedo", "base_attenuation"):
+        if k in i:
+            raise Unsupported(f"{name}: combined interiors ({k}) are not translated")
+    tracking = i.get("tracking", {})
+    if tracking.get("free_flight", "delta") != "delta" or tracking.get("transmittance", "residual") == "ray_march":
+        raise Unsupported(f"{name}: ray marching is biased; comparisons use the unbiased trackers")
+    att = colour(i.get("attenuation"), 1.0)
+    density = float(i.get("density", 1.0))
+    sigma_t = [density / a for a in att]  # per unit grid value (velour: sigma_t(x) = d(x) density / attenuation)
+    scale = max(sigma_t)
+    tint = [s / scale for s in sigma_t]
+    vdb_path = os.path.join(folder, i["file"])
+    grid_name = i.get("grid", "density")
+    vol = os.path.join(assets, f"{key}.vol")
+    cmd = [OPENVDB_PYTHON, os.path.join(os.path.dirname(os.path.abspath(__file__)), "vdb_to_vol.py"),
+           vdb_path, grid_name, vol, "--check", str(GRID_CHECK_POINTS)]
+    if not np.allclose(tint, tint[0]):
+        cmd += ["--tint", *(repr(t) for t in tint)]
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True)
+    except OSError as e:
+        raise Unsupported(f"{name}: cannot run {OPENVDB_PYTHON} for pyopenvdb ({e})")
+    if p.returncode != 0:
+        if "No module named 'pyopenvdb'" in p.stderr:
+            raise Unsupported(f"{name}: {OPENVDB_PYTHON} has no pyopenvdb (apt-get install python3-openvdb)")
+        raise RuntimeError(f"{name}: vdb_to_vol.py failed: {p.stderr.strip()}")
+    info = json.loads(p.stdout)
+    lo = np.array(info["lo"], dtype=float)
+    res = np.array(info["res"], dtype=float)
+    unit_to_index = np.eye(4)
+    unit_to_index[:3, :3] = np.diag(res)
+    unit_to_index[:3, 3] = lo - 0.5
+    index_to_world = xf @ np.array(info["index_to_world"])
+    unit_to_world = index_to_world @ unit_to_index
+    import mitsuba as mi
+
+    volume = {"type": "gridvolume", "filename": vol, "filter_type": "trilinear", "wrap_mode": "clamp",
+              "to_world": mi.ScalarTransform4f(unit_to_world.tolist())}
+    medium = {"type": "heterogeneous", "sigma_t": volume, "scale": scale, "albedo": rgb(single_albedo(i)),
+              "phase": phase_function(i)}
+    record = {"object": name, "file": i["file"], "grid": grid_name, "vol": vol, "res": info["res"], "lo": info["lo"],
+              "channels": info["channels"], "tint": tint, "scale": scale, "max": info["max"],
+              "index_to_world": index_to_world.tolist(), "check": info.get("check", [])}
+    return medium, unit_to_world, record
+
+
+def check_grid(record):
+    """Mitsuba's gridvolume, as translated, against the OpenVDB-convention trilinear lookup of the
+    original grid at random points (vdb_to_vol.py --check): returns the largest absolute error."""
+    import mitsuba as mi
+
+    unit_to_index = np.eye(4)
+    unit_to_index[:3, :3] = np.diag(np.array(record["res"], dtype=float))
+    unit_to_index[:3, 3] = np.array(record["lo"], dtype=float) - 0.5
+    m = np.array(record["index_to_world"])
+    vol = mi.load_dict({"type": "gridvolume", "filename": record["vol"], "filter_type": "trilinear", "wrap_mode": "clamp",
+                        "to_world": mi.ScalarTransform4f((m @ unit_to_index).tolist())})
+    it = mi.Interaction3f()
+    worst = 0.0
+    for p, v in record["check"]:
+        w = m @ np.array(list(p) + [1.0])
+        it.p = mi.Point3f(*w[:3].tolist())
+        if record["channels"] == 1:
+            got = np.array([float(vol.eval_1(it))] * 3)
+        else:
+            got = np.array(vol.eval_3(it), dtype=float)
+        want = v * np.array(record["tint"])
+        worst = max(worst, float(np.abs(got - want).max()))
+    return worst
+
+
+def translate(scene_path, width, height, max_depth, assets):
+    """velour TOML -> (Mitsuba dict, grid records). Raises Unsupported for features without a match.
+    Converted grids (.vol) are written to `assets`."""
     import mitsuba as mi
 
     with open(scene_path, "rb") as f:
@@ -159,7 +258,14 @@ def translate(scene_path, width, height, max_depth):
     film = s.get("film", {})
     d = {
         "type": "scene",
-        "integrator": {"type": "volpathmis", "max_depth": int(max_depth or film.get("max_depth", 256))},
+        # rr_depth = max_depth turns Mitsuba's Russian roulette off: volpathmis folds the
+        # roulette's survival probability into the unidirectional strategy's pdf but not into the
+        # MIS weight of next event estimation, so with roulette on the two weights sum to less
+        # than 1 and media lose ~0.2 % of their energy (docs/peers.md, "Mitsuba's Russian
+        # roulette"). velour's roulette (survival min(1, max throughput)) never fires at
+        # throughput 1, so neither renderer terminates paths in a white furnace.
+        "integrator": {"type": "volpathmis", "max_depth": int(max_depth or film.get("max_depth", 256)),
+                       "rr_depth": int(max_depth or film.get("max_depth", 256))},
         "sensor": {
             "type": "perspective",
             "fov": float(cam.get("fov", 40.0)),
@@ -195,6 +301,7 @@ def translate(scene_path, width, height, max_depth):
             }
         else:
             raise Unsupported(f"light type {kind!r}")
+    grids = []
     priorities = {int(o.get("priority", 0)) for o in s.get("object", []) if o.get("interior")}
     if len(priorities) > 1:
         raise Unsupported("nested interiors with priorities (Mitsuba has no priority nesting)")
@@ -212,14 +319,26 @@ def translate(scene_path, width, height, max_depth):
                 "filename": os.path.join(folder, o["file"]),
                 "to_world": mi.ScalarTransform4f(m.tolist()),
             }
+        elif o["shape"] == "bounds" and o.get("interior", {}).get("type") == "voxel":
+            # velour: an invisible box around the grid's non-empty bricks. Mitsuba: a `cube` on the
+            # gridvolume's unit cube (the non-zero voxels plus a ring of zeros); both boxes hold the
+            # whole non-zero field, and the field is 0 between them.
+            scene_key = os.path.splitext(os.path.basename(scene_path))[0]
+            med, unit_to_world, record = voxel_medium(o, name, folder, m, assets, f"{scene_key}.object{k}")
+            cube = unit_to_world @ np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
+            shape = {"type": "cube", "to_world": mi.ScalarTransform4f(cube.tolist()), "bsdf": boundary_bsdf(o, name),
+                     "interior": med}
+            grids.append(record)
+            d[f"object{k}"] = shape
+            continue
         else:
-            raise Unsupported(f"{name}: shape {o['shape']!r} (e.g. the bounds of a voxel interior) is not translated")
+            raise Unsupported(f"{name}: shape {o['shape']!r} with interior {o.get('interior', {}).get('type')!r} is not translated")
         shape["bsdf"] = boundary_bsdf(o, name)
         med = interior_medium(o, name)
         if med is not None:
             shape["interior"] = med
         d[f"object{k}"] = shape
-    return d
+    return d, grids
 
 
 # --------------------------------------------------------------------------------------------
@@ -294,13 +413,18 @@ def render_mitsuba(scene_dict, spp, passes, seed0):
 
 def z_summary(a, va, b, vb):
     tot = va + vb
-    ok = (tot > 0) & np.isfinite(a) & np.isfinite(b) & np.isfinite(tot)
+    # Pixel-channels whose standard error is at float-rounding level in both images (a constant
+    # background, seen directly or through a box of zero density) are deterministic: a variance
+    # of ~1e-16 there comes from summing identical f32 samples, not from noise, and a z against
+    # it is meaningless. They must agree to 1e-6 relative instead (Mitsuba's RGB -> spectrum ->
+    # RGB round trip and the pass averaging differ by ~1 ulp).
+    scale = np.maximum(np.abs(a), np.abs(b))
+    deterministic = np.sqrt(np.maximum(tot, 0.0)) <= 1e-6 * scale + 1e-12
+    ok = (~deterministic) & np.isfinite(a) & np.isfinite(b) & np.isfinite(tot)
     z = np.zeros_like(a)
     z[ok] = (a[ok] - b[ok]) / np.sqrt(tot[ok])
     zt = z[ok]
-    # Pixels with zero variance in both (constant background) must agree to float rounding
-    # (Mitsuba's RGB -> spectrum -> RGB round trip and the pass averaging differ by ~1 ulp).
-    close = np.abs(a - b) <= 1e-6 * np.maximum(np.abs(a), np.abs(b)) + 1e-12
+    close = np.abs(a - b) <= 1e-6 * scale + 1e-12
     both_zero = (~ok) & close
     bias = []
     for c in range(3):
@@ -318,6 +442,32 @@ def z_summary(a, va, b, vb):
         "mean_z2": float((zt * zt).mean()) if zt.size else 0.0,
         "bias_z": bias,
     }
+
+
+def closed_form(scene_path):
+    """A scene's closed-form pixel value, declared in a comment line `# closed-form: R G B`
+    (a number per channel, `-` where there is none): every pixel must have that expected value
+    (a white furnace). None when the scene declares none."""
+    with open(scene_path) as f:
+        for line in f:
+            m = re.match(r"#\s*closed-form:\s*(\S+)\s+(\S+)\s+(\S+)", line)
+            if m:
+                return [None if v == "-" else float(v) for v in m.groups()]
+    return None
+
+
+def closed_form_z(mean, var, expected):
+    """Per channel: (image mean - expected) / its standard error sqrt(sum of pixel variances) / N."""
+    out = []
+    n = mean.shape[0] * mean.shape[1]
+    for c in range(3):
+        if expected[c] is None:
+            out.append(None)
+            continue
+        se = math.sqrt(var[..., c].sum()) / n
+        dev = float(mean[..., c].mean() - expected[c])
+        out.append({"mean": float(mean[..., c].mean()), "se": se, "z": dev / se if se > 0 else (0.0 if dev == 0 else math.copysign(math.inf, dev))})
+    return out
 
 
 def velour_diff(velour, a, b):
@@ -365,12 +515,20 @@ def main():
         name = os.path.splitext(os.path.basename(scene))[0]
         entry = {"scene": scene, "name": name}
         try:
-            md = translate(scene, args.width, args.height, args.max_depth)
+            md, grids = translate(scene, args.width, args.height, args.max_depth, args.out)
         except Unsupported as e:
             entry["skipped"] = str(e)
             results["scenes"].append(entry)
             print(f"{name}: skipped: {e}", file=sys.stderr)
             continue
+        entry["grids"] = []
+        for g in grids:
+            err = check_grid(g)
+            entry["grids"].append({k: g[k] for k in ("object", "file", "grid", "res", "lo", "channels", "scale", "max")} | {"check_points": len(g["check"]), "check_max_abs_error": err})
+            print(f"{name}: {g['object']}: {g['file']}:{g['grid']} -> {os.path.basename(g['vol'])} {g['res']} x {g['channels']}, "
+                  f"gridvolume vs OpenVDB trilinear at {len(g['check'])} points: max |error| {err:.2e}", file=sys.stderr)
+            if not err <= 1e-5 * max(1.0, g["max"]):
+                raise RuntimeError(f"{name}: the translated grid of {g['object']} does not reproduce the VDB field (error {err})")
         vel_exr = os.path.join(args.out, f"{name}.velour.exr")
         mts_exr = os.path.join(args.out, f"{name}.mitsuba.exr")
         va_mean, va_var, va_t = render_velour(args.velour, scene, vel_exr, args.spp, args.width, args.height, args.threads, 1, args.max_depth)
@@ -395,6 +553,10 @@ def main():
             "z": z,
             "velour_diff": velour_diff(args.velour, vel_exr, mts_exr),
         })
+        expected = closed_form(scene)
+        if expected is not None:
+            entry["closed_form"] = {"expected": expected, "velour": closed_form_z(va_mean, va_var, expected),
+                                    "mitsuba": closed_form_z(mb_mean, mb_var, expected)}
         results["scenes"].append(entry)
         print(f"{name}: velour {va_t:.2f} s, mitsuba {mb_t:.2f} s, z>2 {100 * z['frac_above_2']:.2f}%, z>3 {100 * z['frac_above_3']:.2f}%, "
               f"bias z {['%.2f' % b for b in z['bias_z']]}, efficiency ratio {entry['efficiency_ratio']}", file=sys.stderr)
@@ -428,6 +590,18 @@ def markdown(results):
             f"{100 * z['frac_above_2']:.2f}% | {100 * z['frac_above_3']:.2f}% | {z['mean_z2']:.3f} | {', '.join(f'{b:+.2f}' for b in z['bias_z'])} | "
             f"{e['velour_diff'].get('verdict', e['velour_diff'].get('error'))} | {'n/a' if eff is None else f'{eff:.2f}'} |"
         )
+    cf = [e for e in results["scenes"] if "closed_form" in e]
+    if cf:
+        lines += ["", "Closed forms (every pixel's expected value; image mean, its standard error and z = (mean − expected) / error):", "",
+                  "| scene | channel | expected | velour mean ± se | velour z | Mitsuba mean ± se | Mitsuba z |", "|---|---|---|---|---|---|---|"]
+        for e in cf:
+            c = e["closed_form"]
+            for k, ch in enumerate("RGB"):
+                if c["expected"][k] is None:
+                    continue
+                v, m = c["velour"][k], c["mitsuba"][k]
+                lines.append(f"| {e['name']} | {ch} | {c['expected'][k]:g} | {v['mean']:.5f} ± {v['se']:.5f} | {v['z']:+.2f} | "
+                             f"{m['mean']:.5f} ± {m['se']:.5f} | {m['z']:+.2f} |")
     return "\n".join(lines) + "\n"
 
 

@@ -7,7 +7,10 @@
 # mitsuba, numpy and OpenEXR from PyPI (once), builds velour in release mode, and runs
 # tools/peers/compare.py on the given scenes (default: tools/peers/scenes/*.toml). Results
 # (EXRs of both renderers, results.json, results.md) go to ${VELOUR_PEERS_OUT:-out/peers}.
-# See docs/peers.md for the conventions and docs/BENCHMARKS.md for recorded results.
+# Scenes with voxel interiors also need OpenVDB's Python bindings in the system Python
+# (apt-get install -y python3-openvdb; ${VELOUR_PEERS_OPENVDB_PYTHON:-/usr/bin/python3}), else
+# they are skipped with the reason.
+# See docs/peers.md for the conventions and docs/BENCHMARKS-peers.md for recorded results.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
