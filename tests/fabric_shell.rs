@@ -39,20 +39,25 @@ fn plane(origin: Vec3, ex: Vec3, ey: Vec3, size: Vec2, n: u32) -> TriangleMesh {
             uvs.push(Vec2::new(u, v));
         }
     }
-    let mut indices = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            let a = j * (n + 1) + i;
-            indices.push([a, a + 1, a + n + 2]);
-            indices.push([a, a + n + 2, a + n + 1]);
-        }
-    }
     TriangleMesh {
         positions,
         normals: None,
         uvs: Some(uvs),
-        indices,
+        indices: grid_triangles(n, n),
     }
+}
+
+/// Two triangles per cell of a `(nu + 1) × (nv + 1)` vertex grid (row-major, u fastest).
+fn grid_triangles(nu: u32, nv: u32) -> Vec<[u32; 3]> {
+    let mut indices = Vec::new();
+    for j in 0..nv {
+        for i in 0..nu {
+            let a = j * (nu + 1) + i;
+            indices.push([a, a + 1, a + nu + 2]);
+            indices.push([a, a + nu + 2, a + nu + 1]);
+        }
+    }
+    indices
 }
 
 /// The patch's occupied z layers.
@@ -237,19 +242,11 @@ fn shell_conserves_the_fibre_volume_on_flat_and_curved_meshes() {
             uvs.push(Vec2::new(i as f32 / nu as f32, j as f32 / nv as f32));
         }
     }
-    let mut indices = Vec::new();
-    for j in 0..nv {
-        for i in 0..nu {
-            let a = j * (nu + 1) + i;
-            indices.push([a, a + 1, a + nu + 2]);
-            indices.push([a, a + nu + 2, a + nu + 1]);
-        }
-    }
     let mesh = TriangleMesh {
         positions,
         normals: None,
         uvs: Some(uvs),
-        indices,
+        indices: grid_triangles(nu, nv),
     };
     let area = mesh.area();
     let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [5.0, 3.0] }).unwrap();

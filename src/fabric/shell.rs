@@ -196,8 +196,8 @@ impl FabricShell {
         let voxel_z = h.z * scale;
         let thickness = voxel_z * f64::from(dims.z);
 
-        let normals = welded_normals(mesh);
         let canon = welded_ids(mesh);
+        let normals = welded_normals(mesh, &canon);
         let mut tets = Vec::with_capacity(tets_needed);
         let period = Vec3::new(dims.x as f32, dims.y as f32, 0.0);
         let tile_scale = DVec3::new(
@@ -660,9 +660,8 @@ fn welded_ids(mesh: &TriangleMesh) -> Vec<u32> {
         .collect()
 }
 
-/// Area-weighted vertex normals over welded positions (indexed by welded id).
-fn welded_normals(mesh: &TriangleMesh) -> Vec<DVec3> {
-    let canon = welded_ids(mesh);
+/// Area-weighted vertex normals over welded positions (indexed by welded id `canon`).
+fn welded_normals(mesh: &TriangleMesh, canon: &[u32]) -> Vec<DVec3> {
     let mut n = vec![DVec3::ZERO; mesh.positions.len()];
     for tri in &mesh.indices {
         let p = tri.map(|i| mesh.positions[i as usize].as_dvec3());

@@ -242,14 +242,13 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
             },
             _ => None,
         });
-        let (shape, open_mesh) = match rest {
+        let (shape, open_mesh) = match (rest, shell_boundary) {
             // A fabric shell: the object is the closed shell around the cloth mesh.
-            RestShape::Mesh(_) if shell_boundary.is_some() => {
-                let mesh = shell_boundary.unwrap_or_default();
+            (RestShape::Mesh(_), Some(mesh)) => {
                 let closed = mesh.is_closed();
                 (Shape::Mesh(mesh), !closed)
             }
-            RestShape::Mesh(mut mesh) => {
+            (RestShape::Mesh(mut mesh), None) => {
                 mesh.transform(xf);
                 let closed = mesh.is_closed();
                 if closed {
@@ -257,7 +256,7 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
                 }
                 (Shape::Mesh(mesh), !closed)
             }
-            RestShape::Sphere { center, radius } => {
+            (RestShape::Sphere { center, radius }, _) => {
                 let scale = uniform.unwrap_or(1.0).abs();
                 (
                     Shape::Sphere {
@@ -267,7 +266,7 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
                     false,
                 )
             }
-            RestShape::Bounds => {
+            (RestShape::Bounds, _) => {
                 let Some(Medium::Heterogeneous(h)) = medium.map(|m| &media[m as usize]) else {
                     return Err(ctx.invalid(
                         line,
