@@ -620,3 +620,28 @@ interior = {{ type = "fabric", pattern = "plain", resolution = 32, tiles = 8, mi
     assert!(err.contains("multiple of 8"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn tilings_too_fine_for_f32_are_refused() {
+    let vp = patch(WeavePattern::Plain, 32);
+    let mesh = plane(Vec3::ZERO, Vec3::X, Vec3::Y, Vec2::ONE, 1);
+    let err = FabricShell::new(
+        &vp,
+        &mesh,
+        &ShellParams {
+            tiles: [100_000.0, 100_000.0],
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("tiles") && err.contains("subdivide"), "{err}");
+    // The same tiling over a finer mesh is fine as far as precision goes.
+    assert!(FabricShell::new(
+        &vp,
+        &mesh,
+        &ShellParams {
+            tiles: [1000.0, 1000.0]
+        }
+    )
+    .is_ok());
+}

@@ -3,15 +3,16 @@
 #   tools/bench_fabric.sh [SPP] [REFERENCE_SPP]
 # The draped cloth (scenes/draped_cloth.toml) at 240x180: a level-0 reference, then each patch
 # mip level (0, 1, 2, 3 and "auto") and isotropic extinction at SPP samples per pixel: render
-# time, lookups per real collision, and RMSE / bias / z-test against the reference.
+# time, lookups per real collision, and RMSE / bias / z-test against the reference, and the
+# efficiency 1/(relative MSE x time). Images stay in ${VELOUR_BENCH_OUT:-out/bench_fabric}.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 spp=${1:-16}
 ref_spp=${2:-256}
 bin=target/release/velour
 cargo build --release -q
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
+tmp=${VELOUR_BENCH_OUT:-out/bench_fabric}
+mkdir -p "$tmp"
 # The scene at 240x180 in its own file, so mip = "auto" sees that resolution.
 sed -e 's|file = "meshes/|file = "'"$PWD"'/scenes/meshes/|' -e 's|^width = .*|width = 240|' \
     -e 's|^height = .*|height = 180|' scenes/draped_cloth.toml > "$tmp/base.toml"
@@ -25,6 +26,20 @@ echo "== reference: mip 0, $ref_spp spp"
 $bin reference "$tmp/mip0.toml" --spp "$ref_spp" -q -o "$tmp/ref.exr" | tail -1
 for v in mip0 mip1 mip2 mip3 auto isotropic; do
   echo "-- $v, $spp spp"
-  $bin render "$tmp/$v.toml" --spp "$spp" --seed 77 -q -o "$tmp/$v.exr" 2>&1 | grep -E "note|time" | sed 's/| tracking:.*(\(.*\) lookups per real collision.*/| \1 lookups per real collision/'
-  $bin diff "$tmp/$v.exr" "$tmp/ref.exr" --json | python3 -c 'import json,sys; d=json.load(sys.stdin); z=d.get("z_test") or {}; print("   rmse %.5f  rel_mse %.5f  bias %+.5f  z-test %s" % (d["rmse"], d["rel_mse"], d["mean_bias"], "consistent" if z.get("consistent") else "inconsistent"))'
+  log=$($bin render "$tmp/$v.toml" --spp "$spp" --seed 77 -q -o "$tmp/$v.exr" 2>&1)
+  echo "$log" | grep note || true
+  secs=$(echo "$log" | sed -n 's/^time \([0-9.]*\) s.*/\1/p')
+  lpc=$(echo "$log" | sed -n 's/.*, \([0-9.]*\) lookups per real collision.*/\1/p')
+  $bin diff "$tmp/$v.exr" "$tmp/ref.exr" --json | SECS="$secs" LPC="$lpc" python3 -c '
+import json, os, sys
+d = json.load(sys.stdin)
+z = d.get("z_test") or {}
+t = float(os.environ["SECS"])
+print("   time %.2f s  lookups/real collision %s  rmse %.5f  rel_mse %.5f  bias %+.5f  efficiency %.3f" % (
+    t, os.environ["LPC"], d["rmse"], d["rel_mse"], d["mean_bias"], 1.0 / (d["rel_mse"] * t)))
+if z:
+    print("   z-test: beyond 3 sigma %.3f%% (expected %.3f%%), aggregate bias z %s, %s" % (
+        100 * z["frac_above_3"], 100 * z["expected_above_3"],
+        ", ".join("%+.2f" % b for b in z["bias_z"]) if isinstance(z["bias_z"], list) else z["bias_z"],
+        "consistent" if z["consistent"] else "inconsistent"))'
 done

@@ -40,6 +40,8 @@ use crate::math::Aabb;
 
 /// Largest number of tetrahedra a shell may have (three per triangle).
 pub const MAX_SHELL_TETS: usize = 30_000_000;
+/// Largest extent of one tetrahedron in patch voxels (f32 precision of the shell map).
+pub const MAX_TET_SPAN_VOXELS: f32 = 262_144.0;
 /// Largest number of point-location cells.
 const MAX_CELLS: usize = 1 << 22;
 /// Largest number of level-0 majorant bricks.
@@ -235,6 +237,26 @@ impl FabricShell {
                     tets.push(tet);
                 }
             }
+        }
+        // f32 patch coordinates inside one tetrahedron stay exact to ~1/64 voxel only while a
+        // triangle spans fewer than 2^18 voxels of the tiled patch.
+        let span = tets
+            .iter()
+            .map(|t| {
+                let m = t.bary_to_q;
+                m.x_axis
+                    .abs()
+                    .max(m.y_axis.abs())
+                    .max(m.z_axis.abs())
+                    .max_element()
+            })
+            .fold(0.0f32, f32::max);
+        if span > MAX_TET_SPAN_VOXELS {
+            return Err(shell_error(
+                "tiles",
+                format!("{:?} (a triangle spans {span:.0} patch voxels)", params.tiles),
+                &format!("at most {MAX_TET_SPAN_VOXELS} voxels per triangle: use fewer tiles or subdivide the mesh"),
+            ));
         }
         if tets.is_empty() {
             return Err(shell_error(
