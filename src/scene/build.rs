@@ -1088,7 +1088,10 @@ fn fabric_note(m: &Medium) -> Option<String> {
             s.thickness(),
             look.mip_level
         ),
-        _ => format!("free-standing fabric patch, mip level {}", look.mip_level),
+        _ if look.mip_level > 0 => {
+            format!("free-standing fabric patch, mip level {}", look.mip_level)
+        }
+        _ => return None,
     })
 }
 
