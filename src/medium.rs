@@ -388,7 +388,7 @@ impl<'a> FibreGridLookup<'a> {
     fn at(&mut self, t: f32) -> f32 {
         let p = self.o + self.d * t;
         let density = self.density.sample_trilinear(p);
-        if !(density > 0.0) {
+        if density.is_nan() || density <= 0.0 {
             return density;
         }
         let local = crate::fabric::tangent_near(p, |ijk| self.tangent.value_vec3(ijk));

@@ -472,7 +472,7 @@ impl FabricShell {
         let t = &self.tets[i];
         let q = t.q0 + t.bary_to_q * l;
         let density = self.density_at_q(acc, q);
-        if !(density > 0.0) {
+        if density.is_nan() || density <= 0.0 {
             return density;
         }
         let local = super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
@@ -652,7 +652,7 @@ fn make_tet(c: [(DVec3, DVec3); 4], period: Vec3) -> Option<ShellTet> {
         .max((c[3].0 - c[0].0).length());
     let dw = w.determinant();
     let dq = q.determinant();
-    if !(dw.abs() > 1e-12 * scale_w.powi(3)) || !(dq.abs() > 1e-12) || !dw.is_finite() {
+    if !dw.is_finite() || dw.abs() <= 1e-12 * scale_w.powi(3) || dq.is_nan() || dq.abs() <= 1e-12 {
         return None;
     }
     let q_to_world = w * q.inverse();

@@ -1154,6 +1154,12 @@ fn fabric_voxel_footprint(
     (voxel, b)
 }
 
+/// Whether mip level `l` halves the voxels across the patch's tile exactly `l` times (so the
+/// tile still wraps exactly at that level).
+fn halves_exactly(vp: &crate::fabric::VoxelisedPatch, l: u32) -> bool {
+    vp.dims[0].is_multiple_of(1 << l) && vp.dims[1].is_multiple_of(1 << l)
+}
+
 /// The coarsest mip level whose voxels are no wider than a pixel's footprint at the fabric's
 /// nearest point (`footprint_in_voxels` level-0 voxels; course notes §5.3), capped at
 /// [`MAX_FABRIC_MIP`] and at the halvings that keep the tile wrap exact.
@@ -1164,7 +1170,7 @@ fn auto_fabric_mip(vp: &crate::fabric::VoxelisedPatch, footprint_in_voxels: f32)
         0
     };
     let mut l = wanted.min(MAX_FABRIC_MIP);
-    while l > 0 && (vp.dims[0] % (1 << l) != 0 || vp.dims[1] % (1 << l) != 0) {
+    while l > 0 && !halves_exactly(vp, l) {
         l -= 1;
     }
     l
@@ -1276,7 +1282,7 @@ fn build_fabric(
         auto_fabric_mip(&vp, placement.view.at(bounds) / voxel_world.max(1e-30))
     } else {
         let l = mip.unwrap_or(0);
-        if l > 0 && (vp.dims[0] % (1 << l) != 0 || vp.dims[1] % (1 << l) != 0) {
+        if !halves_exactly(&vp, l) {
             return Err(ctx.invalid(line, format!("{owner}.mip = {l}: the patch has {} × {} voxels across its tile, which {l} halvings do not divide exactly; use a resolution that is a multiple of {}", vp.dims[0], vp.dims[1], 1u32 << l)));
         }
         l
