@@ -306,7 +306,9 @@ impl HeterogeneousMedium {
             },
             DensityField::Shell(shell) => RayLookup::Shell {
                 accessor: shell.density_accessor(),
-                tangents: self.projected_fibres().map(|_| shell.tangent_accessor()),
+                tangents: self
+                    .projected_fibres()
+                    .map(|_| (shell.tangent_accessor(), ray.d.normalize_or_zero())),
                 shell,
                 ray: *ray,
                 hint: u32::MAX,
@@ -351,8 +353,9 @@ pub enum RayLookup<'a> {
         ray: Ray,
         /// The last tetrahedron found.
         hint: u32,
-        /// Accessor on the patch's tangents, for fibre-projected extinction.
-        tangents: Option<crate::grid::Accessor<'a>>,
+        /// For fibre-projected extinction: an accessor on the patch's tangents and the unit
+        /// direction of the ray.
+        tangents: Option<(crate::grid::Accessor<'a>, glam::Vec3)>,
     },
     /// A fabric grid with fibre-projected extinction.
     FibreGrid(FibreGridLookup<'a>),
@@ -421,7 +424,7 @@ impl RayLookup<'_> {
                 tangents,
             } => match tangents {
                 None => shell.density(accessor, ray.at(t), hint),
-                Some(tan) => shell.projected_density(accessor, tan, ray.at(t), ray.d, hint),
+                Some((tan, dir)) => shell.projected_density(accessor, tan, ray.at(t), *dir, hint),
             },
             RayLookup::FibreGrid(g) => g.at(t),
         }
