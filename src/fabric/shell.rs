@@ -126,10 +126,6 @@ pub struct FibreVoxel {
     pub id: f32,
 }
 
-fn shell_error(name: &str, value: impl std::fmt::Display, allowed: &str) -> FabricError {
-    super::invalid(name, value, allowed)
-}
-
 impl FabricShell {
     /// Builds the shell of `patch` over `mesh` (world space; needs texture coordinates).
     ///
@@ -145,7 +141,7 @@ impl FabricShell {
     ) -> Result<FabricShell, FabricError> {
         for (k, t) in params.tiles.iter().enumerate() {
             if !(t.is_finite() && (1.0..=1e6).contains(t)) {
-                return Err(shell_error(
+                return Err(super::invalid(
                     &format!("tiles[{k}]"),
                     t,
                     "[1, 1e6] patch tiles per unit of UV",
@@ -153,14 +149,14 @@ impl FabricShell {
             }
         }
         if !patch.wrapped {
-            return Err(shell_error(
+            return Err(super::invalid(
                 "patch.wrap",
                 false,
                 "a tiled shell needs a periodic (wrapped) patch",
             ));
         }
         let uvs = mesh.uvs.as_ref().ok_or_else(|| {
-            shell_error(
+            super::invalid(
                 "mesh.uvs",
                 "none",
                 "a fabric shell needs texture coordinates (u, v) on the mesh",
@@ -178,13 +174,13 @@ impl FabricShell {
         let (lo, hi) = patch
             .grid
             .active_bbox()
-            .ok_or_else(|| shell_error("patch", "empty", "a patch with fibres"))?;
+            .ok_or_else(|| super::invalid("patch", "empty", "a patch with fibres"))?;
         let dims = IVec3::new(patch.dims[0] as i32, patch.dims[1] as i32, hi.z - lo.z + 2);
         let z_lo = (lo.z - 1) as f32;
 
         // Scale: world length per unit UV, then the world size of one patch voxel.
         let len_per_uv = world_length_per_uv(mesh).ok_or_else(|| {
-            shell_error(
+            super::invalid(
                 "mesh.uvs",
                 "zero area",
                 "triangles with non-zero world and UV area",
@@ -252,14 +248,14 @@ impl FabricShell {
             })
             .fold(0.0f32, f32::max);
         if span > MAX_TET_SPAN_VOXELS {
-            return Err(shell_error(
+            return Err(super::invalid(
                 "tiles",
                 format!("{:?} (a triangle spans {span:.0} patch voxels)", params.tiles),
                 &format!("at most {MAX_TET_SPAN_VOXELS} voxels per triangle: use fewer tiles or subdivide the mesh"),
             ));
         }
         if tets.is_empty() {
-            return Err(shell_error(
+            return Err(super::invalid(
                 "mesh",
                 "degenerate",
                 "a mesh whose triangles have non-zero world and UV area",
