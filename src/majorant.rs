@@ -660,6 +660,10 @@ impl MajorantPyramid {
             start: out.len(),
             last_lookup: 0.0,
         };
+        let threshold = match sigma {
+            None => f32::NEG_INFINITY,
+            Some(s) => (SEGMENT_COST * d.abs().element_sum() / (BRICK_DIM as f64 * s)) as f32,
+        };
         let mut t = t0;
         while depth > 0 {
             let f = &mut stack[depth - 1];
@@ -694,7 +698,10 @@ impl MajorantPyramid {
                 t = t_exit;
                 continue;
             }
-            if level > finest && b.min != b.max {
+            // Descending to the bricks saves σ·Δt·(max − fine) lookups and costs one more
+            // segment per brick boundary crossed, Δt·|d|₁/8: both scale with Δt, so the test
+            // is `max − fine > threshold` with one threshold per ray.
+            if level > finest && b.min != b.max && b.max - lv.fine[i] > threshold {
                 // The child state: per axis, the half of the cell the ray enters and the
                 // distance to its exit (the mid-plane, or the parent's own exit plane).
                 let child = &self.levels[level - 1];
@@ -718,20 +725,9 @@ impl MajorantPyramid {
                         c_next[k] = tm;
                     }
                 }
-                let descend = match sigma {
-                    None => true,
-                    Some(s) => {
-                        // Lookups saved by descending to the bricks against the segments that
-                        // costs: one more per brick boundary the ray crosses in the cell.
-                        let len = t_exit - t;
-                        let gain = s * len * f64::from(b.max - lv.fine[i]);
-                        let planes = len * (d.abs().element_sum() / BRICK_DIM as f64);
-                        gain > SEGMENT_COST * planes
-                    }
-                };
                 let lo = cell * 2;
                 let hi = (lo + IVec3::splat(2)).min(child.dims);
-                if descend && c.cmpge(lo).all() && c.cmplt(hi).all() && depth < MAX_LEVELS {
+                if c.cmpge(lo).all() && c.cmplt(hi).all() && depth < MAX_LEVELS {
                     stack[depth] = Frame {
                         level: (level - 1) as u32,
                         cell: c,
