@@ -77,7 +77,9 @@ impl Bounds {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MajorantMode {
     /// Hierarchical DDA: skip empty space at the coarsest empty level, emit homogeneous cells
-    /// whole, and descend to level `finest` elsewhere (0 = brick level).
+    /// whole, and descend towards level `finest` elsewhere (0 = brick level): everywhere with
+    /// [`MajorantPyramid::segments`] (the exhaustive walk), only where it pays in optical
+    /// depth with [`MajorantPyramid::segments_adaptive`] (the walk renders use; see there).
     Hierarchical {
         /// Finest level used.
         finest: u8,
@@ -598,6 +600,29 @@ impl MajorantPyramid {
         out: &mut Vec<MajorantSegment>,
     ) {
         let top = self.levels.len() - 1;
+        // Descending to the bricks saves σ·Δt·(max − fine) lookups and costs one more segment
+        // per brick boundary crossed, Δt·|d|₁/8: both scale with Δt, so the test is
+        // `max − fine > threshold` with one threshold per ray.
+        let threshold = match sigma {
+            None => f32::NEG_INFINITY,
+            Some(s) => (SEGMENT_COST * d.abs().element_sum() / (BRICK_DIM as f64 * s)) as f32,
+        };
+        // The root is one cell over the whole box: emitted whole, no DDA is needed.
+        let root = &self.levels[top];
+        let (rb, rf) = (root.cells[0], root.fine[0]);
+        if rb.is_empty() {
+            return;
+        }
+        if top <= finest || rb.min == rb.max || !(rb.max - rf > threshold) {
+            out.push(MajorantSegment {
+                t0: t0 as f32,
+                t1: t1 as f32,
+                min: rb.min,
+                max: rb.max,
+                mean: rb.mean,
+            });
+            return;
+        }
         let base = self.origin.as_dvec3() - DVec3::splat(0.5);
         let mut step = IVec3::ZERO;
         let mut inv_d = DVec3::ZERO;
@@ -628,8 +653,7 @@ impl MajorantPyramid {
                 f64::INFINITY
             },
         );
-        // The root state: the top level's cell containing a point just inside the interval.
-        let root = &self.levels[top];
+        // The root state.
         let size = (BRICK_DIM << top) as f64;
         let p = o + d * (t0 + (t1 - t0) * 1e-6);
         let cell = ((p - base) / size)
@@ -659,10 +683,6 @@ impl MajorantPyramid {
             sigma,
             start: out.len(),
             last_lookup: 0.0,
-        };
-        let threshold = match sigma {
-            None => f32::NEG_INFINITY,
-            Some(s) => (SEGMENT_COST * d.abs().element_sum() / (BRICK_DIM as f64 * s)) as f32,
         };
         let mut t = t0;
         while depth > 0 {
@@ -698,9 +718,6 @@ impl MajorantPyramid {
                 t = t_exit;
                 continue;
             }
-            // Descending to the bricks saves σ·Δt·(max − fine) lookups and costs one more
-            // segment per brick boundary crossed, Δt·|d|₁/8: both scale with Δt, so the test
-            // is `max − fine > threshold` with one threshold per ray.
             if level > finest && b.min != b.max && b.max - lv.fine[i] > threshold {
                 // The child state: per axis, the half of the cell the ray enters and the
                 // distance to its exit (the mid-plane, or the parent's own exit plane).
@@ -743,6 +760,11 @@ impl MajorantPyramid {
             }
             emit.push(out, t, t_exit, b, lookup_density(&b));
             t = t_exit;
+            // Leave finished levels at once (saves a loop turn per level).
+            while depth > 0 && stack[depth - 1].done {
+                t = t.max(stack[depth - 1].t_end.min(t1));
+                depth -= 1;
+            }
         }
     }
 }

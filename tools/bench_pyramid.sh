@@ -57,35 +57,40 @@ for r in $(seq "$repeat"); do
     spp=$(python3 -c "print(max(1, round($spp * $scale)))")
     for m in pyramid global; do
       for b in "${bins[@]}"; do
-        line=$("$b" render "$tmp/$name.$m.toml" --spp "$spp" -q -o "$tmp/out.exr" 2>/dev/null | tail -1)
+        line=$(/usr/bin/time -f "cpu %U %S" -o "$tmp/cpu.txt" "$b" render "$tmp/$name.$m.toml" --spp "$spp" -q -o "$tmp/out.exr" 2>/dev/null | tail -1)
         t=$(grep -o 'time [0-9.]* s' <<<"$line" | awk '{print $2}')
+        cpu=$(awk '/^cpu/ {print $2 + $3}' "$tmp/cpu.txt")
         ff=$(grep -o '[0-9]* free-flight lookups' <<<"$line" | awk '{print $1}')
         tl=$(grep -o '[0-9]* transmittance lookups' <<<"$line" | awk '{print $1}')
-        echo "$name $m $b $spp $t ${ff:-0} ${tl:-0}"
+        echo "$name $m $b $spp $t $cpu ${ff:-0} ${tl:-0}"
       done
     done
   done
 done > "$tmp/runs.txt"
 python3 - "$tmp/runs.txt" <<'PY'
 import sys, statistics
-from collections import defaultdict, OrderedDict
+from collections import OrderedDict
 runs = OrderedDict()
 for line in open(sys.argv[1]):
-    name, m, b, spp, t, ff, tl = line.split()
-    runs.setdefault((name, m, b), []).append((float(t), int(ff), int(tl), int(spp)))
-print(f"{'scene':<14} {'majorant':<8} {'binary':<28} {'spp':>4} {'median s':>9}  {'runs (s)':<24} {'free-flight lookups':>20} {'transmittance lookups':>22}")
-med = {}
+    name, m, b, spp, t, cpu, ff, tl = line.split()
+    runs.setdefault((name, m, b), []).append((float(t), float(cpu), int(ff), int(tl), int(spp)))
+print(f"{'scene':<14} {'majorant':<8} {'binary':<24} {'spp':>4} {'render s':>9} {'(runs)':<20} {'CPU s':>7} {'(runs)':<20} {'free-flight lookups':>20} {'transm. lookups':>16}")
+med, cpu = {}, {}
 for (name, m, b), v in runs.items():
     ts = [x[0] for x in v]
+    cs = [x[1] for x in v]
     med[(name, m, b)] = statistics.median(ts)
-    print(f"{name:<14} {m:<8} {b:<28} {v[0][3]:>4} {med[(name, m, b)]:>9.3f}  {' '.join(f'{x:.2f}' for x in ts):<24} {v[0][1]:>20} {v[0][2]:>22}")
+    cpu[(name, m, b)] = statistics.median(cs)
+    print(f"{name:<14} {m:<8} {b:<24} {v[0][4]:>4} {med[(name, m, b)]:>9.2f} {' '.join(f'{x:.2f}' for x in ts):<20} {cpu[(name, m, b)]:>7.2f} {' '.join(f'{x:.2f}' for x in cs):<20} {v[0][2]:>20} {v[0][3]:>16}")
 bins = list(OrderedDict.fromkeys(b for (_, _, b) in runs))
 names = list(OrderedDict.fromkeys(n for (n, _, _) in runs))
 print()
-print("median-time ratios (> 1: the first is slower)")
+print("ratios of medians, render time (CPU time of the process incl. load); > 1: the first is slower")
 for n in names:
     for b in bins:
-        print(f"  {n:<14} {b:<28} pyramid / global = {med[(n, 'pyramid', b)] / med[(n, 'global', b)]:.2f}")
+        k1, k2 = (n, 'pyramid', b), (n, 'global', b)
+        print(f"  {n:<14} {b:<24} pyramid / global = {med[k1] / med[k2]:.2f} ({cpu[k1] / cpu[k2]:.2f})")
     for b in bins[1:]:
-        print(f"  {n:<14} pyramid {bins[0]} / {b} = {med[(n, 'pyramid', bins[0])] / med[(n, 'pyramid', b)]:.2f}")
+        k1, k2 = (n, 'pyramid', bins[0]), (n, 'pyramid', b)
+        print(f"  {n:<14} pyramid {bins[0]} / {b} = {med[k1] / med[k2]:.2f} ({cpu[k1] / cpu[k2]:.2f})")
 PY
