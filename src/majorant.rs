@@ -77,7 +77,9 @@ impl Bounds {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MajorantMode {
     /// Hierarchical DDA: skip empty space at the coarsest empty level, emit homogeneous cells
-    /// whole, and descend to level `finest` elsewhere (0 = brick level).
+    /// whole, and descend towards level `finest` elsewhere (0 = brick level): everywhere with
+    /// [`MajorantPyramid::segments`] (the exhaustive walk), only where it pays in optical
+    /// depth with [`MajorantPyramid::segments_adaptive`] (the walk renders use; see there).
     Hierarchical {
         /// Finest level used.
         finest: u8,
@@ -91,6 +93,20 @@ pub enum MajorantMode {
 struct Level {
     dims: IVec3,
     cells: Vec<Bounds>,
+    /// Per cell, the volume average over its brick cells of their *lookup density*: the
+    /// majorant of a brick that needs lookups, 0 for empty and homogeneous bricks. A walk that
+    /// descends to the bricks makes delta tracking look up σ⁰·(this) per unit length, against
+    /// σ⁰·max when it stops at the cell: the gain the adaptive descent weighs.
+    fine: Vec<f32>,
+}
+
+/// The lookup density of a cell emitted whole: its majorant, or 0 when it needs no lookups.
+fn lookup_density(b: &Bounds) -> f32 {
+    if b.is_empty() || b.min == b.max {
+        0.0
+    } else {
+        b.max
+    }
 }
 
 impl Level {
@@ -252,6 +268,7 @@ impl MajorantPyramid {
         let mut level0 = Level {
             dims,
             cells: vec![Bounds::constant(0.0); cells],
+            fine: Vec::new(),
         };
         for z in 0..dims.z {
             for y in 0..dims.y {
@@ -276,6 +293,7 @@ impl MajorantPyramid {
                 }
             }
         }
+        level0.fine = level0.cells.iter().map(lookup_density).collect();
         let mut levels = vec![level0];
         while levels.last().is_some_and(|l| l.dims.max_element() > 1) {
             let Some(child) = levels.last() else { break };
@@ -283,6 +301,7 @@ impl MajorantPyramid {
             let mut parent = Level {
                 dims: pd,
                 cells: vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize],
+                fine: vec![0.0; (pd.x * pd.y * pd.z) as usize],
             };
             for z in 0..pd.z {
                 for y in 0..pd.y {
@@ -293,16 +312,21 @@ impl MajorantPyramid {
                             mean: 0.0,
                         };
                         let mut n = 0.0f32;
+                        let mut fine = 0.0f32;
                         for dz in 0..2 {
                             for dy in 0..2 {
                                 for dx in 0..2 {
                                     let c = IVec3::new(2 * x + dx, 2 * y + dy, 2 * z + dz);
                                     // Cells beyond the child box hold the background.
-                                    let cb = if c.cmplt(child.dims).all() {
+                                    let inside = c.cmplt(child.dims).all();
+                                    let cb = if inside {
                                         child.cells[child.index(c)]
                                     } else {
                                         Bounds::constant(background)
                                     };
+                                    if inside {
+                                        fine += child.fine[child.index(c)];
+                                    }
                                     b.min = b.min.min(cb.min);
                                     b.max = b.max.max(cb.max);
                                     b.mean += cb.mean;
@@ -313,6 +337,7 @@ impl MajorantPyramid {
                         b.mean = (b.mean / n).clamp(b.min, b.max);
                         let i = parent.index(IVec3::new(x, y, z));
                         parent.cells[i] = b;
+                        parent.fine[i] = (fine / n).min(lookup_density(&b));
                     }
                 }
             }
@@ -425,14 +450,54 @@ impl MajorantPyramid {
         (o, d)
     }
 
-    /// Appends to `out` the segments covering `[t_min, t_max]` of `ray` (world space).
-    /// Segments of zero density are skipped; the others tile their part of the interval.
+    /// Appends to `out` the segments covering `[t_min, t_max]` of `ray` (world space), with the
+    /// exhaustive walk: [`MajorantMode::Hierarchical`] descends to its finest level wherever a
+    /// cell is neither empty nor homogeneous, whatever the medium's extinction (what
+    /// `velour majorants` reports per level). Segments of zero density are skipped; the others
+    /// tile their part of the interval. Renders use [`MajorantPyramid::segments_adaptive`].
     pub fn segments(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
         mode: MajorantMode,
+        out: &mut Vec<MajorantSegment>,
+    ) {
+        self.segments_with(ray, t_min, t_max, mode, None, out);
+    }
+
+    /// Appends to `out` the segments covering `[t_min, t_max]` of `ray` for a medium whose
+    /// extinction is at most `sigma_scale` per unit density (the largest channel of σ_t⁰).
+    ///
+    /// With [`MajorantMode::Hierarchical`] the walk weighs each descent in optical depth: a
+    /// tentative collision (a density lookup) and a segment cost about the same, so a cell
+    /// crossed over `Δt` is split only where the lookups it saves, σ·Δt·(max − the brick-level
+    /// lookup density below it), exceed [`SEGMENT_COST`] per extra segment, and adjacent
+    /// segments are merged where the merge costs fewer than [`SEGMENT_COST`] extra lookups.
+    /// Optically thin cells (σ·max·Δt ≪ 1) are therefore emitted whole. Merged and undivided
+    /// segments take the max of the maxima and the min of the minima they cover (0 across
+    /// skipped empty cells), so the bounds stay conservative. A non-finite or non-positive
+    /// `sigma_scale` gives the exhaustive walk of [`MajorantPyramid::segments`].
+    pub fn segments_adaptive(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        mode: MajorantMode,
+        sigma_scale: f32,
+        out: &mut Vec<MajorantSegment>,
+    ) {
+        let sigma = (sigma_scale.is_finite() && sigma_scale > 0.0).then_some(sigma_scale as f64);
+        self.segments_with(ray, t_min, t_max, mode, sigma, out);
+    }
+
+    fn segments_with(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        mode: MajorantMode,
+        sigma: Option<f64>,
         out: &mut Vec<MajorantSegment>,
     ) {
         if !(t_max > t_min) {
@@ -462,25 +527,15 @@ impl MajorantPyramid {
                 }
             }
             MajorantMode::Hierarchical { finest } => {
-                let Some((a, c)) = self.clip(ray, t_min, t_max) else {
+                let (o, d) = self.ray_to_index(ray);
+                let Some((a, c)) = self.clip_index(o, d, t_min, t_max) else {
                     self.push_background(t_min, t_max, out);
                     return;
                 };
                 self.push_background(t_min, a, out);
-                let (o, d) = self.ray_to_index(ray);
                 let top = self.levels.len() - 1;
                 let finest = (finest as usize).min(top);
-                self.walk(
-                    top,
-                    IVec3::ZERO,
-                    self.levels[top].dims,
-                    a as f64,
-                    c as f64,
-                    o,
-                    d,
-                    finest,
-                    out,
-                );
+                self.walk(a as f64, c as f64, o, d, finest, sigma, out);
                 self.push_background(c, t_max, out);
             }
         }
@@ -501,8 +556,13 @@ impl MajorantPyramid {
     /// Clips the ray to the pyramid's box in index space (voxel extents: voxel i covers
     /// [i − 0.5, i + 0.5)).
     fn clip(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
-        let l0 = self.levels.first()?;
         let (o, d) = self.ray_to_index(ray);
+        self.clip_index(o, d, t_min, t_max)
+    }
+
+    /// [`Self::clip`] for a ray already in index space.
+    fn clip_index(&self, o: DVec3, d: DVec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+        let l0 = self.levels.first()?;
         let lo = self.origin.as_dvec3() - DVec3::splat(0.5);
         let hi = lo + (l0.dims * BRICK_DIM).as_dvec3();
         let mut t0 = t_min as f64;
@@ -525,98 +585,283 @@ impl MajorantPyramid {
         (t0 < t1).then_some((t0 as f32, t1 as f32))
     }
 
-    /// DDA over level `level` restricted to cells in `[cmin, cmax)` and `t ∈ [t0, t1]`.
+    /// Hierarchical DDA over `t ∈ [t0, t1]` (inside the pyramid's box), iterative: a stack of
+    /// one DDA state per level, each child state derived from its parent's exit distances and
+    /// the parent cell's mid-planes (no per-level re-location of the ray).
     #[allow(clippy::too_many_arguments)]
     fn walk(
         &self,
-        level: usize,
-        cmin: IVec3,
-        cmax: IVec3,
         t0: f64,
         t1: f64,
         o: DVec3,
         d: DVec3,
         finest: usize,
+        sigma: Option<f64>,
         out: &mut Vec<MajorantSegment>,
     ) {
-        let lv = &self.levels[level];
-        let cmax = cmax.min(lv.dims);
-        let size = (BRICK_DIM << level) as f64;
+        let top = self.levels.len() - 1;
+        // Descending to the bricks saves σ·Δt·(max − fine) lookups and costs one more segment
+        // per brick boundary crossed, Δt·|d|₁/8: both scale with Δt, so the test is
+        // `max − fine > threshold` with one threshold per ray.
+        let threshold = match sigma {
+            None => f32::NEG_INFINITY,
+            Some(s) => (SEGMENT_COST * d.abs().element_sum() / (BRICK_DIM as f64 * s)) as f32,
+        };
+        // The root is one cell over the whole box: emitted whole, no DDA is needed.
+        let root = &self.levels[top];
+        let (rb, rf) = (root.cells[0], root.fine[0]);
+        if rb.is_empty() {
+            return;
+        }
+        if top <= finest || rb.min == rb.max || !(rb.max - rf > threshold) {
+            out.push(MajorantSegment {
+                t0: t0 as f32,
+                t1: t1 as f32,
+                min: rb.min,
+                max: rb.max,
+                mean: rb.mean,
+            });
+            return;
+        }
         let base = self.origin.as_dvec3() - DVec3::splat(0.5);
-        // Start cell: the one containing the midpoint of a tiny step into the interval.
-        let t_probe = t0 + (t1 - t0) * 1e-6;
-        let p = o + d * t_probe;
-        let mut cell = ((p - base) / size)
-            .floor()
-            .as_ivec3()
-            .clamp(cmin, cmax - IVec3::ONE);
         let mut step = IVec3::ZERO;
-        let mut t_next = DVec3::splat(f64::INFINITY);
-        let mut t_delta = DVec3::splat(f64::INFINITY);
+        let mut inv_d = DVec3::ZERO;
         for k in 0..3 {
             if d[k] > 0.0 {
                 step[k] = 1;
-                t_next[k] = (base[k] + (cell[k] + 1) as f64 * size - o[k]) / d[k];
-                t_delta[k] = size / d[k];
+                inv_d[k] = 1.0 / d[k];
             } else if d[k] < 0.0 {
                 step[k] = -1;
-                t_next[k] = (base[k] + cell[k] as f64 * size - o[k]) / d[k];
-                t_delta[k] = -size / d[k];
+                inv_d[k] = 1.0 / d[k];
             }
         }
+        // |Δt| across one level-0 cell per axis (∞ along axes the ray does not move on).
+        let delta0 = DVec3::new(
+            if step.x != 0 {
+                (BRICK_DIM as f64 * inv_d.x).abs()
+            } else {
+                f64::INFINITY
+            },
+            if step.y != 0 {
+                (BRICK_DIM as f64 * inv_d.y).abs()
+            } else {
+                f64::INFINITY
+            },
+            if step.z != 0 {
+                (BRICK_DIM as f64 * inv_d.z).abs()
+            } else {
+                f64::INFINITY
+            },
+        );
+        // The root state.
+        let size = (BRICK_DIM << top) as f64;
+        let p = o + d * (t0 + (t1 - t0) * 1e-6);
+        let cell = ((p - base) / size)
+            .floor()
+            .as_ivec3()
+            .clamp(IVec3::ZERO, root.dims - IVec3::ONE);
+        let mut t_next = DVec3::splat(f64::INFINITY);
+        for k in 0..3 {
+            if step[k] > 0 {
+                t_next[k] = (base[k] + (cell[k] + 1) as f64 * size - o[k]) * inv_d[k];
+            } else if step[k] < 0 {
+                t_next[k] = (base[k] + cell[k] as f64 * size - o[k]) * inv_d[k];
+            }
+        }
+        let mut stack = [Frame::default(); MAX_LEVELS];
+        stack[0] = Frame {
+            level: top as u32,
+            cell,
+            lo: IVec3::ZERO,
+            hi: root.dims,
+            t_next,
+            t_end: t1,
+            done: false,
+        };
+        let mut depth = 1usize;
+        let mut emit = Emitter {
+            sigma,
+            start: out.len(),
+            last_lookup: 0.0,
+        };
         let mut t = t0;
-        while t < t1 {
-            let axis = if t_next.x <= t_next.y && t_next.x <= t_next.z {
+        while depth > 0 {
+            let f = &mut stack[depth - 1];
+            if f.done || t >= f.t_end {
+                t = t.max(f.t_end.min(t1));
+                depth -= 1;
+                continue;
+            }
+            let level = f.level as usize;
+            let cell = f.cell;
+            let exits = f.t_next;
+            let axis = if exits.x <= exits.y && exits.x <= exits.z {
                 0
-            } else if t_next.y <= t_next.z {
+            } else if exits.y <= exits.z {
                 1
             } else {
                 2
             };
-            let t_exit = t_next[axis].min(t1).max(t);
-            let b = lv.cells[lv.index(cell)];
-            if !b.is_empty() && t_exit > t {
-                if level <= finest || b.min == b.max {
-                    let seg = MajorantSegment {
-                        t0: t as f32,
-                        t1: t_exit as f32,
-                        min: b.min,
-                        max: b.max,
-                        mean: b.mean,
-                    };
-                    match out.last_mut() {
-                        Some(last)
-                            if last.t1 == seg.t0
-                                && last.min == seg.min
-                                && last.max == seg.max
-                                && last.mean == seg.mean =>
-                        {
-                            last.t1 = seg.t1
+            let t_exit = exits[axis].min(f.t_end).max(t);
+            f.cell[axis] += step[axis];
+            f.t_next[axis] += delta0[axis] * (1u64 << level) as f64;
+            if f.cell[axis] < f.lo[axis] || f.cell[axis] >= f.hi[axis] || t_exit >= f.t_end {
+                f.done = true;
+            }
+            if !(t_exit > t) {
+                continue;
+            }
+            let lv = &self.levels[level];
+            let i = lv.index(cell);
+            let b = lv.cells[i];
+            if b.is_empty() {
+                t = t_exit;
+                continue;
+            }
+            if level > finest && b.min != b.max && b.max - lv.fine[i] > threshold {
+                // The child state: per axis, the half of the cell the ray enters and the
+                // distance to its exit (the mid-plane, or the parent's own exit plane).
+                let child = &self.levels[level - 1];
+                let half = (BRICK_DIM << (level - 1)) as f64;
+                let mut c = cell * 2;
+                let mut c_next = exits;
+                for k in 0..3 {
+                    let mid = base[k] + (2 * cell[k] + 1) as f64 * half;
+                    if step[k] == 0 {
+                        if o[k] >= mid {
+                            c[k] += 1;
                         }
-                        _ => out.push(seg),
+                        continue;
                     }
-                } else {
-                    let child_min = cell * 2;
-                    self.walk(
-                        level - 1,
-                        child_min,
-                        child_min + IVec3::splat(2),
-                        t,
-                        t_exit,
-                        o,
-                        d,
-                        finest,
-                        out,
-                    );
+                    let tm = (mid - o[k]) * inv_d[k];
+                    let upper = if step[k] > 0 { tm <= t } else { tm > t };
+                    if upper {
+                        c[k] += 1;
+                    }
+                    if tm > t {
+                        c_next[k] = tm;
+                    }
+                }
+                let lo = cell * 2;
+                let hi = (lo + IVec3::splat(2)).min(child.dims);
+                if c.cmpge(lo).all() && c.cmplt(hi).all() && depth < MAX_LEVELS {
+                    stack[depth] = Frame {
+                        level: (level - 1) as u32,
+                        cell: c,
+                        lo,
+                        hi,
+                        t_next: c_next,
+                        t_end: t_exit,
+                        done: false,
+                    };
+                    depth += 1;
+                    continue;
                 }
             }
+            emit.push(out, t, t_exit, b, lookup_density(&b));
             t = t_exit;
-            cell[axis] += step[axis];
-            t_next[axis] += t_delta[axis];
-            if cell[axis] < cmin[axis] || cell[axis] >= cmax[axis] {
-                break;
+            // Leave finished levels at once (saves a loop turn per level).
+            while depth > 0 && stack[depth - 1].done {
+                t = t.max(stack[depth - 1].t_end.min(t1));
+                depth -= 1;
             }
         }
+    }
+}
+
+/// The cost of one more segment, in density lookups (a segment costs a DDA step, an
+/// exponential sample and the tracker's per-segment set-up, about what one tentative collision
+/// costs; measured with callgrind on the grid scenes, docs/BENCHMARKS.md).
+pub const SEGMENT_COST: f64 = 1.0;
+
+/// Levels below the root the iterative walk descends at most. A cubic grid within
+/// [`MAX_LEVEL0_CELLS`] has at most 9 levels; only grids more than 2^15 bricks long on one axis
+/// have more, and their deepest levels are then emitted whole (coarser, still conservative).
+const MAX_LEVELS: usize = 16;
+
+/// One level's DDA state in [`MajorantPyramid::walk`].
+#[derive(Clone, Copy, Debug, Default)]
+struct Frame {
+    level: u32,
+    done: bool,
+    cell: IVec3,
+    /// Cells `[lo, hi)` of this level inside the parent cell.
+    lo: IVec3,
+    hi: IVec3,
+    /// Distance at which the ray leaves the current cell across each axis.
+    t_next: DVec3,
+    /// Where the parent cell ends.
+    t_end: f64,
+}
+
+/// Appends walk output to the segment list, merging adjacent segments with equal bounds, and,
+/// in the adaptive walk, segments whose merge costs fewer than [`SEGMENT_COST`] lookups.
+struct Emitter {
+    sigma: Option<f64>,
+    /// First segment of this walk (earlier ones are never merged into).
+    start: usize,
+    /// Lookup density of the last segment.
+    last_lookup: f32,
+}
+
+impl Emitter {
+    fn push(&mut self, out: &mut Vec<MajorantSegment>, t0: f64, t1: f64, b: Bounds, lookup: f32) {
+        let seg = MajorantSegment {
+            t0: t0 as f32,
+            t1: t1 as f32,
+            min: b.min,
+            max: b.max,
+            mean: b.mean,
+        };
+        if out.len() > self.start {
+            if let Some(last) = out.last_mut() {
+                if last.t1 == seg.t0
+                    && last.min == seg.min
+                    && last.max == seg.max
+                    && last.mean == seg.mean
+                {
+                    last.t1 = seg.t1;
+                    return;
+                }
+                if let Some(s) = self.sigma {
+                    // Lookups added by one segment over both (and the empty gap between):
+                    // σ·(L·max − the lookup integrals of the two as they are).
+                    let max = last.max.max(seg.max);
+                    let (la, gap, lb) = (
+                        f64::from(last.length()),
+                        f64::from((seg.t0 - last.t1).max(0.0)),
+                        f64::from(seg.length()),
+                    );
+                    let extra = s
+                        * ((la + gap + lb) * f64::from(max)
+                            - la * f64::from(self.last_lookup)
+                            - lb * f64::from(lookup));
+                    if extra < SEGMENT_COST {
+                        let total = la + gap + lb;
+                        let mut min = last.min.min(seg.min);
+                        if gap > 0.0 {
+                            min = min.min(0.0);
+                        }
+                        let mean = if total > 0.0 {
+                            ((la * f64::from(last.mean) + lb * f64::from(seg.mean)) / total) as f32
+                        } else {
+                            last.mean
+                        };
+                        *last = MajorantSegment {
+                            t0: last.t0,
+                            t1: seg.t1,
+                            min,
+                            max,
+                            mean: mean.clamp(min, max),
+                        };
+                        self.last_lookup = if min == max { 0.0 } else { max };
+                        return;
+                    }
+                }
+            }
+        }
+        self.last_lookup = lookup;
+        out.push(seg);
     }
 }
 

@@ -256,8 +256,14 @@ impl HeterogeneousMedium {
     /// Appends the majorant segments of `[t0, t1]` along `ray` to `out`.
     pub fn segments(&self, ray: &Ray, t0: f32, t1: f32, out: &mut Vec<MajorantSegment>) {
         let start = out.len();
-        self.pyramid
-            .segments(ray, t0, t1, self.tracking.majorant, out);
+        self.pyramid.segments_adaptive(
+            ray,
+            t0,
+            t1,
+            self.tracking.majorant,
+            self.coefficients.max_sigma_t(),
+            out,
+        );
         if self.projected_fibres().is_some() {
             // sin∠(ω, t) ∈ [0, 1] scales the density: the maxima still bound it, the minima
             // do not, and no segment is homogeneous in the closed-form sense.

@@ -171,6 +171,106 @@ fn segments_tile_the_ray_interval() {
     }
 }
 
+/// Checks that `out` covers `[0, t_max]` of `ray` where the density is non-zero, with bounds
+/// that contain the density, and that its segments neither overlap nor leave dense gaps.
+fn check_tiling(
+    grid: &SparseGrid,
+    ray: &Ray,
+    t_max: f32,
+    out: &[velour::tracking::MajorantSegment],
+) {
+    for w in out.windows(2) {
+        assert!(w[0].t1 <= w[1].t0 + 1e-6, "overlap {:?}", w);
+    }
+    for s in out {
+        assert!(s.t0 < s.t1 && s.max >= s.min && s.max > 0.0, "{s:?}");
+        assert!(s.mean >= s.min && s.mean <= s.max, "{s:?}");
+    }
+    for k in 0..400 {
+        let t = t_max * (k as f32 + 0.5) / 400.0;
+        let v = grid.sample_trilinear_world(ray.at(t));
+        match out.iter().find(|s| t >= s.t0 && t <= s.t1) {
+            None => assert!(v == 0.0, "uncovered t = {t} has density {v}"),
+            Some(s) => assert!(
+                v <= s.max * (1.0 + 1e-5) + 1e-6 && v >= s.min * (1.0 - 1e-5) - 1e-6,
+                "t {t}: {v} not in {s:?}"
+            ),
+        }
+    }
+}
+
+/// ∫ max dt over the segments that need density lookups (non-homogeneous ones).
+fn lookup_integral(out: &[velour::tracking::MajorantSegment]) -> f64 {
+    out.iter()
+        .filter(|s| s.min != s.max)
+        .map(|s| f64::from(s.max) * f64::from(s.t1 - s.t0))
+        .sum()
+}
+
+#[test]
+fn adaptive_segments_are_conservative_at_every_optical_scale() {
+    let grid = test_grid(5);
+    let pyramid = MajorantPyramid::from_grid(&grid, 0).expect("pyramid");
+    let i2w = grid.index_to_world();
+    let centre = i2w.transform_point3(DVec3::new(20.0, 8.0, 8.0)).as_vec3();
+    let mut rng = Rng::new(4, 3);
+    let mut out = Vec::new();
+    let mut exhaustive = Vec::new();
+    let (mut fine_lookups, mut exhaustive_lookups) = (0.0f64, 0.0f64);
+    let (mut coarse_segments, mut exhaustive_segments) = (0usize, 0usize);
+    for i in 0..2000 {
+        let d = if i < 3 {
+            [Vec3::X, -Vec3::Y, Vec3::Z][i]
+        } else {
+            velour::sampling::sample_uniform_sphere(rng.next_2d())
+        };
+        let o = centre - d * (rng.next_f32() * 6.0 + 1.0)
+            + velour::sampling::sample_uniform_sphere(rng.next_2d()) * rng.next_f32();
+        let ray = Ray::new(o, d.normalize());
+        for finest in [0u8, 2] {
+            let mode = MajorantMode::Hierarchical { finest };
+            exhaustive.clear();
+            pyramid.segments(&ray, 0.0, 20.0, mode, &mut exhaustive);
+            for sigma in [
+                1e-6f32,
+                0.1,
+                3.0,
+                100.0,
+                1e4,
+                1e9,
+                0.0,
+                f32::INFINITY,
+                f32::NAN,
+            ] {
+                out.clear();
+                pyramid.segments_adaptive(&ray, 0.0, 20.0, mode, sigma, &mut out);
+                check_tiling(&grid, &ray, 20.0, &out);
+                if sigma == 1e9 && finest == 0 {
+                    fine_lookups += lookup_integral(&out);
+                    exhaustive_lookups += lookup_integral(&exhaustive);
+                }
+                if sigma == 1e-6 && finest == 0 {
+                    coarse_segments += out.len();
+                    exhaustive_segments += exhaustive.len();
+                }
+                if !(sigma.is_finite() && sigma > 0.0) {
+                    assert_eq!(out, exhaustive, "σ = {sigma} must give the exhaustive walk");
+                }
+            }
+        }
+    }
+    // Optically thick: the adaptive walk descends as far as the exhaustive one.
+    assert!(
+        fine_lookups <= exhaustive_lookups * (1.0 + 1e-4),
+        "σ = 1e9: lookup integral {fine_lookups} above the exhaustive walk's {exhaustive_lookups}"
+    );
+    // Optically thin: cells are emitted whole and merged (one segment per ray or close).
+    assert!(
+        coarse_segments * 4 < exhaustive_segments,
+        "σ = 1e-6: {coarse_segments} segments against {exhaustive_segments} exhaustive"
+    );
+}
+
 #[test]
 fn homogeneous_tiles_become_closed_form_segments() {
     // A grid that is one constant 128^3 tile: deep inside it, segments are homogeneous.

@@ -94,7 +94,7 @@ radiance = 1.0
 [[object]]
 shape = "sphere"
 radius = 0.6
-interior = {{ type = "fbm", albedo = 0.7, albedo_mode = "single", attenuation = 0.3, noise = {{ frequency = 3.0, octaves = 3, offset = 0.5, amplitude = 0.8 }}, {evaluation} }}
+interior = {{ type = "fbm", albedo = 0.7, albedo_mode = "single", attenuation = 0.05, noise = {{ frequency = 3.0, octaves = 3, offset = 0.5, amplitude = 0.8 }}, {evaluation} }}
 "#
     )
 }

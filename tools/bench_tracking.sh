@@ -1,14 +1,18 @@
 #!/usr/bin/env bash
 # Speed/accuracy figures of the tracking estimators, measured in one run (docs/BENCHMARKS.md).
-#   tools/bench_tracking.sh [SPP]
+#   tools/bench_tracking.sh [SPP]        (VELOUR=path/to/velour to measure another build)
 # 1. the VDB cloud with the majorant pyramid vs one global majorant (equal spp): time, density
 #    lookups per real collision, and agreement (velour diff);
 # 2. the fBm creature baked vs evaluated exactly (estimated bounds): time and error vs the baked image.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 spp=${1:-16}
-bin=target/release/velour
-cargo build --release -q
+if [ -n "${VELOUR:-}" ]; then
+  bin=$VELOUR
+else
+  bin=target/release/velour
+  cargo build --release -q
+fi
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 sed 's|file = "../volumes/|file = "'"$PWD"'/volumes/|' scenes/cloud.toml > "$tmp/pyramid.toml"

@@ -7,6 +7,10 @@
 //! - `tightness`: ∫ density dt / ∫ majorant dt along random rays through the volume (1 = exact);
 //! - `lookups_per_unit_depth`: expected density lookups of delta/ratio tracking per unit of
 //!   real optical depth, ∫ majorant dt over non-homogeneous segments / ∫ density dt;
+//! - `segments_per_ray`: segments the walk emits per ray (each costs about one lookup);
+//! - the `adaptive` row: the walk renders use ([`MajorantPyramid::segments_adaptive`]), which
+//!   descends only where that saves lookups at the medium's extinction (`--sigma`, or the
+//!   interior's largest σ_t⁰ for a scene);
 //! - `max_violation`: the largest excess of a densely sampled density over its cell's bounds
 //!   (zero for grids, whose bounds are exact; measured for estimated procedural bounds).
 
@@ -33,6 +37,10 @@ pub struct MajorantsArgs {
     /// Density samples per level-0 cell for the violation search.
     #[arg(long, default_value_t = 64)]
     pub samples: u32,
+    /// Extinction per unit density (1/length) for the adaptive walk; default: the interior's
+    /// largest σ_t⁰ for a scene, 1 for a VDB file.
+    #[arg(long)]
+    pub sigma: Option<f32>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -53,6 +61,8 @@ pub struct LevelFigures {
     pub tightness: f64,
     /// Expected lookups per unit optical depth.
     pub lookups_per_unit_depth: f64,
+    /// Segments emitted per ray.
+    pub segments_per_ray: f64,
 }
 
 /// Figures of one volume.
@@ -70,6 +80,8 @@ pub struct VolumeFigures {
     pub max_violation: f64,
     /// Samples taken in the violation search.
     pub violation_samples: u64,
+    /// Extinction per unit density of the adaptive row.
+    pub sigma: f32,
 }
 
 /// Measures one interior.
@@ -82,19 +94,29 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
     });
     let centre = bounds.center();
     let radius = (bounds.extent().length() * 0.5).max(1e-6);
-    let mut modes: Vec<(String, MajorantMode)> = (0..pyramid.level_count())
+    let sigma = medium.coefficients.max_sigma_t();
+    let mut modes: Vec<(String, MajorantMode, Option<f32>)> = (0..pyramid.level_count())
         .map(|l| {
             (
                 format!("level {l}"),
                 MajorantMode::Hierarchical { finest: l as u8 },
+                None,
             )
         })
         .collect();
-    modes.push(("global".to_string(), MajorantMode::Global));
+    modes.push(("global".to_string(), MajorantMode::Global, None));
+    if pyramid.level_count() > 0 {
+        modes.push((
+            "adaptive".to_string(),
+            MajorantMode::Hierarchical { finest: 0 },
+            Some(sigma),
+        ));
+    }
     let reports = pyramid.level_reports();
     let mut levels = Vec::new();
-    for (i, (label, mode)) in modes.iter().enumerate() {
+    for (i, (label, mode, adaptive)) in modes.iter().enumerate() {
         let mut rng = Rng::new(17, 3);
+        let mut segment_count = 0u64;
         let mut density_integral = 0.0f64;
         let mut majorant_integral = 0.0f64;
         let mut lookup_integral = 0.0f64;
@@ -105,7 +127,11 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
                 sample_uniform_sphere(rng.next_2d()) * (rng.next_f32().sqrt() * radius * 0.5);
             let ray = Ray::new(centre + offset - d * (2.0 * radius), d);
             segs.clear();
-            pyramid.segments(&ray, 0.0, 4.0 * radius, *mode, &mut segs);
+            match adaptive {
+                Some(s) => pyramid.segments_adaptive(&ray, 0.0, 4.0 * radius, *mode, *s, &mut segs),
+                None => pyramid.segments(&ray, 0.0, 4.0 * radius, *mode, &mut segs),
+            }
+            segment_count += segs.len() as u64;
             let mut lookup = medium.density_along(&ray);
             for s in &segs {
                 let len = (s.t1 - s.t0) as f64;
@@ -123,6 +149,8 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
         }
         let (cells, occupied, homogeneous) = match reports.get(i) {
             Some(r) if i < reports.len() => (r.cells, r.occupied, r.homogeneous),
+            // The adaptive walk mixes levels.
+            _ if adaptive.is_some() => (0, 0, 0),
             _ => (
                 1,
                 usize::from(global.max > 0.0),
@@ -144,6 +172,7 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
             } else {
                 0.0
             },
+            segments_per_ray: segment_count as f64 / f64::from(rays.max(1)),
         });
     }
     let (max_violation, violation_samples) = violation_search(medium, samples);
@@ -154,6 +183,7 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
         levels,
         max_violation,
         violation_samples,
+        sigma,
     }
 }
 
@@ -267,6 +297,20 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
     } else {
         grids_from_vdb(&args.input, args.grid.as_deref())?
     };
+    let mut volumes = volumes;
+    if let Some(s) = args.sigma {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(
+                format!("--sigma {s}: expected a positive extinction per unit density").into(),
+            );
+        }
+        for (_, m) in &mut volumes {
+            m.coefficients = DensityCoefficients::new(
+                crate::spectrum::Rgb::splat(s),
+                crate::spectrum::Rgb::splat(s),
+            );
+        }
+    }
     let figures: Vec<VolumeFigures> = volumes
         .iter()
         .map(|(n, m)| measure(n, m, args.rays, args.samples))
@@ -277,17 +321,38 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
     }
     for f in &figures {
         println!(
-            "{}: density in [{}, {}]",
-            f.name, f.global_min, f.global_max
+            "{}: density in [{}, {}]; adaptive walk at σ_t = {} per unit density",
+            f.name, f.global_min, f.global_max, f.sigma
         );
         println!(
-            "  {:<9} {:>9} {:>9} {:>11} {:>10} {:>16}",
-            "level", "cells", "occupied", "homogeneous", "tightness", "lookups/depth"
+            "  {:<9} {:>9} {:>9} {:>11} {:>10} {:>16} {:>13}",
+            "level",
+            "cells",
+            "occupied",
+            "homogeneous",
+            "tightness",
+            "lookups/depth",
+            "segments/ray"
         );
         for l in &f.levels {
+            let (cells, occupied, homogeneous) = if l.cells == 0 {
+                ("-".to_string(), "-".to_string(), "-".to_string())
+            } else {
+                (
+                    l.cells.to_string(),
+                    l.occupied.to_string(),
+                    l.homogeneous.to_string(),
+                )
+            };
             println!(
-                "  {:<9} {:>9} {:>9} {:>11} {:>10.4} {:>16.3}",
-                l.level, l.cells, l.occupied, l.homogeneous, l.tightness, l.lookups_per_unit_depth
+                "  {:<9} {:>9} {:>9} {:>11} {:>10.4} {:>16.3} {:>13.2}",
+                l.level,
+                cells,
+                occupied,
+                homogeneous,
+                l.tightness,
+                l.lookups_per_unit_depth,
+                l.segments_per_ray
             );
         }
         println!(
