@@ -270,7 +270,9 @@ fn build_scene(ctx: &Ctx, file: SceneFile) -> Result<Scene, SceneError> {
                 let Some(Medium::Heterogeneous(h)) = medium.map(|m| &media[m as usize]) else {
                     return Err(ctx.invalid(
                         line,
-                        format!("{name}: shape \"bounds\" needs a \"voxel\" or \"fabric\" interior"),
+                        format!(
+                            "{name}: shape \"bounds\" needs a \"voxel\" or \"fabric\" interior"
+                        ),
                     ));
                 };
                 let b = h.pyramid.world_bounds().ok_or_else(|| {
