@@ -398,6 +398,13 @@ interior = {{ type = "fabric", pattern = "twill", yarn = "cotton1", resolution =
     )
 }
 
+/// The error message of a scene that must fail to load.
+fn scene_error(text: &str, name: &str) -> String {
+    load_scene_str(text, Path::new(name))
+        .expect_err("the scene should be rejected")
+        .to_string()
+}
+
 fn write_plane_ply(path: &Path, z: f32, size: Vec2) {
     let mut s = String::from("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty float u\nproperty float v\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n");
     for (u, v) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
@@ -491,9 +498,7 @@ fn scene_errors_for_fabric_shells() {
         &format!("shape = \"mesh\"\nfile = \"{}\"", ply.display()),
         0.5,
     );
-    let err = load_scene_str(&text, Path::new("s.toml"))
-        .unwrap_err()
-        .to_string();
+    let err = scene_error(&text, "s.toml");
     assert!(
         err.contains("texture coordinates") && err.contains("s.toml:"),
         "{err}"
@@ -501,9 +506,7 @@ fn scene_errors_for_fabric_shells() {
     // `tiles` on a free-standing patch, and absurd tiles on a shell.
     let text =
         twill_scene("shape = \"bounds\"", 0.5).replace("flyaways = 0", "flyaways = 0, tiles = 4");
-    let err = load_scene_str(&text, Path::new("s.toml"))
-        .unwrap_err()
-        .to_string();
+    let err = scene_error(&text, "s.toml");
     assert!(err.contains("tiles"), "{err}");
     let good = dir.join("uv.ply");
     write_plane_ply(&good, 0.0, Vec2::ONE);
@@ -512,15 +515,11 @@ fn scene_errors_for_fabric_shells() {
         0.5,
     )
     .replace("flyaways = 0", "flyaways = 0, tiles = -3");
-    let err = load_scene_str(&text, Path::new("s.toml"))
-        .unwrap_err()
-        .to_string();
+    let err = scene_error(&text, "s.toml");
     assert!(err.contains("tiles"), "{err}");
     // A sphere cannot carry a fabric shell.
     let text = twill_scene("shape = \"sphere\"", 0.5);
-    let err = load_scene_str(&text, Path::new("s.toml"))
-        .unwrap_err()
-        .to_string();
+    let err = scene_error(&text, "s.toml");
     assert!(err.contains("fabric"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -607,16 +606,12 @@ interior = {{ type = "fabric", pattern = "plain", resolution = 32, tiles = 8, mi
         ("-1", "mip = -1"),
         ("[1, 2]", "`mip` expects"),
     ] {
-        let err = load_scene_str(&scene(1.0, bad), Path::new("m.toml"))
-            .expect_err(bad)
-            .to_string();
+        let err = scene_error(&scene(1.0, bad), "m.toml");
         assert!(err.contains(what), "{bad}: {err}");
     }
     // Level 3 cannot halve 36 voxels three times.
     let text = scene(1.0, "3").replace("resolution = 32", "resolution = 36");
-    let err = load_scene_str(&text, Path::new("m.toml"))
-        .unwrap_err()
-        .to_string();
+    let err = scene_error(&text, "m.toml");
     assert!(err.contains("multiple of 8"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
