@@ -397,16 +397,7 @@ impl MajorantPyramid {
         let index_to_world = self.world_to_index.inverse();
         let a = (self.origin + lo * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
         let b = (self.origin + (hi + IVec3::ONE) * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
-        let mut out = crate::math::Aabb::EMPTY;
-        for i in 0..8 {
-            let p = DVec3::new(
-                if i & 1 != 0 { b.x } else { a.x },
-                if i & 2 != 0 { b.y } else { a.y },
-                if i & 4 != 0 { b.z } else { a.z },
-            );
-            out = out.union_point(index_to_world.transform_point3(p).as_vec3());
-        }
-        Some(out)
+        Some(crate::math::Aabb::around_transformed(a, b, &index_to_world))
     }
 
     /// Per-level cell counts.

@@ -155,6 +155,21 @@ pub struct Aabb {
 }
 
 impl Aabb {
+    /// The world box around the box `[lo, hi]` mapped by the affine `m` (its eight corners).
+    #[must_use]
+    pub fn around_transformed(lo: glam::DVec3, hi: glam::DVec3, m: &glam::DAffine3) -> Aabb {
+        let mut out = Aabb::EMPTY;
+        for i in 0..8 {
+            let p = glam::DVec3::new(
+                if i & 1 != 0 { hi.x } else { lo.x },
+                if i & 2 != 0 { hi.y } else { lo.y },
+                if i & 4 != 0 { hi.z } else { lo.z },
+            );
+            out = out.union_point(m.transform_point3(p).as_vec3());
+        }
+        out
+    }
+
     /// The empty box (min = +∞, max = −∞).
     pub const EMPTY: Aabb = Aabb {
         min: Vec3::splat(f32::INFINITY),

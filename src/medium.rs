@@ -219,6 +219,14 @@ pub struct FabricLook {
     pub shading: crate::fabric::FabricShading,
 }
 
+impl FabricLook {
+    /// Patch-unit tangent → world direction for a free-standing patch `grid`: the placement's
+    /// linear part after the patch's voxel size.
+    fn tangent_to_world(&self, grid: &SparseGrid) -> glam::DMat3 {
+        grid.index_to_world().matrix3 * glam::DMat3::from_diagonal(self.patch_voxel_size.recip())
+    }
+}
+
 impl HeterogeneousMedium {
     /// The fibre frame of a fabric interior at world point `p`: the world-space tangent and
     /// the yarn id of the nearest patch voxel (`None` for other interiors or outside the
@@ -234,8 +242,7 @@ impl HeterogeneousMedium {
                 let t = crate::fabric::tangent_near(q, |ijk| tangents.value_vec3(ijk));
                 let ijk = (q + glam::Vec3::splat(0.5)).floor().as_ivec3();
                 let id = grid.accessor(look.id_channel).value(ijk);
-                let index_dir = t.as_dvec3() / look.patch_voxel_size;
-                let world = grid.index_to_world().transform_vector3(index_dir).as_vec3();
+                let world = (look.tangent_to_world(grid) * t.as_dvec3()).as_vec3();
                 Some(crate::fabric::FibreVoxel {
                     tangent: world.try_normalize().unwrap_or(glam::Vec3::X),
                     id,
@@ -382,8 +389,7 @@ pub struct FibreGridLookup<'a> {
 impl<'a> FibreGridLookup<'a> {
     fn new(grid: &'a SparseGrid, channel: usize, look: &FabricLook, ray: &Ray) -> Self {
         let w2i = grid.world_to_index();
-        let m = grid.index_to_world().matrix3
-            * glam::DMat3::from_diagonal(look.patch_voxel_size.recip());
+        let m = look.tangent_to_world(grid);
         FibreGridLookup {
             density: grid.accessor(channel),
             tangent: grid.accessor(look.tangent_channel),

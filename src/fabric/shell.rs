@@ -58,8 +58,9 @@ struct ShellTet {
     q0: Vec3,
     /// Barycentric → patch index offsets (columns `q_k − q0`).
     bary_to_q: Mat3,
-    /// Patch index direction → world direction (the inverse linear part of the map).
-    q_to_world: Mat3,
+    /// Patch-unit tangent → world direction: the inverse linear part of the map after the
+    /// patch's voxel size (tangents are stored in patch units).
+    tangent_to_world: Mat3,
 }
 
 impl ShellTet {
@@ -179,15 +180,13 @@ impl FabricShell {
         let z_lo = (lo.z - 1) as f32;
 
         // Scale: world length per unit UV, then the world size of one patch voxel.
-        let len_per_uv = world_length_per_uv(mesh).ok_or_else(|| {
+        let (vx, vy) = tiled_voxel_widths(mesh, params.tiles, patch.dims).ok_or_else(|| {
             super::invalid(
                 "mesh.uvs",
                 "zero area",
                 "triangles with non-zero world and UV area",
             )
         })?;
-        let vx = len_per_uv / (f64::from(params.tiles[0]) * f64::from(dims.x));
-        let vy = len_per_uv / (f64::from(params.tiles[1]) * f64::from(dims.y));
         // Patch voxels may be slightly anisotropic (h_x, h_y, h_z); keep the proportions.
         let h = patch.voxel_size;
         let scale = (vx / h.x * vy / h.y).sqrt();
@@ -229,7 +228,7 @@ impl FabricShell {
                 [vert(a, false), vert(a, true), vert(b, true), vert(d, true)],
             ];
             for t in corners {
-                if let Some(tet) = make_tet(t, period) {
+                if let Some(tet) = make_tet(t, period, h) {
                     tets.push(tet);
                 }
             }
@@ -472,8 +471,7 @@ impl FabricShell {
             return density;
         }
         let local = super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
-        let h = self.patch.voxel_size().as_vec3();
-        density * crate::medium::projected_width(dir, t.q_to_world * (local / h))
+        density * crate::medium::projected_width(dir, t.tangent_to_world * local)
     }
 
     /// Fibre tangent (world space) and yarn id of the voxel nearest to world point `p`.
@@ -487,9 +485,7 @@ impl FabricShell {
         let mut tangents = self.patch.accessor(TANGENT);
         let tangent_patch = super::tangent_near(q, |c| tangents.value_vec3(self.wrap(c)));
         let id = self.patch.accessor(ID).value(ijk);
-        // Patch-world tangent → index direction → world.
-        let h = self.patch.voxel_size().as_vec3();
-        let world = t.q_to_world * (tangent_patch / h);
+        let world = t.tangent_to_world * tangent_patch;
         Some(FibreVoxel {
             tangent: world.try_normalize().unwrap_or(Vec3::X),
             id,
@@ -638,8 +634,25 @@ pub fn world_length_per_uv(mesh: &TriangleMesh) -> Option<f64> {
     (area_uv > 0.0 && area_w > 0.0 && area_w.is_finite()).then(|| (area_w / area_uv).sqrt())
 }
 
+/// World widths `(x, y)` of one patch voxel when a patch of `dims` voxels across its tile is
+/// tiled `tiles` times over the unit UV square of `mesh`: `L / (tiles · n)` with `L` from
+/// [`world_length_per_uv`]; `None` without texture coordinates or with zero UV area.
+#[must_use]
+pub fn tiled_voxel_widths(
+    mesh: &TriangleMesh,
+    tiles: [f32; 2],
+    dims: [u32; 2],
+) -> Option<(f64, f64)> {
+    let per_uv = world_length_per_uv(mesh)?;
+    Some((
+        per_uv / (f64::from(tiles[0]) * f64::from(dims[0])),
+        per_uv / (f64::from(tiles[1]) * f64::from(dims[1])),
+    ))
+}
+
 /// A tetrahedron from four (world, patch index) corners, or `None` when degenerate.
-fn make_tet(c: [(DVec3, DVec3); 4], period: Vec3) -> Option<ShellTet> {
+/// `patch_voxel` is the patch's voxel size in its own units.
+fn make_tet(c: [(DVec3, DVec3); 4], period: Vec3, patch_voxel: DVec3) -> Option<ShellTet> {
     let w = DMat3::from_cols(c[1].0 - c[0].0, c[2].0 - c[0].0, c[3].0 - c[0].0);
     let q = DMat3::from_cols(c[1].1 - c[0].1, c[2].1 - c[0].1, c[3].1 - c[0].1);
     let scale_w = (c[1].0 - c[0].0)
@@ -651,7 +664,7 @@ fn make_tet(c: [(DVec3, DVec3); 4], period: Vec3) -> Option<ShellTet> {
     if !dw.is_finite() || dw.abs() <= 1e-12 * scale_w.powi(3) || dq.is_nan() || dq.abs() <= 1e-12 {
         return None;
     }
-    let q_to_world = w * q.inverse();
+    let tangent_to_world = w * q.inverse() * DMat3::from_diagonal(patch_voxel.recip());
     // Reduce x, y of the first corner modulo the tile (lookups wrap): keeps f32 precision.
     let mut q0 = c[0].1.as_vec3();
     q0.x -= (q0.x / period.x).floor() * period.x;
@@ -661,7 +674,7 @@ fn make_tet(c: [(DVec3, DVec3); 4], period: Vec3) -> Option<ShellTet> {
         world_to_bary: w.inverse().as_mat3(),
         q0,
         bary_to_q: q.as_mat3(),
-        q_to_world: q_to_world.as_mat3(),
+        tangent_to_world: tangent_to_world.as_mat3(),
     })
 }
 

@@ -1134,25 +1134,15 @@ fn fabric_voxel_footprint(
     tiles: Option<[f32; 2]>,
 ) -> (f32, Aabb) {
     if let (Some(mesh), Some(t)) = (shell_mesh, tiles) {
-        let per_uv = crate::fabric::shell::world_length_per_uv(mesh).unwrap_or(1.0);
-        let across =
-            (f64::from(t[0]) * f64::from(vp.dims[0]) * f64::from(t[1]) * f64::from(vp.dims[1]))
-                .sqrt();
-        return ((per_uv / across) as f32, mesh.bounds());
+        let (vx, vy) =
+            crate::fabric::shell::tiled_voxel_widths(mesh, t, vp.dims).unwrap_or((1.0, 1.0));
+        return ((vx * vy).sqrt() as f32, mesh.bounds());
     }
     let placed = glam::DAffine3::from_mat4(xf.as_dmat4()) * vp.grid.index_to_world();
     let voxel = placed.matrix3.determinant().abs().cbrt() as f32;
-    let mut b = Aabb::EMPTY;
-    if let Some((lo, hi)) = vp.grid.active_bbox() {
-        for c in 0..8 {
-            let p = glam::IVec3::new(
-                if c & 1 != 0 { hi.x } else { lo.x },
-                if c & 2 != 0 { hi.y } else { lo.y },
-                if c & 4 != 0 { hi.z } else { lo.z },
-            );
-            b = b.union_point(placed.transform_point3(p.as_dvec3()).as_vec3());
-        }
-    }
+    let b = vp.grid.active_bbox().map_or(Aabb::EMPTY, |(lo, hi)| {
+        Aabb::around_transformed(lo.as_dvec3(), hi.as_dvec3(), &placed)
+    });
     (voxel, b)
 }
 
