@@ -2,14 +2,8 @@
 //! OpenVDB volumes, after N. Walster, "Volumetric Skin and Fabric Shading at Framestore"
 //! (SIGGRAPH course notes).
 //!
-//! Layers (a module imports only from layers above it):
-//! 1. [`math`], [`sampling`], [`spectrum`]
-//! 2. [`grid`], [`vdb`], [`geometry`], [`phase`], [`bsdf`], [`camera`], [`film`], [`image_io`]
-//! 3. [`fabric`], [`medium`]
-//! 4. [`light`]
-//! 5. [`scene`]
-//! 6. [`integrator`], [`render`]
-//! 7. [`cli`] and the `velour` binary.
+//! Modules are layered: each imports only from the layers below it (docs/architecture.md
+//! names the layers; `tests/architecture_layers.rs` enforces them).
 
 pub mod math;
 pub mod sampling;
@@ -24,11 +18,13 @@ pub mod image_io;
 pub mod phase;
 pub mod vdb;
 
-pub mod fabric;
 pub mod majorant;
-pub mod medium;
 pub mod tracking;
-pub mod volume;
+
+pub mod fabric;
+pub mod procedural;
+
+pub mod medium;
 
 pub mod light;
 

@@ -17,11 +17,12 @@
 use std::path::{Path, PathBuf};
 
 use super::CliResult;
+use crate::majorant::MajorantSegment;
 use crate::majorant::{MajorantMode, MajorantPyramid};
 use crate::math::{Aabb, Ray, Vec3};
-use crate::medium::{DensityField, HeterogeneousMedium, Medium, TrackingConfig};
+use crate::medium::{DensityField, HeterogeneousMedium, Medium};
 use crate::sampling::{sample_uniform_sphere, Rng};
-use crate::tracking::{DensityCoefficients, MajorantSegment};
+use crate::tracking::{DensityCoefficients, TrackingConfig};
 
 /// Arguments of `velour majorants`.
 #[derive(Debug, clap::Args)]
@@ -136,7 +137,7 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
             for s in &segs {
                 let len = (s.t1 - s.t0) as f64;
                 majorant_integral += s.max as f64 * len;
-                if s.min != s.max {
+                if !s.is_homogeneous() {
                     lookup_integral += s.max as f64 * len;
                 }
                 // Midpoint rule with 8 points per segment for the density integral.

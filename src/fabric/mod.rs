@@ -19,12 +19,15 @@
 //!   preview renderer.
 //! * [`shell`]: a voxelised patch tiled over a mesh shell (draped cloth), with the exact
 //!   shell map from world points to patch voxels.
+//! * [`look`]: how a voxelised patch is shaded and looked up by the renderer: fibre phase
+//!   functions per yarn family, fibre tangents in world space, fibre-projected extinction.
 //!
 //! Lengths: the yarn presets are in **centimetres** (the units of the released fits); every
 //! length in this module is in the same unit as the yarn parameters it came from. Use
 //! [`yarn::YarnParams::scaled`] to convert to scene units.
 
 pub mod fibre_scattering;
+pub mod look;
 pub mod shell;
 pub mod voxelise;
 pub mod weave;
@@ -33,6 +36,7 @@ pub mod yarn;
 pub use fibre_scattering::{
     FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, SggxFibrePhase, SggxSample,
 };
+pub use look::{projected_width, FabricLook, FibreExtinction, FibreGridLookup, ShellLookup};
 pub use shell::{FabricShell, FibreVoxel, ShellParams};
 pub use voxelise::{
     render_preview, voxelise, write_patch_vdb, PreviewImage, PreviewOptions, VoxelStats,

@@ -471,7 +471,7 @@ impl FabricShell {
             return density;
         }
         let local = super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
-        density * crate::medium::projected_width(dir, t.tangent_to_world * local)
+        density * super::look::projected_width(dir, t.tangent_to_world * local)
     }
 
     /// Fibre tangent (world space) and yarn id of the voxel nearest to world point `p`.

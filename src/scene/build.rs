@@ -15,11 +15,12 @@ use crate::geometry::{load_ply, SceneGeometry, Shape};
 use crate::light::{EnvironmentMap, Light, LightSampler};
 use crate::math::{Aabb, Mat4, Vec3};
 use crate::medium::{
-    AlbedoMode, Coefficients, DensityField, FreeFlightMethod, HeterogeneousMedium,
-    HomogeneousMedium, Medium, NeeStrategy, TrackingConfig,
+    AlbedoMode, Coefficients, DensityField, HeterogeneousMedium, HomogeneousMedium, Medium,
+    NeeStrategy,
 };
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
+use crate::tracking::{FreeFlightMethod, TrackingConfig};
 
 /// Name shown for the built-in default scene.
 pub const DEFAULT_SCENE_NAME: &str = "<built-in default scene>";
@@ -1045,7 +1046,7 @@ fn build_tracking(
     };
     cfg.free_flight = match t.free_flight.as_deref().unwrap_or("delta") {
         "delta" => FreeFlightMethod::DeltaTracking,
-        "ray_march" => FreeFlightMethod::RayMarching { step: need_step()? },
+        "ray_march" => FreeFlightMethod::RayMarch { step: need_step()? },
         other => return Err(ctx.invalid(line, format!("{owner}.tracking.free_flight = \"{other}\" is unknown (expected \"delta\" or \"ray_march\")"))),
     };
     let control = match t.control.as_deref().unwrap_or("novak") {
@@ -1316,8 +1317,8 @@ fn build_fabric(
     // (× 4/π with fibre-projected extinction, whose mean over directions is then the same);
     // the fibre phase functions carry the yarn colours, so σ_s⁰ = σ_t⁰.
     let extinction = match i.extinction.as_deref().unwrap_or("fibre") {
-        "fibre" => crate::medium::FibreExtinction::Projected,
-        "isotropic" => crate::medium::FibreExtinction::Isotropic,
+        "fibre" => crate::fabric::FibreExtinction::Projected,
+        "isotropic" => crate::fabric::FibreExtinction::Isotropic,
         other => {
             return Err(ctx.invalid(
                 line,
@@ -1328,8 +1329,8 @@ fn build_fabric(
         }
     };
     let scale = match extinction {
-        crate::medium::FibreExtinction::Projected => 4.0 / std::f32::consts::PI,
-        crate::medium::FibreExtinction::Isotropic => 1.0,
+        crate::fabric::FibreExtinction::Projected => 4.0 / std::f32::consts::PI,
+        crate::fabric::FibreExtinction::Isotropic => 1.0,
     };
     let sigma_t = attenuation.map(|d| density * scale / d);
     Ok(HeterogeneousMedium {
@@ -1338,7 +1339,7 @@ fn build_fabric(
         coefficients: crate::tracking::DensityCoefficients::new(sigma_t, sigma_t),
         phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e))?,
         tracking: TrackingConfig::default(),
-        fabric: Some(Box::new(crate::medium::FabricLook {
+        fabric: Some(Box::new(crate::fabric::FabricLook {
             tangent_channel: crate::fabric::voxelise::TANGENT,
             id_channel: crate::fabric::voxelise::ID,
             patch_voxel_size,
@@ -1409,7 +1410,7 @@ fn build_fbm_field(
     xf: glam::DAffine3,
     rest_bounds: Aabb,
 ) -> Result<(DensityField, crate::majorant::MajorantPyramid), SceneError> {
-    use crate::volume::{
+    use crate::procedural::{
         bake_fbm, procedural_pyramid, FbmField, FbmParams, ProceduralBound, ProceduralLattice,
     };
     let d = FbmParams::default();
@@ -1467,7 +1468,7 @@ fn build_fbm_field(
             };
             let pyramid = procedural_pyramid(&field, &lattice, bound, 0x5eed).map_err(|e| bad(&e))?;
             if i.evaluation.as_deref() == Some("lazy") {
-                let lazy = crate::volume::LazyFbmGrid::new(field, &lattice).map_err(|e| bad(&e))?;
+                let lazy = crate::procedural::LazyFbmGrid::new(field, &lattice).map_err(|e| bad(&e))?;
                 Ok((DensityField::LazyBaked(Box::new(lazy)), pyramid))
             } else {
                 Ok((DensityField::Procedural(Box::new(field)), pyramid))

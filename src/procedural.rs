@@ -12,9 +12,9 @@ use crate::majorant::{Bounds, MajorantError, MajorantPyramid};
 use crate::math::Aabb;
 use crate::sampling::Rng;
 
-/// Errors of volume sources.
+/// Errors of procedural density sources.
 #[derive(Debug, thiserror::Error)]
-pub enum VolumeError {
+pub enum ProceduralError {
     /// A parameter outside its allowed range.
     #[error("{name} = {value} is invalid: {allowed}")]
     Parameter {
@@ -76,9 +76,9 @@ impl Default for FbmParams {
 
 impl FbmParams {
     /// Checks every parameter, naming the first bad one.
-    pub fn validate(&self) -> Result<(), VolumeError> {
+    pub fn validate(&self) -> Result<(), ProceduralError> {
         let bad = |name, value: f32, allowed| {
-            Err(VolumeError::Parameter {
+            Err(ProceduralError::Parameter {
                 name,
                 value: value as f64,
                 allowed,
@@ -138,7 +138,7 @@ pub struct FbmField {
 
 impl FbmField {
     /// Builds the field; `rest_to_world` is the object's transform.
-    pub fn new(params: FbmParams, rest_to_world: DAffine3) -> Result<Self, VolumeError> {
+    pub fn new(params: FbmParams, rest_to_world: DAffine3) -> Result<Self, ProceduralError> {
         params.validate()?;
         let noise = Fbm::<Perlin>::new(params.seed)
             .set_octaves(params.octaves as usize)
@@ -219,9 +219,9 @@ impl ProceduralLattice {
         rest_bounds: Aabb,
         voxel_size: f32,
         rest_to_world: DAffine3,
-    ) -> Result<Self, VolumeError> {
+    ) -> Result<Self, ProceduralError> {
         if !(voxel_size > 0.0 && voxel_size.is_finite()) {
-            return Err(VolumeError::Parameter {
+            return Err(ProceduralError::Parameter {
                 name: "voxel_size",
                 value: voxel_size as f64,
                 allowed: "must be finite and > 0",
@@ -231,7 +231,7 @@ impl ProceduralLattice {
         let hi = (rest_bounds.max / voxel_size).ceil().as_ivec3() + IVec3::ONE;
         let n = (hi - lo + IVec3::ONE).as_dvec3();
         if n.x * n.y * n.z > 2.0e9 {
-            return Err(VolumeError::Parameter {
+            return Err(ProceduralError::Parameter {
                 name: "voxel_size",
                 value: voxel_size as f64,
                 allowed: "too small for the object: more than 2e9 voxels",
@@ -252,7 +252,10 @@ impl ProceduralLattice {
 
 /// Bakes the field into a [`SparseGrid`] over the lattice (f32 storage, one channel
 /// `density`), in parallel over bricks. Bricks that are entirely zero are left out.
-pub fn bake_fbm(field: &FbmField, lattice: &ProceduralLattice) -> Result<SparseGrid, VolumeError> {
+pub fn bake_fbm(
+    field: &FbmField,
+    lattice: &ProceduralLattice,
+) -> Result<SparseGrid, ProceduralError> {
     let (klo, khi) = lattice.brick_keys();
     let mut keys = Vec::new();
     for z in klo.z..=khi.z {
@@ -284,10 +287,10 @@ pub fn bake_fbm(field: &FbmField, lattice: &ProceduralLattice) -> Result<SparseG
     let mut b = SparseGridBuilder::new(Storage::F32);
     let c = b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
     b.set_index_to_world(lattice.index_to_world)
-        .map_err(|e| VolumeError::Grid(e.to_string()))?;
+        .map_err(|e| ProceduralError::Grid(e.to_string()))?;
     for (key, values) in bricks {
         b.fill_brick(c, key, &values, [u64::MAX; 8])
-            .map_err(|e| VolumeError::Grid(e.to_string()))?;
+            .map_err(|e| ProceduralError::Grid(e.to_string()))?;
     }
     Ok(b.build())
 }
@@ -300,7 +303,7 @@ pub fn procedural_pyramid(
     lattice: &ProceduralLattice,
     bound: ProceduralBound,
     seed: u64,
-) -> Result<MajorantPyramid, VolumeError> {
+) -> Result<MajorantPyramid, ProceduralError> {
     let (klo, khi) = lattice.brick_keys();
     let world_to_index = lattice.index_to_world.inverse();
     let analytic = field.params.analytic_bounds();
@@ -311,7 +314,7 @@ pub fn procedural_pyramid(
         }
         ProceduralBound::Artist { min, max } => {
             if !(min >= 0.0 && max >= min && max.is_finite()) {
-                return Err(VolumeError::Parameter {
+                return Err(ProceduralError::Parameter {
                     name: "bound_min/bound_max",
                     value: max as f64,
                     allowed: "need 0 ≤ bound_min ≤ bound_max < ∞",
@@ -322,18 +325,21 @@ pub fn procedural_pyramid(
                 max,
                 mean: 0.5 * (min + max),
             };
-            MajorantPyramid::from_brick_bounds(klo, khi, 0.0, world_to_index, |_| b)?
+            // The artist's bounds are a claim, not a proof: never taken as exact.
+            MajorantPyramid::from_estimated_brick_bounds(klo, khi, 0.0, world_to_index, |_| b)?
         }
         ProceduralBound::Estimated { samples, safety } => {
             if samples == 0 || samples > 1_000_000 || !(safety >= 1.0 && safety.is_finite()) {
-                return Err(VolumeError::Parameter {
+                return Err(ProceduralError::Parameter {
                     name: "trial_samples/safety",
                     value: safety as f64,
                     allowed: "trial_samples in 1..=1000000, safety ≥ 1",
                 });
             }
             let mut rng = Rng::new(seed, 77);
-            MajorantPyramid::from_brick_bounds(klo, khi, 0.0, world_to_index, |key| {
+            // Estimated bounds may be violated: never taken as exact, so a brick whose trial
+            // samples all agree is still looked up.
+            MajorantPyramid::from_estimated_brick_bounds(klo, khi, 0.0, world_to_index, |key| {
                 let mut lo = f32::INFINITY;
                 let mut hi = f32::NEG_INFINITY;
                 let mut sum = 0.0f32;
@@ -392,12 +398,12 @@ impl Clone for LazyFbmGrid {
 
 impl LazyFbmGrid {
     /// Prepares lazy baking of `field` over `lattice` (nothing is evaluated yet).
-    pub fn new(field: FbmField, lattice: &ProceduralLattice) -> Result<Self, VolumeError> {
+    pub fn new(field: FbmField, lattice: &ProceduralLattice) -> Result<Self, ProceduralError> {
         let (key_lo, key_hi) = lattice.brick_keys();
         let dims = key_hi - key_lo + IVec3::ONE;
         let n = dims.x as usize * dims.y as usize * dims.z as usize;
         if n > 1 << 26 {
-            return Err(VolumeError::Parameter {
+            return Err(ProceduralError::Parameter {
                 name: "voxel_size",
                 value: n as f64,
                 allowed: "too small for lazy baking: more than 2^26 bricks",

@@ -1,0 +1,195 @@
+//! How a voxelised weave patch looks to the renderer (course notes §3.2): the fibre phase
+//! function of the yarn family stored in the patch's `id` channel, around the fibre tangent
+//! of its `tangent` channel, and extinction that is either isotropic or depends on the angle
+//! to the fibres. The density lookups along a ray that fabric needs (fibre-projected
+//! extinction in a free-standing patch; the shell map of a draped patch) live here too, so
+//! that media only dispatch to them.
+
+use glam::{DMat3, DVec3, Mat3, Vec3};
+
+use super::fibre_scattering::extinction_scale;
+use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, YarnId};
+use crate::grid::{Accessor, SparseGrid};
+use crate::math::Ray;
+
+/// How the extinction of a fibre medium depends on the direction of travel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FibreExtinction {
+    /// The same in every direction: σ_t = d·σ_t⁰ with the fibre volume fraction d.
+    Isotropic,
+    /// The projected width of aligned cylinders (docs/references.md §7.3):
+    /// σ_t(ω) = d·σ_t⁰·sin∠(ω, t), so light travelling along the fibres passes. σ_t⁰ is
+    /// scaled by [`FibreExtinction::sigma_scale`] so that the extinction averaged over
+    /// directions equals the isotropic one at the same attenuation.
+    Projected,
+}
+
+impl FibreExtinction {
+    /// The factor on σ_t⁰ that makes the direction-averaged extinction equal the isotropic
+    /// one: the mean of sin θ over the sphere is π/4, so 4/π for projected extinction.
+    #[must_use]
+    pub fn sigma_scale(self) -> f32 {
+        match self {
+            FibreExtinction::Projected => 4.0 / std::f32::consts::PI,
+            FibreExtinction::Isotropic => 1.0,
+        }
+    }
+}
+
+/// The fibre shading of a voxelised fabric: the tangent and yarn-id channels of the grid (a
+/// free-standing patch) or of the shell's patch, and one fibre phase function per yarn
+/// family.
+#[derive(Clone, Debug)]
+pub struct FabricLook {
+    /// Grid channel of the averaged tangent (Vec3).
+    pub tangent_channel: usize,
+    /// Grid channel of the yarn id (0 warp, 1 weft, 2 pile).
+    pub id_channel: usize,
+    /// Voxel size of the patch in its own units (the unit the tangents are stored in).
+    pub patch_voxel_size: DVec3,
+    /// The patch's mip level (0 = full resolution; notes §5.3).
+    pub mip_level: u32,
+    /// Whether extinction depends on the angle to the fibres.
+    pub extinction: FibreExtinction,
+    /// One fibre phase function per yarn family.
+    pub shading: FabricShading,
+}
+
+impl FabricLook {
+    /// Patch-unit tangent → world direction for a free-standing patch `grid`: the placement's
+    /// linear part after the patch's voxel size.
+    #[must_use]
+    pub fn tangent_to_world(&self, grid: &SparseGrid) -> DMat3 {
+        grid.index_to_world().matrix3 * DMat3::from_diagonal(self.patch_voxel_size.recip())
+    }
+
+    /// True when extinction is fibre-projected.
+    #[must_use]
+    pub fn projects(&self) -> bool {
+        self.extinction == FibreExtinction::Projected
+    }
+
+    /// The phase function of the yarn family whose id (as stored in the id channel,
+    /// trilinearly filtered or not) is `id`: below 0.5 warp, below 1.5 weft, else pile.
+    #[must_use]
+    pub fn phase_for_id(&self, id: f32) -> &FibrePhase {
+        let yarn = if id < 0.5 {
+            YarnId::Warp(0)
+        } else if id < 1.5 {
+            YarnId::Weft(0)
+        } else {
+            YarnId::Pile
+        };
+        self.shading.for_yarn(yarn)
+    }
+
+    /// The fibre frame of a free-standing patch `grid` at world point `p`: the world-space
+    /// tangent and the yarn id of the nearest voxel. Tangents are stored in patch units and
+    /// mapped through the placement, so rotated and sheared patches keep their fibre
+    /// directions.
+    #[must_use]
+    pub fn fibre_in_grid(&self, grid: &SparseGrid, p: Vec3) -> FibreVoxel {
+        let q = grid.world_to_index_point(p);
+        let mut tangents = grid.accessor(self.tangent_channel);
+        let t = super::tangent_near(q, |ijk| tangents.value_vec3(ijk));
+        let ijk = (q + Vec3::splat(0.5)).floor().as_ivec3();
+        let id = grid.accessor(self.id_channel).value(ijk);
+        let world = (self.tangent_to_world(grid) * t.as_dvec3()).as_vec3();
+        FibreVoxel {
+            tangent: world.try_normalize().unwrap_or(Vec3::X),
+            id,
+        }
+    }
+}
+
+/// `sin∠(dir, tangent)` for a unit `dir`; 1 when the tangent is zero (no fibre direction).
+#[inline]
+#[must_use]
+pub fn projected_width(dir: Vec3, tangent: Vec3) -> f32 {
+    match tangent.try_normalize() {
+        Some(t) => extinction_scale(dir, t),
+        None => 1.0,
+    }
+}
+
+/// Density × sin∠(ray, fibre) along a ray through a free-standing fabric grid
+/// ([`FibreExtinction::Projected`]).
+pub struct FibreGridLookup<'a> {
+    density: Accessor<'a>,
+    tangent: Accessor<'a>,
+    o: Vec3,
+    d: Vec3,
+    /// Patch-unit tangent → world direction (the placement's linear part over the voxel size).
+    tangent_to_world: Mat3,
+    dir: Vec3,
+}
+
+impl<'a> FibreGridLookup<'a> {
+    /// Prepares lookups along `ray` (world space) in the density channel `channel` of the
+    /// free-standing patch `grid` shaded by `look`.
+    #[must_use]
+    pub fn new(grid: &'a SparseGrid, channel: usize, look: &FabricLook, ray: &Ray) -> Self {
+        let w2i = grid.world_to_index();
+        let m = look.tangent_to_world(grid);
+        FibreGridLookup {
+            density: grid.accessor(channel),
+            tangent: grid.accessor(look.tangent_channel),
+            o: w2i.transform_point3(ray.o.as_dvec3()).as_vec3(),
+            d: w2i.transform_vector3(ray.d.as_dvec3()).as_vec3(),
+            tangent_to_world: m.as_mat3(),
+            dir: ray.d.normalize_or_zero(),
+        }
+    }
+
+    /// The projected density at distance `t`.
+    #[inline]
+    pub fn at(&mut self, t: f32) -> f32 {
+        let p = self.o + self.d * t;
+        let density = self.density.sample_trilinear(p);
+        if density.is_nan() || density <= 0.0 {
+            return density;
+        }
+        let local = super::tangent_near(p, |ijk| self.tangent.value_vec3(ijk));
+        density * projected_width(self.dir, self.tangent_to_world * local)
+    }
+}
+
+/// Density lookups along a ray through a fabric shell (notes §3.3): each point is mapped to
+/// the patch; with fibre-projected extinction the density is scaled by sin∠(ray, fibre).
+pub struct ShellLookup<'a> {
+    shell: &'a FabricShell,
+    accessor: Accessor<'a>,
+    ray: Ray,
+    /// The last tetrahedron found.
+    hint: u32,
+    /// For fibre-projected extinction: an accessor on the patch's tangents and the unit
+    /// direction of the ray.
+    tangents: Option<(Accessor<'a>, Vec3)>,
+}
+
+impl<'a> ShellLookup<'a> {
+    /// Prepares lookups along `ray` (world space) through `shell`, projected or not.
+    #[must_use]
+    pub fn new(shell: &'a FabricShell, ray: &Ray, projected: bool) -> Self {
+        ShellLookup {
+            accessor: shell.density_accessor(),
+            tangents: projected.then(|| (shell.tangent_accessor(), ray.d.normalize_or_zero())),
+            shell,
+            ray: *ray,
+            hint: u32::MAX,
+        }
+    }
+
+    /// The (projected) density at distance `t`.
+    #[inline]
+    pub fn at(&mut self, t: f32) -> f32 {
+        let p = self.ray.at(t);
+        match &mut self.tangents {
+            None => self.shell.density(&mut self.accessor, p, &mut self.hint),
+            Some((tan, dir)) => {
+                self.shell
+                    .projected_density(&mut self.accessor, tan, p, *dir, &mut self.hint)
+            }
+        }
+    }
+}

@@ -1,0 +1,210 @@
+//! Light transport towards the lights: next event estimation through shadow rays with
+//! transparent or opaque boundaries, and MIS weights for lights hit by sampled directions.
+
+use super::interiors::{current_medium, is_false_intersection, InteriorStack, MAX_NESTING};
+use super::TraceStats;
+use crate::bsdf::fresnel::fresnel_dielectric;
+use crate::math::{Ray, Vec3};
+use crate::sampling::{power_heuristic, PixelSampler};
+use crate::scene::{ObjectSurface, Scene, ShapeOwner};
+use crate::spectrum::Rgb;
+
+/// How a shadow ray treats the dielectric boundaries it meets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ShadowMode {
+    /// Only null and false (priority) boundaries let it through.
+    Opaque,
+    /// Dielectric boundaries let it through with (1 − F) × tint, ignoring refraction
+    /// ("transparent shadows", notes §2.3.3).
+    Transparent,
+}
+
+/// Transmittance from `origin` along unit `dir` over `distance` (∞ for distant lights), through
+/// media and boundaries. `ignore_shape` is the light's own shape (never an occluder).
+fn shadow_transmittance(
+    scene: &Scene,
+    mut origin: Vec3,
+    dir: Vec3,
+    distance: f32,
+    mut stack: InteriorStack,
+    mode: ShadowMode,
+    ignore_shape: Option<u32>,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+) -> Rgb {
+    let mut tr = Rgb::ONE;
+    let mut remaining = distance;
+    for _ in 0..4 * MAX_NESTING + 8 {
+        stats.rays += 1;
+        let hit = scene.geometry.intersect(&Ray::new(origin, dir), remaining);
+        let seg = hit.as_ref().map_or(remaining, |h| h.t);
+        if let Some((m, _)) = current_medium(scene, &stack) {
+            tr *= m.transmittance(
+                &Ray::new(origin, dir),
+                seg,
+                &mut || sampler.next_1d(),
+                &mut stats.tracking,
+            );
+            if tr.is_black() {
+                return Rgb::ZERO;
+            }
+        }
+        let Some(h) = hit else { return tr };
+        if Some(h.shape) == ignore_shape {
+            return tr;
+        }
+        let owner = scene.shape_owner[h.shape as usize];
+        let ShapeOwner::Object(oi) = owner else {
+            // Another light's sphere: opaque.
+            return Rgb::ZERO;
+        };
+        let obj = &scene.objects[oi as usize];
+        if !obj.surface.transmits() {
+            return Rgb::ZERO;
+        }
+        let entering = dir.dot(h.ng) < 0.0;
+        if !is_false_intersection(scene, &stack, oi, entering) {
+            match &obj.surface {
+                ObjectSurface::Null => {}
+                ObjectSurface::Fixed(_) => return Rgb::ZERO,
+                ObjectSurface::Dielectric(d) => {
+                    let outside = stack.ior(&scene.objects, Some(oi));
+                    if mode == ShadowMode::Opaque && (d.ior - outside).abs() > 1e-6 {
+                        return Rgb::ZERO;
+                    }
+                    let eta = d.ior / outside;
+                    let cos = dir.dot(h.ng).abs();
+                    // Fresnel seen from the side the shadow ray comes from.
+                    let f = if entering {
+                        fresnel_dielectric(cos, eta)
+                    } else {
+                        fresnel_dielectric(cos, 1.0 / eta)
+                    };
+                    tr *= d.tint * (1.0 - f);
+                }
+            }
+        }
+        if entering {
+            stack.push(oi);
+        } else {
+            stack.remove(oi);
+        }
+        remaining -= h.t;
+        if remaining <= 0.0 {
+            return tr;
+        }
+        origin = h.spawn_origin(dir);
+    }
+    Rgb::ZERO
+}
+
+/// State remembered about the previous scattering vertex, for MIS on light hits.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PrevVertex {
+    pub p: Vec3,
+    /// Solid-angle pdf of the direction sampled there.
+    pub pdf: f32,
+    /// True when that vertex did NEE (so light hits must be MIS-weighted against it).
+    pub did_nee: bool,
+}
+
+/// Next event estimation from a point: picks a light, traces a shadow ray, returns the
+/// MIS-weighted contribution (without the path throughput). `eval` gives (f·|cos| or phase
+/// value, pdf of the scattering strategy) for a world direction.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn estimate_direct(
+    scene: &Scene,
+    p: Vec3,
+    shadow_origin: impl Fn(Vec3) -> (Vec3, InteriorStack),
+    eval: impl Fn(Vec3) -> (Rgb, f32),
+    mode: ShadowMode,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+) -> Rgb {
+    let u_light = sampler.next_1d();
+    let u = sampler.next_2d();
+    let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
+        return Rgb::ZERO;
+    };
+    let light = &scene.lights[li];
+    let Some(ls) = light.sample_li(p, u) else {
+        return Rgb::ZERO;
+    };
+    if ls.pdf <= 0.0 || ls.radiance.is_black() {
+        return Rgb::ZERO;
+    }
+    let (f, scatter_pdf) = eval(ls.wi);
+    if f.is_black() {
+        return Rgb::ZERO;
+    }
+    let (origin, stack) = shadow_origin(ls.wi);
+    let light_shape = scene
+        .shape_owner
+        .iter()
+        .position(|o| *o == ShapeOwner::Light(li as u32))
+        .map(|s| s as u32);
+    let distance = if ls.distance.is_finite() {
+        ls.distance * (1.0 - 1e-4)
+    } else {
+        f32::INFINITY
+    };
+    let tr = shadow_transmittance(
+        scene,
+        origin,
+        ls.wi,
+        distance,
+        stack,
+        mode,
+        light_shape,
+        sampler,
+        stats,
+    );
+    if tr.is_black() {
+        return Rgb::ZERO;
+    }
+    let light_pdf = p_sel * ls.pdf;
+    let w = if ls.is_delta {
+        1.0
+    } else {
+        power_heuristic(light_pdf, scatter_pdf)
+    };
+    f * tr * ls.radiance * (w / light_pdf)
+}
+
+/// Radiance arriving from lights hit by a sampled ray (sphere light `shape` or escaped rays),
+/// MIS-weighted against the previous vertex's NEE.
+pub(super) fn emitted(
+    scene: &Scene,
+    dir: Vec3,
+    prev: &PrevVertex,
+    sphere_light: Option<usize>,
+) -> Rgb {
+    let weight = |li: usize| -> f32 {
+        if !prev.did_nee {
+            return 1.0;
+        }
+        let light_pdf = scene.light_sampler.probability(li) * scene.lights[li].pdf_li(prev.p, dir);
+        power_heuristic(prev.pdf, light_pdf)
+    };
+    match sphere_light {
+        Some(li) => {
+            if let crate::light::Light::Sphere { radiance, .. } = &scene.lights[li] {
+                *radiance * weight(li)
+            } else {
+                Rgb::ZERO
+            }
+        }
+        None => {
+            let mut l = Rgb::ZERO;
+            for (li, light) in scene.lights.iter().enumerate() {
+                if light.is_infinite() {
+                    let le = light.escaped_radiance(dir);
+                    if !le.is_black() {
+                        l += le * weight(li);
+                    }
+                }
+            }
+            l
+        }
+    }
+}

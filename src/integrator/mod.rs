@@ -1,0 +1,497 @@
+//! The volumetric path tracer of the course notes' Algorithm 1 (§2.3): refraction through a
+//! microfacet boundary into an interior, free-flight sampling with the RGB channel chosen by
+//! throughput and one-sample MIS over channels (docs/references.md §4.6), phase-function sampling, and
+//! next event estimation either at boundary (exit-point) vertices or at every interior vertex
+//! with transparent shadows (notes §2.3.3), combined with BSDF/phase sampling by MIS.
+//!
+//! Nested and overlapping interiors are resolved with an interior stack and priorities
+//! (Schmidt & Budge 2002, "Simple Nested Dielectrics in Ray Traced Images"): a boundary of an
+//! object whose priority is lower than the current interior's is a *false* intersection that
+//! only updates the stack, so overlapping objects are never counted twice.
+
+mod direct;
+mod interiors;
+
+pub use interiors::{InteriorStack, MAX_NESTING};
+
+use direct::{emitted, estimate_direct, PrevVertex, ShadowMode};
+use interiors::{boundary_surface, current_medium, is_false_intersection};
+
+use crate::bsdf::Surface;
+use crate::geometry::Hit;
+use crate::math::{Frame, Ray, Vec3};
+use crate::medium::{NeeStrategy, ScatterVertex};
+use crate::sampling::PixelSampler;
+use crate::scene::{Object, ObjectSurface, Scene, ShapeOwner};
+use crate::spectrum::Rgb;
+use crate::tracking::TrackingStats;
+
+/// Depth at which Russian roulette starts.
+const RR_START_DEPTH: u32 = 5;
+
+/// Counters gathered while tracing (summed over all paths for the render summary).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceStats {
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Rays cast (closest-hit and shadow).
+    pub rays: u64,
+    /// Scattering events (surface and volume) over all paths.
+    pub vertices: u64,
+    /// Samples whose radiance was NaN or infinite (dropped, not written).
+    pub non_finite: u64,
+    /// Heterogeneous-medium tracking counters (lookups, collisions, bound violations).
+    pub tracking: TrackingStats,
+}
+
+impl TraceStats {
+    /// Adds `o` to `self`.
+    pub fn merge(&mut self, o: &TraceStats) {
+        self.paths += o.paths;
+        self.rays += o.rays;
+        self.vertices += o.vertices;
+        self.non_finite += o.non_finite;
+        self.tracking.merge(&o.tracking);
+    }
+}
+
+/// What one camera path returns.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathResult {
+    /// Radiance along the camera ray (already checked finite; zero if it was not).
+    pub radiance: Rgb,
+    /// Albedo of the first surface hit (AOV).
+    pub albedo: Rgb,
+    /// Shading normal at the first surface hit (AOV).
+    pub normal: Vec3,
+    /// Distance to the first surface hit, 0 if none (AOV).
+    pub depth: f32,
+}
+
+/// Traces one camera path and returns its radiance estimate and AOVs.
+pub fn trace_path(
+    scene: &Scene,
+    camera_ray: Ray,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+) -> PathResult {
+    let (radiance, aov) = radiance(scene, camera_ray, sampler, stats);
+    stats.paths += 1;
+    let radiance = if radiance.is_finite() {
+        radiance
+    } else {
+        stats.non_finite += 1;
+        Rgb::ZERO
+    };
+    PathResult {
+        radiance,
+        albedo: aov.0,
+        normal: aov.1,
+        depth: aov.2,
+    }
+}
+
+/// Albedo, shading normal and depth of the first surface hit (AOVs).
+type Aov = (Rgb, Vec3, f32);
+
+/// What the path does after a step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Step {
+    /// A new ray was started (scattered in a medium, reflected, refracted or passed through a
+    /// boundary): trace it.
+    Trace,
+    /// The flight through the current interior reached the next boundary (or escaped):
+    /// interact with it.
+    Boundary,
+    /// The path ends.
+    Stop,
+}
+
+/// The state of one camera path between steps (the course notes' Algorithm 1).
+struct PathState {
+    /// The ray being followed.
+    ray: Ray,
+    /// Path throughput.
+    beta: Rgb,
+    /// Radiance gathered so far.
+    radiance: Rgb,
+    /// Product of η² over refractions (undoes radiance compression for Russian roulette).
+    eta_scale: f32,
+    /// The interiors the ray is inside of.
+    stack: InteriorStack,
+    /// Scattering events so far (surface and volume).
+    depth: u32,
+    /// The previous scattering vertex, for MIS on light hits.
+    prev: PrevVertex,
+    /// AOVs of the first surface hit.
+    aov: Option<Aov>,
+    /// Null and false boundary crossings, bounded so that a degenerate scene cannot loop.
+    crossings: u32,
+}
+
+fn radiance(
+    scene: &Scene,
+    ray: Ray,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+) -> (Rgb, Aov) {
+    let mut path = PathState::new(ray);
+    loop {
+        stats.rays += 1;
+        let hit = scene.geometry.intersect(&path.ray, f32::INFINITY);
+        let t_hit = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
+        match path.interior_step(scene, t_hit, sampler, stats) {
+            Step::Trace => continue,
+            Step::Stop => break,
+            Step::Boundary => {}
+        }
+        let Some(hit) = hit else {
+            path.escape(scene);
+            break;
+        };
+        if path.boundary_step(scene, &hit, sampler, stats) == Step::Stop {
+            break;
+        }
+    }
+    (
+        path.radiance,
+        path.aov.unwrap_or((Rgb::ZERO, Vec3::ZERO, 0.0)),
+    )
+}
+
+impl PathState {
+    fn new(ray: Ray) -> Self {
+        PathState {
+            ray,
+            beta: Rgb::ONE,
+            radiance: Rgb::ZERO,
+            eta_scale: 1.0,
+            stack: InteriorStack::new(),
+            depth: 0,
+            prev: PrevVertex {
+                p: ray.o,
+                pdf: 0.0,
+                did_nee: false,
+            },
+            aov: None,
+            crossings: 0,
+        }
+    }
+
+    /// 1. The interior the ray travels through, up to the next boundary at `t_hit`
+    /// (Algorithm 1, lines 3–11): a free flight that passes, or scatters.
+    fn interior_step(
+        &mut self,
+        scene: &Scene,
+        t_hit: f32,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+    ) -> Step {
+        let Some((medium, obj)) = current_medium(scene, &self.stack) else {
+            return Step::Boundary;
+        };
+        let event = medium.sample_flight(
+            &self.ray,
+            t_hit,
+            self.beta,
+            &mut || sampler.next_1d(),
+            &mut stats.tracking,
+        );
+        if !event.emitted.is_black() {
+            self.radiance += self.beta * event.emitted;
+        }
+        self.beta *= event.weight;
+        match event.scatter {
+            Some(vertex) => self.scatter_in_medium(scene, obj, &vertex, sampler, stats),
+            None if self.beta.is_black() => Step::Stop,
+            None => Step::Boundary,
+        }
+    }
+
+    /// A real collision inside an interior: NEE at the vertex if the interior does it there,
+    /// then a new direction from the vertex's phase function.
+    fn scatter_in_medium(
+        &mut self,
+        scene: &Scene,
+        obj: &Object,
+        vertex: &ScatterVertex<'_>,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+    ) -> Step {
+        self.depth += 1;
+        stats.vertices += 1;
+        if self.depth >= scene.film.max_depth || self.beta.is_black() {
+            return Step::Stop;
+        }
+        let p = vertex.p;
+        let wo = -self.ray.d;
+        let interior_nee = obj.nee == NeeStrategy::Interior;
+        if interior_nee {
+            let st = self.stack;
+            self.radiance += self.beta
+                * estimate_direct(
+                    scene,
+                    p,
+                    |_| (p, st),
+                    |wi| vertex.phase.eval(wo, wi),
+                    ShadowMode::Transparent,
+                    sampler,
+                    stats,
+                );
+        }
+        let Some(s) = vertex.phase.sample(wo, sampler) else {
+            return Step::Stop;
+        };
+        self.beta *= s.weight;
+        self.prev = PrevVertex {
+            p,
+            pdf: s.pdf,
+            did_nee: interior_nee,
+        };
+        self.ray = Ray::new(p, s.wi);
+        self.continue_with_roulette(sampler)
+    }
+
+    /// 2. An escaped ray sees the infinite lights.
+    fn escape(&mut self, scene: &Scene) {
+        self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, None);
+    }
+
+    /// 3–5. What the ray hit: a light, a false or null boundary, or a surface.
+    fn boundary_step(
+        &mut self,
+        scene: &Scene,
+        hit: &Hit,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+    ) -> Step {
+        let oi = match scene.shape_owner[hit.shape as usize] {
+            ShapeOwner::Light(li) => {
+                self.hit_light(scene, hit, li as usize);
+                return Step::Stop;
+            }
+            ShapeOwner::Object(oi) => oi,
+        };
+        let obj = &scene.objects[oi as usize];
+        let entering = self.ray.d.dot(hit.ng) < 0.0;
+        if obj.surface.transmits()
+            && (is_false_intersection(scene, &self.stack, oi, entering)
+                || matches!(obj.surface, ObjectSurface::Null))
+        {
+            return self.cross_boundary(scene, hit, oi, entering);
+        }
+        self.surface_interaction(scene, hit, oi, entering, sampler, stats)
+    }
+
+    /// 3. Sphere lights are emitters only.
+    fn hit_light(&mut self, scene: &Scene, hit: &Hit, light: usize) {
+        if self.ray.d.dot(hit.ng) < 0.0 {
+            self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, Some(light));
+        }
+        if self.aov.is_none() {
+            self.aov = Some((Rgb::ZERO, hit.ns, hit.t));
+        }
+    }
+
+    /// 4. False intersections with lower-priority boundaries, and null boundaries, only
+    /// update the stack.
+    fn cross_boundary(&mut self, scene: &Scene, hit: &Hit, oi: u32, entering: bool) -> Step {
+        if entering {
+            self.stack.push(oi);
+        } else {
+            self.stack.remove(oi);
+        }
+        self.crossings += 1;
+        if self.crossings > 64 * MAX_NESTING as u32 + scene.film.max_depth {
+            return Step::Stop;
+        }
+        self.ray = Ray::new(hit.spawn_origin(self.ray.d), self.ray.d);
+        Step::Trace
+    }
+
+    /// 5. A true surface interaction: the boundary BSDF for the media meeting there, NEE
+    /// through it, and a sampled reflection or refraction.
+    fn surface_interaction(
+        &mut self,
+        scene: &Scene,
+        hit: &Hit,
+        oi: u32,
+        entering: bool,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+    ) -> Step {
+        let obj = &scene.objects[oi as usize];
+        let transmits = obj.surface.transmits();
+        let outside_ior = self.stack.ior(&scene.objects, Some(oi));
+        let Some(surface) = boundary_surface(obj, outside_ior) else {
+            return Step::Stop;
+        };
+        // Opaque surfaces are two-sided: seen from behind, flip the frame.
+        let (ng, ns) = if !transmits && !entering {
+            (-hit.ng, -hit.ns)
+        } else {
+            (hit.ng, hit.ns)
+        };
+        let frame = Frame::from_normal(ns);
+        let wo = -self.ray.d;
+        if self.aov.is_none() {
+            self.aov = Some((surface.albedo_hint(), hit.ns, hit.t));
+        }
+        self.depth += 1;
+        stats.vertices += 1;
+        if self.depth >= scene.film.max_depth {
+            return Step::Stop;
+        }
+
+        // The interior we arrived from: if it does NEE at interior vertices, the light is
+        // already accounted for through transparent shadows; no exit-point NEE here.
+        let from_interior_nee =
+            !entering && transmits && obj.nee == NeeStrategy::Interior && obj.medium.is_some();
+        let do_nee = !surface.is_delta() && !from_interior_nee;
+        if do_nee {
+            let at = SurfaceVertex {
+                hit,
+                oi,
+                transmits,
+                ng,
+                frame,
+                wo,
+            };
+            self.radiance +=
+                self.beta * at.direct_light(scene, &surface, self.stack, sampler, stats);
+        }
+
+        let uc = sampler.next_1d();
+        let u = sampler.next_2d();
+        let wo_local = frame.to_local(wo);
+        let Some(bs) = surface.sample(wo_local, uc, u) else {
+            return Step::Stop;
+        };
+        if !(bs.pdf > 0.0) || bs.weight.is_black() {
+            return Step::Stop;
+        }
+        let wi = frame.to_world(bs.wi).normalize();
+        // The geometric side must agree with the lobe, or the path would leak through the mesh.
+        let geometric_transmit = (wi.dot(ng) > 0.0) != (wo.dot(ng) > 0.0);
+        if geometric_transmit != bs.is_transmission {
+            return Step::Stop;
+        }
+        self.beta *= bs.weight;
+        if bs.is_transmission {
+            self.eta_scale *= bs.eta * bs.eta;
+            if wi.dot(hit.ng) < 0.0 {
+                self.stack.push(oi);
+            } else {
+                self.stack.remove(oi);
+            }
+        }
+        if !(bs.is_delta || from_interior_nee) {
+            self.prev = PrevVertex {
+                p: hit.p,
+                pdf: bs.pdf,
+                did_nee: do_nee,
+            };
+        } else if bs.is_delta && !from_interior_nee {
+            self.prev.did_nee = false;
+        }
+        self.ray = Ray::new(hit.spawn_origin(wi), wi);
+        self.continue_with_roulette(sampler)
+    }
+
+    /// Russian roulette after a scattering event: [`Step::Trace`] if the path survives.
+    fn continue_with_roulette(&mut self, sampler: &mut PixelSampler) -> Step {
+        if russian_roulette(&mut self.beta, self.eta_scale, self.depth, sampler) {
+            Step::Trace
+        } else {
+            Step::Stop
+        }
+    }
+}
+
+/// A surface vertex seen from the path, for next event estimation through its BSDF.
+struct SurfaceVertex<'a> {
+    hit: &'a Hit,
+    oi: u32,
+    transmits: bool,
+    /// Geometric normal, flipped towards the viewer for two-sided opaque surfaces.
+    ng: Vec3,
+    /// Shading frame.
+    frame: Frame,
+    /// Direction towards the previous vertex.
+    wo: Vec3,
+}
+
+impl SurfaceVertex<'_> {
+    /// NEE through the boundary BSDF (exit-point NEE for the interior behind it), MIS against
+    /// BSDF sampling; shadow rays see opaque dielectric boundaries.
+    fn direct_light(
+        &self,
+        scene: &Scene,
+        surface: &Surface,
+        stack: InteriorStack,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+    ) -> Rgb {
+        let (hit, oi, ng, frame, wo) = (self.hit, self.oi, self.ng, self.frame, self.wo);
+        let transmits = self.transmits;
+        let wo_local = frame.to_local(wo);
+        estimate_direct(
+            scene,
+            hit.p,
+            |wi| {
+                let mut s = stack;
+                let crosses = (wi.dot(ng) > 0.0) != (wo.dot(ng) > 0.0);
+                if crosses && transmits {
+                    if wi.dot(hit.ng) < 0.0 {
+                        s.push(oi);
+                    } else {
+                        s.remove(oi);
+                    }
+                }
+                (hit.spawn_origin(wi), s)
+            },
+            |wi| {
+                // Reject directions on the wrong side of the geometric surface for the lobe.
+                let wi_local = frame.to_local(wi);
+                let geometric_reflect = (wi.dot(ng) > 0.0) == (wo.dot(ng) > 0.0);
+                let shading_reflect = (wi_local.z > 0.0) == (wo_local.z > 0.0);
+                if geometric_reflect != shading_reflect {
+                    return (Rgb::ZERO, 0.0);
+                }
+                let f = surface.eval(wo_local, wi_local) * wi_local.z.abs();
+                (f, surface.pdf(wo_local, wi_local))
+            },
+            ShadowMode::Opaque,
+            sampler,
+            stats,
+        )
+    }
+}
+
+/// Russian roulette with survival probability min(1, max_c β_c · η-scale) after
+/// [`RR_START_DEPTH`] events (pbrt-v4's rule; the η-scale undoes the radiance compression of
+/// refraction so that entering skin does not trigger spurious termination). Returns false
+/// when the path is terminated.
+fn russian_roulette(
+    beta: &mut Rgb,
+    eta_scale: f32,
+    depth: u32,
+    sampler: &mut PixelSampler,
+) -> bool {
+    if beta.is_black() || !beta.is_finite() {
+        return false;
+    }
+    if depth < RR_START_DEPTH {
+        return true;
+    }
+    let q = (beta.max_component() * eta_scale).min(1.0);
+    if q >= 1.0 {
+        return true;
+    }
+    let u = sampler.next_1d();
+    if u >= q {
+        return false;
+    }
+    *beta /= q;
+    true
+}

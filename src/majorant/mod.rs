@@ -1,0 +1,498 @@
+//! The majorant pyramid over a [`SparseGrid`], and the hierarchical DDA that turns a ray into
+//! piecewise-constant [`MajorantSegment`]s for the tracking estimators (docs/architecture.md,
+//! "The majorant pyramid"; docs/references.md §4.8).
+//!
+//! Level 0 has one cell per 8^3 brick of index space. Its bounds are the min and max over every
+//! value a trilinear lookup anywhere inside the brick can return: the brick's voxels plus a
+//! one-voxel apron across neighbouring bricks and constant tiles (trilinear interpolation is a
+//! convex combination of the 8 surrounding voxels, so those bounds are exact and conservative).
+//! Each coarser level merges 2^3 children (max of maxes, min of mins, mean of means) up to one
+//! root cell. Bounds can also come from any other source (procedural media) through
+//! [`MajorantPyramid::from_brick_bounds`] (proven bounds) or
+//! [`MajorantPyramid::from_estimated_brick_bounds`] (estimates, which the weighted trackers
+//! tolerate as long as every segment they bound is looked up: see
+//! [`MajorantSegment::is_homogeneous`]).
+
+mod segments;
+mod walk;
+
+pub use segments::{MajorantSegment, Segments};
+
+use glam::{DAffine3, DVec3, IVec3};
+
+use crate::grid::{Node, SparseGrid, BRICK_DIM};
+use crate::math::Ray;
+
+/// Refuses pyramids whose finest level would exceed this many cells.
+pub const MAX_LEVEL0_CELLS: usize = 1 << 24;
+
+/// Errors while building a pyramid.
+#[derive(Debug, thiserror::Error)]
+pub enum MajorantError {
+    /// The grid spans too much index space for a dense level 0.
+    #[error(
+        "the grid spans {cells} bricks of index space; the majorant pyramid supports at most {max}"
+    )]
+    TooLarge {
+        /// Level-0 cells needed.
+        cells: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// A bound is NaN, infinite or negative.
+    #[error("invalid majorant bound at brick {brick:?}: min {min}, max {max}")]
+    InvalidBound {
+        /// Brick coordinate.
+        brick: [i32; 3],
+        /// Minimum.
+        min: f32,
+        /// Maximum.
+        max: f32,
+    },
+}
+
+/// Bounds of the values in a region.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Smallest value.
+    pub min: f32,
+    /// Largest value.
+    pub max: f32,
+    /// Mean value (any value in `[min, max]` is acceptable as a control variate).
+    pub mean: f32,
+}
+
+impl Bounds {
+    /// The bounds of a constant value.
+    #[must_use]
+    pub fn constant(v: f32) -> Self {
+        Bounds {
+            min: v,
+            max: v,
+            mean: v,
+        }
+    }
+    /// True when the value is known to be zero everywhere in the region.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.max <= 0.0 && self.min >= 0.0
+    }
+}
+
+/// How segments are produced along a ray.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MajorantMode {
+    /// Hierarchical DDA: skip empty space at the coarsest empty level, emit homogeneous cells
+    /// whole, and descend towards level `finest` elsewhere (0 = brick level): everywhere with
+    /// [`MajorantPyramid::segments`] (the exhaustive walk), only where it pays in optical
+    /// depth with [`MajorantPyramid::segments_adaptive`] (the walk renders use; see there).
+    Hierarchical {
+        /// Finest level used.
+        finest: u8,
+    },
+    /// One segment with the grid's global bounds over the whole ray interval (Mitsuba 3's
+    /// approach; the baseline of the benchmarks).
+    Global,
+}
+
+#[derive(Clone, Debug)]
+struct Level {
+    dims: IVec3,
+    cells: Vec<Bounds>,
+    /// Per cell, the volume average over its brick cells of their *lookup density*: the
+    /// majorant of a brick that needs lookups, 0 for empty and homogeneous bricks. A walk that
+    /// descends to the bricks makes delta tracking look up σ⁰·(this) per unit length, against
+    /// σ⁰·max when it stops at the cell: the gain the adaptive descent weighs.
+    fine: Vec<f32>,
+}
+
+impl Level {
+    fn index(&self, c: IVec3) -> usize {
+        ((c.z as usize * self.dims.y as usize) + c.y as usize) * self.dims.x as usize + c.x as usize
+    }
+}
+
+/// A pyramid of (min, max, mean) bounds over brick-sized cells of a grid's index space.
+#[derive(Clone, Debug)]
+pub struct MajorantPyramid {
+    /// Voxel coordinate of level-0 cell (0, 0, 0)'s first voxel.
+    origin: IVec3,
+    levels: Vec<Level>,
+    /// Value outside the pyramid's box.
+    background: f32,
+    world_to_index: DAffine3,
+    /// True when every bound is proven (see [`MajorantSegment::exact`]).
+    exact: bool,
+}
+
+/// Statistics of one pyramid level (for `velour majorants`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelReport {
+    /// Level (0 = bricks).
+    pub level: usize,
+    /// Edge of a cell, voxels.
+    pub cell_voxels: i32,
+    /// Cells in the level's box.
+    pub cells: usize,
+    /// Cells whose bounds are not empty.
+    pub occupied: usize,
+    /// Occupied cells whose min equals max in a pyramid of proven bounds (sampled in closed
+    /// form; always 0 for estimated bounds).
+    pub homogeneous: usize,
+}
+
+impl MajorantPyramid {
+    /// Builds the pyramid of channel `channel` of `grid` with exact bounds (brick + one-voxel
+    /// apron).
+    pub fn from_grid(grid: &SparseGrid, channel: usize) -> Result<Self, MajorantError> {
+        let background = grid.background(channel);
+        // Region: every brick and every non-background tile.
+        let mut lo = IVec3::MAX;
+        let mut hi = IVec3::MIN;
+        for b in 0..grid.brick_count() {
+            let o = grid.brick_origin(b);
+            lo = lo.min(o);
+            hi = hi.max(o + IVec3::splat(BRICK_DIM - 1));
+        }
+        for t in grid.tiles() {
+            if grid.tile_value(channel, t.tile) != background {
+                lo = lo.min(t.origin);
+                hi = hi.max(t.origin + IVec3::splat((t.level.dim() - 1) as i32));
+            }
+        }
+        let world_to_index = grid.world_to_index();
+        if lo.x > hi.x {
+            return Ok(Self::empty(background, world_to_index));
+        }
+        let key_lo = (lo - IVec3::ONE) >> 3;
+        let key_hi = (hi + IVec3::ONE) >> 3;
+        let mut acc = grid.accessor(channel);
+        Self::from_brick_bounds(key_lo, key_hi, background, world_to_index, |key| {
+            let mut nodes = [Node::Tile {
+                tile: 0,
+                level: crate::grid::TileLevel::Root,
+                active: false,
+            }; 27];
+            let mut all_tiles = true;
+            let mut i = 0;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let n = grid.node_at_brick(key + IVec3::new(dx, dy, dz));
+                        all_tiles &= matches!(n, Node::Tile { .. });
+                        nodes[i] = n;
+                        i += 1;
+                    }
+                }
+            }
+            let own = nodes[13];
+            if all_tiles {
+                let mut b = Bounds {
+                    min: f32::INFINITY,
+                    max: f32::NEG_INFINITY,
+                    mean: 0.0,
+                };
+                for n in nodes {
+                    if let Node::Tile { tile, .. } = n {
+                        let v = grid.tile_value(channel, tile);
+                        b.min = b.min.min(v);
+                        b.max = b.max.max(v);
+                    }
+                }
+                if let Node::Tile { tile, .. } = own {
+                    b.mean = grid.tile_value(channel, tile);
+                }
+                return b;
+            }
+            let base = key << 3;
+            let mut b = Bounds {
+                min: f32::INFINITY,
+                max: f32::NEG_INFINITY,
+                mean: 0.0,
+            };
+            for z in -1..=BRICK_DIM {
+                for y in -1..=BRICK_DIM {
+                    for x in -1..=BRICK_DIM {
+                        let v = acc.value(base + IVec3::new(x, y, z));
+                        b.min = b.min.min(v);
+                        b.max = b.max.max(v);
+                    }
+                }
+            }
+            b.mean = match own {
+                Node::Tile { tile, .. } => grid.tile_value(channel, tile),
+                Node::Brick(_) => {
+                    let mut s = 0.0f64;
+                    for z in 0..BRICK_DIM {
+                        for y in 0..BRICK_DIM {
+                            for x in 0..BRICK_DIM {
+                                s += acc.value(base + IVec3::new(x, y, z)) as f64;
+                            }
+                        }
+                    }
+                    (s / 512.0) as f32
+                }
+            };
+            b
+        })
+    }
+
+    /// An empty pyramid (the value is `background` everywhere).
+    #[must_use]
+    pub fn empty(background: f32, world_to_index: DAffine3) -> Self {
+        MajorantPyramid {
+            origin: IVec3::ZERO,
+            levels: Vec::new(),
+            background,
+            world_to_index,
+            exact: true,
+        }
+    }
+
+    /// Builds a pyramid from proven per-brick bounds (every value a lookup inside the brick
+    /// can return lies within them) for brick keys (voxel coordinate >> 3) in
+    /// `[key_lo, key_hi]`. Outside that box the value is `background`.
+    pub fn from_brick_bounds(
+        key_lo: IVec3,
+        key_hi: IVec3,
+        background: f32,
+        world_to_index: DAffine3,
+        bounds_of: impl FnMut(IVec3) -> Bounds,
+    ) -> Result<Self, MajorantError> {
+        Self::build(key_lo, key_hi, background, world_to_index, true, bounds_of)
+    }
+
+    /// [`Self::from_brick_bounds`] for bounds that may be violated (estimated from trial
+    /// samples, or given by the artist). Their segments are never taken as homogeneous: a
+    /// brick whose estimated min equals its max is still looked up.
+    pub fn from_estimated_brick_bounds(
+        key_lo: IVec3,
+        key_hi: IVec3,
+        background: f32,
+        world_to_index: DAffine3,
+        bounds_of: impl FnMut(IVec3) -> Bounds,
+    ) -> Result<Self, MajorantError> {
+        Self::build(key_lo, key_hi, background, world_to_index, false, bounds_of)
+    }
+
+    /// True when every bound of the pyramid is proven.
+    #[must_use]
+    pub fn is_exact(&self) -> bool {
+        self.exact
+    }
+
+    /// The lookup density of a cell emitted whole: its majorant, or 0 when it needs no
+    /// lookups (empty, or proven constant).
+    pub(crate) fn lookup_density(&self, b: &Bounds) -> f32 {
+        Self::lookup_density_of(b.min, b.max, self.exact)
+    }
+
+    /// [`Self::lookup_density`] of bounds `[min, max]`, proven or not.
+    pub(crate) fn lookup_density_of(min: f32, max: f32, exact: bool) -> f32 {
+        let empty = max <= 0.0 && min >= 0.0;
+        if empty || (exact && min == max) {
+            0.0
+        } else {
+            max
+        }
+    }
+
+    fn build(
+        key_lo: IVec3,
+        key_hi: IVec3,
+        background: f32,
+        world_to_index: DAffine3,
+        exact: bool,
+        mut bounds_of: impl FnMut(IVec3) -> Bounds,
+    ) -> Result<Self, MajorantError> {
+        let lookup_density = |b: &Bounds| Self::lookup_density_of(b.min, b.max, exact);
+        let dims = key_hi - key_lo + IVec3::ONE;
+        let cells = dims.x as usize * dims.y as usize * dims.z as usize;
+        if dims.min_element() <= 0 || cells > MAX_LEVEL0_CELLS {
+            return Err(MajorantError::TooLarge {
+                cells,
+                max: MAX_LEVEL0_CELLS,
+            });
+        }
+        let mut level0 = Level {
+            dims,
+            cells: vec![Bounds::constant(0.0); cells],
+            fine: Vec::new(),
+        };
+        for z in 0..dims.z {
+            for y in 0..dims.y {
+                for x in 0..dims.x {
+                    let c = IVec3::new(x, y, z);
+                    let key = key_lo + c;
+                    let b = bounds_of(key);
+                    if !(b.min.is_finite() && b.max.is_finite() && b.mean.is_finite())
+                        || b.min > b.max
+                    {
+                        return Err(MajorantError::InvalidBound {
+                            brick: key.to_array(),
+                            min: b.min,
+                            max: b.max,
+                        });
+                    }
+                    let i = level0.index(c);
+                    level0.cells[i] = Bounds {
+                        mean: b.mean.clamp(b.min, b.max),
+                        ..b
+                    };
+                }
+            }
+        }
+        level0.fine = level0.cells.iter().map(lookup_density).collect();
+        let mut levels = vec![level0];
+        while levels.last().is_some_and(|l| l.dims.max_element() > 1) {
+            let Some(child) = levels.last() else { break };
+            let pd = (child.dims + IVec3::ONE) / 2;
+            let mut parent = Level {
+                dims: pd,
+                cells: vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize],
+                fine: vec![0.0; (pd.x * pd.y * pd.z) as usize],
+            };
+            for z in 0..pd.z {
+                for y in 0..pd.y {
+                    for x in 0..pd.x {
+                        let mut b = Bounds {
+                            min: f32::INFINITY,
+                            max: f32::NEG_INFINITY,
+                            mean: 0.0,
+                        };
+                        let mut n = 0.0f32;
+                        let mut fine = 0.0f32;
+                        for dz in 0..2 {
+                            for dy in 0..2 {
+                                for dx in 0..2 {
+                                    let c = IVec3::new(2 * x + dx, 2 * y + dy, 2 * z + dz);
+                                    // Cells beyond the child box hold the background.
+                                    let inside = c.cmplt(child.dims).all();
+                                    let cb = if inside {
+                                        child.cells[child.index(c)]
+                                    } else {
+                                        Bounds::constant(background)
+                                    };
+                                    if inside {
+                                        fine += child.fine[child.index(c)];
+                                    }
+                                    b.min = b.min.min(cb.min);
+                                    b.max = b.max.max(cb.max);
+                                    b.mean += cb.mean;
+                                    n += 1.0;
+                                }
+                            }
+                        }
+                        b.mean = (b.mean / n).clamp(b.min, b.max);
+                        let i = parent.index(IVec3::new(x, y, z));
+                        parent.cells[i] = b;
+                        parent.fine[i] = (fine / n).min(lookup_density(&b));
+                    }
+                }
+            }
+            levels.push(parent);
+        }
+        Ok(MajorantPyramid {
+            origin: key_lo << 3,
+            levels,
+            background,
+            world_to_index,
+            exact,
+        })
+    }
+
+    /// Number of levels (0 when empty).
+    #[must_use]
+    pub fn level_count(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Bounds over the whole grid (including the background outside the pyramid's box).
+    #[must_use]
+    pub fn global_bounds(&self) -> Bounds {
+        match self.levels.last() {
+            Some(top) => {
+                let b = top.cells[0];
+                Bounds {
+                    min: b.min.min(self.background),
+                    max: b.max.max(self.background),
+                    mean: b.mean,
+                }
+            }
+            None => Bounds::constant(self.background),
+        }
+    }
+
+    /// World-space box around every non-empty level-0 cell (including the one-voxel apron),
+    /// or `None` when the grid is empty.
+    #[must_use]
+    pub fn world_bounds(&self) -> Option<crate::math::Aabb> {
+        let l0 = self.levels.first()?;
+        let mut lo = IVec3::MAX;
+        let mut hi = IVec3::MIN;
+        for z in 0..l0.dims.z {
+            for y in 0..l0.dims.y {
+                for x in 0..l0.dims.x {
+                    let c = IVec3::new(x, y, z);
+                    if !l0.cells[l0.index(c)].is_empty() {
+                        lo = lo.min(c);
+                        hi = hi.max(c);
+                    }
+                }
+            }
+        }
+        if lo.x > hi.x {
+            return None;
+        }
+        let index_to_world = self.world_to_index.inverse();
+        let a = (self.origin + lo * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
+        let b = (self.origin + (hi + IVec3::ONE) * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
+        Some(crate::math::Aabb::around_transformed(a, b, &index_to_world))
+    }
+
+    /// Per-level cell counts.
+    #[must_use]
+    pub fn level_reports(&self) -> Vec<LevelReport> {
+        self.levels
+            .iter()
+            .enumerate()
+            .map(|(i, l)| LevelReport {
+                level: i,
+                cell_voxels: BRICK_DIM << i,
+                cells: l.cells.len(),
+                occupied: l.cells.iter().filter(|b| !b.is_empty()).count(),
+                homogeneous: l
+                    .cells
+                    .iter()
+                    .filter(|b| self.exact && !b.is_empty() && b.min == b.max)
+                    .count(),
+            })
+            .collect()
+    }
+
+    /// Bounds of the level-`level` cell containing voxel `ijk` (background outside).
+    #[must_use]
+    pub fn bounds_at_voxel(&self, level: usize, ijk: IVec3) -> Bounds {
+        let Some(l) = self.levels.get(level) else {
+            return Bounds::constant(self.background);
+        };
+        let c = (ijk - self.origin) >> (3 + level as i32);
+        if c.cmplt(IVec3::ZERO).any() || c.cmpge(l.dims).any() {
+            return Bounds::constant(self.background);
+        }
+        l.cells[l.index(c)]
+    }
+
+    /// The ray in index space: origin and direction (not unit) with the same parameter `t`.
+    #[must_use]
+    pub fn ray_to_index(&self, ray: &Ray) -> (DVec3, DVec3) {
+        let o = self.world_to_index.transform_point3(ray.o.as_dvec3());
+        let d = self.world_to_index.transform_vector3(ray.d.as_dvec3());
+        (o, d)
+    }
+}
+
+/// The cost of one more segment, in density lookups (a segment costs a DDA step, an
+/// exponential sample and the tracker's per-segment set-up, about what one tentative collision
+/// costs; measured with callgrind on the grid scenes, docs/BENCHMARKS.md).
+pub const SEGMENT_COST: f64 = 1.0;

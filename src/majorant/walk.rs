@@ -1,0 +1,340 @@
+//! The hierarchical DDA over a [`MajorantPyramid`]: an iterator over the cells a ray crosses,
+//! skipping empty cells at the coarsest level that is empty, emitting homogeneous cells whole,
+//! and descending elsewhere (towards a finest level, and in the adaptive walk only where the
+//! descent pays in optical depth).
+//!
+//! The walk is iterative with one DDA state per level on a fixed stack inside the iterator (no
+//! heap allocation per ray); a child's state comes from its parent's exit distances and the
+//! parent cell's mid-planes, so the ray is never re-located per level.
+
+use glam::{DVec3, IVec3};
+
+use super::{Bounds, MajorantPyramid, SEGMENT_COST};
+use crate::grid::BRICK_DIM;
+
+/// Levels below the root the iterative walk descends at most. A cubic grid within
+/// [`super::MAX_LEVEL0_CELLS`] has at most 9 levels; only grids more than 2^15 bricks long on
+/// one axis have more, and their deepest levels are then emitted whole (coarser, still
+/// conservative).
+pub(super) const MAX_LEVELS: usize = 16;
+
+/// One cell the walk emits: a ray interval (index-space ray parameter, which equals the world
+/// distance) with the cell's bounds and its lookup density (see
+/// [`MajorantPyramid::lookup_density`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct WalkCell {
+    pub t0: f64,
+    pub t1: f64,
+    pub bounds: Bounds,
+    pub lookup: f32,
+}
+
+/// One level's DDA state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Frame {
+    pub level: u32,
+    pub done: bool,
+    pub cell: IVec3,
+    /// Cells `[lo, hi)` of this level inside the parent cell.
+    pub lo: IVec3,
+    pub hi: IVec3,
+    /// Distance at which the ray leaves the current cell across each axis.
+    pub t_next: DVec3,
+    /// Where the parent cell ends.
+    pub t_end: f64,
+}
+
+/// The ray's fixed DDA quantities in the pyramid's index space.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct RaySetup {
+    pub o: DVec3,
+    pub step: IVec3,
+    pub inv_d: DVec3,
+    /// |Δt| across one level-0 cell per axis (∞ along axes the ray does not move on).
+    pub delta0: DVec3,
+    /// Index-space position of the pyramid box's corner (voxel extents start at −½).
+    pub base: DVec3,
+}
+
+impl RaySetup {
+    pub(super) fn new(o: DVec3, d: DVec3, base: DVec3) -> Self {
+        let mut step = IVec3::ZERO;
+        let mut inv_d = DVec3::ZERO;
+        for k in 0..3 {
+            if d[k] > 0.0 {
+                step[k] = 1;
+                inv_d[k] = 1.0 / d[k];
+            } else if d[k] < 0.0 {
+                step[k] = -1;
+                inv_d[k] = 1.0 / d[k];
+            }
+        }
+        let across = |k: usize| {
+            if step[k] != 0 {
+                (BRICK_DIM as f64 * inv_d[k]).abs()
+            } else {
+                f64::INFINITY
+            }
+        };
+        RaySetup {
+            o,
+            step,
+            inv_d,
+            delta0: DVec3::new(across(0), across(1), across(2)),
+            base,
+        }
+    }
+
+    /// The DDA state of the child a ray enters at distance `t` when it descends into `cell`
+    /// of `level` (whose exits are `exits`): per axis, the half of the cell the ray is in at
+    /// `t` and the distance to its exit (the mid-plane, or the parent's own exit plane).
+    /// Returns the child cell and its exit distances.
+    pub(super) fn child_state(
+        &self,
+        level: usize,
+        cell: IVec3,
+        exits: DVec3,
+        t: f64,
+    ) -> (IVec3, DVec3) {
+        let half = (BRICK_DIM << (level - 1)) as f64;
+        let mut c = cell * 2;
+        let mut c_next = exits;
+        for k in 0..3 {
+            let mid = self.base[k] + (2 * cell[k] + 1) as f64 * half;
+            if self.step[k] == 0 {
+                if self.o[k] >= mid {
+                    c[k] += 1;
+                }
+                continue;
+            }
+            let tm = (mid - self.o[k]) * self.inv_d[k];
+            let upper = if self.step[k] > 0 { tm <= t } else { tm > t };
+            if upper {
+                c[k] += 1;
+            }
+            if tm > t {
+                c_next[k] = tm;
+            }
+        }
+        (c, c_next)
+    }
+}
+
+/// The hierarchical DDA over `t ∈ [t0, t1]` (inside the pyramid's box) as an iterator of
+/// [`WalkCell`]s in ray order.
+pub(super) struct Walk<'a> {
+    pyramid: &'a MajorantPyramid,
+    ray: RaySetup,
+    finest: usize,
+    /// Descend where `max − fine > threshold` (one threshold per ray; −∞ = always).
+    threshold: f32,
+    stack: [Frame; MAX_LEVELS],
+    depth: usize,
+    t: f64,
+    t1: f64,
+    /// The root emitted whole (no DDA needed).
+    single: Option<WalkCell>,
+}
+
+impl<'a> Walk<'a> {
+    /// Prepares the walk of the index-space ray `o + t d` over `[t0, t1]`. `sigma` is the
+    /// medium's extinction per unit density for the adaptive walk (`None`: exhaustive).
+    pub(super) fn new(
+        pyramid: &'a MajorantPyramid,
+        t0: f64,
+        t1: f64,
+        o: DVec3,
+        d: DVec3,
+        finest: usize,
+        sigma: Option<f64>,
+    ) -> Self {
+        let base = pyramid.origin.as_dvec3() - DVec3::splat(0.5);
+        let mut walk = Walk {
+            pyramid,
+            ray: RaySetup::new(o, d, base),
+            finest,
+            // Descending to the bricks saves σ·Δt·(max − fine) lookups and costs one more
+            // segment per brick boundary crossed, Δt·|d|₁/8: both scale with Δt, so the test
+            // is `max − fine > threshold` with one threshold per ray.
+            threshold: match sigma {
+                None => f32::NEG_INFINITY,
+                Some(s) => (SEGMENT_COST * d.abs().element_sum() / (BRICK_DIM as f64 * s)) as f32,
+            },
+            stack: [Frame::default(); MAX_LEVELS],
+            depth: 0,
+            t: t0,
+            t1,
+            single: None,
+        };
+        let Some(top) = pyramid.levels.len().checked_sub(1) else {
+            return walk;
+        };
+        // The root is one cell over the whole box: emitted whole, no DDA is needed.
+        let root = &pyramid.levels[top];
+        let (rb, rf) = (root.cells[0], root.fine[0]);
+        if rb.is_empty() {
+            return walk;
+        }
+        if top <= finest || rb.min == rb.max || !(rb.max - rf > walk.threshold) {
+            walk.single = Some(WalkCell {
+                t0,
+                t1,
+                bounds: rb,
+                lookup: pyramid.lookup_density(&rb),
+            });
+            return walk;
+        }
+        let r = &walk.ray;
+        let size = (BRICK_DIM << top) as f64;
+        let p = o + d * (t0 + (t1 - t0) * 1e-6);
+        let cell = ((p - r.base) / size)
+            .floor()
+            .as_ivec3()
+            .clamp(IVec3::ZERO, root.dims - IVec3::ONE);
+        let mut t_next = DVec3::splat(f64::INFINITY);
+        for k in 0..3 {
+            if r.step[k] > 0 {
+                t_next[k] = (r.base[k] + (cell[k] + 1) as f64 * size - o[k]) * r.inv_d[k];
+            } else if r.step[k] < 0 {
+                t_next[k] = (r.base[k] + cell[k] as f64 * size - o[k]) * r.inv_d[k];
+            }
+        }
+        walk.stack[0] = Frame {
+            level: top as u32,
+            cell,
+            lo: IVec3::ZERO,
+            hi: root.dims,
+            t_next,
+            t_end: t1,
+            done: false,
+        };
+        walk.depth = 1;
+        walk
+    }
+}
+
+impl Iterator for Walk<'_> {
+    type Item = WalkCell;
+
+    fn next(&mut self) -> Option<WalkCell> {
+        if let Some(cell) = self.single.take() {
+            return Some(cell);
+        }
+        let step = self.ray.step;
+        let delta0 = self.ray.delta0;
+        while self.depth > 0 {
+            let f = &mut self.stack[self.depth - 1];
+            if f.done || self.t >= f.t_end {
+                self.t = self.t.max(f.t_end.min(self.t1));
+                self.depth -= 1;
+                continue;
+            }
+            let level = f.level as usize;
+            let cell = f.cell;
+            let exits = f.t_next;
+            let axis = if exits.x <= exits.y && exits.x <= exits.z {
+                0
+            } else if exits.y <= exits.z {
+                1
+            } else {
+                2
+            };
+            let t = self.t;
+            let t_exit = exits[axis].min(f.t_end).max(t);
+            f.cell[axis] += step[axis];
+            f.t_next[axis] += delta0[axis] * (1u64 << level) as f64;
+            if f.cell[axis] < f.lo[axis] || f.cell[axis] >= f.hi[axis] || t_exit >= f.t_end {
+                f.done = true;
+            }
+            if !(t_exit > t) {
+                continue;
+            }
+            let lv = &self.pyramid.levels[level];
+            let i = lv.index(cell);
+            let b = lv.cells[i];
+            if b.is_empty() {
+                self.t = t_exit;
+                continue;
+            }
+            if level > self.finest && b.min != b.max && b.max - lv.fine[i] > self.threshold {
+                let child = &self.pyramid.levels[level - 1];
+                let (c, c_next) = self.ray.child_state(level, cell, exits, t);
+                let lo = cell * 2;
+                let hi = (lo + IVec3::splat(2)).min(child.dims);
+                if c.cmpge(lo).all() && c.cmplt(hi).all() && self.depth < MAX_LEVELS {
+                    self.stack[self.depth] = Frame {
+                        level: (level - 1) as u32,
+                        cell: c,
+                        lo,
+                        hi,
+                        t_next: c_next,
+                        t_end: t_exit,
+                        done: false,
+                    };
+                    self.depth += 1;
+                    continue;
+                }
+            }
+            let out = WalkCell {
+                t0: t,
+                t1: t_exit,
+                bounds: b,
+                lookup: self.pyramid.lookup_density(&b),
+            };
+            self.t = t_exit;
+            // Leave finished levels at once (saves a loop turn per level).
+            while self.depth > 0 && self.stack[self.depth - 1].done {
+                self.t = self.t.max(self.stack[self.depth - 1].t_end.min(self.t1));
+                self.depth -= 1;
+            }
+            return Some(out);
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn setup(o: [f64; 3], d: [f64; 3]) -> RaySetup {
+        RaySetup::new(DVec3::from(o), DVec3::from(d), DVec3::splat(-0.5))
+    }
+
+    #[test]
+    fn child_state_enters_the_half_the_ray_is_in() {
+        // A level-1 cell spans 16 voxels: [−0.5, 15.5) per axis, mid-planes at 7.5.
+        let r = setup([-0.5, 3.0, 12.0], [1.0, 0.0, 0.0]);
+        let exits = DVec3::new(16.0, f64::INFINITY, f64::INFINITY);
+        let (c, next) = r.child_state(1, IVec3::ZERO, exits, 0.0);
+        // x: enters the lower half, leaves it at the mid-plane t = 8; y (3 < 7.5) lower half;
+        // z (12 > 7.5) upper half; axes the ray does not move on keep the parent's exits.
+        assert_eq!(c, IVec3::new(0, 0, 1));
+        assert_eq!(next, DVec3::new(8.0, f64::INFINITY, f64::INFINITY));
+    }
+
+    #[test]
+    fn child_state_past_the_mid_plane_takes_the_upper_half() {
+        let r = setup([-0.5, -0.5, -0.5], [1.0, 0.5, -1.0]);
+        let exits = DVec3::new(16.0, 32.0, 0.0);
+        // At t = 10 the ray is at x = 9.5 (upper half in x, the mid-plane is behind it: the
+        // parent's exit stays), y = 4.5 (lower half, exits at its mid-plane t = 16), and z has
+        // a negative direction: the mid-plane 7.5 lies at t = −8, behind the ray.
+        let (c, next) = r.child_state(1, IVec3::ZERO, exits, 10.0);
+        assert_eq!(c, IVec3::new(1, 0, 0));
+        assert_eq!(next, DVec3::new(16.0, 16.0, 0.0));
+    }
+
+    #[test]
+    fn child_state_on_the_mid_plane_is_the_half_ahead() {
+        // Exactly on the mid-plane (t = 8 for x), the ray is in the half it moves into: the
+        // upper one moving +x, the lower one moving −x (whose exit is the parent's).
+        let up = setup([-0.5, 0.0, 0.0], [1.0, 0.0, 0.0]);
+        let (c, _) = up.child_state(1, IVec3::ZERO, DVec3::splat(f64::INFINITY), 8.0);
+        assert_eq!(c.x, 1);
+        let down = setup([15.5, 0.0, 0.0], [-1.0, 0.0, 0.0]);
+        let (c, next) = down.child_state(1, IVec3::ZERO, DVec3::splat(f64::INFINITY), 8.0);
+        assert_eq!(c.x, 0);
+        assert_eq!(next.x, f64::INFINITY);
+    }
+}

@@ -1,0 +1,115 @@
+//! What a free flight through an interior returns to the integrator: the throughput weight
+//! of the flight, any radiance the medium emitted along it, and, where the flight ended in a
+//! real collision, the scattering vertex with its albedo and the phase function chosen there.
+
+use crate::fabric::FibrePhase;
+use crate::math::Vec3;
+use crate::phase::PhaseFunction;
+use crate::sampling::PixelSampler;
+use crate::spectrum::Rgb;
+
+/// The outcome of [`super::Medium::sample_flight`].
+#[derive(Clone, Copy)]
+pub struct MediumEvent<'a> {
+    /// Throughput factor of the flight: transmittance over the sampling probability up to
+    /// the vertex, and σ_s over the collision probability at it (or up to `t_max` when the
+    /// flight passed). Multiply the path throughput by it.
+    pub weight: Rgb,
+    /// Radiance the medium emitted towards the ray origin along the flight, already divided
+    /// by the flight's sampling probabilities: add `throughput before the flight × emitted`.
+    /// Zero for media that do not emit (every medium velour has today).
+    pub emitted: Rgb,
+    /// The real collision the flight ended at, or `None` when it passed `t_max`.
+    pub scatter: Option<ScatterVertex<'a>>,
+}
+
+impl MediumEvent<'_> {
+    /// A flight that passed `t_max` with throughput factor `weight`.
+    #[must_use]
+    pub fn pass(weight: Rgb) -> Self {
+        MediumEvent {
+            weight,
+            emitted: Rgb::ZERO,
+            scatter: None,
+        }
+    }
+}
+
+/// A real scattering vertex inside a medium.
+#[derive(Clone, Copy)]
+pub struct ScatterVertex<'a> {
+    /// Distance along the ray (world units).
+    pub t: f32,
+    /// The vertex (world space).
+    pub p: Vec3,
+    /// Single-scattering albedo σ_s/σ_t at the vertex (for AOVs and albedo-driven choices).
+    pub albedo: Rgb,
+    /// The phase function at the vertex.
+    pub phase: VertexPhase<'a>,
+}
+
+/// The phase function chosen at one scattering vertex.
+#[derive(Clone, Copy)]
+pub enum VertexPhase<'a> {
+    /// Henyey–Greenstein (single or double).
+    Hg(&'a PhaseFunction),
+    /// A fibre phase function around a world-space fibre tangent (voxelised fabric).
+    Fibre {
+        /// The yarn family's phase function.
+        phase: &'a FibrePhase,
+        /// Unit fibre tangent (world space).
+        tangent: Vec3,
+    },
+}
+
+/// A direction sampled from a [`VertexPhase`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhaseDirection {
+    /// Unit direction, pointing away from the vertex (the new propagation direction).
+    pub wi: Vec3,
+    /// Phase value over pdf (RGB).
+    pub weight: Rgb,
+    /// Solid-angle pdf of `wi`.
+    pub pdf: f32,
+}
+
+impl VertexPhase<'_> {
+    /// Value (RGB, 1/sr) and solid-angle pdf of scattering `wo → wi` (both pointing away).
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        match self {
+            VertexPhase::Hg(p) => (Rgb::splat(p.eval(wo, wi)), p.pdf(wo, wi)),
+            VertexPhase::Fibre { phase, tangent } => {
+                (phase.eval(wo, wi, *tangent), phase.pdf(wo, wi, *tangent))
+            }
+        }
+    }
+
+    /// Samples a direction (`None` when the sample failed or has zero pdf).
+    pub fn sample(&self, wo: Vec3, sampler: &mut PixelSampler) -> Option<PhaseDirection> {
+        match self {
+            VertexPhase::Hg(p) => {
+                let s = p.sample(wo, sampler.next_2d());
+                (s.pdf > 0.0).then(|| PhaseDirection {
+                    wi: s.wi,
+                    weight: Rgb::splat(s.value / s.pdf),
+                    pdf: s.pdf,
+                })
+            }
+            VertexPhase::Fibre { phase, tangent } => {
+                let u = [
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                ];
+                let s = phase.sample(wo, *tangent, u)?;
+                (s.pdf > 0.0).then_some(PhaseDirection {
+                    wi: s.wi,
+                    weight: s.weight,
+                    pdf: s.pdf,
+                })
+            }
+        }
+    }
+}

@@ -1,0 +1,280 @@
+//! Heterogeneous interiors: σ_t(x) = base_t + d(x)·σ_t⁰ and σ_s(x) = base_s + d(x)·σ_s⁰ with the
+//! density d(x) from a [`DensityField`] (the notes' "voxelised", "heterogeneous scattering"
+//! and combined interiors). The medium turns a ray into majorant segments and density lookups
+//! and hands both to the tracking estimators.
+
+use glam::Vec3;
+
+use super::event::{MediumEvent, ScatterVertex, VertexPhase};
+use super::lookup::{DensityLookup, GridLookup};
+use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
+use crate::grid::SparseGrid;
+use crate::majorant::{MajorantPyramid, MajorantSegment, Segments};
+use crate::math::Ray;
+use crate::phase::PhaseFunction;
+use crate::procedural::{FbmField, LazyFbmGrid};
+use crate::spectrum::Rgb;
+use crate::tracking::{
+    delta_track, ray_march_free_flight, transmittance, DensityCoefficients, Flight,
+    FreeFlightMethod, TrackingConfig, TrackingStats,
+};
+
+/// Where a heterogeneous interior's density comes from.
+#[derive(Clone, Debug)]
+pub enum DensityField {
+    /// A grid channel (an OpenVDB grid, a baked procedural, a voxelised weave).
+    Grid {
+        /// The grid (its index-to-world map places it in the scene).
+        grid: SparseGrid,
+        /// The density channel.
+        channel: usize,
+    },
+    /// Procedural fBm evaluated directly (exact, slow).
+    Procedural(Box<FbmField>),
+    /// Procedural fBm baked lazily into bricks where lookups go.
+    LazyBaked(Box<LazyFbmGrid>),
+    /// A voxelised weave patch tiled over a mesh shell (notes §3.3).
+    Shell(Box<FabricShell>),
+}
+
+/// A heterogeneous interior: a density field, its majorant bounds, optical coefficients per
+/// unit density, a phase function and the estimator choices.
+#[derive(Clone, Debug)]
+pub struct HeterogeneousMedium {
+    /// The density.
+    pub field: DensityField,
+    /// Majorant bounds of the density.
+    pub pyramid: MajorantPyramid,
+    /// Coefficients per unit density.
+    pub coefficients: DensityCoefficients,
+    /// Phase function.
+    pub phase: PhaseFunction,
+    /// Estimator choices.
+    pub tracking: TrackingConfig,
+    /// Fibre shading of a voxelised fabric (tangent and yarn-id channels of the grid), if any.
+    pub fabric: Option<Box<FabricLook>>,
+}
+
+impl HeterogeneousMedium {
+    /// The fibre frame of a fabric interior at world point `p`: the world-space tangent and
+    /// the yarn id of the nearest patch voxel (`None` for other interiors or outside the
+    /// patch's shell).
+    #[must_use]
+    pub fn fibre_at(&self, p: Vec3) -> Option<FibreVoxel> {
+        let look = self.fabric.as_ref()?;
+        match &self.field {
+            DensityField::Grid { grid, .. } => Some(look.fibre_in_grid(grid, p)),
+            DensityField::Shell(shell) => shell.fibre_at(p),
+            _ => None,
+        }
+    }
+
+    /// The phase function at world point `p`: the fibre phase function of the yarn there for
+    /// fabric, the interior's own phase function otherwise.
+    #[must_use]
+    pub fn phase_at(&self, p: Vec3) -> VertexPhase<'_> {
+        if let Some(look) = self.fabric.as_deref() {
+            if let Some(fibre) = self.fibre_at(p) {
+                return VertexPhase::Fibre {
+                    phase: look.phase_for_id(fibre.id),
+                    tangent: fibre.tangent,
+                };
+            }
+        }
+        VertexPhase::Hg(&self.phase)
+    }
+
+    /// The fabric look when its extinction is fibre-projected.
+    fn projected_fibres(&self) -> Option<&FabricLook> {
+        self.fabric.as_deref().filter(|l| l.projects())
+    }
+
+    /// The majorant segments of `[t0, t1]` along `ray`, lazily: the pyramid's adaptive walk
+    /// at this medium's extinction, with the fibre-projected and combined-interior
+    /// adjustments.
+    #[must_use]
+    pub fn segments_along(&self, ray: &Ray, t0: f32, t1: f32) -> MediumSegments<'_> {
+        let inner = self.pyramid.segments_along(
+            ray,
+            t0,
+            t1,
+            self.tracking.majorant,
+            Some(self.coefficients.max_sigma_t()),
+        );
+        let fill = (!self.coefficients.base_t.is_black() && t1.is_finite()).then_some(GapFill {
+            t: t0,
+            end: t1,
+            held: None,
+        });
+        MediumSegments {
+            inner,
+            zero_min: self.projected_fibres().is_some(),
+            fill,
+        }
+    }
+
+    /// A density lookup along `ray`, by distance.
+    #[must_use]
+    pub fn density_along<'a>(&'a self, ray: &Ray) -> DensityLookup<'a> {
+        match &self.field {
+            DensityField::Grid { grid, channel } => match self.projected_fibres() {
+                Some(look) => {
+                    DensityLookup::FibreGrid(FibreGridLookup::new(grid, *channel, look, ray))
+                }
+                None => DensityLookup::Grid(GridLookup::new(grid, *channel, ray)),
+            },
+            DensityField::Procedural(f) => DensityLookup::Procedural {
+                field: f,
+                ray: *ray,
+            },
+            DensityField::Shell(shell) => DensityLookup::Shell(ShellLookup::new(
+                shell,
+                ray,
+                self.projected_fibres().is_some(),
+            )),
+            DensityField::LazyBaked(g) => {
+                let w2i = g.world_to_index();
+                let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
+                let d = w2i.transform_vector3(ray.d.as_dvec3()).as_vec3();
+                DensityLookup::Lazy { grid: g, o, d }
+            }
+        }
+    }
+
+    /// Samples a free flight along `ray` over `[0, t_max]` with the interior's free-flight
+    /// estimator.
+    pub(super) fn sample_flight<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> MediumEvent<'_> {
+        let segments = self.segments_along(ray, 0.0, t_max);
+        let mut lookup = self.density_along(ray);
+        let flight = match self.tracking.free_flight {
+            FreeFlightMethod::DeltaTracking => delta_track(
+                segments,
+                &self.coefficients,
+                |t| lookup.at(t),
+                beta,
+                u,
+                stats,
+            ),
+            FreeFlightMethod::RayMarch { step } => ray_march_free_flight(
+                segments,
+                &self.coefficients,
+                |t| lookup.at(t),
+                step,
+                beta,
+                u,
+                stats,
+            ),
+        };
+        match flight {
+            Flight::Escape { weight } => MediumEvent::pass(weight),
+            Flight::Scatter { t, weight, density } => {
+                let p = ray.at(t);
+                let c = &self.coefficients;
+                MediumEvent {
+                    weight,
+                    emitted: Rgb::ZERO,
+                    scatter: Some(ScatterVertex {
+                        t,
+                        p,
+                        albedo: c.sigma_s_at(density).safe_div(c.sigma_t_at(density)),
+                        phase: self.phase_at(p),
+                    }),
+                }
+            }
+        }
+    }
+
+    /// Estimates the transmittance along `ray` over `[0, t_max]` with the interior's
+    /// transmittance estimator.
+    pub(super) fn transmittance<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Rgb {
+        let segments = self.segments_along(ray, 0.0, t_max);
+        let mut lookup = self.density_along(ray);
+        transmittance(
+            segments,
+            &self.coefficients,
+            |t| lookup.at(t),
+            self.tracking.transmittance,
+            u,
+            stats,
+        )
+    }
+}
+
+/// The state of the combined-interior gap filling of [`MediumSegments`].
+#[derive(Clone, Copy, Debug)]
+struct GapFill {
+    /// Where the last segment returned ended.
+    t: f32,
+    /// The end of the ray interval.
+    end: f32,
+    /// A pyramid segment held back while the gap before it is returned.
+    held: Option<MajorantSegment>,
+}
+
+/// The majorant segments of a heterogeneous medium along a ray: the pyramid's segments with
+/// the minima set to 0 for fibre-projected extinction (sin∠(ω, t) ∈ [0, 1] scales the density:
+/// the maxima still bound it, the minima do not, and no segment is homogeneous), and, in a
+/// combined interior, zero-density segments over the empty space the pyramid skipped (the
+/// homogeneous part fills it).
+pub struct MediumSegments<'a> {
+    inner: Segments<'a>,
+    zero_min: bool,
+    fill: Option<GapFill>,
+}
+
+impl MediumSegments<'_> {
+    fn next_inner(&mut self) -> Option<MajorantSegment> {
+        let mut s = self.inner.next()?;
+        if self.zero_min {
+            s.min = 0.0;
+        }
+        Some(s)
+    }
+}
+
+impl Iterator for MediumSegments<'_> {
+    type Item = MajorantSegment;
+
+    fn next(&mut self) -> Option<MajorantSegment> {
+        let Some(mut fill) = self.fill else {
+            return self.next_inner();
+        };
+        let out = if let Some(s) = fill.held.take() {
+            fill.t = fill.t.max(s.t1);
+            Some(s)
+        } else {
+            match self.next_inner() {
+                Some(s) if s.t0 > fill.t => {
+                    let gap = MajorantSegment::constant(fill.t, s.t0, 0.0);
+                    fill.held = Some(s);
+                    Some(gap)
+                }
+                Some(s) => {
+                    fill.t = fill.t.max(s.t1);
+                    Some(s)
+                }
+                None if fill.t < fill.end => {
+                    let gap = MajorantSegment::constant(fill.t, fill.end, 0.0);
+                    fill.t = fill.end;
+                    Some(gap)
+                }
+                None => None,
+            }
+        };
+        self.fill = Some(fill);
+        out
+    }
+}

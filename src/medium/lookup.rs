@@ -1,0 +1,77 @@
+//! Density lookups along one ray, dispatched over the density sources (an enum, no trait
+//! objects in the tracking loops).
+
+use glam::Vec3;
+
+use crate::fabric::{FibreGridLookup, ShellLookup};
+use crate::grid::{Accessor, SparseGrid};
+use crate::math::Ray;
+use crate::procedural::{FbmField, LazyFbmGrid};
+
+/// Density lookups along one ray, by distance.
+pub enum DensityLookup<'a> {
+    /// Trilinear grid lookups with a coherent accessor.
+    Grid(GridLookup<'a>),
+    /// Lazily baked procedural bricks (index-space ray).
+    Lazy {
+        /// The bricks.
+        grid: &'a LazyFbmGrid,
+        /// Ray origin, index space.
+        o: Vec3,
+        /// Ray direction, index space.
+        d: Vec3,
+    },
+    /// Direct procedural evaluation.
+    Procedural {
+        /// The field.
+        field: &'a FbmField,
+        /// The ray.
+        ray: Ray,
+    },
+    /// A free-standing fabric grid with fibre-projected extinction.
+    FibreGrid(FibreGridLookup<'a>),
+    /// A weave patch tiled over a mesh shell.
+    Shell(ShellLookup<'a>),
+}
+
+impl DensityLookup<'_> {
+    /// Density at distance `t`.
+    #[inline]
+    pub fn at(&mut self, t: f32) -> f32 {
+        match self {
+            DensityLookup::Grid(g) => g.at(t),
+            DensityLookup::Procedural { field, ray } => field.density_world(ray.at(t)),
+            DensityLookup::Lazy { grid, o, d } => grid.sample_trilinear_index(*o + *d * t),
+            DensityLookup::Shell(s) => s.at(t),
+            DensityLookup::FibreGrid(g) => g.at(t),
+        }
+    }
+}
+
+/// A trilinear density lookup along a ray in a grid's index space (coherent accessor).
+pub struct GridLookup<'a> {
+    accessor: Accessor<'a>,
+    o: Vec3,
+    d: Vec3,
+}
+
+impl<'a> GridLookup<'a> {
+    /// Prepares lookups along `ray` (world space) in channel `channel` of `grid`.
+    #[must_use]
+    pub fn new(grid: &'a SparseGrid, channel: usize, ray: &Ray) -> Self {
+        let w2i = grid.world_to_index();
+        let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
+        let d = w2i.transform_vector3(ray.d.as_dvec3()).as_vec3();
+        GridLookup {
+            accessor: grid.accessor(channel),
+            o,
+            d,
+        }
+    }
+
+    /// Trilinear density at distance `t`.
+    #[inline]
+    pub fn at(&mut self, t: f32) -> f32 {
+        self.accessor.sample_trilinear(self.o + self.d * t)
+    }
+}

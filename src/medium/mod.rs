@@ -1,0 +1,151 @@
+//! Interiors: the participating media inside objects (course notes §2.4.1), and what the
+//! integrator asks of them. A medium answers two questions about a ray segment inside it: where
+//! does a free flight end ([`Medium::sample_flight`], returning a [`MediumEvent`] with the
+//! weight, any emission and the scattering vertex with its phase function), and how much light
+//! passes ([`Medium::transmittance`]). How it answers (closed forms, delta tracking over
+//! majorant segments, fibre-projected lookups through a fabric shell) stays inside.
+//!
+//! - [`artist`]: the artist's parameters → optical coefficients (van de Hulst inversion);
+//! - [`heterogeneous`]: density fields, their segments and lookups, tracked;
+//! - [`lookup`]: density lookups along a ray, one enum over the density sources;
+//! - [`event`]: the event and the per-vertex phase function.
+
+pub mod artist;
+pub mod event;
+pub mod heterogeneous;
+pub mod lookup;
+
+pub use artist::{
+    multiple_scattering_albedo, single_scattering_albedo_from_multiple, AlbedoMode, Coefficients,
+    MAX_SINGLE_SCATTERING_ALBEDO,
+};
+pub use event::{MediumEvent, PhaseDirection, ScatterVertex, VertexPhase};
+pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
+pub use lookup::{DensityLookup, GridLookup};
+
+use crate::math::Ray;
+use crate::phase::PhaseFunction;
+use crate::spectrum::Rgb;
+use crate::tracking::{sample_homogeneous, Flight, TrackingStats};
+
+/// Where next event estimation happens for paths inside an interior (notes §2.3.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NeeStrategy {
+    /// Only at boundary vertices, through the (rough) boundary BSDF: for dense media (skin).
+    ExitPoint,
+    /// At every interior scattering vertex, with transparent shadows through the boundaries:
+    /// for less dense media (liquids). Biased where the boundary refracts (notes §2.3.3).
+    Interior,
+}
+
+/// A homogeneous scattering medium.
+#[derive(Clone, Debug)]
+pub struct HomogeneousMedium {
+    /// Optical coefficients.
+    pub coefficients: Coefficients,
+    /// Phase function.
+    pub phase: PhaseFunction,
+}
+
+/// An interior: what fills an object (notes §2.4.1).
+#[derive(Clone, Debug)]
+pub enum Medium {
+    /// Absorption only (coloured glass): Beer–Lambert attenuation, no scattering.
+    Absorbing {
+        /// Absorption coefficient (1/length).
+        sigma_a: Rgb,
+    },
+    /// Homogeneous scattering (most skin, water).
+    Homogeneous(HomogeneousMedium),
+    /// Spatially varying density (voxel data, procedural noise, fabric).
+    Heterogeneous(Box<HeterogeneousMedium>),
+}
+
+impl Medium {
+    /// Extinction coefficient of homogeneous media (the largest one, over the majorant, for
+    /// heterogeneous media).
+    #[must_use]
+    pub fn sigma_t(&self) -> Rgb {
+        match self {
+            Medium::Absorbing { sigma_a } => *sigma_a,
+            Medium::Homogeneous(h) => h.coefficients.sigma_t(),
+            Medium::Heterogeneous(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
+        }
+    }
+
+    /// True when the medium can scatter light.
+    #[must_use]
+    pub fn scatters(&self) -> bool {
+        match self {
+            Medium::Absorbing { .. } => false,
+            Medium::Homogeneous(h) => !h.coefficients.sigma_s.is_black(),
+            Medium::Heterogeneous(h) => !h.coefficients.sigma_s.is_black(),
+        }
+    }
+
+    /// Samples a free flight along `ray` over `[0, t_max]` (`t_max` is where the ray leaves
+    /// the interior; the course notes' Algorithm 1, lines 3–11): the channel is chosen by the
+    /// path throughput `beta` with one-sample MIS over channels (docs/references.md §4.6).
+    /// `u()` returns uniform numbers in [0, 1); tracking counters go to `stats`.
+    pub fn sample_flight<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> MediumEvent<'_> {
+        match self {
+            Medium::Absorbing { .. } => MediumEvent::pass(self.closed_form_transmittance(t_max)),
+            Medium::Homogeneous(h) => {
+                let u_channel = u();
+                let u_distance = u();
+                let c = &h.coefficients;
+                let sigma_t = c.sigma_t();
+                match sample_homogeneous(sigma_t, c.sigma_s, beta, t_max, u_channel, u_distance) {
+                    Flight::Escape { weight } => MediumEvent::pass(weight),
+                    Flight::Scatter { t, weight, .. } => MediumEvent {
+                        weight,
+                        emitted: Rgb::ZERO,
+                        scatter: Some(ScatterVertex {
+                            t,
+                            p: ray.at(t),
+                            albedo: c.sigma_s.safe_div(sigma_t),
+                            phase: VertexPhase::Hg(&h.phase),
+                        }),
+                    },
+                }
+            }
+            Medium::Heterogeneous(h) => h.sample_flight(ray, t_max, beta, u, stats),
+        }
+    }
+
+    /// Transmittance along `ray` over `[0, t_max]`: closed form for homogeneous interiors,
+    /// the interior's transmittance estimator for heterogeneous ones.
+    pub fn transmittance<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Rgb {
+        match self {
+            Medium::Absorbing { .. } | Medium::Homogeneous(_) => {
+                self.closed_form_transmittance(t_max)
+            }
+            Medium::Heterogeneous(h) => h.transmittance(ray, t_max, u, stats),
+        }
+    }
+
+    /// Transmittance `exp(−σ_t d)` along a straight segment of length `d` (world units) of a
+    /// homogeneous medium.
+    #[must_use]
+    pub fn closed_form_transmittance(&self, d: f32) -> Rgb {
+        if d <= 0.0 {
+            return Rgb::ONE;
+        }
+        // Guard 0·∞ (σ_t = 0 with an infinite segment): docs/references.md §8.
+        self.sigma_t()
+            .map(|s| if s == 0.0 { 1.0 } else { (-s * d).exp() })
+    }
+}

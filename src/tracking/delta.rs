@@ -1,0 +1,205 @@
+//! Delta tracking over majorant segments with one-sample MIS over channels, written as
+//! weighted null-collision tracking.
+
+use super::channels::hero_probabilities;
+use super::{pick_channel, DensityCoefficients, Flight, TrackingStats};
+use crate::majorant::MajorantSegment;
+use crate::spectrum::Rgb;
+
+/// Running numerator (per channel contribution) and per-hero-channel path probabilities of a
+/// one-sample-MIS free flight. Common factors (e^{-M Δt}) are omitted from both.
+struct MisChain {
+    f: Rgb,
+    p: Rgb,
+}
+
+impl MisChain {
+    fn renormalise(&mut self) {
+        let m = self.p.max_component();
+        if m > 0.0 && !(1e-20..=1e20).contains(&m) {
+            self.f /= m;
+            self.p /= m;
+        }
+    }
+    fn weight(&self, probs: [f32; 3]) -> Rgb {
+        let denom = probs[0] * self.p[0] + probs[1] * self.p[1] + probs[2] * self.p[2];
+        if denom > 0.0 && denom.is_finite() {
+            self.f / denom
+        } else {
+            Rgb::ZERO
+        }
+    }
+}
+
+/// Samples a free-flight distance along the segments (delta tracking with one-sample MIS over
+/// channels). `density(t)` returns the density at distance `t`; `u()` returns uniform numbers
+/// in [0, 1). Unbiased for any segment bounds: where `density > max` (an estimated bound that
+/// is violated) the null weight turns negative (weighted tracking) and the violation is counted.
+pub fn delta_track<S, D, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    mut density: D,
+    beta: Rgb,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Flight
+where
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    U: FnMut() -> f32,
+{
+    let probs = hero_probabilities(beta, coeff);
+    let hero = pick_channel(probs, u());
+    let mut chain = MisChain {
+        f: Rgb::ONE,
+        p: Rgb::ONE,
+    };
+    for seg in segments {
+        stats.segments += 1;
+        let len = seg.length();
+        if len <= 0.0 || coeff.is_void(&seg) {
+            continue;
+        }
+        if seg.is_homogeneous() {
+            // Closed form: constant density, no lookups.
+            let sigma_t = coeff.sigma_t_at(seg.max);
+            let sigma_hero = sigma_t[hero];
+            let t_local = if sigma_hero > 0.0 {
+                -(-u()).ln_1p() / sigma_hero
+            } else {
+                f32::INFINITY
+            };
+            if t_local < len {
+                let tr = (sigma_t * t_local).map(|x| (-x).exp());
+                chain.f *= coeff.sigma_s_at(seg.max) * tr;
+                chain.p *= sigma_t * tr;
+                stats.real_collisions += 1;
+                return Flight::Scatter {
+                    t: seg.t0 + t_local,
+                    weight: chain.weight(probs),
+                    density: seg.max,
+                };
+            }
+            let tr = (sigma_t * len).map(|x| (-x).exp());
+            chain.f *= tr;
+            chain.p *= tr;
+            chain.renormalise();
+            continue;
+        }
+        let majorant = coeff.majorant(&seg);
+        if !(majorant > 0.0) || !majorant.is_finite() {
+            continue;
+        }
+        // Distance from the segment start: keeps advancing where a step is below half an ulp
+        // of the absolute distance (far from the origin).
+        let mut local = 0.0f32;
+        loop {
+            local += -(-u()).ln_1p() / majorant;
+            if local >= len {
+                break;
+            }
+            let t = seg.t0 + local;
+            let d = density(t);
+            stats.lookups += 1;
+            if d > seg.max || d < seg.min {
+                stats.violations += 1;
+            }
+            let sigma_t = coeff.sigma_t_at(d);
+            let sigma_n = Rgb::splat(majorant) - sigma_t;
+            // Decision probabilities of each channel as hero (weighted tracking: |σ_t| vs |σ_n|).
+            let p_real = Rgb([0, 1, 2].map(|k| {
+                let a = sigma_t[k].abs();
+                let b = sigma_n[k].abs();
+                if a + b > 0.0 {
+                    a / (a + b)
+                } else {
+                    0.0
+                }
+            }));
+            if u() < p_real[hero] {
+                chain.f *= coeff.sigma_s_at(d);
+                chain.p *= p_real * majorant;
+                stats.real_collisions += 1;
+                return Flight::Scatter {
+                    t,
+                    weight: chain.weight(probs),
+                    density: d,
+                };
+            }
+            chain.f *= sigma_n;
+            chain.p *= (Rgb::ONE - p_real) * majorant;
+            chain.renormalise();
+            stats.null_collisions += 1;
+            if chain.p.is_black() {
+                return Flight::Escape { weight: Rgb::ZERO };
+            }
+        }
+    }
+    Flight::Escape {
+        weight: chain.weight(probs),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Rgb, b: Rgb, rel: f32) -> bool {
+        (0..3).all(|k| (a[k] - b[k]).abs() <= rel * b[k].abs().max(1e-30))
+    }
+
+    #[test]
+    fn weight_is_the_contribution_over_the_mixture_of_hero_probabilities() {
+        let chain = MisChain {
+            f: Rgb::new(1.0, 2.0, 3.0),
+            p: Rgb::new(0.5, 1.0, 2.0),
+        };
+        let probs = [0.2, 0.3, 0.5];
+        let mix = 0.2 * 0.5 + 0.3 * 1.0 + 0.5 * 2.0;
+        assert!(close(
+            chain.weight(probs),
+            Rgb::new(1.0, 2.0, 3.0) / mix,
+            1e-6
+        ));
+    }
+
+    #[test]
+    fn renormalising_keeps_the_weight() {
+        for scale in [1e-30f32, 1e-25, 1e25, 1e30] {
+            let mut chain = MisChain {
+                f: Rgb::new(1.0, 2.0, 0.0) * scale,
+                p: Rgb::new(1.0, 3.0, 1.0) * scale,
+            };
+            let probs = [0.25, 0.25, 0.5];
+            let before = chain.weight(probs);
+            chain.renormalise();
+            assert!(
+                (chain.p.max_component() - 1.0).abs() < 1e-6,
+                "scale {scale}"
+            );
+            assert!(close(chain.weight(probs), before, 1e-5), "scale {scale}");
+        }
+        // Within the safe range nothing changes.
+        let mut chain = MisChain {
+            f: Rgb::new(4.0, 5.0, 6.0),
+            p: Rgb::new(7.0, 8.0, 9.0),
+        };
+        chain.renormalise();
+        assert_eq!(chain.f, Rgb::new(4.0, 5.0, 6.0));
+        assert_eq!(chain.p, Rgb::new(7.0, 8.0, 9.0));
+    }
+
+    #[test]
+    fn a_path_no_channel_could_take_weighs_nothing() {
+        let zero = MisChain {
+            f: Rgb::ONE,
+            p: Rgb::ZERO,
+        };
+        assert_eq!(zero.weight([1.0 / 3.0; 3]), Rgb::ZERO);
+        let overflow = MisChain {
+            f: Rgb::ONE,
+            p: Rgb::splat(f32::INFINITY),
+        };
+        assert_eq!(overflow.weight([1.0 / 3.0; 3]), Rgb::ZERO);
+    }
+}

@@ -1,0 +1,202 @@
+//! Distance sampling and transmittance estimation through participating media, all driven
+//! by one stream of piecewise-constant majorant segments (docs/references.md §4; course notes
+//! §2.2.2–2.2.4).
+//!
+//! The heterogeneous media handled here have extinction and scattering proportional to a
+//! scalar density: σ_t(x) = d(x)·σ_t^0 and σ_s(x) = d(x)·σ_s^0 (RGB per unit density), plus an
+//! optional constant part — the notes' "voxelised" and "heterogeneous scattering" interiors.
+//! A [`MajorantSegment`] `[t0, t1]` carries bounds on the *density* (`min ≤ d ≤ max`), so one
+//! segment stream serves every channel. The estimators know nothing of where densities come
+//! from: they take the segments and a `density(t)` lookup.
+//!
+//! Estimators:
+//! - [`sample_homogeneous`]: closed-form free flights through a homogeneous medium, the
+//!   channel chosen by throughput with one-sample MIS over channels (docs/references.md §4.6;
+//!   [`channel_probabilities`], [`pick_channel`]);
+//! - [`delta_track`]: free-flight sampling (Woodcock 1965) with the same channel choice,
+//!   written as weighted null-collision tracking so that it stays unbiased where a bound is
+//!   violated (segments of proven constant density are sampled in closed form, without
+//!   lookups);
+//! - [`transmittance`] with [`TransmittanceMode::Ratio`] (Cramer 1978; Novák et al. 2014),
+//!   [`TransmittanceMode::ResidualRatio`] (Novák, Selle, Jarosz 2014) with a per-segment
+//!   control density, and [`TransmittanceMode::RayMarch`] (the biased fixed-step baseline);
+//! - [`ray_march_free_flight`]: the biased fixed-step free-flight baseline.
+
+mod channels;
+mod delta;
+mod homogeneous;
+mod march;
+mod ratio;
+
+pub use channels::{channel_probabilities, pick_channel};
+pub use delta::delta_track;
+pub use homogeneous::sample_homogeneous;
+pub use march::ray_march_free_flight;
+pub use ratio::transmittance;
+
+use crate::majorant::{MajorantMode, MajorantSegment};
+use crate::spectrum::Rgb;
+
+/// Optical coefficients: σ_t(x) = base_t + d(x)·σ_t⁰ and σ_s(x) = base_s + d(x)·σ_s⁰. The
+/// constant part is a homogeneous medium the density field is added to (the notes' combined
+/// interiors, §2.4.1: a homogeneous ocean with voxel foam); it is zero for plain voxel media.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DensityCoefficients {
+    /// Extinction per unit density (1/length).
+    pub sigma_t: Rgb,
+    /// Scattering per unit density (1/length).
+    pub sigma_s: Rgb,
+    /// Constant extinction added everywhere on the ray (1/length).
+    pub base_t: Rgb,
+    /// Constant scattering added everywhere on the ray (1/length).
+    pub base_s: Rgb,
+}
+
+impl DensityCoefficients {
+    /// Coefficients proportional to the density, without a constant part.
+    #[must_use]
+    pub fn new(sigma_t: Rgb, sigma_s: Rgb) -> Self {
+        DensityCoefficients {
+            sigma_t,
+            sigma_s,
+            base_t: Rgb::ZERO,
+            base_s: Rgb::ZERO,
+        }
+    }
+    /// The largest channel of σ_t⁰.
+    #[must_use]
+    pub fn max_sigma_t(&self) -> f32 {
+        self.sigma_t.max_component()
+    }
+    /// σ_t at density `d`.
+    #[must_use]
+    pub fn sigma_t_at(&self, d: f32) -> Rgb {
+        self.base_t + self.sigma_t * d
+    }
+    /// σ_s at density `d`.
+    #[must_use]
+    pub fn sigma_s_at(&self, d: f32) -> Rgb {
+        self.base_s + self.sigma_s * d
+    }
+    /// The scalar majorant of a segment: max over channels of σ_t at the segment's max density.
+    #[must_use]
+    pub fn majorant(&self, seg: &MajorantSegment) -> f32 {
+        self.sigma_t_at(seg.max).max_component()
+    }
+    /// True when nothing attenuates on the segment.
+    #[must_use]
+    pub fn is_void(&self, seg: &MajorantSegment) -> bool {
+        seg.max <= 0.0 && seg.min >= 0.0 && self.base_t.is_black()
+    }
+}
+
+/// Counters for the speed/accuracy measurements.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackingStats {
+    /// Density lookups while sampling free-flight distances.
+    pub lookups: u64,
+    /// Density lookups while estimating transmittance (shadow rays).
+    pub transmittance_lookups: u64,
+    /// Real (scattering) collisions.
+    pub real_collisions: u64,
+    /// Null collisions.
+    pub null_collisions: u64,
+    /// Lookups whose density exceeded the segment's majorant or fell below its minorant.
+    pub violations: u64,
+    /// Segments visited.
+    pub segments: u64,
+}
+
+impl TrackingStats {
+    /// Adds `o` into `self`.
+    pub fn merge(&mut self, o: &TrackingStats) {
+        self.lookups += o.lookups;
+        self.transmittance_lookups += o.transmittance_lookups;
+        self.real_collisions += o.real_collisions;
+        self.null_collisions += o.null_collisions;
+        self.violations += o.violations;
+        self.segments += o.segments;
+    }
+}
+
+/// The outcome of a free flight, homogeneous or tracked.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Flight {
+    /// A real collision at `t`; multiply the throughput by `weight` (includes the albedo),
+    /// then sample the phase function.
+    Scatter {
+        /// Distance (world units).
+        t: f32,
+        /// Throughput factor.
+        weight: Rgb,
+        /// Density at the collision (1 in a homogeneous medium).
+        density: f32,
+    },
+    /// The flight left the last segment; multiply the throughput by `weight`.
+    Escape {
+        /// Throughput factor.
+        weight: Rgb,
+    },
+}
+
+/// How free-flight distances are sampled in a heterogeneous interior.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FreeFlightMethod {
+    /// Delta (Woodcock) tracking over the majorant segments: unbiased.
+    DeltaTracking,
+    /// Fixed-step ray marching: biased, the notes' §2.2.2 baseline.
+    RayMarch {
+        /// Step length, world units.
+        step: f32,
+    },
+}
+
+/// The estimator choices of a heterogeneous interior (speed/accuracy trade;
+/// docs/references.md §4).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackingConfig {
+    /// Free-flight sampling.
+    pub free_flight: FreeFlightMethod,
+    /// Transmittance estimation for shadow rays.
+    pub transmittance: TransmittanceMode,
+    /// Which majorants drive both.
+    pub majorant: MajorantMode,
+}
+
+impl Default for TrackingConfig {
+    /// Delta tracking, residual ratio tracking with Novák's control, hierarchical majorants
+    /// down to the brick level.
+    fn default() -> Self {
+        TrackingConfig {
+            free_flight: FreeFlightMethod::DeltaTracking,
+            transmittance: TransmittanceMode::ResidualRatio(ControlVariate::Novak),
+            majorant: MajorantMode::Hierarchical { finest: 0 },
+        }
+    }
+}
+
+/// How the control density of residual ratio tracking is chosen per segment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControlVariate {
+    /// The segment's minorant: the residual is non-negative.
+    Minorant,
+    /// The segment's mean density.
+    Mean,
+    /// Novák's heuristic as used in Tungsten (docs/references.md §4.4):
+    /// σ_c = clamp(min + R(γ^{1/(L R)} − 1), min, mean) with γ = 2.
+    Novak,
+}
+
+/// Transmittance estimators.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TransmittanceMode {
+    /// Ratio tracking: Π (1 − σ_t(x_i)/M).
+    Ratio,
+    /// Residual ratio tracking with a per-segment control density.
+    ResidualRatio(ControlVariate),
+    /// Fixed-step ray marching with step `step` (world units): biased.
+    RayMarch {
+        /// Step length.
+        step: f32,
+    },
+}

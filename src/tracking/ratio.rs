@@ -1,0 +1,163 @@
+//! Transmittance estimators over majorant segments: ratio tracking, residual ratio tracking
+//! with a per-segment control density, and fixed-step ray marching.
+
+use super::{ControlVariate, DensityCoefficients, TrackingStats, TransmittanceMode};
+use crate::majorant::MajorantSegment;
+use crate::spectrum::Rgb;
+
+/// The control density of a segment. `sigma_scale` converts density to extinction (the largest
+/// channel of σ_t⁰): Novák's heuristic is written in optical units.
+fn control_density(seg: &MajorantSegment, cv: ControlVariate, sigma_scale: f32) -> f32 {
+    match cv {
+        ControlVariate::Minorant => seg.min,
+        ControlVariate::Mean => seg.mean.clamp(seg.min, seg.max),
+        ControlVariate::Novak => {
+            let range = seg.max - seg.min;
+            let len = seg.length();
+            let upper = seg.mean.clamp(seg.min, seg.max);
+            if range <= 0.0 {
+                return seg.min;
+            }
+            let exponent = std::f32::consts::LN_2 / (len * range * sigma_scale).max(1e-30);
+            if exponent > 80.0 {
+                return upper;
+            }
+            (seg.min + range * exponent.exp_m1()).clamp(seg.min, upper)
+        }
+    }
+}
+
+/// Estimates the RGB transmittance along the segments. Ratio-type estimators are unbiased
+/// for any bounds (factors turn negative where a bound is violated); ray marching is biased.
+/// Russian roulette (pbrt-v4's rule: below 0.05, stop with probability 0.75) keeps long
+/// rays cheap without bias.
+pub fn transmittance<S, D, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    mut density: D,
+    mode: TransmittanceMode,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Rgb
+where
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    U: FnMut() -> f32,
+{
+    let st = coeff.sigma_t;
+    let s_max = coeff.max_sigma_t();
+    let mut tr = Rgb::ONE;
+    if s_max <= 0.0 && coeff.base_t.is_black() {
+        return tr;
+    }
+    for seg in segments {
+        stats.segments += 1;
+        let len = seg.length();
+        if len <= 0.0 || coeff.is_void(&seg) {
+            continue;
+        }
+        if seg.is_homogeneous() || s_max <= 0.0 {
+            tr *= (coeff.sigma_t_at(seg.max) * len).map(|x| (-x).exp());
+        } else {
+            match mode {
+                TransmittanceMode::RayMarch { step } => {
+                    let n = (len / step.max(1e-12)).ceil().clamp(1.0, 1e7) as u32;
+                    let dt = len / n as f32;
+                    let offset = u();
+                    let mut depth = 0.0f32;
+                    for i in 0..n {
+                        depth += density(seg.t0 + (i as f32 + offset) * dt) * dt;
+                        stats.transmittance_lookups += 1;
+                    }
+                    tr *= (st * depth + coeff.base_t * len).map(|x| (-x).exp());
+                }
+                TransmittanceMode::Ratio | TransmittanceMode::ResidualRatio(_) => {
+                    let control = match mode {
+                        TransmittanceMode::ResidualRatio(cv) => control_density(&seg, cv, s_max),
+                        _ => 0.0,
+                    };
+                    let residual_bound = (seg.max - control).max(control - seg.min).max(0.0);
+                    let analytic = coeff.sigma_t_at(control) * len;
+                    if !analytic.is_black() {
+                        tr *= analytic.map(|x| (-x).exp());
+                    }
+                    let majorant = residual_bound * s_max;
+                    if majorant > 0.0 && majorant.is_finite() {
+                        let mut local = 0.0f32;
+                        loop {
+                            local += -(-u()).ln_1p() / majorant;
+                            if local >= len {
+                                break;
+                            }
+                            let t = seg.t0 + local;
+                            let d = density(t);
+                            stats.transmittance_lookups += 1;
+                            if d > seg.max || d < seg.min {
+                                stats.violations += 1;
+                            }
+                            tr *= Rgb::ONE - st * ((d - control) / majorant);
+                            if tr.max_component().abs() < 0.05 {
+                                if u() < 0.75 {
+                                    return Rgb::ZERO;
+                                }
+                                tr /= 0.25;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if tr.is_black() {
+            return tr;
+        }
+    }
+    tr
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::majorant::Bounds;
+
+    fn seg(len: f32, min: f32, max: f32, mean: f32) -> MajorantSegment {
+        MajorantSegment::new(0.0, len, Bounds { min, max, mean }, true)
+    }
+
+    #[test]
+    fn minorant_and_mean_controls() {
+        let s = seg(1.0, 0.2, 1.0, 0.5);
+        assert_eq!(control_density(&s, ControlVariate::Minorant, 3.0), 0.2);
+        assert_eq!(control_density(&s, ControlVariate::Mean, 3.0), 0.5);
+        // A mean outside the bounds is clamped into them.
+        let odd = MajorantSegment { mean: 7.0, ..s };
+        assert_eq!(control_density(&odd, ControlVariate::Mean, 3.0), 1.0);
+    }
+
+    #[test]
+    fn novak_control_moves_from_the_mean_to_the_minorant_with_optical_depth() {
+        // σ·L·(max − min) is the optical thickness of the bound's range: thin segments take
+        // the mean (the exponent overflows), thick ones approach the minorant.
+        let s = seg(1.0, 0.2, 1.0, 0.5);
+        let thin = control_density(&s, ControlVariate::Novak, 1e-3);
+        let medium = control_density(&s, ControlVariate::Novak, 2.0);
+        let thick = control_density(&s, ControlVariate::Novak, 1e4);
+        assert_eq!(thin, 0.5);
+        assert!(thick > 0.2 && thick < 0.2 + 1e-3, "{thick}");
+        // Written in optical units: min + R·(2^{1/(σ L R)} − 1), here R = 0.8.
+        let expected = 0.2 + 0.8 * (std::f32::consts::LN_2 / (1.0 * 0.8 * 2.0)).exp_m1();
+        assert!(
+            (medium - expected.clamp(0.2, 0.5)).abs() < 1e-6,
+            "{medium} vs {expected}"
+        );
+        for sigma in [1e-3f32, 0.1, 1.0, 10.0, 1e3, 1e6] {
+            let c = control_density(&s, ControlVariate::Novak, sigma);
+            assert!((0.2..=0.5).contains(&c), "σ {sigma}: {c}");
+        }
+    }
+
+    #[test]
+    fn novak_control_of_a_constant_segment_is_its_value() {
+        let s = seg(2.0, 0.7, 0.7, 0.7);
+        assert_eq!(control_density(&s, ControlVariate::Novak, 5.0), 0.7);
+    }
+}
