@@ -9,10 +9,11 @@ use velour::fabric::{
     PatchFibre, ShellParams, VoxeliseOptions, VoxelisedPatch, WeaveParams, WeavePattern, YarnId,
     YarnParams,
 };
+use velour::fabric::{FabricLook, FibreExtinction};
 use velour::geometry::TriangleMesh;
 use velour::majorant::MajorantPyramid;
 use velour::math::{Aabb, Ray};
-use velour::medium::{DensityField, FabricLook, FibreExtinction, HeterogeneousMedium};
+use velour::medium::{DensityField, HeterogeneousMedium};
 use velour::phase::PhaseFunction;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
@@ -84,15 +85,12 @@ fn medium(vp: &VoxelisedPatch, extinction: FibreExtinction, sigma: f32) -> Heter
 fn transmittance(h: &HeterogeneousMedium, ray: &Ray, len: f32, n: usize) -> f32 {
     let mut rng = Rng::new(5, 9);
     let mut stats = TrackingStats::default();
-    let mut segs = Vec::new();
     let mut sum = 0.0f64;
     for _ in 0..n {
-        segs.clear();
-        h.segments(ray, 0.0, len, &mut segs);
         let mut lookup = h.density_along(ray);
         let mut u = || rng.next_f32();
         let t = velour::tracking::transmittance(
-            segs.iter().copied(),
+            h.segments_along(ray, 0.0, len),
             &h.coefficients,
             |t| lookup.at(t),
             TransmittanceMode::Ratio,

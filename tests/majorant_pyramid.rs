@@ -177,7 +177,7 @@ fn check_tiling(
     grid: &SparseGrid,
     ray: &Ray,
     t_max: f32,
-    out: &[velour::tracking::MajorantSegment],
+    out: &[velour::majorant::MajorantSegment],
 ) {
     for w in out.windows(2) {
         assert!(w[0].t1 <= w[1].t0 + 1e-6, "overlap {:?}", w);
@@ -200,7 +200,7 @@ fn check_tiling(
 }
 
 /// ∫ max dt over the segments that need density lookups (non-homogeneous ones).
-fn lookup_integral(out: &[velour::tracking::MajorantSegment]) -> f64 {
+fn lookup_integral(out: &[velour::majorant::MajorantSegment]) -> f64 {
     out.iter()
         .filter(|s| s.min != s.max)
         .map(|s| f64::from(s.max) * f64::from(s.t1 - s.t0))

@@ -3,11 +3,11 @@
 //! to the single-scattering albedo times the collision probability.
 
 use velour::medium::{
-    channel_probabilities, multiple_scattering_albedo, sample_free_flight,
-    single_scattering_albedo_from_multiple, Coefficients, FreeFlight,
+    multiple_scattering_albedo, single_scattering_albedo_from_multiple, Coefficients,
 };
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
+use velour::tracking::{channel_probabilities, sample_homogeneous, Flight};
 
 /// Mean and standard error of a per-channel estimator.
 fn estimate(n: usize, mut f: impl FnMut(&mut Rng) -> Rgb) -> (Rgb, Rgb) {
@@ -53,9 +53,16 @@ fn escape_weight_is_unbiased_transmittance_for_chromatic_media() {
     for beta in [Rgb::ONE, Rgb::new(1.0, 0.1, 0.01), Rgb::new(0.0, 0.0, 1.0)] {
         let l = 0.7f32;
         let (mean, se) = estimate(400_000, |rng| {
-            match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
-                FreeFlight::Escape { weight } => weight,
-                FreeFlight::Scatter { .. } => Rgb::ZERO,
+            match sample_homogeneous(
+                coeff.sigma_t(),
+                coeff.sigma_s,
+                beta,
+                l,
+                rng.next_f32(),
+                rng.next_f32(),
+            ) {
+                Flight::Escape { weight } => weight,
+                Flight::Scatter { .. } => Rgb::ZERO,
             }
         });
         let expected = coeff.sigma_t().map(|s| (-s * l).exp());
@@ -73,12 +80,19 @@ fn scatter_weights_integrate_to_albedo_times_collision_probability() {
     let l = 0.9f32;
     let beta = Rgb::new(0.3, 1.0, 0.6);
     let (mean, se) = estimate(400_000, |rng| {
-        match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
-            FreeFlight::Scatter { weight, t } => {
+        match sample_homogeneous(
+            coeff.sigma_t(),
+            coeff.sigma_s,
+            beta,
+            l,
+            rng.next_f32(),
+            rng.next_f32(),
+        ) {
+            Flight::Scatter { weight, t, .. } => {
                 assert!(t >= 0.0 && t < l);
                 weight
             }
-            FreeFlight::Escape { .. } => Rgb::ZERO,
+            Flight::Escape { .. } => Rgb::ZERO,
         }
     });
     let st = coeff.sigma_t();
@@ -93,9 +107,9 @@ fn zero_extinction_never_scatters_and_never_produces_nan() {
         sigma_s: Rgb::ZERO,
     };
     for t_max in [0.0, 1.0, f32::INFINITY] {
-        match sample_free_flight(&coeff, Rgb::ONE, t_max, 0.5, 0.5) {
-            FreeFlight::Escape { weight } => assert_eq!(weight, Rgb::ONE),
-            FreeFlight::Scatter { .. } => panic!("scattered in vacuum"),
+        match sample_homogeneous(coeff.sigma_t(), coeff.sigma_s, Rgb::ONE, t_max, 0.5, 0.5) {
+            Flight::Escape { weight } => assert_eq!(weight, Rgb::ONE),
+            Flight::Scatter { .. } => panic!("scattered in vacuum"),
         }
     }
     let p = channel_probabilities(Rgb::ZERO, Rgb::ZERO);

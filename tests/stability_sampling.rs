@@ -9,13 +9,14 @@
 #![allow(clippy::needless_range_loop)]
 
 use velour::bsdf::{MicrofacetDistribution, Surface};
+use velour::majorant::MajorantSegment;
 use velour::math::{Vec2, Vec3};
-use velour::medium::{sample_free_flight, Coefficients, FreeFlight};
+use velour::medium::Coefficients;
 use velour::phase::PhaseFunction;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
 use velour::tracking::{
-    delta_track, transmittance, ControlVariate, DensityCoefficients, Flight, MajorantSegment,
+    delta_track, sample_homogeneous, transmittance, ControlVariate, DensityCoefficients, Flight,
     TrackingStats, TransmittanceMode,
 };
 
@@ -210,7 +211,14 @@ fn free_flight_sampling_is_finite_and_unbiased_from_1e_minus_6_to_1e6() {
                         for uc in edge_numbers() {
                             for ud in edge_numbers() {
                                 check_flight(
-                                    sample_free_flight(&coeff, beta, t_max, uc, ud),
+                                    sample_homogeneous(
+                                        coeff.sigma_t(),
+                                        coeff.sigma_s,
+                                        beta,
+                                        t_max,
+                                        uc,
+                                        ud,
+                                    ),
                                     t_max,
                                     &label,
                                 );
@@ -232,8 +240,9 @@ fn free_flight_sampling_is_finite_and_unbiased_from_1e_minus_6_to_1e6() {
                             Vec::with_capacity(n),
                         ];
                         for _ in 0..n {
-                            let f = sample_free_flight(
-                                &coeff,
+                            let f = sample_homogeneous(
+                                coeff.sigma_t(),
+                                coeff.sigma_s,
                                 Rgb::ONE,
                                 t_max,
                                 rng.next_f32(),
@@ -241,8 +250,8 @@ fn free_flight_sampling_is_finite_and_unbiased_from_1e_minus_6_to_1e6() {
                             );
                             check_flight(f, t_max, "random");
                             let (e, c) = match f {
-                                FreeFlight::Escape { weight } => (weight, Rgb::ZERO),
-                                FreeFlight::Scatter { weight, .. } => (Rgb::ZERO, weight),
+                                Flight::Escape { weight } => (weight, Rgb::ZERO),
+                                Flight::Scatter { weight, .. } => (Rgb::ZERO, weight),
                             };
                             for k in 0..3 {
                                 esc[k].push(f64::from(e[k]));
@@ -274,9 +283,9 @@ fn free_flight_sampling_is_finite_and_unbiased_from_1e_minus_6_to_1e6() {
     }
 }
 
-fn check_flight(f: FreeFlight, t_max: f32, label: &str) {
+fn check_flight(f: Flight, t_max: f32, label: &str) {
     match f {
-        FreeFlight::Scatter { t, weight } => {
+        Flight::Scatter { t, weight, .. } => {
             assert!(
                 t.is_finite() && t >= 0.0 && t < t_max,
                 "{label}: scatter at {t} (t_max {t_max})"
@@ -286,7 +295,7 @@ fn check_flight(f: FreeFlight, t_max: f32, label: &str) {
                 "{label}: scatter weight {weight:?}"
             );
         }
-        FreeFlight::Escape { weight } => {
+        Flight::Escape { weight } => {
             assert!(
                 weight.is_finite() && weight.min_component() >= 0.0,
                 "{label}: escape weight {weight:?}"
@@ -345,6 +354,7 @@ fn tracking_estimators_are_finite_and_unbiased_on_extreme_segments() {
             max: dmax,
             min: 0.0,
             mean: 0.5 * dmax,
+            exact: true,
         };
         // Density: a linear ramp from 0 to dmax along the segment; ∫ = dmax·len/2.
         let ramp = move |t: f32| ((t - t0) / len).clamp(0.0, 1.0) * dmax;
@@ -410,7 +420,7 @@ fn tracking_estimators_are_finite_and_unbiased_on_extreme_segments() {
             );
             let w = match f {
                 Flight::Escape { weight } => weight,
-                Flight::Scatter { t, weight } => {
+                Flight::Scatter { t, weight, .. } => {
                     assert!(
                         t.is_finite() && t >= seg.t0 && t <= seg.t1,
                         "{label}: scatter at {t}"
@@ -453,6 +463,7 @@ fn tracking_terminates_far_from_the_origin_under_a_large_majorant() {
         max: 1.0,
         min: 0.0,
         mean: 0.0,
+        exact: true,
     };
     let mut rng = Rng::new(16, 0);
     let mut u = || rng.next_f32();
