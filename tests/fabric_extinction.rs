@@ -1,4 +1,4 @@
-//! Fibre-projected extinction (REFERENCES §7.3, test idea of §7.6): in a slab of aligned
+//! Fibre-projected extinction (docs/references.md §7.3, test idea of §7.6): in a slab of aligned
 //! fibres, light travelling along the fibres passes, light crossing them sees the full
 //! density; the same through a free-standing fabric grid and through a fabric shell.
 

@@ -1,4 +1,4 @@
-//! Fibre scattering (REFERENCES §7): Chiang 2016 lobes, the diffuse fibre lobe, the
+//! Fibre scattering (docs/references.md §7): Chiang 2016 lobes, the diffuse fibre lobe, the
 //! fibre-volume phase function (normalisation, furnace, sampling) and SGGX fibre flakes.
 
 use velour::fabric::fibre_scattering::{

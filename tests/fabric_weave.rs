@@ -1,4 +1,5 @@
-//! Weave patterns (REFERENCES §6.10), centrelines (§6.11), patches and velvet (§6.12).
+//! Weave patterns (docs/references.md §6.10), centrelines (§6.11), patches and velvet
+//! (§6.12).
 
 use velour::fabric::{
     generate_patch, FabricError, FibreKind, PileParams, TwillDirection, WeaveParams, WeavePattern,

@@ -1,6 +1,6 @@
-//! The homogeneous free-flight sampler with one-sample MIS over RGB channels (REFERENCES §4.6)
-//! is unbiased: per channel, E[escape weight] = e^{-σ_t L} and the scattering weights integrate
-//! to the single-scattering albedo times the collision probability.
+//! The homogeneous free-flight sampler with one-sample MIS over RGB channels
+//! (docs/references.md §4.6) is unbiased: per channel, E[escape weight] = e^{-σ_t L} and the
+//! scattering weights integrate to the single-scattering albedo times the collision probability.
 
 use velour::medium::{
     multiple_scattering_albedo, single_scattering_albedo_from_multiple, Coefficients,
@@ -139,7 +139,8 @@ fn van_de_hulst_inversion_round_trips() {
         assert!(alpha >= last);
         last = alpha;
     }
-    // Published sample values (REFERENCES §1.2: vdH and Chiang agree to ~0.002 for A ≤ 0.9).
+    // Published sample values (docs/references.md §1.2: van de Hulst and Chiang agree to about
+    // 0.002 for A ≤ 0.9).
     assert!((single_scattering_albedo_from_multiple(0.5, 0.0) - 0.9123).abs() < 5e-3);
     assert!((single_scattering_albedo_from_multiple(0.8, 0.0) - 0.9901).abs() < 3e-3);
 }

@@ -177,7 +177,8 @@ fn sample_value_and_pdf_agree_with_eval() {
 
 #[test]
 fn sampled_cosine_is_accurate_near_the_peak() {
-    // Compare 1 - μ of the stable sampler with the f64 textbook inversion (REFERENCES §2.3).
+    // Compare 1 - μ of the stable sampler with the f64 textbook inversion
+    // (docs/references.md §2.3).
     for &g in &[0.99f32, -0.99, 0.5, -0.5, 0.0] {
         let ph = PhaseFunction::henyey_greenstein(g).unwrap();
         let wo = -Vec3::Z; // propagation along +z: μ = wi.z

@@ -325,12 +325,12 @@ fn absorbing_sphere_matches_beer_lambert() {
     absorbing_sweep(&SCALES[1..]);
 }
 
-/// Fails: at scene scale 1e-3 the chord through the medium is short by the absolute ray offset
-/// of `math::offset_ray_origin` near the origin (1/65536 ≈ 1.5e-5 along the normal when every
-/// coordinate is below 1/32): 0.76 % of a 2e-3 chord, so e^{−σ 2R} is overestimated (σ_a = 1e3:
-/// 0.1374 instead of 0.1353). See the report of issue 6 for the proposed fix.
+/// Beer–Lambert through an absorbing sphere at scene scale 1e-3, near the origin: the offset
+/// that `math::offset_ray_origin` gives rays leaving the surface must not shorten the chord
+/// noticeably. (With a fixed offset of 1/65536 for coordinates below 1/32 the chord of a 2e-3
+/// sphere lost 0.76 % and σ_a = 1e3 gave 0.1374 instead of 0.1353; the fixed offset is now
+/// 2⁻²⁴, used only below 2⁻¹⁴.)
 #[test]
-
 fn absorbing_sphere_matches_beer_lambert_at_millimetre_scale() {
     absorbing_sweep(&SCALES[..1]);
 }
@@ -487,14 +487,13 @@ fn lambertian_sphere_top_returns_its_reflectance() {
     }
 }
 
-/// Fails: a lambertian sphere of radius 1000 (the shipped scenes' ground: `center = [0,
-/// -1000.65, 0]`, `radius = 1000`) renders at 0.28–0.37 instead of 0.5 under a white
-/// environment: rays leaving the surface re-hit it. The hit point `center + n·radius` carries
-/// an absolute error of ~ulp(1000) = 6e-5, while `offset_ray_origin` offsets by 256 ulps of the
-/// hit point's own coordinates (~1.5e-5 at |y| = 0.6), so the new origin can lie inside the
-/// sphere. See the report of issue 6 for the proposed fix.
+/// A lambertian sphere of radius 1000 (the shipped scenes' ground: `center = [0, -1000.65, 0]`,
+/// `radius = 1000`) returns its reflectance 0.5 under a white environment at the top, where
+/// the surface passes near the origin. The hit point `center + n·radius` carries an absolute
+/// error of about ulp(1000) = 6e-5, far more than 256 ulps of its own small coordinates, so
+/// rays leaving it must start beyond the hit's error bound (`Hit::spawn_origin`); before they
+/// did, they re-hit the sphere and it rendered at 0.28–0.37.
 #[test]
-
 fn large_lambertian_sphere_top_returns_its_reflectance() {
     for (radius, drop) in [(1000.0, 0.0), (1000.0, 0.6), (1000.0, 0.65)] {
         let (m, se) = lambertian_ground_mean(radius, drop);

@@ -454,7 +454,6 @@ fn tracking_estimators_are_finite_and_unbiased_on_extreme_segments() {
 /// Far from the ray origin, a free-flight step much smaller than the spacing of f32 values
 /// cannot advance `t`: with an empty region under a large majorant, tracking must still end.
 #[test]
-
 fn tracking_terminates_far_from_the_origin_under_a_large_majorant() {
     let coeff = DensityCoefficients::new(Rgb::splat(1e6), Rgb::splat(5e5));
     let seg = MajorantSegment {
