@@ -1,6 +1,6 @@
 //! Light sources: constant and lat-long environment maps, distant lights with an angular
 //! radius (sun-like discs), and spherical area lights. Every light can be sampled from a
-//! reference point and evaluated for MIS (REFERENCES §9; Veach 1997).
+//! reference point and evaluated for MIS (docs/references.md §9; Veach 1997).
 
 use crate::image_io::LatLongMap;
 use crate::math::{Frame, Vec2, Vec3, PI};

@@ -11,7 +11,7 @@ pub const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 pub const INV_4PI: f32 = 0.25 * std::f32::consts::FRAC_1_PI;
 
 /// A ray `o + t d`. `d` is always unit length so that `t` is a world distance
-/// (media coefficients are per unit world length; REFERENCES §0).
+/// (media coefficients are per unit world length; docs/references.md §0).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
     /// Origin (world space).

@@ -1,14 +1,14 @@
 //! Phase functions of participating media: single and double Henyey–Greenstein.
 //!
-//! Convention (REFERENCES §0, §2): `wo` and `wi` both point AWAY from the scattering point
+//! Convention (docs/references.md §0, §2): `wo` and `wi` both point AWAY from the scattering point
 //! (pbrt convention). The photon propagates along `-wo` before the event and along `wi` after
 //! it, so the scattering cosine is `μ = (-wo)·wi` and forward scattering (g > 0) means
-//! `wi ≈ -wo`. All evaluation and sampling use the cancellation-free forms of REFERENCES
-//! §2.2–§2.3, accurate to a few ulp for |g| up to 1 − 1e-6.
+//! `wi ≈ -wo`. All evaluation and sampling use the cancellation-free forms of
+//! docs/references.md §2.2–§2.3, accurate to a few ulp for |g| up to 1 − 1e-6.
 
 use crate::math::{Frame, Vec2, Vec3, INV_4PI, PI};
 
-/// Largest |g| used: anisotropy is clamped to ±0.99 (pbrt's choice, REFERENCES §2.5). Beyond
+/// Largest |g| used: anisotropy is clamped to ±0.99 (pbrt's choice, docs/references.md §2.5). Beyond
 /// it the lobe is so narrow that NEE with MIS fireflies; the clamped value is used for `eval`,
 /// `pdf`, `sample` and `mean_cosine` alike.
 pub const MAX_ABS_G: f32 = 0.99;
@@ -36,7 +36,7 @@ pub enum PhaseFunction {
         /// Mean cosine (anisotropy).
         g: f32,
     },
-    /// Mixture `w·HG(g1) + (1−w)·HG(g2)` (REFERENCES §2.4).
+    /// Mixture `w·HG(g1) + (1−w)·HG(g2)` (docs/references.md §2.4).
     DoubleHenyeyGreenstein {
         /// Anisotropy of the first lobe.
         g1: f32,
@@ -76,7 +76,7 @@ fn validate_g(param: &'static str, g: f32) -> Result<f32, PhaseError> {
     Ok(g.clamp(-MAX_ABS_G, MAX_ABS_G))
 }
 
-/// HG value from `a = 1 − μ` and `b = 1 + μ` (REFERENCES §2.2).
+/// HG value from `a = 1 − μ` and `b = 1 + μ` (docs/references.md §2.2).
 fn hg_from_ab(g: f32, a: f32, b: f32) -> f32 {
     let delta = if g >= 0.0 {
         (1.0 - g) * (1.0 - g) + 2.0 * g * a
@@ -107,7 +107,7 @@ pub fn henyey_greenstein_mu(g: f32, mu: f32) -> f32 {
     hg_from_ab(g, 1.0 - mu, 1.0 + mu)
 }
 
-/// Samples HG by exact inversion in the cancellation-free form of REFERENCES §2.3; returns
+/// Samples HG by exact inversion in the cancellation-free form of docs/references.md §2.3; returns
 /// the propagation direction after scattering, given the direction before (`w_in`).
 fn sample_hg(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
     let xi = u.x.clamp(0.0, 1.0);
@@ -134,7 +134,7 @@ fn sample_hg(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
 
 impl PhaseFunction {
     /// Henyey–Greenstein with mean cosine `g` ∈ [−1, 1]; NaN or |g| > 1 is an error, and |g|
-    /// is clamped to [`MAX_ABS_G`] = 0.99 (REFERENCES §2.5).
+    /// is clamped to [`MAX_ABS_G`] = 0.99 (docs/references.md §2.5).
     pub fn henyey_greenstein(g: f32) -> Result<Self, PhaseError> {
         Ok(PhaseFunction::HenyeyGreenstein {
             g: validate_g("g", g)?,

@@ -2,7 +2,7 @@
 
 use crate::spectrum::Rgb;
 
-/// Unpolarised Fresnel reflectance of a dielectric interface (REFERENCES §3.1).
+/// Unpolarised Fresnel reflectance of a dielectric interface (docs/references.md §3.1).
 ///
 /// `cos_i` is the cosine between the incident direction and the (micro)normal, positive when
 /// the incident direction is on the side the normal points to; `eta = η_other / η_normal-side`

@@ -11,7 +11,7 @@ use super::special::{beckmann_two_lambda, erf, erf_inv, INV_SQRT_PI};
 use super::MicrofacetDistribution;
 
 /// Below this `alpha` a microfacet lobe is treated as perfectly smooth (a delta lobe), as in
-/// pbrt-v4's "effectively smooth" test (REFERENCES §3.8, §8).
+/// pbrt-v4's "effectively smooth" test (docs/references.md §3.8, §8).
 pub const SMOOTH_ALPHA: f32 = 1e-3;
 
 /// An isotropic microfacet distribution with width `alpha` (GGX: α of Walter et al. 2007;
@@ -47,7 +47,7 @@ impl Microfacet {
     }
 
     /// Normal distribution function D(m) (1/sr, projected: ∫ D(m) m.z dm = 1). Zero for
-    /// `m.z <= 0`. GGX in the overflow-free `x, y, z` form (REFERENCES §3.2); Beckmann §3.3.
+    /// `m.z <= 0`. GGX in the overflow-free `x, y, z` form (docs/references.md §3.2); Beckmann §3.3.
     #[must_use]
     pub fn d(&self, m: Vec3) -> f32 {
         if !(m.z > 0.0) {
@@ -78,7 +78,7 @@ impl Microfacet {
         }
     }
 
-    /// Smith Λ(w) (REFERENCES §3.2/§3.3); `+∞` at grazing `w.z = 0`. Symmetric in `w.z`.
+    /// Smith Λ(w) (docs/references.md §3.2/§3.3); `+∞` at grazing `w.z = 0`. Symmetric in `w.z`.
     #[must_use]
     pub fn lambda(&self, w: Vec3) -> f32 {
         let z2 = w.z * w.z;
@@ -144,7 +144,7 @@ impl Microfacet {
     /// GGX: spherical-cap sampling of the stretched configuration (Dupuy & Benyoub 2023,
     /// "Sampling Visible GGX Normals with Spherical Caps"; same distribution as Heitz 2018).
     /// Beckmann: Heitz & d'Eon 2014 in slope space, with the marginal CDF inverted by a
-    /// bracketed Newton iteration in `erf` space (REFERENCES §3.7).
+    /// bracketed Newton iteration in `erf` space (docs/references.md §3.7).
     #[must_use]
     pub fn sample_visible(&self, w: Vec3, u: Vec2) -> Vec3 {
         let w = if w.z < 0.0 { -w } else { w };

@@ -1,12 +1,12 @@
 //! Surface scattering: smooth and rough dielectrics (GGX / Beckmann, Walter et al. 2007),
 //! diffuse transmission, Lambertian, rough conductors, and an optional specular coat.
 //!
-//! Conventions (REFERENCES §0, §3): every direction is a unit vector in the LOCAL shading
+//! Conventions (docs/references.md §0, §3): every direction is a unit vector in the LOCAL shading
 //! frame, +z is the shading normal and points to the OUTSIDE of the object, and `wo`, `wi`
 //! both point away from the surface (`wo` towards the camera-side vertex, `wi` towards the
 //! light side). `wo.z < 0` means the camera-side vertex is inside the object. [`Surface::eval`]
 //! returns `f` in 1/sr without the cosine, in RADIANCE transport mode: rough and smooth
-//! transmission carry the `1/η'²` radiance scaling (REFERENCES §3.5, §3.8), where
+//! transmission carry the `1/η'²` radiance scaling (docs/references.md §3.5, §3.8), where
 //! `η' = η_{wi side}/η_{wo side}`.
 //!
 //! Using a [`Surface`] from an integrator: build a [`crate::math::Frame`] around the shading
@@ -17,7 +17,7 @@
 //! samples exactly, mixture of coat and base included). Surfaces with [`Surface::is_delta`]
 //! need no light sampling at all.
 //!
-//! Numerical guards (REFERENCES §8): directions with `|cos θ| < 1e-7` and Jacobian
+//! Numerical guards (docs/references.md §8): directions with `|cos θ| < 1e-7` and Jacobian
 //! denominators below `1e-7` give zero `f`, zero pdf and no sample; microfacet lobes with
 //! `α < 1e-3` become delta lobes; no function returns NaN or infinity.
 
@@ -103,7 +103,7 @@ pub enum BaseLobe {
         tint: Rgb,
     },
     /// Lambertian transmission `T/π` to the opposite side plus Lambertian reflection `R/π`
-    /// (REFERENCES §3.9); reciprocal, no η² scaling.
+    /// (docs/references.md §3.9); reciprocal, no η² scaling.
     DiffuseTransmission {
         /// Diffuse reflectance R.
         reflectance: Rgb,
@@ -209,7 +209,7 @@ fn finite_rgb(c: Rgb) -> Rgb {
     c.map(finite_or_zero)
 }
 
-/// Geometry of a (generalised) half vector for a dielectric pair (wo, wi) (REFERENCES §3.4).
+/// Geometry of a (generalised) half vector for a dielectric pair (wo, wi) (docs/references.md §3.4).
 struct HalfGeometry {
     wm: Vec3,
     reflect: bool,
@@ -312,7 +312,7 @@ fn dielectric_f(mf: &Microfacet, tint: Rgb, eta: f32, wo: Vec3, wi: Vec3, h: &Ha
     }
 }
 
-/// Rough dielectric pdf for a valid half-vector geometry (REFERENCES §3.8).
+/// Rough dielectric pdf for a valid half-vector geometry (docs/references.md §3.8).
 fn dielectric_pdf(mf: &Microfacet, eta: f32, wo: Vec3, h: &HalfGeometry) -> f32 {
     let f = fresnel_dielectric(h.wo_m, eta);
     let dv = mf.visible_pdf(wo, h.wm);
@@ -756,7 +756,7 @@ impl Coat {
 }
 
 impl Surface {
-    /// A dielectric interface (REFERENCES §3.1–§3.8).
+    /// A dielectric interface (docs/references.md §3.1–§3.8).
     ///
     /// * `eta = n_inside / n_outside` for the two media meeting at this boundary (may be < 1
     ///   for nested media); must be finite and > 0. `eta == 1` exactly is an index-matched
@@ -786,7 +786,7 @@ impl Surface {
     }
 
     /// Diffuse transmission `T/π` (opposite side) plus diffuse reflection `R/π` (same side)
-    /// (REFERENCES §3.9). Each channel of R and T in [0, 1] with R + T ≤ 1.
+    /// (docs/references.md §3.9). Each channel of R and T in [0, 1] with R + T ≤ 1.
     pub fn diffuse_transmission(
         reflectance: Rgb,
         transmittance: Rgb,

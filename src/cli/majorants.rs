@@ -1,7 +1,7 @@
 //! `velour majorants FILE.vdb|SCENE.toml [--json]`: how tight and how safe the majorant bounds
 //! are, per pyramid level and for the single global majorant.
 //!
-//! Figures per level (REFERENCES §4.8; DESIGN.md):
+//! Figures per level (docs/references.md §4.8; docs/architecture.md, "The majorant pyramid"):
 //! - `cells`, `occupied`, `homogeneous`: cells of the level, those with non-zero bounds, and
 //!   those whose min equals max (sampled in closed form, no lookups);
 //! - `tightness`: ∫ density dt / ∫ majorant dt along random rays through the volume (1 = exact);

@@ -1,13 +1,13 @@
-//! Fibre scattering for fibre volumes (REFERENCES §7).
+//! Fibre scattering for fibre volumes (docs/references.md §7).
 //!
 //! [`FibrePhase`]: the hair/fibre model of Chiang, Bitterli, Tappan and Burley 2016, "A
 //! Practical and Controllable Hair and Fur Model for Production Path Tracing" (CGF 35(2))
 //! — lobes R, TT, TRT and the residual `p >= 3` lobe, each switchable — mixed with the
-//! far field of a Lambertian cylinder (REFERENCES §7.2), used as the phase function of a
+//! far field of a Lambertian cylinder (docs/references.md §7.2), used as the phase function of a
 //! fibre volume around the local tangent `t` (§7.3; course notes §3.2: "a combination of R,
 //! TT and diffuse lobes").
 //!
-//! Conventions: `wo` and `wi` both point away from the scattering point (REFERENCES §0(b));
+//! Conventions: `wo` and `wi` both point away from the scattering point (docs/references.md §0(b));
 //! `wo` is towards the previous path vertex (the viewer). Values are densities per unit
 //! solid angle of `wi`: `∫ eval(wo, wi) dwi` is the (RGB) single-scattering albedo of the
 //! collision, `<= 1`, and exactly 1 for `σ_a = 0`, all lobes on and a white diffuse lobe.
@@ -169,7 +169,7 @@ fn log_i0(x: f32) -> f32 {
     }
 }
 
-/// The longitudinal lobe `M_p` (d'Eon et al. 2011 form, REFERENCES §7.1) for variance `v`:
+/// The longitudinal lobe `M_p` (d'Eon et al. 2011 form, docs/references.md §7.1) for variance `v`:
 /// `csch(1/v)/(2v) · exp(−sinθ_i sinθ_o/v) · I₀(cosθ_i cosθ_o/v)`, log-domain for
 /// `v <= 0.1`. Normalised: `∫ M_p cosθ_i dθ_i = 1`.
 #[must_use]
@@ -241,7 +241,7 @@ fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
 }
 
 /// The Lambertian-cylinder azimuthal lobe `N_d(Δ) = ((π − |Δ|)cos|Δ| + sin|Δ|)/8`
-/// (REFERENCES §7.2; `Δ = 0` is back-scattering).
+/// (docs/references.md §7.2; `Δ = 0` is back-scattering).
 #[must_use]
 pub fn diffuse_azimuthal(delta: f32) -> f32 {
     let d = wrap(delta).abs();
@@ -249,7 +249,7 @@ pub fn diffuse_azimuthal(delta: f32) -> f32 {
 }
 
 /// Projected width of a unit fibre seen from `w`: `sin∠(w, t) = √(1 − (w·t)²)`; fibre-volume
-/// extinction is `λ D · extinction_scale` (REFERENCES §7.3).
+/// extinction is `λ D · extinction_scale` (docs/references.md §7.3).
 #[must_use]
 pub fn extinction_scale(w: Vec3, tangent: Vec3) -> f32 {
     let c = w.dot(tangent);
@@ -585,7 +585,7 @@ impl FibrePhase {
             Vec3::new(cos_i * phi_i.cos(), cos_i * phi_i.sin(), sin_i)
         } else {
             // Lambertian cylinder: surface normal with projected-width weighting, then a
-            // cosine lobe about it (REFERENCES §7.2).
+            // cosine lobe about it (docs/references.md §7.2).
             let gamma = o.phi + (2.0 * u[3] - 1.0).clamp(-1.0, 1.0).asin();
             let n = Vec3::new(gamma.cos(), gamma.sin(), 0.0);
             let c = crate::sampling::sample_cosine_hemisphere(crate::math::Vec2::new(u[1], u[2]));
@@ -619,7 +619,7 @@ pub struct SggxSample {
 }
 
 /// SGGX specular microflake phase function for fibres (Heitz, Dupuy, Crassin, Dachsbacher
-/// 2015; REFERENCES §7.4) with `S = σ² t tᵀ + (I − t tᵀ)`: `σ → 0` gives ideal fibres whose
+/// 2015; docs/references.md §7.4) with `S = σ² t tᵀ + (I − t tᵀ)`: `σ → 0` gives ideal fibres whose
 /// projected area is `sin∠(ω, t)`. The phase function is `D(ω_h) / (4 σ(ω_o))` and sampling
 /// is by visible normals; the weight is the flake albedo.
 #[derive(Clone, Copy, Debug, PartialEq)]

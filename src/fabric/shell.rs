@@ -450,7 +450,7 @@ impl FabricShell {
         self.patch.accessor(TANGENT)
     }
 
-    /// Fibre volume fraction at `p` times `sin∠(dir, tangent)` (unit `dir`; REFERENCES §7.3):
+    /// Fibre volume fraction at `p` times `sin∠(dir, tangent)` (unit `dir`; docs/references.md §7.3):
     /// the density seen by light travelling along `dir`, with the tangent of the nearest voxel.
     #[inline]
     pub fn projected_density(

@@ -1,4 +1,4 @@
-//! Weave patterns, warp/weft centrelines and periodic fabric patches (REFERENCES §6.10–6.12;
+//! Weave patterns, warp/weft centrelines and periodic fabric patches (docs/references.md §6.10–6.12;
 //! course notes §3.4: plain, twill, basket and satin weaves, velvet, a flyaway control and
 //! separate warp/weft albedo).
 //!
@@ -21,13 +21,13 @@ pub const MAX_YARNS_PER_DIRECTION: u32 = 4096;
 /// Direction of a twill's diagonal.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum TwillDirection {
-    /// The float block shifts by +1 warp per weft (the matrices of REFERENCES §6.10).
+    /// The float block shifts by +1 warp per weft (the matrices of docs/references.md §6.10).
     Z,
     /// The float block shifts by −1 warp per weft.
     S,
 }
 
-/// A weave pattern (REFERENCES §6.10). `W[i][j] = 1` ⇔ warp `j` is over weft `i`.
+/// A weave pattern (docs/references.md §6.10). `W[i][j] = 1` ⇔ warp `j` is over weft `i`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum WeavePattern {
     /// Plain (1/1) weave: `[1 0; 0 1]`.
@@ -43,7 +43,7 @@ pub enum WeavePattern {
         direction: TwillDirection,
     },
     /// Basket weave (hopsack) of `size × size` blocks (`size >= 2`; 2 gives the 4×4 matrix
-    /// of REFERENCES §6.10).
+    /// of docs/references.md §6.10).
     Basket {
         /// Block size in yarns, `>= 2`.
         size: u32,
@@ -301,7 +301,7 @@ impl WeaveMatrix {
     }
 }
 
-/// Velvet pile parameters (REFERENCES §6.12, an engineering model with no fitted values).
+/// Velvet pile parameters (docs/references.md §6.12, an engineering model with no fitted values).
 /// Lengths in the yarn's unit (cm for the presets), angles in radians.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -413,7 +413,7 @@ pub struct WeaveParams {
     pub warp_height: f32,
     /// `h_f`, height of a weft centreline at a crossing (length, `>= 0`). Validation
     /// requires `h_w + h_f >= r_w + r_f` (the envelope radii of the two yarns), i.e.
-    /// `(t_w + t_f)/2` with thicknesses `t = 2r` (REFERENCES §6.11).
+    /// `(t_w + t_f)/2` with thicknesses `t = 2r` (docs/references.md §6.11).
     pub weft_height: f32,
     /// Flyaway control (course notes §3.4), in `[0, 100]`: multiplies both flyaway densities
     /// (`hair_density`, `loop_density`) of both yarns. 1 = as fitted (100 %), 0 = none.
@@ -571,7 +571,7 @@ impl WeaveParams {
         ))
     }
 
-    /// Height of warp `j`'s centreline at `y` (REFERENCES §6.11): `±h_w` at the crossings
+    /// Height of warp `j`'s centreline at `y` (docs/references.md §6.11): `±h_w` at the crossings
     /// `y_i = (i + ½)p_y` (`+` where the warp is over), cosine ease in between. Periodic.
     #[must_use]
     pub fn warp_height_at(&self, m: &WeaveMatrix, j: i64, y: f32) -> f32 {
@@ -762,7 +762,7 @@ fn snap(y: &YarnParams, len: f32) -> YarnParams {
 /// Generates a periodic woven patch: warp and weft yarns on their centrelines (each yarn
 /// seeded from `seed` and its id), plus velvet pile tufts when a pile is active.
 ///
-/// Velvet (REFERENCES §6.12): one V-tuft per weft and per `pile.every`-th warp gap, anchored
+/// Velvet (docs/references.md §6.12): one V-tuft per weft and per `pile.every`-th warp gap, anchored
 /// at `((j + 1)p_x, y_i)` with its two legs at `y_i ± r_f` (either side of the binding weft).
 /// Each leg has `fibres_per_leg` fibres starting at `z = 0` inside a disc of radius
 /// `tuft_radius`; a fibre of length `H(1 + v(2u − 1))` leaves along the cloth normal tilted by

@@ -82,7 +82,7 @@ impl Twist {
     }
 }
 
-/// All parameters of the procedural yarn (REFERENCES §6.1–6.8; Zhao et al. 2016 Table 2).
+/// All parameters of the procedural yarn (docs/references.md §6.1–6.8; Zhao et al. 2016 Table 2).
 ///
 /// Lengths in the scene unit (presets: cm), densities per unit length, angles in radians;
 /// "normalised" quantities are relative to the ply's unit cross-section before the
@@ -169,7 +169,7 @@ pub const PRESET_NAMES: &[&str] = &[
     "silk",
 ];
 
-/// One row of the fitted-parameter table (REFERENCES §6.8), in cm.
+/// One row of the fitted-parameter table (docs/references.md §6.8), in cm.
 struct PresetRow {
     k: u32,
     m: u32,
@@ -215,7 +215,7 @@ fn preset_row(name: &str) -> Option<PresetRow> {
 }
 
 impl YarnParams {
-    /// A named preset from the published fits (REFERENCES §6.8), in **centimetres**. Names:
+    /// A named preset from the published fits (docs/references.md §6.8), in **centimetres**. Names:
     /// [`PRESET_NAMES`] (case-insensitive). The fibre radius is not part of the fits (see
     /// [`YarnParams::fibre_radius`]).
     pub fn preset(name: &str) -> Result<YarnParams, FabricError> {
