@@ -2,6 +2,9 @@
 //! is unbiased: per channel, E[escape weight] = e^{-σ_t L} and the scattering weights integrate
 //! to the single-scattering albedo times the collision probability.
 
+mod common;
+
+use common::stats::{assert_rgb_agrees, estimate_rgb, Estimate};
 use velour::medium::{
     channel_probabilities, multiple_scattering_albedo, sample_free_flight,
     single_scattering_albedo_from_multiple, Coefficients, FreeFlight,
@@ -9,39 +12,14 @@ use velour::medium::{
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
 
-/// Mean and standard error of a per-channel estimator.
-fn estimate(n: usize, mut f: impl FnMut(&mut Rng) -> Rgb) -> (Rgb, Rgb) {
-    let mut rng = Rng::new(7, 3);
-    let mut sum = [0.0f64; 3];
-    let mut sum2 = [0.0f64; 3];
-    for _ in 0..n {
-        let v = f(&mut rng);
-        for c in 0..3 {
-            sum[c] += v[c] as f64;
-            sum2[c] += (v[c] as f64) * (v[c] as f64);
-        }
-    }
-    let mut mean = Rgb::ZERO;
-    let mut se = Rgb::ZERO;
-    for c in 0..3 {
-        let m = sum[c] / n as f64;
-        let var = (sum2[c] / n as f64 - m * m).max(0.0);
-        mean[c] = m as f32;
-        se[c] = (var / n as f64).sqrt() as f32;
-    }
-    (mean, se)
+/// Mean and standard error of a per-channel estimator, from the same seed each time.
+fn estimate(n: usize, f: impl FnMut(&mut Rng) -> Rgb) -> [Estimate; 3] {
+    estimate_rgb(n, &mut Rng::new(7, 3), f)
 }
 
-fn assert_z(mean: Rgb, se: Rgb, expected: Rgb, what: &str) {
-    for c in 0..3 {
-        let tol = 4.5 * se[c] + 1e-6;
-        assert!(
-            (mean[c] - expected[c]).abs() <= tol,
-            "{what}: channel {c}: {} vs expected {} (4.5 sigma = {tol})",
-            mean[c],
-            expected[c]
-        );
-    }
+/// Every channel within 4.5 standard errors (plus 1e-6) of `expected`.
+fn assert_z(estimates: &[Estimate; 3], expected: Rgb, what: &str) {
+    assert_rgb_agrees(estimates, expected, 4.5, 1e-6, what);
 }
 
 #[test]
@@ -52,14 +30,14 @@ fn escape_weight_is_unbiased_transmittance_for_chromatic_media() {
     };
     for beta in [Rgb::ONE, Rgb::new(1.0, 0.1, 0.01), Rgb::new(0.0, 0.0, 1.0)] {
         let l = 0.7f32;
-        let (mean, se) = estimate(400_000, |rng| {
+        let mean = estimate(400_000, |rng| {
             match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
                 FreeFlight::Escape { weight } => weight,
                 FreeFlight::Scatter { .. } => Rgb::ZERO,
             }
         });
         let expected = coeff.sigma_t().map(|s| (-s * l).exp());
-        assert_z(mean, se, expected, "escape");
+        assert_z(&mean, expected, "escape");
     }
 }
 
@@ -72,7 +50,7 @@ fn scatter_weights_integrate_to_albedo_times_collision_probability() {
     };
     let l = 0.9f32;
     let beta = Rgb::new(0.3, 1.0, 0.6);
-    let (mean, se) = estimate(400_000, |rng| {
+    let mean = estimate(400_000, |rng| {
         match sample_free_flight(&coeff, beta, l, rng.next_f32(), rng.next_f32()) {
             FreeFlight::Scatter { weight, t } => {
                 assert!(t >= 0.0 && t < l);
@@ -83,7 +61,7 @@ fn scatter_weights_integrate_to_albedo_times_collision_probability() {
     });
     let st = coeff.sigma_t();
     let expected = Rgb([0, 1, 2].map(|c| coeff.sigma_s[c] / st[c] * (1.0 - (-st[c] * l).exp())));
-    assert_z(mean, se, expected, "scatter");
+    assert_z(&mean, expected, "scatter");
 }
 
 #[test]

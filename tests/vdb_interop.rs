@@ -8,6 +8,7 @@ mod common;
 
 use common::external::{self, OPENVDB_TOOLS_PACKAGE};
 use common::files::{repo_path, vdb_fixture, TempDir};
+use common::vdb_figures::{assert_close, assert_index_to_world, components, counts, number, vec3};
 use glam::{DAffine3, DMat3, DVec3, IVec3, Vec3};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -62,22 +63,6 @@ fn openvdb_stats(dir: &Path, files: &[PathBuf]) -> Vec<Value> {
         .collect()
 }
 
-fn num(v: &Value) -> f64 {
-    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
-}
-
-fn comps(v: &Value) -> Vec<f64> {
-    match v.as_array() {
-        Some(a) => a.iter().map(num).collect(),
-        None => vec![num(v)],
-    }
-}
-
-fn close(a: f64, b: f64, rel: f64, what: &str) {
-    let tol = rel * a.abs().max(b.abs());
-    assert!((a - b).abs() <= tol, "{what}: ours {a} vs OpenVDB {b}");
-}
-
 /// Our grid against OpenVDB's figures for the same file. `values` compares the probes.
 fn compare(t: &Value, g: &VdbGrid, s: &GridStats, what: &str) {
     let w = |k: &str| format!("{what} [{}] {k}", g.name);
@@ -107,31 +92,20 @@ fn compare(t: &Value, g: &VdbGrid, s: &GridStats, what: &str) {
         "{}",
         w("leaf count")
     );
-    let by: Vec<u64> = t["active_voxels_by_depth"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap())
-        .collect();
-    assert_eq!(by, s.active_voxels_by_level.to_vec(), "{}", w("by depth"));
+    assert_eq!(
+        counts(&t["active_voxels_by_depth"]),
+        s.active_voxels_by_level.to_vec(),
+        "{}",
+        w("by depth")
+    );
     let bb = t["active_bbox"].as_array().unwrap();
     let (lo, hi) = s.active_bbox.expect("bbox");
-    assert_eq!(
-        comps(&bb[0]),
-        lo.as_dvec3().to_array().to_vec(),
-        "{}",
-        w("bbox")
-    );
-    assert_eq!(
-        comps(&bb[1]),
-        hi.as_dvec3().to_array().to_vec(),
-        "{}",
-        w("bbox")
-    );
+    assert_eq!(vec3(&bb[0]), lo.as_dvec3().to_array(), "{}", w("bbox"));
+    assert_eq!(vec3(&bb[1]), hi.as_dvec3().to_array(), "{}", w("bbox"));
     let n = s.components;
     let bg = g.grid.background_vec3(0);
     assert_eq!(
-        comps(&t["background"]),
+        components(&t["background"]),
         [bg.x, bg.y, bg.z][..n]
             .iter()
             .map(|&x| f64::from(x))
@@ -139,14 +113,18 @@ fn compare(t: &Value, g: &VdbGrid, s: &GridStats, what: &str) {
         "{}",
         w("background")
     );
-    let (mn, mx, sm) = (comps(&t["min"]), comps(&t["max"]), comps(&t["sum"]));
+    let (mn, mx, sm) = (
+        components(&t["min"]),
+        components(&t["max"]),
+        components(&t["sum"]),
+    );
     for k in 0..n {
-        close(s.min[k], mn[k], 1e-12, &w("min"));
-        close(s.max[k], mx[k], 1e-12, &w("max"));
-        close(s.sum[k], sm[k], 1e-6, &w("sum"));
+        assert_close(s.min[k], mn[k], 1e-12, &w("min"));
+        assert_close(s.max[k], mx[k], 1e-12, &w("max"));
+        assert_close(s.sum[k], sm[k], 1e-6, &w("sum"));
     }
     if n == 1 {
-        let m = comps(&t["moment"]);
+        let m = components(&t["moment"]);
         let ext = lo.abs().max(hi.abs()).max_element() as f64 + 1.0;
         for k in 0..3 {
             assert!(
@@ -157,31 +135,15 @@ fn compare(t: &Value, g: &VdbGrid, s: &GridStats, what: &str) {
             );
         }
     } else {
-        close(s.sum_len, num(&t["sum_len"]), 1e-6, &w("sum_len"));
+        assert_close(s.sum_len, number(&t["sum_len"]), 1e-6, &w("sum_len"));
     }
-    let xf = g.grid.index_to_world();
-    for (key, p) in [
-        ("index_to_world_origin", DVec3::ZERO),
-        ("index_to_world_x1", DVec3::X),
-        ("index_to_world_y1", DVec3::Y),
-        ("index_to_world_z1", DVec3::Z),
-    ] {
-        let want = comps(&t[key]);
-        let got = xf.transform_point3(p);
-        for k in 0..3 {
-            assert!(
-                (got[k] - want[k]).abs() <= 1e-9,
-                "{}: {got} vs {want:?}",
-                w(key)
-            );
-        }
-    }
+    assert_index_to_world(t, g.grid.index_to_world(), 1e-9, &w("map"));
     let vals = t["values"].as_array().unwrap();
     let mut acc = g.grid.accessor(0);
     for (c, v) in probe_coords().iter().zip(vals) {
         let ijk = IVec3::from_array(*c);
         let ours = acc.value_vec3(ijk);
-        let want = comps(v);
+        let want = components(v);
         for k in 0..n {
             // Compare as f32: the JSON text of an f32 widened to f64 may parse 1 ulp (f64) off.
             assert_eq!(ours[k], want[k] as f32, "{} at {ijk}", w("value"));
@@ -400,7 +362,7 @@ fn we_read_what_we_write() {
                 let h = |x: f64| f64::from(half::f16::from_f32(x as f32).to_f32());
                 assert_eq!(s.min[c], h(src_stats.min[c]));
                 assert_eq!(s.max[c], h(src_stats.max[c]));
-                close(s.sum[c], src_stats.sum[c], 1e-3, "half sum");
+                assert_close(s.sum[c], src_stats.sum[c], 1e-3, "half sum");
             }
         }
     }

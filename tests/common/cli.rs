@@ -24,6 +24,8 @@ where
 /// What a finished command printed, and how it exited.
 #[derive(Debug)]
 pub struct Captured {
+    /// The command line, for messages.
+    pub command: String,
     /// The exit status.
     pub status: ExitStatus,
     /// Standard output (invalid UTF-8 replaced).
@@ -42,7 +44,8 @@ impl Captured {
     pub fn assert_success(&self) -> &Self {
         assert!(
             self.success(),
-            "command failed ({}); stderr: {}",
+            "{} failed ({}); stderr: {}",
+            self.command,
             self.status,
             self.stderr
         );
@@ -54,19 +57,22 @@ impl Captured {
     pub fn assert_failure_mentioning(&self, needles: &[&str]) -> &Self {
         assert!(
             !self.success(),
-            "command should have failed; stdout: {}",
+            "{} should have failed; stdout: {}",
+            self.command,
             self.stdout
         );
         for n in needles {
             assert!(
                 self.stderr.contains(n),
-                "`{n}` not in stderr: {}",
+                "{}: `{n}` not in stderr: {}",
+                self.command,
                 self.stderr
             );
         }
         assert!(
             !self.stderr.contains("panicked"),
-            "a panic, not an error: {}",
+            "{}: a panic, not an error: {}",
+            self.command,
             self.stderr
         );
         self
@@ -85,6 +91,7 @@ impl Capture for Command {
             .output()
             .unwrap_or_else(|e| panic!("cannot run {self:?}: {e}"));
         Captured {
+            command: format!("{self:?}"),
             status: out.status,
             stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
             stderr: String::from_utf8_lossy(&out.stderr).into_owned(),

@@ -9,6 +9,7 @@
 //! - [`external`]: optional external programs (real OpenVDB) that skip, or fail under
 //!   `VELOUR_REQUIRE_EXTERNAL=1`, when missing.
 //! - [`render`]: rendering inline scene text.
+//! - [`vdb_figures`]: OpenVDB's figures of a grid (JSON) against ours.
 
 // Each test binary compiles every helper but uses only some of them.
 #![allow(dead_code)]
@@ -20,3 +21,4 @@ pub mod files;
 pub mod render;
 pub mod sphere;
 pub mod stats;
+pub mod vdb_figures;

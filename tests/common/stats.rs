@@ -27,6 +27,12 @@ pub fn variance(xs: &[f64]) -> f64 {
     xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (xs.len() as f64 - 1.0)
 }
 
+/// The mean of `xs` and its standard error (see [`Estimate::of`]).
+pub fn mean_and_standard_error(xs: &[f64]) -> (f64, f64) {
+    let e = Estimate::of(xs);
+    (e.mean, e.standard_error)
+}
+
 /// A sample mean with its standard error `√(variance / n)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
@@ -109,6 +115,12 @@ pub fn assert_rgb_agrees(
 /// `(value − expected) / standard_error`.
 pub fn z_score(value: f64, expected: f64, standard_error: f64) -> f64 {
     (value - expected) / standard_error
+}
+
+/// z-score of the difference of two independent estimates:
+/// `(a − b) / √(se_a² + se_b²)`.
+pub fn difference_z_score(a: &Estimate, b: &Estimate) -> f64 {
+    (a.mean - b.mean) / a.standard_error.hypot(b.standard_error)
 }
 
 /// Standard error of a success fraction over `n` Bernoulli trials of probability `p`:
