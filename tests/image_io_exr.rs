@@ -156,8 +156,7 @@ fn good_exr_bytes() -> Vec<u8> {
     let dir = TempDir::new("exr-good");
     let path = dir.join("good.exr");
     noisy_film(9, 5, 3).write_exr(&path).unwrap();
-    let bytes = std::fs::read(&path).unwrap();
-    bytes
+    std::fs::read(&path).unwrap()
 }
 
 #[test]
