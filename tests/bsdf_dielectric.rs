@@ -4,7 +4,8 @@
 
 mod common;
 
-use common::{assert_chi2, chi2_sphere, dir_from_theta_deg, integrate_sphere, SphereBins};
+use common::sphere::{assert_chi2, chi2_sphere, dir_from_theta_deg, integrate_sphere, SphereBins};
+use common::stats::{binomial_standard_error, estimate, Estimate};
 use velour::bsdf::fresnel::fresnel_dielectric;
 use velour::bsdf::{MicrofacetDistribution, Surface};
 use velour::math::{refract, Vec2, Vec3};
@@ -118,7 +119,7 @@ fn pdf_integrates_to_sampling_success_rate() {
                     .filter(|_| s.sample(wo, rng.next_f32(), rng.next_2d()).is_some())
                     .count();
                 let p = ok as f64 / n as f64;
-                let sigma = (p * (1.0 - p) / n as f64).sqrt().max(1e-4);
+                let sigma = binomial_standard_error(p, n).max(1e-4);
                 assert!(
                     i <= 1.0 + 2e-3,
                     "{dist:?} eta={eta} theta={theta}: ∫pdf = {i}"
@@ -179,19 +180,12 @@ fn sample_weight_matches_eval_over_pdf() {
 }
 
 /// Energy albedo from outside/inside: E[weight · η'²] (undoes the radiance η'² scaling).
-fn furnace(s: &Surface, wo: Vec3, n: usize, seed: u64) -> (f64, f64) {
-    let mut rng = Rng::new(seed, 9);
-    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
-    for _ in 0..n {
-        if let Some(x) = s.sample(wo, rng.next_f32(), rng.next_2d()) {
-            let v = (x.weight.average() * x.eta * x.eta) as f64;
-            sum += v;
-            sum2 += v * v;
-        }
-    }
-    let mean = sum / n as f64;
-    let var = (sum2 / n as f64 - mean * mean).max(0.0);
-    (mean, (var / n as f64).sqrt())
+/// A failed sample counts as zero energy.
+fn furnace(s: &Surface, wo: Vec3, n: usize, seed: u64) -> Estimate {
+    estimate(n, &mut Rng::new(seed, 9), |rng| {
+        s.sample(wo, rng.next_f32(), rng.next_2d())
+            .map_or(0.0, |x| (x.weight.average() * x.eta * x.eta) as f64)
+    })
 }
 
 #[test]
@@ -252,7 +246,8 @@ fn rough_dielectric_white_furnace() {
                             wo.z = -wo.z;
                         }
                         seed += 1;
-                        let (m, se) = furnace(&s, wo, n, seed);
+                        let e = furnace(&s, wo, n, seed);
+                        let (m, se) = (e.mean, e.standard_error);
                         assert!(m <= 1.0 + 4.0 * se + 1e-4, "{dist:?} eta={eta} r={rough} theta={theta} inside={inside}: albedo {m} ± {se}");
                         if rough <= 0.1 && theta <= 70.0 {
                             assert!(m >= 0.95, "{dist:?} eta={eta} r={rough} theta={theta} inside={inside}: albedo {m}");

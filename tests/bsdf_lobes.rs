@@ -3,7 +3,8 @@
 
 mod common;
 
-use common::{assert_chi2, chi2_sphere, dir_from_theta_deg, integrate_sphere, SphereBins};
+use common::sphere::{assert_chi2, chi2_sphere, dir_from_theta_deg, integrate_sphere, SphereBins};
+use common::stats::{binomial_standard_error, estimate, z_score};
 use velour::bsdf::fresnel::{fresnel_conductor, fresnel_dielectric};
 use velour::bsdf::{BaseLobe, MicrofacetDistribution, Surface};
 use velour::math::{Vec2, Vec3};
@@ -177,22 +178,18 @@ fn sample_weight_matches_eval_over_pdf() {
 }
 
 /// Mean and standard error of the sampled weight average (the albedo for one `wo`).
+/// A failed sample counts as zero; the standard error is that of the largest channel.
 fn albedo(s: &Surface, wo: Vec3, n: usize, seed: u64) -> (Rgb, f64) {
-    let mut rng = Rng::new(seed, 1);
     let mut sum = Rgb::ZERO;
-    let (mut s1, mut s2) = (0.0f64, 0.0f64);
-    for _ in 0..n {
-        if let Some(x) = s.sample(wo, rng.next_f32(), rng.next_2d()) {
-            let w = x.weight * (x.eta * x.eta);
-            sum += w;
-            let m = w.max_component() as f64;
-            s1 += m;
-            s2 += m * m;
-        }
-    }
-    let mean = s1 / n as f64;
-    let se = ((s2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt();
-    (sum / n as f32, se)
+    let largest = estimate(n, &mut Rng::new(seed, 1), |rng| {
+        let Some(x) = s.sample(wo, rng.next_f32(), rng.next_2d()) else {
+            return 0.0;
+        };
+        let w = x.weight * (x.eta * x.eta);
+        sum += w;
+        w.max_component() as f64
+    });
+    (sum / n as f32, largest.standard_error)
 }
 
 #[test]
@@ -270,7 +267,7 @@ fn diffuse_transmission_sides_and_reciprocity() {
         })
         .count();
     let p = 0.6 / (0.2 + 0.6);
-    let z = (t as f64 / n as f64 - p) / (p * (1.0 - p) / n as f64).sqrt();
+    let z = z_score(t as f64 / n as f64, p, binomial_standard_error(p, n));
     assert!(z.abs() < 4.5, "transmission fraction z = {z}");
     assert!(!Surface::diffuse_transmission(Rgb::splat(0.5), Rgb::ZERO)
         .unwrap()

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{assert_chi2, chi2_sphere, dir_from_theta_deg, integrate_sphere, SphereBins};
+use common::sphere::{assert_chi2, chi2_sphere, dir_from_theta_deg, integrate_sphere, SphereBins};
 use velour::bsdf::microfacet::Microfacet;
 use velour::bsdf::special::{erf, erf_inv, erfc};
 use velour::bsdf::MicrofacetDistribution;

@@ -1,28 +1,21 @@
 //! The `velour render` command end to end: writes an EXR and a PNG, honours the film
 //! overrides, and fails with a clear message and a non-zero exit on bad input.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
-fn velour() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_velour"))
-}
+use common::cli::{run_velour, velour, Capture};
+use common::files::TempDir;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("velour-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
+const SPHERE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
 
 #[test]
 fn renders_the_sphere_scene_to_exr_and_png() {
-    let dir = temp_dir("render");
+    let dir = TempDir::new("cli-render");
     let out = dir.join("skin.exr");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
     let o = velour()
         .args([
             "render",
-            scene,
+            SPHERE,
             "--spp",
             "2",
             "--width",
@@ -37,17 +30,12 @@ fn renders_the_sphere_scene_to_exr_and_png() {
             "-o",
         ])
         .arg(&out)
-        .output()
-        .expect("run velour");
+        .capture();
+    o.assert_success();
     assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        stdout.contains("samples/s") && stdout.contains("rays"),
-        "{stdout}"
+        o.stdout.contains("samples/s") && o.stdout.contains("rays"),
+        "{}",
+        o.stdout
     );
     let img = velour::image_io::read_exr(&out).expect("read back");
     assert_eq!((img.width, img.height), (32, 24));
@@ -71,30 +59,21 @@ fn renders_the_sphere_scene_to_exr_and_png() {
 
 #[test]
 fn bad_scene_fails_with_file_line_and_key() {
-    let dir = temp_dir("bad");
+    let dir = TempDir::new("cli-render-bad");
     let scene = dir.join("bad.toml");
     std::fs::write(
         &scene,
         "[camera]\neye = [0, 0, 4]\nlook_at = [0, 0, 0]\nfvo = 30\n",
     )
     .expect("write");
-    let o = velour()
+    velour()
         .args(["render", "-q"])
         .arg(&scene)
-        .output()
-        .expect("run velour");
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("bad.toml:4") && err.contains("fvo"), "{err}");
+        .capture()
+        .assert_failure_mentioning(&["bad.toml:4", "fvo"]);
 }
 
 #[test]
 fn absurd_overrides_are_refused() {
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
-    let o = velour()
-        .args(["render", scene, "--spp", "0", "-q"])
-        .output()
-        .expect("run velour");
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--spp"));
+    run_velour(["render", SPHERE, "--spp", "0", "-q"]).assert_failure_mentioning(&["--spp"]);
 }

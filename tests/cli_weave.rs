@@ -1,30 +1,14 @@
 //! `velour weave` end to end: writes density, tangent and id grids (and mips, OBJ, preview),
 //! prints statistics, and fails with a message naming the flag and its range on bad input.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn velour() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_velour"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("velour-cli-weave-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
-
-fn weave(args: &[&str]) -> Output {
-    velour()
-        .arg("weave")
-        .args(args)
-        .output()
-        .expect("run velour")
-}
+use common::cli::{run_velour, velour, Capture};
+use common::files::TempDir;
 
 #[test]
 fn writes_vdb_with_mips_obj_and_stats() {
-    let dir = temp_dir("ok");
+    let dir = TempDir::new("cli-weave");
     let vdb = dir.join("patch.vdb");
     let obj = dir.join("patch.obj");
     let o = velour()
@@ -48,14 +32,9 @@ fn writes_vdb_with_mips_obj_and_stats() {
         .arg(&vdb)
         .arg("--obj")
         .arg(&obj)
-        .output()
-        .expect("run velour");
-    assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&o.stdout);
+        .capture();
+    o.assert_success();
+    let stdout = &o.stdout;
     for key in [
         "fibres",
         "fibre volume",
@@ -108,7 +87,7 @@ fn writes_vdb_with_mips_obj_and_stats() {
 
 #[test]
 fn half_density_and_preview() {
-    let dir = temp_dir("half");
+    let dir = TempDir::new("cli-weave-half");
     let vdb = dir.join("half.vdb");
     let png = dir.join("swatch.png");
     let o = velour()
@@ -134,13 +113,8 @@ fn half_density_and_preview() {
         .arg(&vdb)
         .arg("--preview")
         .arg(&png)
-        .output()
-        .expect("run velour");
-    assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+        .capture();
+    o.assert_success();
     let grids = velour::vdb::read_vdb(&vdb).expect("read back");
     assert!(grids[0].saved_as_half && !grids[2].saved_as_half);
     // Velvet: the id grid holds pile voxels.
@@ -155,19 +129,16 @@ fn half_density_and_preview() {
     assert!(lum.iter().max().unwrap() > &(lum.iter().min().unwrap() + 60));
 }
 
+/// `velour weave ARGS` fails, naming every one of `needles` and without a panic.
 fn fails_with(args: &[&str], needles: &[&str]) {
-    let o = weave(args);
-    assert!(!o.status.success(), "{args:?} should fail");
-    let err = String::from_utf8_lossy(&o.stderr);
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: `{n}` not in: {err}");
-    }
-    assert!(!err.contains("panicked"), "{err}");
+    let mut all = vec!["weave"];
+    all.extend_from_slice(args);
+    run_velour(&all).assert_failure_mentioning(needles);
 }
 
 #[test]
 fn bad_flags_are_named_with_their_range() {
-    let dir = temp_dir("bad");
+    let dir = TempDir::new("cli-weave-bad");
     let out = dir.join("x.vdb");
     let out = out.to_str().unwrap();
     fails_with(

@@ -1,16 +1,13 @@
 //! `velour diff` end to end: the binary on EXR files written by the film.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
+
+use common::cli::{run_velour, Captured};
+use common::files::TempDir;
 use velour::film::{Film, PixelSample};
 use velour::math::Vec3;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
-
-fn tmp(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("diff_cli_{}_{name}", std::process::id()))
-}
 
 fn render(path: &std::path::Path, w: u32, h: u32, seed: u64, scale: f32) {
     let mut film = Film::new(w, h).unwrap();
@@ -35,17 +32,20 @@ fn render(path: &std::path::Path, w: u32, h: u32, seed: u64, scale: f32) {
     film.write_exr(path).unwrap();
 }
 
-fn velour(args: &[&std::ffi::OsStr]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_velour"))
-        .arg("diff")
-        .args(args)
-        .output()
-        .unwrap()
+/// `velour diff ARGS`.
+fn velour(args: &[&std::ffi::OsStr]) -> Captured {
+    run_velour(std::iter::once("diff".as_ref()).chain(args.iter().copied()))
 }
 
 #[test]
 fn diff_json_report_and_error_png() {
-    let (a, b, c, png) = (tmp("a.exr"), tmp("b.exr"), tmp("c.exr"), tmp("err.png"));
+    let dir = TempDir::new("diff-cli");
+    let (a, b, c, png) = (
+        dir.join("a.exr"),
+        dir.join("b.exr"),
+        dir.join("c.exr"),
+        dir.join("err.png"),
+    );
     render(&a, 24, 16, 1, 1.0);
     render(&b, 24, 16, 2, 1.0);
     render(&c, 24, 16, 3, 1.3);
@@ -57,12 +57,8 @@ fn diff_json_report_and_error_png() {
         "--error-png".as_ref(),
         png.as_os_str(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    out.assert_success();
+    let json: serde_json::Value = serde_json::from_str(&out.stdout).unwrap();
     assert_eq!(json["width"], 24);
     assert_eq!(json["height"], 16);
     assert_eq!(json["verdict"], "consistent");
@@ -75,12 +71,12 @@ fn diff_json_report_and_error_png() {
 
     // A biased image: inconsistent, and --check turns that into a failure.
     let out = velour(&[c.as_os_str(), b.as_os_str(), "--json".as_ref()]);
-    assert!(out.status.success());
-    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(out.success());
+    let json: serde_json::Value = serde_json::from_str(&out.stdout).unwrap();
     assert_eq!(json["verdict"], "inconsistent");
     let out = velour(&[c.as_os_str(), b.as_os_str(), "--check".as_ref()]);
-    assert!(!out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.success());
+    let text = &out.stdout;
     assert!(
         text.contains("INCONSISTENT") && text.contains("RMSE"),
         "{text}"
@@ -93,33 +89,33 @@ fn diff_json_report_and_error_png() {
         "--layer".as_ref(),
         "albedo".as_ref(),
     ]);
-    assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.success());
+    let text = &out.stdout;
     assert!(
         text.contains("albedo.R") && text.contains("not run"),
         "{text}"
     );
-
-    for p in [&a, &b, &c, &png] {
-        std::fs::remove_file(p).unwrap();
-    }
 }
 
 #[test]
 fn diff_errors_are_reported_not_panicked() {
-    let (a, small, junk) = (tmp("ea.exr"), tmp("esmall.exr"), tmp("junk.exr"));
+    let dir = TempDir::new("diff-cli-errors");
+    let (a, small, junk) = (
+        dir.join("ea.exr"),
+        dir.join("esmall.exr"),
+        dir.join("junk.exr"),
+    );
     render(&a, 8, 8, 1, 1.0);
     render(&small, 4, 8, 1, 1.0);
     std::fs::write(&junk, b"v/1\x01 this is not an exr").unwrap();
     for (x, y, expect) in [
         (&a, &small, "differ in size"),
         (&a, &junk, "junk.exr"),
-        (&a, &tmp("missing.exr"), "missing.exr"),
+        (&a, &dir.join("missing.exr"), "missing.exr"),
     ] {
         let out = velour(&[x.as_os_str(), y.as_os_str()]);
         assert_eq!(out.status.code(), Some(1));
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains(expect) && !err.contains("panicked"), "{err}");
+        out.assert_failure_mentioning(&[expect]);
     }
     let out = velour(&[
         a.as_os_str(),
@@ -128,8 +124,5 @@ fn diff_errors_are_reported_not_panicked() {
         "nope".as_ref(),
     ]);
     assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("nope"));
-    for p in [&a, &small, &junk] {
-        std::fs::remove_file(p).unwrap();
-    }
+    assert!(out.stderr.contains("nope"));
 }

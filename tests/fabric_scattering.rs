@@ -1,6 +1,9 @@
 //! Fibre scattering (docs/references.md §7): Chiang 2016 lobes, the diffuse fibre lobe, the
 //! fibre-volume phase function (normalisation, furnace, sampling) and SGGX fibre flakes.
 
+mod common;
+
+use common::chi2::critical_value_999;
 use velour::fabric::fibre_scattering::{
     diffuse_azimuthal, extinction_scale, longitudinal_lobe, longitudinal_variance,
     sigma_a_from_colour, trimmed_logistic,
@@ -11,13 +14,6 @@ use velour::sampling::Rng;
 use velour::spectrum::Rgb;
 
 const PI: f64 = std::f64::consts::PI;
-
-/// Upper 0.1 % point of chi-square with `df` degrees of freedom (Wilson–Hilferty).
-fn chi2_critical(df: f64) -> f64 {
-    let z = 3.09;
-    let a = 2.0 / (9.0 * df);
-    df * (1.0 - a + z * a.sqrt()).powi(3)
-}
 
 /// An orthonormal frame around `t` of the test's own (independent of the library's).
 fn basis(t: Vec3) -> (Vec3, Vec3) {
@@ -292,7 +288,7 @@ fn chi_square_directions(
         chi2 += (pool_o - pool_e).powi(2) / pool_e;
         df += 1;
     }
-    let crit = chi2_critical((df - 1) as f64);
+    let crit = critical_value_999((df - 1) as f64);
     assert!(chi2 < crit, "{name}: chi2 {chi2} >= {crit} (df {df})");
 }
 

@@ -3,9 +3,14 @@
 //! conserves the fibre volume (flat and curved meshes), maps fibre tangents with the mesh, and
 //! a flat one-tile shell renders like the same patch placed free-standing.
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use common::files::TempDir;
+use common::render::{render_finite, scene_from_text};
+use common::stats::{difference_z_score, estimate, Estimate};
 use glam::{IVec3, Vec2, Vec3};
 use velour::fabric::voxelise::{DENSITY, ID, TANGENT};
 use velour::fabric::{
@@ -14,7 +19,6 @@ use velour::fabric::{
 };
 use velour::geometry::TriangleMesh;
 use velour::image_io::compare::compare;
-use velour::render::{render, RenderOptions};
 use velour::sampling::Rng;
 use velour::scene::load_scene_str;
 
@@ -172,21 +176,14 @@ fn flat_shell_maps_world_points_onto_the_tiled_patch() {
 }
 
 /// Monte-Carlo estimate of ∫ density dV over a box, with its standard error.
-fn integrate(shell: &FabricShell, lo: Vec3, hi: Vec3, n: usize, seed: u64) -> (f64, f64) {
-    let mut rng = Rng::new(seed, 1);
+fn integrate(shell: &FabricShell, lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Estimate {
     let mut acc = shell.density_accessor();
     let mut hint = u32::MAX;
     let vol = f64::from((hi - lo).x * (hi - lo).y * (hi - lo).z);
-    let (mut s, mut s2) = (0.0f64, 0.0f64);
-    for _ in 0..n {
+    estimate(n, &mut Rng::new(seed, 1), |rng| {
         let p = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        let d = f64::from(shell.density(&mut acc, p, &mut hint)) * vol;
-        s += d;
-        s2 += d * d;
-    }
-    let mean = s / n as f64;
-    let var = (s2 / n as f64 - mean * mean).max(0.0);
-    (mean, (var / n as f64).sqrt())
+        f64::from(shell.density(&mut acc, p, &mut hint)) * vol
+    })
 }
 
 /// Σ density × voxel volume of the patch in world units for a shell of `shell`'s scale.
@@ -213,14 +210,14 @@ fn shell_conserves_the_fibre_volume_on_flat_and_curved_meshes() {
     let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [3.0, 2.0] }).unwrap();
     let t = shell.thickness();
     let expected = patch_volume_world(&vp, &shell) * 6.0;
-    let (est, se) = integrate(
+    let e = integrate(
         &shell,
         Vec3::new(0.0, 0.0, -t / 2.0),
         Vec3::new(3.0, 2.0, t / 2.0),
         400_000,
         5,
     );
-    let z = (est - expected) / se;
+    let (est, se, z) = (e.mean, e.standard_error, e.z_score(expected));
     assert!(
         z.abs() < 4.0 && (est / expected - 1.0).abs() < 0.01,
         "flat: {est} ± {se} vs {expected}"
@@ -251,10 +248,10 @@ fn shell_conserves_the_fibre_volume_on_flat_and_curved_meshes() {
     let area = mesh.area();
     let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [5.0, 3.0] }).unwrap();
     let b = shell.boundary_mesh().bounds();
-    let (est, se) = integrate(&shell, b.min, b.max, 1_200_000, 9);
+    let e = integrate(&shell, b.min, b.max, 1_200_000, 9);
     // The tiles cover the mesh once: world area per tile × tiles = area.
     let expected = patch_volume_world(&vp, &shell) * 15.0;
-    let z = (est - expected) / se;
+    let (est, se, z) = (e.mean, e.standard_error, e.z_score(expected));
     assert!(
         z.abs() < 4.0 && (est / expected - 1.0).abs() < 0.02,
         "curved: {est} ± {se} vs {expected} (area {area})"
@@ -441,8 +438,7 @@ fn a_flat_one_tile_shell_renders_like_the_free_standing_patch() {
         origin.x.abs() < 1e-6 && origin.y.abs() < 1e-6,
         "patch origin {origin}"
     );
-    let dir = std::env::temp_dir().join(format!("velour_shell_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = TempDir::new("fabric-shell");
     let ply = dir.join("tile.ply");
     write_plane_ply(&ply, mid.z, Vec2::new(fp.tile.x, fp.tile.y));
 
@@ -460,10 +456,9 @@ fn a_flat_one_tile_shell_renders_like_the_free_standing_patch() {
         c,
     );
     let run = |text: &str, seed: u64| {
-        let mut scene = load_scene_str(text, Path::new("test.toml")).expect("scene");
+        let mut scene = scene_from_text(text, "test.toml");
         scene.film.seed = seed;
-        let (film, summary) = render(&scene, &RenderOptions::default()).expect("render");
-        assert_eq!(summary.non_finite, 0);
+        let (film, summary) = render_finite(&scene, 0);
         assert!(summary.tracking.real_collisions > 0);
         (film.to_exr_image(&BTreeMap::new()), film)
     };
@@ -480,13 +475,11 @@ fn a_flat_one_tile_shell_renders_like_the_free_standing_patch() {
         }
     }
     assert!(red > 10, "only {red} red pixels in both");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn scene_errors_for_fabric_shells() {
-    let dir = std::env::temp_dir().join(format!("velour_shell_err_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = TempDir::new("fabric-shell-errors");
     // A mesh without texture coordinates.
     let ply = dir.join("nouv.ply");
     std::fs::write(
@@ -521,7 +514,6 @@ fn scene_errors_for_fabric_shells() {
     let text = twill_scene("shape = \"sphere\"", 0.5);
     let err = scene_error(&text, "s.toml");
     assert!(err.contains("fabric"), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -543,9 +535,15 @@ fn mip_levels_conserve_the_tiled_fibre_volume() {
     };
     let (a0, b0) = box_of(&s0);
     let (a1, b1) = box_of(&s1);
-    let (v0, e0) = integrate(&s0, a0, b0, 400_000, 21);
-    let (v1, e1) = integrate(&s1, a1, b1, 400_000, 22);
-    let z = (v0 - v1) / (e0 * e0 + e1 * e1).sqrt();
+    let level0 = integrate(&s0, a0, b0, 400_000, 21);
+    let level1 = integrate(&s1, a1, b1, 400_000, 22);
+    let z = difference_z_score(&level0, &level1);
+    let (v0, e0, v1, e1) = (
+        level0.mean,
+        level0.standard_error,
+        level1.mean,
+        level1.standard_error,
+    );
     assert!(z.abs() < 4.0, "level 0 {v0} ± {e0} vs level 1 {v1} ± {e1}");
     let expected = patch_volume_world(&vp0, &s0) * 4.0;
     assert!(
@@ -556,8 +554,7 @@ fn mip_levels_conserve_the_tiled_fibre_volume() {
 
 #[test]
 fn scenes_choose_fabric_mip_levels_from_the_pixel_footprint() {
-    let dir = std::env::temp_dir().join(format!("velour_shell_mip_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = TempDir::new("fabric-shell-mip");
     let ply = dir.join("cloth.ply");
     // A 4 × 4 cloth with 8 × 8 tiles: level-0 voxels are 4/(8·32) = 0.0156 wide.
     write_plane_ply(&ply, 0.0, Vec2::new(4.0, 4.0));
@@ -585,7 +582,7 @@ interior = {{ type = "fabric", pattern = "plain", resolution = 32, tiles = 8, mi
         )
     };
     let level = |text: &str| {
-        let s = load_scene_str(text, Path::new("m.toml")).expect("scene");
+        let s = scene_from_text(text, "m.toml");
         let note = s
             .notes
             .iter()
@@ -613,7 +610,6 @@ interior = {{ type = "fabric", pattern = "plain", resolution = 32, tiles = 8, mi
     let text = scene(1.0, "3").replace("resolution = 32", "resolution = 36");
     let err = scene_error(&text, "m.toml");
     assert!(err.contains("multiple of 8"), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

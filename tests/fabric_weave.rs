@@ -1,6 +1,9 @@
 //! Weave patterns (docs/references.md §6.10), centrelines (§6.11), patches and velvet
 //! (§6.12).
 
+mod common;
+
+use common::stats::poisson_z_score;
 use velour::fabric::{
     generate_patch, FabricError, FibreKind, PileParams, TwillDirection, WeaveParams, WeavePattern,
     YarnId, YarnParams,
@@ -442,7 +445,7 @@ fn flyaway_fraction_scales_flyaway_counts() {
         * 2.0;
     for (k, frac) in [(1, 1.0f64), (2, 3.0)] {
         let mean = y.hair_density as f64 * y.ply_count as f64 * len as f64 * frac;
-        let z = (hairs[k] as f64 - mean) / mean.sqrt();
+        let z = poisson_z_score(hairs[k] as f64, mean);
         assert!(z.abs() < 4.5, "fraction {frac}: {} vs {mean}", hairs[k]);
         // Loops grow with the fraction but saturate at one per fibre per migration period.
         let loop_mean = y.loop_density as f64 * y.ply_count as f64 * len as f64 * frac;

@@ -1,6 +1,10 @@
 //! Procedural yarn (Zhao, Luan, Bala 2016): presets, validation, fibre statistics against
 //! their parameters, twist/ply pitch, migration, flyaway counts, centreline frames.
 
+mod common;
+
+use common::chi2::critical_value_999;
+use common::stats::poisson_z_score;
 use velour::fabric::yarn::{MAX_FIBRES_PER_YARN, PRESET_NAMES};
 use velour::fabric::{
     generate_yarn, generate_yarn_on_centreline, Centreline, FabricError, FibreKind, Twist,
@@ -24,13 +28,6 @@ fn wrap(mut x: f32) -> f32 {
         x += TAU;
     }
     x
-}
-
-/// Upper 0.1 % point of chi-square with `df` degrees of freedom (Wilson–Hilferty).
-fn chi2_critical(df: f64) -> f64 {
-    let z = 3.09; // one-sided 0.999
-    let a = 2.0 / (9.0 * df);
-    df * (1.0 - a + z * a.sqrt()).powi(3)
 }
 
 #[test]
@@ -204,7 +201,7 @@ fn radial_distribution_matches_density_chi_square() {
                 (c as f64 - ex).powi(2) / ex
             })
             .sum();
-        let crit = chi2_critical((bins - 1) as f64);
+        let crit = critical_value_999((bins - 1) as f64);
         assert!(chi2 < crit, "{name}: chi2 {chi2} >= {crit}");
     }
 }
@@ -350,7 +347,7 @@ fn flyaway_counts_match_densities() {
         ("loop", loops, p.loop_density),
     ] {
         let mean = rho as f64 * k;
-        let z = (n as f64 - mean) / mean.sqrt();
+        let z = poisson_z_score(n as f64, mean);
         assert!(z.abs() < 4.0, "{name}: {n} vs {mean} (z = {z})");
     }
     let none = generate_yarn(&p.with_flyaway_scale(0.0).unwrap(), len, 1).unwrap();

@@ -1,18 +1,17 @@
 //! Film accumulation: mean and variance against a direct two-pass computation, dropped
 //! samples, size limits, tiles and the bit-identical result of any tile merge order.
 
+mod common;
+
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+
+use common::files::TempDir;
+use common::stats;
 use velour::film::{Film, FilmError, FilmTile, PixelSample};
 use velour::image_io::read_exr;
 use velour::math::Vec3;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
-
-fn tmp(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("film_acc_{}_{name}", std::process::id()))
-}
 
 /// A deterministic, skewed sample for (pixel, sample index): radiance from an exponential-like
 /// distribution with a pixel-dependent scale, plus AOVs.
@@ -53,12 +52,8 @@ fn mean_and_variance_match_direct_computation() {
             let n = spp as f64;
             assert_eq!(film.samples(x, y), spp);
             for c in 0..3 {
-                let mean = xs.iter().map(|p| f64::from(p.radiance.0[c])).sum::<f64>() / n;
-                let var = xs
-                    .iter()
-                    .map(|p| (f64::from(p.radiance.0[c]) - mean).powi(2))
-                    .sum::<f64>()
-                    / (n - 1.0);
+                let radiance: Vec<f64> = xs.iter().map(|p| f64::from(p.radiance.0[c])).collect();
+                let (mean, var) = (stats::mean(&radiance), stats::variance(&radiance));
                 let got_mean = f64::from(film.mean(x, y).0[c]);
                 let got_var = f64::from(film.variance_of_mean(x, y).0[c]);
                 assert!(
@@ -78,7 +73,7 @@ fn mean_and_variance_match_direct_computation() {
                 .filter(|p| p.depth.is_finite())
                 .map(|p| f64::from(p.depth))
                 .collect();
-            let depth = hits.iter().sum::<f64>() / hits.len() as f64;
+            let depth = stats::mean(&hits);
             assert!((f64::from(film.depth(x, y)) - depth).abs() < 1e-6);
             let nz = xs.iter().map(|p| f64::from(p.normal.z)).sum::<f64>() / n;
             assert!((f64::from(film.normal(x, y).z) - nz).abs() < 1e-6);
@@ -195,10 +190,10 @@ fn render_tiled(w: u32, h: u32, tile_size: u32, passes: u32, spp: u32, order: u6
 }
 
 fn exr_bits(film: &Film, name: &str) -> BTreeMap<String, Vec<u32>> {
-    let path = tmp(name);
+    let dir = TempDir::new("film-bits");
+    let path = dir.join(name);
     film.write_exr(&path).unwrap();
     let img = read_exr(&path).unwrap();
-    std::fs::remove_file(&path).unwrap();
     img.channels
         .into_iter()
         .map(|(k, v)| (k, v.into_iter().map(f32::to_bits).collect()))
@@ -291,7 +286,8 @@ fn one_pass_of_tiles_equals_direct_accumulation() {
 fn film_restored_from_its_exr_continues_the_render() {
     let (w, h) = (6, 5);
     let film = render_tiled(w, h, 4, 2, 8, 0);
-    let path = tmp("resume.exr");
+    let dir = TempDir::new("film-resume");
+    let path = dir.join("resume.exr");
     let mut attrs = BTreeMap::new();
     attrs.insert("velour:spp".to_string(), "16".to_string());
     film.write_exr_with_attributes(&path, &attrs).unwrap();
@@ -301,7 +297,6 @@ fn film_restored_from_its_exr_continues_the_render() {
         Some("16")
     );
     let mut resumed = Film::from_exr_image(&img).unwrap();
-    std::fs::remove_file(&path).unwrap();
     let mut full = render_tiled(w, h, 4, 2, 8, 0);
     for y in 0..h {
         for x in 0..w {

@@ -2,20 +2,15 @@
 //! self-intersection with offset origins, exactly one hit on shared edges and vertices,
 //! BVH against brute force, and spheres from inside and outside.
 
-use std::path::PathBuf;
+mod common;
 
+use common::files::mesh_path;
 use rayon::prelude::*;
 use velour::geometry::{
     intersect_sphere, intersect_triangle, load_ply, SceneGeometry, Shape, TriangleMesh,
 };
 use velour::math::{offset_ray_origin, Mat4, Ray, Vec2, Vec3};
 use velour::sampling::{sample_uniform_sphere, Rng};
-
-fn mesh_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes/meshes")
-        .join(name)
-}
 
 /// Unit icosphere with `subdiv` subdivisions, outward winding.
 fn icosphere(subdiv: u32) -> TriangleMesh {

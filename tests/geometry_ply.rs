@@ -1,22 +1,13 @@
 //! PLY reading/writing and mesh topology: round trips, accepted variants, every kind of bad
 //! input returning an error (never a panic), closedness, orientation and transforms.
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use std::path::Path;
+
+use common::files::{mesh_path, TempDir};
 use velour::geometry::{load_ply, write_ply, GeometryError, Shape, TriangleMesh};
 use velour::math::{Mat4, Vec2, Vec3};
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("velour_geometry_ply_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
-
-fn mesh_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes/meshes")
-        .join(name)
-}
 
 /// A closed, outward-wound octahedron with normals and uvs.
 fn octahedron() -> TriangleMesh {
@@ -50,12 +41,13 @@ fn write(path: &Path, bytes: &[u8]) {
 
 #[test]
 fn round_trip_ascii_and_binary() {
+    let dir = TempDir::new("ply-round-trip");
     let mut m = octahedron();
     // Values that need all 9 significant digits.
     m.positions[0] = Vec3::new(0.1, 1.0 / 3.0, -1.0e-7);
     m.uvs.as_mut().unwrap()[1] = Vec2::new(0.123_456_79, 7.0e5);
     for binary in [false, true] {
-        let p = tmp(if binary { "rt_bin.ply" } else { "rt_ascii.ply" });
+        let p = dir.join(if binary { "rt_bin.ply" } else { "rt_ascii.ply" });
         write_ply(&p, &m, binary).unwrap();
         let back = load_ply(&p).unwrap();
         assert_eq!(back, m, "binary = {binary}");
@@ -66,13 +58,14 @@ fn round_trip_ascii_and_binary() {
         uvs: None,
         ..octahedron()
     };
-    let p = tmp("rt_bare.ply");
+    let p = dir.join("rt_bare.ply");
     write_ply(&p, &bare, true).unwrap();
     assert_eq!(load_ply(&p).unwrap(), bare);
 }
 
 #[test]
 fn reads_big_endian_doubles_polygons_and_alternative_names() {
+    let dir = TempDir::new("ply-variants");
     // Binary big endian, double positions, `s t` texture coordinates, int list named
     // `vertex_index`, one quad and one pentagon (fan triangulated: 2 + 3 triangles).
     let mut b = b"ply\nformat binary_big_endian 1.0\nelement vertex 5\nproperty double x\nproperty double y\nproperty double z\nproperty float s\nproperty float t\nelement face 2\nproperty list uchar int vertex_index\nend_header\n".to_vec();
@@ -98,7 +91,7 @@ fn reads_big_endian_doubles_polygons_and_alternative_names() {
     for i in [0i32, 1, 2, 4, 3] {
         b.extend(i.to_be_bytes());
     }
-    let p = tmp("be.ply");
+    let p = dir.join("be.ply");
     write(&p, &b);
     let m = load_ply(&p).unwrap();
     assert_eq!(m.positions.len(), 5);
@@ -112,7 +105,7 @@ fn reads_big_endian_doubles_polygons_and_alternative_names() {
 
     // ASCII with texture_u/texture_v, normals, comments and an extra element.
     let a = "ply\nformat ascii 1.0\ncomment hello\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty float texture_u\nproperty float texture_v\nelement face 1\nproperty list uchar uint vertex_indices\nelement material 1\nproperty uchar red\nend_header\n0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n255\n";
-    let p = tmp("alt.ply");
+    let p = dir.join("alt.ply");
     write(&p, a.as_bytes());
     let m = load_ply(&p).unwrap();
     assert_eq!(m.indices, vec![[0, 1, 2]]);
@@ -122,16 +115,18 @@ fn reads_big_endian_doubles_polygons_and_alternative_names() {
 
 const GOOD_ASCII: &str = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n";
 
-fn load_str(name: &str, s: &str) -> Result<TriangleMesh, GeometryError> {
-    let p = tmp(name);
+/// Writes `s` to `dir/name` and loads it.
+fn load_str(dir: &TempDir, name: &str, s: &str) -> Result<TriangleMesh, GeometryError> {
+    let p = dir.join(name);
     write(&p, s.as_bytes());
     load_ply(&p)
 }
 
 #[test]
 fn bad_input_is_an_error_naming_the_file() {
-    assert!(load_str("good.ply", GOOD_ASCII).is_ok());
-    let missing = tmp("does_not_exist.ply");
+    let dir = TempDir::new("ply-bad-input");
+    assert!(load_str(&dir, "good.ply", GOOD_ASCII).is_ok());
+    let missing = dir.join("does_not_exist.ply");
     let e = load_ply(&missing).unwrap_err();
     assert!(matches!(e, GeometryError::Io { .. }));
     assert!(e.to_string().contains("does_not_exist.ply"), "{e}");
@@ -202,7 +197,7 @@ fn bad_input_is_an_error_naming_the_file() {
     ];
     for (name, text) in &cases {
         let file = format!("{name}.ply");
-        let r = load_str(&file, text);
+        let r = load_str(&dir, &file, text);
         let e = r.expect_err(name);
         let msg = e.to_string();
         assert!(
@@ -212,7 +207,7 @@ fn bad_input_is_an_error_naming_the_file() {
     }
     // "nan"/"inf" are either rejected by the parser or reported as non-finite.
     for i in [6, 7] {
-        let r = load_str("a.ply", &cases[i].1);
+        let r = load_str(&dir, "a.ply", &cases[i].1);
         assert!(
             matches!(
                 r,
@@ -222,7 +217,7 @@ fn bad_input_is_an_error_naming_the_file() {
         );
     }
     assert!(matches!(
-        load_str("b.ply", &cases[8].1),
+        load_str(&dir, "b.ply", &cases[8].1),
         Err(GeometryError::IndexOutOfRange {
             face: 1,
             index: 4,
@@ -231,11 +226,11 @@ fn bad_input_is_an_error_naming_the_file() {
         })
     ));
     assert!(matches!(
-        load_str("c.ply", &cases[9].1),
+        load_str(&dir, "c.ply", &cases[9].1),
         Err(GeometryError::IndexOutOfRange { index: -1, .. })
     ));
     assert!(matches!(
-        load_str("d.ply", &cases[11].1),
+        load_str(&dir, "d.ply", &cases[11].1),
         Err(GeometryError::BadFace {
             face: 1,
             count: 2,
@@ -243,31 +238,32 @@ fn bad_input_is_an_error_naming_the_file() {
         })
     ));
     assert!(matches!(
-        load_str("e.ply", &cases[12].1),
+        load_str(&dir, "e.ply", &cases[12].1),
         Err(GeometryError::MissingProperty { .. })
     ));
     assert!(matches!(
-        load_str("f.ply", &cases[13].1),
+        load_str(&dir, "f.ply", &cases[13].1),
         Err(GeometryError::MissingElement { .. })
     ));
     assert!(matches!(
-        load_str("g.ply", &cases[14].1),
+        load_str(&dir, "g.ply", &cases[14].1),
         Err(GeometryError::Empty { .. })
     ));
     assert!(matches!(
-        load_str("h.ply", &cases[5].1),
+        load_str(&dir, "h.ply", &cases[5].1),
         Err(GeometryError::TrailingData { .. })
     ));
 }
 
 #[test]
 fn truncated_files_are_errors_at_every_offset() {
+    let dir = TempDir::new("ply-truncated");
     // Binary: every strict prefix must fail.
     let m = octahedron();
-    let p = tmp("full.ply");
+    let p = dir.join("full.ply");
     write_ply(&p, &m, true).unwrap();
     let full = std::fs::read(&p).unwrap();
-    let q = tmp("truncated.ply");
+    let q = dir.join("truncated.ply");
     for len in 0..full.len() {
         write(&q, &full[..len]);
         assert!(
@@ -312,7 +308,7 @@ fn truncated_files_are_errors_at_every_offset() {
     ));
 
     // ASCII: no prefix may panic; prefixes that cut before the last line must fail.
-    let pa = tmp("full_ascii.ply");
+    let pa = dir.join("full_ascii.ply");
     write_ply(&pa, &m, false).unwrap();
     let text = std::fs::read(&pa).unwrap();
     let last_line = text[..text.len() - 1]

@@ -1,7 +1,11 @@
 //! EXR and PNG files: round trip of every film layer, foreign layouts (f16 / u32 channels,
 //! multiple parts), corrupt and truncated files, PNG previews and environment maps.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
+
+use common::files::TempDir;
 use velour::film::{Film, PixelSample};
 use velour::image_io::{
     read_exr, read_exr_bytes, read_latlong_exr, srgb_oetf, temp_path, write_exr, write_png_rgb,
@@ -10,11 +14,6 @@ use velour::image_io::{
 use velour::math::Vec3;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
-
-fn tmp(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("image_io_{}_{name}", std::process::id()))
-}
 
 fn noisy_film(w: u32, h: u32, spp: u32) -> Film {
     let mut film = Film::new(w, h).unwrap();
@@ -44,16 +43,16 @@ fn noisy_film(w: u32, h: u32, spp: u32) -> Film {
 
 #[test]
 fn every_film_layer_round_trips_through_exr() {
+    let dir = TempDir::new("exr-layers");
     let (w, h) = (13, 6);
     let film = noisy_film(w, h, 5);
-    let path = tmp("layers.exr");
+    let path = dir.join("layers.exr");
     film.write_exr(&path).unwrap();
     assert!(
         !temp_path(&path).exists(),
         "the temporary file is renamed away"
     );
     let img = read_exr(&path).unwrap();
-    std::fs::remove_file(&path).unwrap();
     assert_eq!((img.width, img.height), (w, h));
     let names: Vec<&str> = img.channels.keys().map(String::as_str).collect();
     assert_eq!(
@@ -100,15 +99,15 @@ fn every_film_layer_round_trips_through_exr() {
     );
 
     // And the generic writer reproduces the same image.
-    let path2 = tmp("layers2.exr");
+    let path2 = dir.join("layers2.exr");
     write_exr(&path2, &img).unwrap();
     let again = read_exr(&path2).unwrap();
-    std::fs::remove_file(&path2).unwrap();
     assert_eq!(again, img);
 }
 
 #[test]
 fn foreign_layouts_f16_u32_and_multiple_parts_are_read() {
+    let dir = TempDir::new("exr-foreign");
     use exr::prelude::*;
     let (w, h) = (7usize, 3usize);
     let r: Vec<f16> = (0..w * h).map(|i| f16::from_f32(i as f32 * 0.5)).collect();
@@ -136,7 +135,7 @@ fn foreign_layouts_f16_u32_and_multiple_parts_are_read() {
             FlatSamples::F32(z),
         )])),
     );
-    let path = tmp("foreign.exr");
+    let path = dir.join("foreign.exr");
     Image::from_layers(
         ImageAttributes::new(IntegerBounds::from_dimensions((w, h))),
         vec![main, second],
@@ -145,7 +144,6 @@ fn foreign_layouts_f16_u32_and_multiple_parts_are_read() {
     .to_file(&path)
     .unwrap();
     let img = read_exr(&path).unwrap();
-    std::fs::remove_file(&path).unwrap();
     assert_eq!((img.width, img.height), (w as u32, h as u32));
     let rgb = img.rgb("").unwrap();
     assert_eq!(rgb[5], Rgb::new(2.5, -5.0, f16::from_f32(0.333).to_f32()));
@@ -155,11 +153,10 @@ fn foreign_layouts_f16_u32_and_multiple_parts_are_read() {
 }
 
 fn good_exr_bytes() -> Vec<u8> {
-    let path = tmp("good.exr");
+    let dir = TempDir::new("exr-good");
+    let path = dir.join("good.exr");
     noisy_film(9, 5, 3).write_exr(&path).unwrap();
-    let bytes = std::fs::read(&path).unwrap();
-    std::fs::remove_file(&path).unwrap();
-    bytes
+    std::fs::read(&path).unwrap()
 }
 
 #[test]
@@ -223,17 +220,25 @@ fn missing_file_is_an_io_error_naming_it() {
 
 #[test]
 fn writer_rejects_inconsistent_images() {
+    let dir = TempDir::new("exr-rejects");
     let mut img = ExrImage::new(4, 4);
-    assert!(write_exr(&tmp("empty.exr"), &img).is_err(), "no channels");
+    assert!(
+        write_exr(&dir.join("empty.exr"), &img).is_err(),
+        "no channels"
+    );
     img.channels.insert("R".into(), vec![0.0; 15]);
-    assert!(write_exr(&tmp("short.exr"), &img).is_err(), "wrong length");
+    assert!(
+        write_exr(&dir.join("short.exr"), &img).is_err(),
+        "wrong length"
+    );
     let img = ExrImage::new(0, 4);
-    assert!(write_exr(&tmp("zero.exr"), &img).is_err());
-    assert!(!tmp("short.exr").exists() && !temp_path(&tmp("short.exr")).exists());
+    assert!(write_exr(&dir.join("zero.exr"), &img).is_err());
+    assert!(!dir.join("short.exr").exists() && !temp_path(&dir.join("short.exr")).exists());
 }
 
 #[test]
 fn png_preview_has_the_right_size_and_srgb_values() {
+    let dir = TempDir::new("png-preview");
     let (w, h) = (11, 4);
     let mut film = Film::new(w, h).unwrap();
     for y in 0..h {
@@ -251,10 +256,9 @@ fn png_preview_has_the_right_size_and_srgb_values() {
             );
         }
     }
-    let path = tmp("preview.png");
+    let path = dir.join("preview.png");
     film.write_png(&path, 1.0).unwrap(); // one stop up: x2
     let png = image::open(&path).unwrap().to_rgb8();
-    std::fs::remove_file(&path).unwrap();
     assert_eq!(png.dimensions(), (w, h));
     for x in 0..w {
         let v = x as f32 / (w - 1) as f32;
@@ -266,16 +270,17 @@ fn png_preview_has_the_right_size_and_srgb_values() {
     assert!((srgb_oetf(1.0) - 1.0).abs() < 1e-6);
     assert!((srgb_oetf(0.002) - 0.02584).abs() < 1e-6, "linear segment");
     assert!((srgb_oetf(0.5) - 0.735_356_7).abs() < 1e-5);
-    assert!(write_png_rgb(&tmp("bad.png"), 3, 3, &[Rgb::ZERO; 8], 0.0).is_err());
+    assert!(write_png_rgb(&dir.join("bad.png"), 3, 3, &[Rgb::ZERO; 8], 0.0).is_err());
 }
 
 #[test]
 fn latlong_maps_are_read_and_bad_texels_named() {
+    let dir = TempDir::new("exr-latlong");
     let (w, h) = (8u32, 4u32);
     let mut img = ExrImage::new(w, h);
     let texels: Vec<Rgb> = (0..w * h).map(|i| Rgb::new(i as f32, 1.0, 0.5)).collect();
     img.insert_rgb("", &texels);
-    let path = tmp("env.exr");
+    let path = dir.join("env.exr");
     write_exr(&path, &img).unwrap();
     let map = read_latlong_exr(&path).unwrap();
     assert_eq!((map.width, map.height), (w, h));
@@ -303,5 +308,4 @@ fn latlong_maps_are_read_and_bad_texels_named() {
         e.to_string().contains("env.exr") && e.to_string().contains("R, G and B"),
         "{e}"
     );
-    std::fs::remove_file(&path).unwrap();
 }

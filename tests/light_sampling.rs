@@ -2,22 +2,21 @@
 //! and matches its samples, and every light's sampler integrates its radiance correctly
 //! (Monte-Carlo estimates against closed forms or against uniform sampling, by z-test).
 
+mod common;
+
+use common::files::TempDir;
+use common::render::{pixel_means, render_scene, scene_from_text};
+use common::stats::{estimate, Estimate};
 use velour::image_io::{write_exr, ExrImage, LatLongMap};
 use velour::light::{EnvironmentMap, Light};
 use velour::math::{Vec3, PI};
 use velour::sampling::{sample_uniform_sphere, Rng};
 use velour::spectrum::Rgb;
 
-fn mean_se(n: usize, mut f: impl FnMut(&mut Rng) -> f64) -> (f64, f64) {
-    let mut rng = Rng::new(21, 4);
-    let (mut s, mut s2) = (0.0, 0.0);
-    for _ in 0..n {
-        let v = f(&mut rng);
-        s += v;
-        s2 += v * v;
-    }
-    let m = s / n as f64;
-    (m, ((s2 / n as f64 - m * m).max(0.0) / n as f64).sqrt())
+/// Mean and standard error of `n` values of `f`, every estimate from the same seed.
+fn mean_se(n: usize, f: impl FnMut(&mut Rng) -> f64) -> (f64, f64) {
+    let e = estimate(n, &mut Rng::new(21, 4), f);
+    (e.mean, e.standard_error)
 }
 
 fn test_map() -> LatLongMap {
@@ -117,8 +116,7 @@ fn sphere_and_disc_lights_integrate_to_their_solid_angle() {
 
 #[test]
 fn white_furnace_under_a_constant_environment_map() {
-    let dir = std::env::temp_dir().join(format!("velour-envmap-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let dir = TempDir::new("envmap");
     let mut img = ExrImage::new(16, 8);
     for c in ["R", "G", "B"] {
         img.channels.insert(c.to_string(), vec![1.0; 128]);
@@ -143,17 +141,9 @@ radius = 1.0
 surface = { type = "dielectric", ior = 1.33 }
 interior = { type = "homogeneous", albedo = 1.0, albedo_mode = "single", attenuation = 0.3 }
 "#;
-    let scene = velour::scene::load_scene_str(text, &dir.join("scene.toml")).expect("scene");
-    let (film, _) =
-        velour::render::render(&scene, &velour::render::RenderOptions::default()).expect("render");
-    let mut vals = Vec::new();
-    for y in 0..16 {
-        for x in 0..16 {
-            vals.push(film.mean(x, y)[1] as f64);
-        }
-    }
-    let n = vals.len() as f64;
-    let m = vals.iter().sum::<f64>() / n;
-    let se = (vals.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    let scene = scene_from_text(text, dir.join("scene.toml"));
+    let (film, _) = render_scene(&scene, 0);
+    let furnace = Estimate::of(&pixel_means(&film, 1));
+    let (m, se) = (furnace.mean, furnace.standard_error);
     assert!((m - 1.0).abs() < 4.5 * se + 2e-3, "furnace {m} ± {se}");
 }

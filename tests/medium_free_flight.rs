@@ -2,6 +2,9 @@
 //! (docs/references.md §4.6) is unbiased: per channel, E[escape weight] = e^{-σ_t L} and the
 //! scattering weights integrate to the single-scattering albedo times the collision probability.
 
+mod common;
+
+use common::stats::{assert_rgb_agrees, estimate_rgb, Estimate};
 use velour::medium::{
     multiple_scattering_albedo, single_scattering_albedo_from_multiple, Coefficients,
 };
@@ -9,39 +12,14 @@ use velour::sampling::Rng;
 use velour::spectrum::Rgb;
 use velour::tracking::{channel_probabilities, sample_homogeneous, Flight};
 
-/// Mean and standard error of a per-channel estimator.
-fn estimate(n: usize, mut f: impl FnMut(&mut Rng) -> Rgb) -> (Rgb, Rgb) {
-    let mut rng = Rng::new(7, 3);
-    let mut sum = [0.0f64; 3];
-    let mut sum2 = [0.0f64; 3];
-    for _ in 0..n {
-        let v = f(&mut rng);
-        for c in 0..3 {
-            sum[c] += v[c] as f64;
-            sum2[c] += (v[c] as f64) * (v[c] as f64);
-        }
-    }
-    let mut mean = Rgb::ZERO;
-    let mut se = Rgb::ZERO;
-    for c in 0..3 {
-        let m = sum[c] / n as f64;
-        let var = (sum2[c] / n as f64 - m * m).max(0.0);
-        mean[c] = m as f32;
-        se[c] = (var / n as f64).sqrt() as f32;
-    }
-    (mean, se)
+/// Mean and standard error of a per-channel estimator, from the same seed each time.
+fn estimate(n: usize, f: impl FnMut(&mut Rng) -> Rgb) -> [Estimate; 3] {
+    estimate_rgb(n, &mut Rng::new(7, 3), f)
 }
 
-fn assert_z(mean: Rgb, se: Rgb, expected: Rgb, what: &str) {
-    for c in 0..3 {
-        let tol = 4.5 * se[c] + 1e-6;
-        assert!(
-            (mean[c] - expected[c]).abs() <= tol,
-            "{what}: channel {c}: {} vs expected {} (4.5 sigma = {tol})",
-            mean[c],
-            expected[c]
-        );
-    }
+/// Every channel within 4.5 standard errors (plus 1e-6) of `expected`.
+fn assert_z(estimates: &[Estimate; 3], expected: Rgb, what: &str) {
+    assert_rgb_agrees(estimates, expected, 4.5, 1e-6, what);
 }
 
 #[test]
@@ -52,7 +30,7 @@ fn escape_weight_is_unbiased_transmittance_for_chromatic_media() {
     };
     for beta in [Rgb::ONE, Rgb::new(1.0, 0.1, 0.01), Rgb::new(0.0, 0.0, 1.0)] {
         let l = 0.7f32;
-        let (mean, se) = estimate(400_000, |rng| {
+        let mean = estimate(400_000, |rng| {
             match sample_homogeneous(
                 coeff.sigma_t(),
                 coeff.sigma_s,
@@ -66,7 +44,7 @@ fn escape_weight_is_unbiased_transmittance_for_chromatic_media() {
             }
         });
         let expected = coeff.sigma_t().map(|s| (-s * l).exp());
-        assert_z(mean, se, expected, "escape");
+        assert_z(&mean, expected, "escape");
     }
 }
 
@@ -79,7 +57,7 @@ fn scatter_weights_integrate_to_albedo_times_collision_probability() {
     };
     let l = 0.9f32;
     let beta = Rgb::new(0.3, 1.0, 0.6);
-    let (mean, se) = estimate(400_000, |rng| {
+    let mean = estimate(400_000, |rng| {
         match sample_homogeneous(
             coeff.sigma_t(),
             coeff.sigma_s,
@@ -97,7 +75,7 @@ fn scatter_weights_integrate_to_albedo_times_collision_probability() {
     });
     let st = coeff.sigma_t();
     let expected = Rgb([0, 1, 2].map(|c| coeff.sigma_s[c] / st[c] * (1.0 - (-st[c] * l).exp())));
-    assert_z(mean, se, expected, "scatter");
+    assert_z(&mean, expected, "scatter");
 }
 
 #[test]
@@ -139,8 +117,7 @@ fn van_de_hulst_inversion_round_trips() {
         assert!(alpha >= last);
         last = alpha;
     }
-    // Published sample values (docs/references.md §1.2: van de Hulst and Chiang agree to about
-    // 0.002 for A ≤ 0.9).
+    // Published sample values (REFERENCES §1.2: vdH and Chiang agree to ~0.002 for A ≤ 0.9).
     assert!((single_scattering_albedo_from_multiple(0.5, 0.0) - 0.9123).abs() < 5e-3);
     assert!((single_scattering_albedo_from_multiple(0.8, 0.0) - 0.9901).abs() < 3e-3);
 }

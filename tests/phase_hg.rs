@@ -3,7 +3,8 @@
 
 mod common;
 
-use common::{assert_chi2, chi2_sphere, integrate_sphere, SphereBins};
+use common::sphere::{assert_chi2, chi2_sphere, integrate_sphere, SphereBins};
+use common::stats::{estimate, z_score};
 use velour::math::{Vec2, Vec3};
 use velour::phase::{henyey_greenstein_mu, PhaseError, PhaseFunction};
 use velour::sampling::Rng;
@@ -140,16 +141,16 @@ fn mean_cosine_matches_g_z_test() {
             "mean_cosine {} vs {g}",
             ph.mean_cosine()
         );
-        let mut rng = Rng::new(300 + k as u64, 1);
-        let (mut s, mut s2) = (0.0f64, 0.0f64);
-        for _ in 0..n {
-            let mu = (-wo).dot(ph.sample(wo, rng.next_2d()).wi) as f64;
-            s += mu;
-            s2 += mu * mu;
-        }
-        let mean = s / n as f64;
-        let var = (s2 / n as f64 - mean * mean).max(1e-12);
-        let z = (mean - *g as f64) / (var / n as f64).sqrt();
+        let mu = estimate(n, &mut Rng::new(300 + k as u64, 1), |rng| {
+            (-wo).dot(ph.sample(wo, rng.next_2d()).wi) as f64
+        });
+        let mean = mu.mean;
+        // (A floor on the variance keeps z finite should every sample coincide.)
+        let z = z_score(
+            mean,
+            *g as f64,
+            mu.standard_error.max((1e-12 / n as f64).sqrt()),
+        );
         assert!(z.abs() < 4.5, "case {k}: E[mu] = {mean}, g = {g}, z = {z}");
     }
 }

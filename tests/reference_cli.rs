@@ -2,22 +2,12 @@
 //! `velour render` for the same seed, bit-identical across thread counts, exact per-pixel sample
 //! counts, time budgets that stop, an independent default seed, and clear errors on bad flags.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
+use common::cli::{velour, Capture};
+use common::files::TempDir;
+use common::render::{render_scene, scene_from_text};
 use velour::cli::reference::{render_budget, Budget, BudgetOptions, REFERENCE_SEED_OFFSET};
-use velour::render::{render, RenderOptions};
-use velour::scene::load_scene_str;
-
-fn velour() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_velour"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("velour-ref-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
 
 const SPHERE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
 
@@ -48,15 +38,8 @@ interior = { type = "homogeneous", albedo = [0.9, 0.7, 0.5], albedo_mode = "sing
 
 #[test]
 fn budgeted_render_takes_the_same_samples_as_render() {
-    let scene = load_scene_str(SMALL, Path::new("small.toml")).expect("scene");
-    let (film, summary) = render(
-        &scene,
-        &RenderOptions {
-            threads: 2,
-            ..RenderOptions::default()
-        },
-    )
-    .expect("render");
+    let scene = scene_from_text(SMALL, "small.toml");
+    let (film, summary) = render_scene(&scene, 2);
     let r = render_budget(
         &scene,
         &BudgetOptions {
@@ -90,7 +73,7 @@ fn budgeted_render_takes_the_same_samples_as_render() {
 
 #[test]
 fn budgeted_render_is_identical_across_thread_counts() {
-    let scene = load_scene_str(SMALL, Path::new("small.toml")).expect("scene");
+    let scene = scene_from_text(SMALL, "small.toml");
     let one = render_budget(
         &scene,
         &BudgetOptions {
@@ -120,7 +103,7 @@ fn budgeted_render_is_identical_across_thread_counts() {
 
 #[test]
 fn time_budget_stops_with_a_uniform_sample_count() {
-    let scene = load_scene_str(SMALL, Path::new("small.toml")).expect("scene");
+    let scene = scene_from_text(SMALL, "small.toml");
     let r = render_budget(
         &scene,
         &BudgetOptions {
@@ -144,7 +127,7 @@ fn time_budget_stops_with_a_uniform_sample_count() {
 
 #[test]
 fn reference_cli_writes_variance_and_sample_counts() {
-    let dir = temp_dir("cli");
+    let dir = TempDir::new("reference-cli");
     let out = dir.join("ref.exr");
     let o = velour()
         .args([
@@ -162,14 +145,9 @@ fn reference_cli_writes_variance_and_sample_counts() {
             "-o",
         ])
         .arg(&out)
-        .output()
-        .expect("run velour");
-    assert!(
-        o.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&o.stdout);
+        .capture();
+    o.assert_success();
+    let stdout = &o.stdout;
     assert!(
         stdout.contains("5 spp") && stdout.contains("non-finite samples dropped: 0"),
         "{stdout}"
@@ -203,7 +181,7 @@ fn reference_cli_writes_variance_and_sample_counts() {
 
 #[test]
 fn reference_cli_refuses_bad_budgets() {
-    let dir = temp_dir("bad");
+    let dir = TempDir::new("reference-cli-bad");
     let out = dir.join("ref.exr");
     for args in [
         vec!["--spp", "4", "--time", "1"],
@@ -216,10 +194,9 @@ fn reference_cli_refuses_bad_budgets() {
             .args(["reference", SPHERE, "-q", "-o"])
             .arg(&out)
             .args(&args)
-            .output()
-            .expect("run velour");
-        assert!(!o.status.success(), "{args:?} should fail");
-        let err = String::from_utf8_lossy(&o.stderr);
+            .capture();
+        assert!(!o.success(), "{args:?} should fail");
+        let err = &o.stderr;
         assert!(
             err.contains("--spp") || err.contains("--time"),
             "{args:?}: {err}"

@@ -1,21 +1,14 @@
 //! `velour tradeoff`: the configurations offered for heterogeneous and homogeneous scenes,
 //! edited scenes that load, and the CLI end to end (CSV, SVG, most efficient configuration).
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
+use std::path::Path;
+
+use common::cli::{velour, Capture};
+use common::files::TempDir;
 use velour::cli::tradeoff::{apply, configurations, csv, most_efficient, svg_plot, Measurement};
 use velour::scene::{load_scene, load_scene_str};
-
-fn velour() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_velour"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("velour-tradeoff-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
 
 const CLOUD: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cloud.toml");
 const FBM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fbm_creature.toml");
@@ -108,9 +101,9 @@ fn csv_svg_and_the_most_efficient_configuration() {
 
 #[test]
 fn tradeoff_cli_end_to_end() {
-    let dir = temp_dir("cli");
+    let dir = TempDir::new("tradeoff-cli");
     let reference = dir.join("ref.exr");
-    let o = velour()
+    velour()
         .args([
             "reference",
             CLOUD,
@@ -126,9 +119,8 @@ fn tradeoff_cli_end_to_end() {
             "-o",
         ])
         .arg(&reference)
-        .output()
-        .expect("run velour reference");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        .capture()
+        .assert_success();
     let out = dir.join("t");
     let o = velour()
         .args([
@@ -149,10 +141,9 @@ fn tradeoff_cli_end_to_end() {
         .arg(&reference)
         .arg("-o")
         .arg(&out)
-        .output()
-        .expect("run velour tradeoff");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let stdout = String::from_utf8_lossy(&o.stdout);
+        .capture();
+    o.assert_success();
+    let stdout = &o.stdout;
     assert!(stdout.contains("most efficient at 2 spp:"), "{stdout}");
     let table = std::fs::read_to_string(out.join("tradeoff.csv")).expect("csv");
     // 3 configurations (scene file, delta + ratio, one ray-marching step) × 2 budgets.
@@ -169,13 +160,11 @@ fn tradeoff_cli_end_to_end() {
     let o = velour()
         .args(["tradeoff", CLOUD, "--unit", "hours", "--reference"])
         .arg(&reference)
-        .output()
-        .expect("run");
-    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--unit"));
+        .capture();
+    assert!(!o.success() && o.stderr.contains("--unit"));
     let o = velour()
         .args(["tradeoff", CLOUD, "--budgets", "0", "--reference"])
         .arg(&reference)
-        .output()
-        .expect("run");
-    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--budgets"));
+        .capture();
+    assert!(!o.success() && o.stderr.contains("--budgets"));
 }

@@ -2,39 +2,22 @@
 //! under a uniform white environment returns exactly the environment), an absorbing sphere
 //! against Beer–Lambert, and bit-identical images across thread counts.
 
+mod common;
+
 use std::path::Path;
 
+use common::files::repo_path;
+use common::render::{pixel_means, render_finite, scene_from_text};
+use common::stats::Estimate;
 use velour::film::Film;
-use velour::render::{render, RenderOptions};
-use velour::scene::load_scene_str;
+
+/// Renders scene text read as if from `path` on `threads` threads, with no non-finite sample.
+fn render_scene_at(text: &str, path: &Path, threads: usize) -> Film {
+    render_finite(&scene_from_text(text, path), threads).0
+}
 
 fn render_scene(text: &str, threads: usize) -> Film {
     render_scene_at(text, Path::new("test.toml"), threads)
-}
-
-fn render_scene_at(text: &str, path: &Path, threads: usize) -> Film {
-    let scene = load_scene_str(text, path).expect("scene");
-    let opts = RenderOptions {
-        threads,
-        ..RenderOptions::default()
-    };
-    let (film, summary) = render(&scene, &opts).expect("render");
-    assert_eq!(summary.non_finite, 0, "non-finite samples");
-    film
-}
-
-/// Mean over all pixels and its standard error (pixels are independent estimates).
-fn image_mean(film: &Film, w: u32, h: u32, c: usize) -> (f64, f64) {
-    let mut vals = Vec::new();
-    for y in 0..h {
-        for x in 0..w {
-            vals.push(film.mean(x, y)[c] as f64);
-        }
-    }
-    let n = vals.len() as f64;
-    let m = vals.iter().sum::<f64>() / n;
-    let var = vals.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (n - 1.0);
-    (m, (var / n).sqrt())
 }
 
 fn furnace_scene(surface: &str, nee: &str, g: f32) -> String {
@@ -65,8 +48,11 @@ interior = {{ type = "homogeneous", albedo = 1.0, albedo_mode = "single", attenu
 
 fn assert_furnace(text: &str, what: &str) {
     let film = render_scene(text, 0);
+    assert_eq!((film.width(), film.height()), (24, 24));
     for c in 0..3 {
-        let (m, se) = image_mean(&film, 24, 24, c);
+        // Mean over all pixels and its standard error (pixels are independent estimates).
+        let e = Estimate::of(&pixel_means(&film, c));
+        let (m, se) = (e.mean, e.standard_error);
         // The interior albedo is clamped to 1 − 1e-6 (a loss ≪ 1e-3 for these walks).
         assert!(
             (m - 1.0).abs() <= 4.5 * se + 2e-3,
@@ -145,18 +131,15 @@ interior = {{ type = "absorption", attenuation = [{}, {}, {}] }}
 
 #[test]
 fn images_are_bit_identical_across_thread_counts() {
-    let path = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/skin_sphere.toml"
-    ));
-    let text = std::fs::read_to_string(path).expect("scene");
+    let path = repo_path("scenes/skin_sphere.toml");
+    let text = std::fs::read_to_string(&path).expect("scene");
     let text = text
         .replace("width = 320", "width = 40")
         .replace("height = 240", "height = 30")
         .replace("spp = 32", "spp = 4");
-    let a = render_scene_at(&text, path, 1);
-    let b = render_scene_at(&text, path, 2);
-    let c = render_scene_at(&text, path, 3);
+    let a = render_scene_at(&text, &path, 1);
+    let b = render_scene_at(&text, &path, 2);
+    let c = render_scene_at(&text, &path, 3);
     for y in 0..30 {
         for x in 0..40 {
             let (ma, mb, mc) = (a.mean(x, y), b.mean(x, y), c.mean(x, y));

@@ -5,11 +5,14 @@
 //! up to the baking error, and a density grid with a constant value matches the homogeneous
 //! closed form.
 
-use std::collections::BTreeMap;
-use std::path::Path;
+mod common;
 
+use std::collections::BTreeMap;
+
+use common::files::repo_path;
+use common::render::{render_finite, scene_from_text};
 use velour::image_io::compare::compare;
-use velour::render::{render, RenderOptions, RenderSummary};
+use velour::render::RenderSummary;
 use velour::scene::load_scene_str;
 
 fn cloud_scene(tracking: &str) -> String {
@@ -43,10 +46,9 @@ interior = {{ type = "voxel", file = "{}/volumes/cloud.vdb", albedo = 0.9, albed
 }
 
 fn run(text: &str, seed: u64) -> (velour::image_io::ExrImage, RenderSummary) {
-    let mut scene = load_scene_str(text, Path::new("test.toml")).expect("scene");
+    let mut scene = scene_from_text(text, "test.toml");
     scene.film.seed = seed;
-    let (film, summary) = render(&scene, &RenderOptions::default()).expect("render");
-    assert_eq!(summary.non_finite, 0);
+    let (film, summary) = render_finite(&scene, 0);
     (film.to_exr_image(&BTreeMap::new()), summary)
 }
 
@@ -130,17 +132,13 @@ fn lazily_baked_fbm_agrees_with_eagerly_baked_fbm() {
 
 #[test]
 fn fabric_swatch_renders_warp_and_weft_in_their_own_colours() {
-    let path = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/fabric_swatch.toml"
-    ));
-    let text = std::fs::read_to_string(path).expect("scene");
+    let path = repo_path("scenes/fabric_swatch.toml");
+    let text = std::fs::read_to_string(&path).expect("scene");
     let text = text.replace("resolution = 96", "resolution = 48");
-    let mut scene = load_scene_str(&text, path).expect("scene");
+    let mut scene = scene_from_text(&text, &path);
     scene.set_resolution(40, 30).expect("resolution");
     scene.film.spp = 8;
-    let (film, summary) = render(&scene, &RenderOptions::default()).expect("render");
-    assert_eq!(summary.non_finite, 0);
+    let (film, summary) = render_finite(&scene, 0);
     assert!(summary.tracking.real_collisions > 0);
     let (mut red, mut white) = (0, 0);
     for y in 0..30 {
@@ -161,7 +159,7 @@ fn fabric_swatch_renders_warp_and_weft_in_their_own_colours() {
     );
     // A bad pattern name is an error naming the allowed ones.
     let bad = text.replace("pattern = \"twill\"", "pattern = \"herringbone\"");
-    let err = load_scene_str(&bad, path)
+    let err = load_scene_str(&bad, &path)
         .expect_err("bad pattern")
         .to_string();
     assert!(

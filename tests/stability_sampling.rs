@@ -8,6 +8,9 @@
 
 #![allow(clippy::needless_range_loop)]
 
+mod common;
+
+use common::stats::mean_and_standard_error;
 use velour::bsdf::{MicrofacetDistribution, Surface};
 use velour::majorant::MajorantSegment;
 use velour::math::{Vec2, Vec3};
@@ -40,14 +43,6 @@ fn grazing_dirs() -> Vec<Vec3> {
 
 fn is_unit(v: Vec3) -> bool {
     v.is_finite() && (v.length() - 1.0).abs() < 1e-3
-}
-
-/// z-test helper: mean and standard error of a sample.
-fn mean_se(x: &[f64]) -> (f64, f64) {
-    let n = x.len() as f64;
-    let m = x.iter().sum::<f64>() / n;
-    let v = x.iter().map(|a| (a - m) * (a - m)).sum::<f64>() / (n - 1.0);
-    (m, (v / n).sqrt())
 }
 
 #[test]
@@ -103,7 +98,7 @@ fn phase_functions_integrate_to_one_at_extreme_anisotropy() {
         let mus: Vec<f64> = (0..20_000)
             .map(|_| f64::from((-wo).dot(phase.sample(wo, rng.next_2d()).wi)))
             .collect();
-        let (m, se) = mean_se(&mus);
+        let (m, se) = mean_and_standard_error(&mus);
         let expected = f64::from(phase.mean_cosine());
         assert!(
             (m - expected).abs() <= 4.5 * se + 1e-4,
@@ -168,7 +163,7 @@ fn dielectrics_stay_finite_and_conserve_energy_at_grazing_angles() {
                                 };
                                 energy.push(f64::from(s.weight.max_component() * scale));
                             }
-                            let (m, se) = mean_se(&energy);
+                            let (m, se) = mean_and_standard_error(&energy);
                             assert!(m <= 1.0 + 4.5 * se + 1e-3, "{label}: energy {m} ± {se} > 1");
                             checked += 1;
                         }
@@ -264,7 +259,7 @@ fn free_flight_sampling_is_finite_and_unbiased_from_1e_minus_6_to_1e6() {
                             for (what, xs, expected) in
                                 [("escape", &esc[k], tr), ("scatter", &sca[k], expect_sca)]
                             {
-                                let (m, se) = mean_se(xs);
+                                let (m, se) = mean_and_standard_error(xs);
                                 // Either outcome being rare makes the sample variance unreliable
                                 // (the unseen outcome carries the missing weight).
                                 let p_escape = (0..3)
@@ -393,7 +388,7 @@ fn tracking_estimators_are_finite_and_unbiased_on_extreme_segments() {
             }
             for k in 0..3 {
                 let expected = (-f64::from(coeff.sigma_t[k]) * tau_unit).exp();
-                let (m, se) = mean_se(&xs[k]);
+                let (m, se) = mean_and_standard_error(&xs[k]);
                 assert!(
                     (m - expected).abs() <= 4.5 * se + 1e-4,
                     "{label} {mode:?}: channel {k}: {m} ± {se}, expected {expected}"
@@ -441,7 +436,7 @@ fn tracking_estimators_are_finite_and_unbiased_on_extreme_segments() {
         if p_escape.min(1.0 - p_escape) * n as f64 >= 30.0 {
             for k in 0..3 {
                 let expected = (-f64::from(coeff.sigma_t[k]) * tau_unit).exp();
-                let (m, se) = mean_se(&esc[k]);
+                let (m, se) = mean_and_standard_error(&esc[k]);
                 assert!(
                     (m - expected).abs() <= 4.5 * se + 1e-4,
                     "{label} delta tracking: channel {k}: {m} ± {se}, expected {expected}"

@@ -2,6 +2,9 @@
 //! (constant, piecewise-constant and linear-ramp densities), delta-tracking distances follow
 //! the analytic CDF, and weighted tracking stays unbiased with a deliberately violated bound.
 
+mod common;
+
+use common::stats::{assert_rgb_agrees, estimate_rgb, Estimate};
 use velour::majorant::MajorantSegment;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
@@ -43,36 +46,14 @@ fn grey(s: f32) -> DensityCoefficients {
     DensityCoefficients::new(Rgb::splat(s), Rgb::splat(s * 0.7))
 }
 
-fn mean_se(n: usize, mut f: impl FnMut(&mut Rng) -> Rgb) -> (Rgb, Rgb) {
-    let mut rng = Rng::new(11, 5);
-    let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
-    for _ in 0..n {
-        let v = f(&mut rng);
-        for c in 0..3 {
-            s[c] += v[c] as f64;
-            s2[c] += (v[c] as f64).powi(2);
-        }
-    }
-    let mut m = Rgb::ZERO;
-    let mut se = Rgb::ZERO;
-    for c in 0..3 {
-        let mean = s[c] / n as f64;
-        m[c] = mean as f32;
-        se[c] = ((s2[c] / n as f64 - mean * mean).max(0.0) / n as f64).sqrt() as f32;
-    }
-    (m, se)
+/// Per-channel mean and standard error of `n` estimates `f(rng)`, from the same seed each time.
+fn mean_se(n: usize, f: impl FnMut(&mut Rng) -> Rgb) -> [Estimate; 3] {
+    estimate_rgb(n, &mut Rng::new(11, 5), f)
 }
 
-fn check(m: Rgb, se: Rgb, expect: Rgb, what: &str) {
-    for c in 0..3 {
-        let tol = 4.5 * se[c] + 1e-5;
-        assert!(
-            (m[c] - expect[c]).abs() <= tol,
-            "{what} ch {c}: {} vs {} (tol {tol})",
-            m[c],
-            expect[c]
-        );
-    }
+/// Every channel within 4.5 standard errors (plus 1e-5) of `expect`.
+fn check(estimates: &[Estimate; 3], expect: Rgb, what: &str) {
+    assert_rgb_agrees(estimates, expect, 4.5, 1e-5, what);
 }
 
 fn expected_ramp_tr(coeff: &DensityCoefficients) -> Rgb {
@@ -93,7 +74,7 @@ fn transmittance_estimators_are_unbiased_on_a_linear_ramp() {
             TransmittanceMode::ResidualRatio(ControlVariate::Novak),
         ] {
             let segments = ramp_segments(segs, 1.0);
-            let (m, se) = mean_se(100_000, |rng| {
+            let m = mean_se(100_000, |rng| {
                 let mut st = TrackingStats::default();
                 let mut u = || rng.next_f32();
                 transmittance(
@@ -105,7 +86,7 @@ fn transmittance_estimators_are_unbiased_on_a_linear_ramp() {
                     &mut st,
                 )
             });
-            check(m, se, expect, &format!("{mode:?} with {segs} segments"));
+            check(&m, expect, &format!("{mode:?} with {segs} segments"));
         }
     }
 }
@@ -188,7 +169,7 @@ fn delta_tracking_escape_and_scatter_weights_are_unbiased() {
     let segments = ramp_segments(5, 1.0);
     let expect_tr = expected_ramp_tr(&coeff);
     for beta in [Rgb::ONE, Rgb::new(0.05, 1.0, 0.4)] {
-        let (m, se) = mean_se(200_000, |rng| {
+        let m = mean_se(200_000, |rng| {
             let mut st = TrackingStats::default();
             let mut u = || rng.next_f32();
             match delta_track(
@@ -203,9 +184,9 @@ fn delta_tracking_escape_and_scatter_weights_are_unbiased() {
                 Flight::Scatter { .. } => Rgb::ZERO,
             }
         });
-        check(m, se, expect_tr, "escape weight");
+        check(&m, expect_tr, "escape weight");
         // E[weight · 1{scatter}] = ∫ σ_s(t) T(t) dt = α (1 − T(L)) for constant albedo.
-        let (m, se) = mean_se(200_000, |rng| {
+        let m = mean_se(200_000, |rng| {
             let mut st = TrackingStats::default();
             let mut u = || rng.next_f32();
             match delta_track(
@@ -221,7 +202,7 @@ fn delta_tracking_escape_and_scatter_weights_are_unbiased() {
             }
         });
         let alpha = coeff.sigma_s.safe_div(coeff.sigma_t);
-        check(m, se, alpha * (Rgb::ONE - expect_tr), "scatter weight");
+        check(&m, alpha * (Rgb::ONE - expect_tr), "scatter weight");
     }
 }
 
@@ -232,7 +213,7 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
     let segments = ramp_segments(3, 0.6);
     let expect = expected_ramp_tr(&coeff);
     let mut violations = 0;
-    let (m, se) = mean_se(300_000, |rng| {
+    let m = mean_se(300_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
         let f = delta_track(
@@ -250,8 +231,8 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
         }
     });
     assert!(violations > 0, "the test must violate the bound");
-    check(m, se, expect, "violated delta tracking");
-    let (m, se) = mean_se(300_000, |rng| {
+    check(&m, expect, "violated delta tracking");
+    let m = mean_se(300_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
         transmittance(
@@ -263,7 +244,7 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
             &mut st,
         )
     });
-    check(m, se, expect, "violated ratio tracking");
+    check(&m, expect, "violated ratio tracking");
 }
 
 #[test]
@@ -333,7 +314,7 @@ fn combined_media_add_a_homogeneous_part_everywhere() {
         TransmittanceMode::Ratio,
         TransmittanceMode::ResidualRatio(ControlVariate::Novak),
     ] {
-        let (m, se) = mean_se(100_000, |rng| {
+        let m = mean_se(100_000, |rng| {
             let mut st = TrackingStats::default();
             let mut u = || rng.next_f32();
             transmittance(
@@ -345,9 +326,9 @@ fn combined_media_add_a_homogeneous_part_everywhere() {
                 &mut st,
             )
         });
-        check(m, se, expect, &format!("combined {mode:?}"));
+        check(&m, expect, &format!("combined {mode:?}"));
     }
-    let (m, se) = mean_se(200_000, |rng| {
+    let m = mean_se(200_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
         match delta_track(
@@ -362,5 +343,5 @@ fn combined_media_add_a_homogeneous_part_everywhere() {
             Flight::Scatter { .. } => Rgb::ZERO,
         }
     });
-    check(m, se, expect, "combined delta tracking escape");
+    check(&m, expect, "combined delta tracking escape");
 }

@@ -2,8 +2,10 @@
 //! error (truncation) or a result (some flips are harmless), never a panic, and never a huge
 //! allocation (a counting global allocator records the largest single request).
 
+mod common;
+
+use common::files::vdb_fixture;
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use velour::sampling::Rng;
 use velour::vdb::{blosc, VdbFile};
@@ -67,9 +69,7 @@ fn truncated_and_flipped_files_give_errors_not_panics() {
     let mut flips = 0;
     let mut flip_errors = 0;
     for name in FIXTURES {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("tests/data/vdb")
-            .join(name);
+        let path = vdb_fixture(name);
         let bytes = std::fs::read(&path).unwrap();
         assert!(try_read(name, bytes.clone()).is_ok());
         for cut in cut_points(bytes.len(), &mut rng) {
@@ -158,7 +158,7 @@ fn blosc_frames_with_lying_headers_are_refused() {
 /// lz4hc and zlib, with and without shuffle, several type sizes, one or several blocks.
 #[test]
 fn real_blosc_frames_decode() {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/vdb/blosc_frames.bin");
+    let path = vdb_fixture("blosc_frames.bin");
     let bytes = std::fs::read(path).unwrap();
     let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
     let mut pos = 4;

@@ -1,39 +1,19 @@
 //! Our reader against OpenVDB's own figures (`tests/data/vdb/truth.jsonl`, computed by
 //! OpenVDB 10 on the real files), against `vdb-rs` on 32-bit float files, and its errors.
 
-use glam::{DVec3, IVec3};
+mod common;
+
+use common::files::vdb_fixture;
+use common::vdb_figures::{assert_close, assert_index_to_world, components, counts, number, vec3};
+use glam::IVec3;
 use serde_json::Value;
-use std::path::PathBuf;
 use velour::vdb::{read_vdb, GridStats, VdbError, VdbFile, VdbGrid};
 
-fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/vdb")
-        .join(name)
-}
-
 fn truth() -> Vec<Value> {
-    let text = std::fs::read_to_string(data("truth.jsonl")).expect("truth.jsonl");
+    let text = std::fs::read_to_string(vdb_fixture("truth.jsonl")).expect("truth.jsonl");
     text.lines()
         .map(|l| serde_json::from_str(l).expect("json line"))
         .collect()
-}
-
-fn f(v: &Value) -> f64 {
-    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
-}
-
-fn arr3(v: &Value) -> [f64; 3] {
-    let a = v.as_array().unwrap_or_else(|| panic!("not an array: {v}"));
-    [f(&a[0]), f(&a[1]), f(&a[2])]
-}
-
-fn close(a: f64, b: f64, rel: f64, what: &str) {
-    let tol = rel * a.abs().max(b.abs()).max(1e-300);
-    assert!(
-        (a - b).abs() <= tol,
-        "{what}: ours {a} vs OpenVDB {b} (tolerance {tol})"
-    );
 }
 
 fn check_grid(t: &Value, g: &VdbGrid, s: &GridStats) {
@@ -77,58 +57,37 @@ fn check_grid(t: &Value, g: &VdbGrid, s: &GridStats) {
         "{}",
         w("leaf_count")
     );
-    let by_depth: Vec<u64> = t["active_voxels_by_depth"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap())
-        .collect();
     assert_eq!(
         s.active_voxels_by_level.to_vec(),
-        by_depth,
+        counts(&t["active_voxels_by_depth"]),
         "{}",
         w("by depth")
     );
     let bb = t["active_bbox"].as_array().unwrap();
-    let lo = arr3(&bb[0]);
-    let hi = arr3(&bb[1]);
+    let lo = vec3(&bb[0]);
+    let hi = vec3(&bb[1]);
     let (a, b) = s.active_bbox.expect("active bbox");
     assert_eq!(a.as_dvec3().to_array(), lo, "{}", w("bbox min"));
     assert_eq!(b.as_dvec3().to_array(), hi, "{}", w("bbox max"));
     // Transform: voxel size and where the unit points land.
     let m = g.grid.index_to_world();
-    let vs = arr3(&t["voxel_size"]);
+    let vs = vec3(&t["voxel_size"]);
     for k in 0..3 {
-        close(g.grid.voxel_size()[k], vs[k], 1e-12, &w("voxel size"));
+        assert_close(g.grid.voxel_size()[k], vs[k], 1e-12, &w("voxel size"));
     }
-    for (key, p) in [
-        ("index_to_world_origin", DVec3::ZERO),
-        ("index_to_world_x1", DVec3::X),
-        ("index_to_world_y1", DVec3::Y),
-        ("index_to_world_z1", DVec3::Z),
-    ] {
-        let want = arr3(&t[key]);
-        let got = m.transform_point3(p).to_array();
-        for k in 0..3 {
-            assert!(
-                (got[k] - want[k]).abs() <= 1e-12,
-                "{}: {got:?} vs {want:?}",
-                w(key)
-            );
-        }
-    }
+    assert_index_to_world(t, m, 1e-12, file);
     let n = s.components;
     if n == 1 {
         assert_eq!(
             f64::from(g.grid.background(0)),
-            f(&t["background"]),
+            number(&t["background"]),
             "{}",
             w("background")
         );
-        close(s.min[0], f(&t["min"]), 1e-12, &w("min"));
-        close(s.max[0], f(&t["max"]), 1e-12, &w("max"));
-        close(s.sum[0], f(&t["sum"]), 1e-6, &w("sum"));
-        let want = arr3(&t["moment"]);
+        assert_close(s.min[0], number(&t["min"]), 1e-12, &w("min"));
+        assert_close(s.max[0], number(&t["max"]), 1e-12, &w("max"));
+        assert_close(s.sum[0], number(&t["sum"]), 1e-6, &w("sum"));
+        let want = vec3(&t["moment"]);
         let max_coord = lo
             .iter()
             .chain(hi.iter())
@@ -145,13 +104,13 @@ fn check_grid(t: &Value, g: &VdbGrid, s: &GridStats) {
             );
         }
     } else {
-        let (mn, mx, sm) = (arr3(&t["min"]), arr3(&t["max"]), arr3(&t["sum"]));
+        let (mn, mx, sm) = (vec3(&t["min"]), vec3(&t["max"]), vec3(&t["sum"]));
         for k in 0..3 {
-            close(s.min[k], mn[k], 1e-12, &w("min"));
-            close(s.max[k], mx[k], 1e-12, &w("max"));
-            close(s.sum[k], sm[k], 1e-6, &w("sum"));
+            assert_close(s.min[k], mn[k], 1e-12, &w("min"));
+            assert_close(s.max[k], mx[k], 1e-12, &w("max"));
+            assert_close(s.sum[k], sm[k], 1e-6, &w("sum"));
         }
-        close(s.sum_len, f(&t["sum_len"]), 1e-6, &w("sum_len"));
+        assert_close(s.sum_len, number(&t["sum_len"]), 1e-6, &w("sum_len"));
     }
     assert_eq!(s.non_finite, 0);
 }
@@ -162,7 +121,7 @@ fn every_fixture_matches_openvdb_truth() {
     assert_eq!(truth.len(), 6);
     for t in &truth {
         let file = t["file"].as_str().unwrap();
-        let grids = read_vdb(data(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let grids = read_vdb(vdb_fixture(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
         assert_eq!(grids.len(), 1, "{file}");
         let g = &grids[0];
         check_grid(t, g, &g.stats());
@@ -171,8 +130,10 @@ fn every_fixture_matches_openvdb_truth() {
 
 #[test]
 fn half_file_loads_into_f16_storage_exactly() {
-    let full = read_vdb(data("noise_fbm.vdb")).unwrap().remove(0);
-    let half = read_vdb(data("noise_fbm_half.vdb")).unwrap().remove(0);
+    let full = read_vdb(vdb_fixture("noise_fbm.vdb")).unwrap().remove(0);
+    let half = read_vdb(vdb_fixture("noise_fbm_half.vdb"))
+        .unwrap()
+        .remove(0);
     assert_eq!(half.grid.storage(), velour::grid::Storage::F16);
     assert_eq!(full.grid.storage(), velour::grid::Storage::F32);
     // Every voxel of the half grid is the half rounding of the float grid's voxel.
@@ -199,8 +160,8 @@ fn vdb_rs_agrees_on_float_files() {
         "tiles_internal.vdb",
         "xform_scaletranslate.vdb",
     ] {
-        let ours = read_vdb(data(file)).unwrap().remove(0);
-        let fh = std::fs::File::open(data(file)).unwrap();
+        let ours = read_vdb(vdb_fixture(file)).unwrap().remove(0);
+        let fh = std::fs::File::open(vdb_fixture(file)).unwrap();
         let mut reader = vdb_rs::VdbReader::new(std::io::BufReader::new(fh)).unwrap();
         let theirs = reader.read_grid::<f32>("density").unwrap();
         let mut count = 0u64;
@@ -215,13 +176,13 @@ fn vdb_rs_agrees_on_float_files() {
         }
         let s = ours.stats();
         assert_eq!(count, s.active_voxels, "{file}");
-        close(sum, s.sum[0], 1e-9, file);
+        assert_close(sum, s.sum[0], 1e-9, file);
     }
 }
 
 #[test]
 fn unknown_grid_name_lists_the_grids() {
-    let f = VdbFile::open(data("sphere_fog.vdb")).unwrap();
+    let f = VdbFile::open(vdb_fixture("sphere_fog.vdb")).unwrap();
     let e = f.read_grid("temperature").unwrap_err();
     assert!(matches!(e, VdbError::NoSuchGrid { .. }));
     let msg = e.to_string();
@@ -233,7 +194,7 @@ fn unknown_grid_name_lists_the_grids() {
 
 #[test]
 fn unsupported_grid_type_is_named() {
-    let mut bytes = std::fs::read(data("xform_scaletranslate.vdb")).unwrap();
+    let mut bytes = std::fs::read(vdb_fixture("xform_scaletranslate.vdb")).unwrap();
     let pat = b"Tree_float_5_4_3";
     let at = bytes.windows(pat.len()).position(|w| w == pat).unwrap();
     bytes[at..at + pat.len()].copy_from_slice(b"Tree_int32_5_4_3");
@@ -273,13 +234,13 @@ fn non_finite_values_are_reported_and_refused() {
 /// figures computed by OpenVDB itself.
 #[test]
 fn cpp_fixtures_match_openvdb_figures() {
-    let text = std::fs::read_to_string(data("cpp/truth_cpp.jsonl")).unwrap();
+    let text = std::fs::read_to_string(vdb_fixture("cpp/truth_cpp.jsonl")).unwrap();
     let mut seen = std::collections::BTreeSet::new();
     for line in text.lines() {
         let t: Value = serde_json::from_str(line).unwrap();
         let file = t["file"].as_str().unwrap();
         let name = t["name"].as_str().unwrap();
-        let g = VdbFile::open(data(&format!("cpp/{file}")))
+        let g = VdbFile::open(vdb_fixture(&format!("cpp/{file}")))
             .unwrap()
             .read_grid(name)
             .unwrap();
@@ -290,17 +251,15 @@ fn cpp_fixtures_match_openvdb_figures() {
         assert_eq!(g.saved_as_half, t["save_half"].as_bool().unwrap(), "{w}");
         assert_eq!(s.active_voxels, t["active_voxels"].as_u64().unwrap(), "{w}");
         assert_eq!(s.leaf_count, t["leaf_count"].as_u64().unwrap(), "{w}");
-        let by: Vec<u64> = t["active_voxels_by_depth"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_u64().unwrap())
-            .collect();
-        assert_eq!(s.active_voxels_by_level.to_vec(), by, "{w}");
+        assert_eq!(
+            s.active_voxels_by_level.to_vec(),
+            counts(&t["active_voxels_by_depth"]),
+            "{w}"
+        );
         let bb = t["active_bbox"].as_array().unwrap();
         let (lo, hi) = s.active_bbox.unwrap();
-        assert_eq!(lo.as_dvec3().to_array(), arr3(&bb[0]), "{w}");
-        assert_eq!(hi.as_dvec3().to_array(), arr3(&bb[1]), "{w}");
+        assert_eq!(lo.as_dvec3().to_array(), vec3(&bb[0]), "{w}");
+        assert_eq!(hi.as_dvec3().to_array(), vec3(&bb[1]), "{w}");
         // Doubles are stored as f32: compare to f32 precision.
         let rel = if g.value_type.component_bytes() == 8 {
             1e-7
@@ -308,17 +267,12 @@ fn cpp_fixtures_match_openvdb_figures() {
             1e-12
         };
         let n = s.components;
-        let get = |k: &str| -> Vec<f64> {
-            match t[k].as_array() {
-                Some(a) => a.iter().map(f).collect(),
-                None => vec![f(&t[k])],
-            }
-        };
+        let get = |k: &str| components(&t[k]);
         let (mn, mx, sm, bg) = (get("min"), get("max"), get("sum"), get("background"));
         for k in 0..n {
-            close(s.min[k], mn[k], rel, &format!("{w} min"));
-            close(s.max[k], mx[k], rel, &format!("{w} max"));
-            close(s.sum[k], sm[k], 1e-6, &format!("{w} sum"));
+            assert_close(s.min[k], mn[k], rel, &format!("{w} min"));
+            assert_close(s.max[k], mx[k], rel, &format!("{w} max"));
+            assert_close(s.sum[k], sm[k], 1e-6, &format!("{w} sum"));
             assert_eq!(
                 f64::from(g.grid.background_vec3(0)[k]),
                 bg[k],
@@ -326,27 +280,12 @@ fn cpp_fixtures_match_openvdb_figures() {
             );
         }
         if n == 1 {
-            let want = arr3(&t["moment"]);
+            let want = vec3(&t["moment"]);
             for k in 0..3 {
-                close(s.moment[k], want[k], 1e-6, &format!("{w} moment"));
+                assert_close(s.moment[k], want[k], 1e-6, &format!("{w} moment"));
             }
         }
-        let m = g.grid.index_to_world();
-        for (key, p) in [
-            ("index_to_world_origin", DVec3::ZERO),
-            ("index_to_world_x1", DVec3::X),
-            ("index_to_world_y1", DVec3::Y),
-            ("index_to_world_z1", DVec3::Z),
-        ] {
-            let want = arr3(&t[key]);
-            let got = m.transform_point3(p).to_array();
-            for k in 0..3 {
-                assert!(
-                    (got[k] - want[k]).abs() <= 1e-12,
-                    "{w} {key}: {got:?} vs {want:?}"
-                );
-            }
-        }
+        assert_index_to_world(&t, g.grid.index_to_world(), 1e-12, &w);
         // The inactive 128^3 tile with a non-background value is kept.
         let inactive = g.grid.value_at_vec3(0, IVec3::new(5, 600, 5));
         assert!(!g.grid.is_active(IVec3::new(5, 600, 5)));
@@ -362,7 +301,7 @@ fn cpp_fixtures_match_openvdb_figures() {
         5
     );
     // Unsupported grids and maps give errors that name them.
-    let f = VdbFile::open(data("cpp/cpp_unsupported.vdb")).unwrap();
+    let f = VdbFile::open(vdb_fixture("cpp/cpp_unsupported.vdb")).unwrap();
     for (grid, what) in [
         ("labels", "Tree_int32_5_4_3"),
         ("mask", "Tree_bool_5_4_3"),

@@ -1,0 +1,42 @@
+//! Rendering small scenes written inline in tests, and reading pixel values back.
+
+use std::path::Path;
+
+use velour::film::Film;
+use velour::render::{render, RenderOptions, RenderSummary};
+use velour::scene::{load_scene_str, Scene};
+
+/// Loads scene text as if read from `path` (relative file names in it resolve against the
+/// directory of `path`); panics with the scene error.
+pub fn scene_from_text(text: &str, path: impl AsRef<Path>) -> Scene {
+    let path = path.as_ref();
+    load_scene_str(text, path).unwrap_or_else(|e| panic!("scene {}: {e}", path.display()))
+}
+
+/// Renders `scene` in memory on `threads` worker threads (0 = all cores); panics with the
+/// render error.
+pub fn render_scene(scene: &Scene, threads: usize) -> (Film, RenderSummary) {
+    let options = RenderOptions {
+        threads,
+        ..RenderOptions::default()
+    };
+    render(scene, &options).unwrap_or_else(|e| panic!("render: {e}"))
+}
+
+/// [`render_scene`], asserting that no sample was dropped as non-finite.
+pub fn render_finite(scene: &Scene, threads: usize) -> (Film, RenderSummary) {
+    let (film, summary) = render_scene(scene, threads);
+    assert_eq!(summary.non_finite, 0, "non-finite samples");
+    (film, summary)
+}
+
+/// Channel `c` (0 = R, 1 = G, 2 = B) of every pixel mean of `film`, row by row.
+pub fn pixel_means(film: &Film, c: usize) -> Vec<f64> {
+    let mut values = Vec::with_capacity((film.width() * film.height()) as usize);
+    for y in 0..film.height() {
+        for x in 0..film.width() {
+            values.push(f64::from(film.mean(x, y)[c]));
+        }
+    }
+    values
+}
