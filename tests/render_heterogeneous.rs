@@ -210,7 +210,10 @@ fn estimated_bounds_that_happen_to_agree_are_still_looked_up() {
     );
     let (b, _) = run(&dense_fbm_sphere(r#"bound = "analytic""#), 12);
     let z = compare(&a, &b).expect("compare").z_test.expect("variance");
-    assert!(z.consistent, "estimated (1 trial) vs analytic bounds: {z:?}");
+    assert!(
+        z.consistent,
+        "estimated (1 trial) vs analytic bounds: {z:?}"
+    );
     let per_collision = sa.tracking.lookups as f64 / sa.tracking.real_collisions.max(1) as f64;
     assert!(
         per_collision >= 1.0,

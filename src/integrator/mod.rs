@@ -138,9 +138,8 @@ fn radiance(
     let mut path = PathState::new(ray);
     loop {
         stats.rays += 1;
-        let hit = scene.geometry.intersect(&path.ray, f32::INFINITY);
-        let t_hit = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
-        match path.interior_step(scene, t_hit, sampler, stats) {
+        let (step, hit) = path.interior_step(scene, sampler, stats);
+        match step {
             Step::Trace => continue,
             Step::Stop => break,
             Step::Boundary => {}
@@ -178,34 +177,43 @@ impl PathState {
         }
     }
 
-    /// 1. The interior the ray travels through, up to the next boundary at `t_hit`
-    /// (Algorithm 1, lines 3–11): a free flight that passes, or scatters.
+    /// 1. The interior the ray travels through, up to the next boundary (Algorithm 1, lines
+    /// 3–11): a free flight that passes, or scatters. Returns the boundary hit when the flight
+    /// reached it (the closest hit of the ray; in vacuum, the ray is traced to the first hit).
+    /// The boundary is searched only as far as the medium needs: up to the sampled distance in
+    /// a homogeneous medium.
     fn interior_step(
         &mut self,
         scene: &Scene,
-        t_hit: f32,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
-    ) -> Step {
+    ) -> (Step, Option<Hit>) {
         let Some((medium, obj)) = current_medium(scene, &self.stack) else {
-            return Step::Boundary;
+            let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
+            return (Step::Boundary, hit);
         };
-        let event = medium.sample_flight(
-            &self.ray,
-            t_hit,
+        let mut hit = None;
+        let ray = self.ray;
+        let event = medium.sample_flight_to_boundary(
+            &ray,
             self.beta,
             &mut || sampler.next_1d(),
             &mut stats.tracking,
+            |limit| {
+                hit = scene.geometry.intersect(&ray, limit);
+                hit.as_ref().map_or(f32::INFINITY, |h| h.t)
+            },
         );
         if !event.emitted.is_black() {
             self.radiance += self.beta * event.emitted;
         }
         self.beta *= event.weight;
-        match event.scatter {
+        let step = match event.scatter {
             Some(vertex) => self.scatter_in_medium(scene, obj, &vertex, sampler, stats),
             None if self.beta.is_black() => Step::Stop,
             None => Step::Boundary,
-        }
+        };
+        (step, hit)
     }
 
     /// A real collision inside an interior: NEE at the vertex if the interior does it there,

@@ -26,7 +26,7 @@ pub use lookup::{DensityLookup, GridLookup};
 use crate::math::Ray;
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
-use crate::tracking::{sample_homogeneous, Flight, TrackingStats};
+use crate::tracking::{Flight, HomogeneousFlight, TrackingStats};
 
 /// Where next event estimation happens for paths inside an interior (notes §2.3.3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,14 +95,38 @@ impl Medium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
+        self.sample_flight_to_boundary(ray, beta, u, stats, |_| t_max)
+    }
+
+    /// [`Self::sample_flight`] for a ray whose boundary is not known yet: `boundary(limit)`
+    /// returns the distance to where the ray leaves the interior if that is below `limit`,
+    /// and ∞ otherwise. A homogeneous medium samples its distance first and asks for the
+    /// boundary only up to it (in a dense medium a short ray, cheap to trace); other media ask
+    /// with `limit = ∞`. `boundary` is called exactly once.
+    pub fn sample_flight_to_boundary<U, B>(
+        &self,
+        ray: &Ray,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+        mut boundary: B,
+    ) -> MediumEvent<'_>
+    where
+        U: FnMut() -> f32,
+        B: FnMut(f32) -> f32,
+    {
         match self {
-            Medium::Absorbing { .. } => MediumEvent::pass(self.closed_form_transmittance(t_max)),
+            Medium::Absorbing { .. } => {
+                MediumEvent::pass(self.closed_form_transmittance(boundary(f32::INFINITY)))
+            }
             Medium::Homogeneous(h) => {
                 let u_channel = u();
                 let u_distance = u();
                 let c = &h.coefficients;
                 let sigma_t = c.sigma_t();
-                match sample_homogeneous(sigma_t, c.sigma_s, beta, t_max, u_channel, u_distance) {
+                let flight =
+                    HomogeneousFlight::sample(sigma_t, c.sigma_s, beta, u_channel, u_distance);
+                match flight.resolve(boundary(flight.t)) {
                     Flight::Escape { weight } => MediumEvent::pass(weight),
                     Flight::Scatter { t, weight, .. } => MediumEvent {
                         weight,
@@ -116,7 +140,9 @@ impl Medium {
                     },
                 }
             }
-            Medium::Heterogeneous(h) => h.sample_flight(ray, t_max, beta, u, stats),
+            Medium::Heterogeneous(h) => {
+                h.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
+            }
         }
     }
 

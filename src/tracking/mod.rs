@@ -30,7 +30,7 @@ mod ratio;
 
 pub use channels::{channel_probabilities, pick_channel};
 pub use delta::delta_track;
-pub use homogeneous::sample_homogeneous;
+pub use homogeneous::{sample_homogeneous, HomogeneousFlight};
 pub use march::ray_march_free_flight;
 pub use ratio::transmittance;
 
