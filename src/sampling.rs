@@ -2,14 +2,31 @@
 //!
 //! Every random number in a render is a pure function of
 //! `(seed, pixel, sample index, dimension)` ([`PixelSampler`]), so an image is bit-identical
-//! whatever the thread count or tile order. The first [`SOBOL_DIMENSIONS`] dimensions of a
-//! pixel come from Owen-scrambled Sobol points (`sobol_burley`, Burley 2020, "Practical
-//! Hash-based Owen Scrambling"); deeper dimensions (long random walks) come from a hash.
+//! whatever the thread count, tile order or split of the samples. Dimensions are grouped by
+//! path vertex: the camera's first [`CAMERA_SOBOL_DIMENSIONS`] numbers and the first
+//! [`VERTEX_SOBOL_DIMENSIONS`] numbers of each of the first [`SOBOL_VERTICES`] vertices come from
+//! Owen-scrambled Sobol points (`sobol_burley`, Burley 2020, "Practical Hash-based Owen
+//! Scrambling"), four dimensions at a time; the rest of a vertex (long tracking walks, shadow
+//! rays) and deeper vertices come from a cheap counter-based hash. Each vertex's Sobol block
+//! starts at the same place whatever the previous vertices consumed, so the first decisions of
+//! every vertex (free-flight channel and distance, light choice and position, scattering
+//! direction) stay stratified across the pixel's samples.
 
 use crate::math::{Vec2, Vec3, INV_PI, PI};
 
-/// Number of dimensions served by the Sobol sequence before falling back to hashing.
-pub const SOBOL_DIMENSIONS: u32 = sobol_burley::NUM_DIMENSIONS as u32;
+/// Sobol dimensions of the camera vertex (pixel position, lens).
+pub const CAMERA_SOBOL_DIMENSIONS: u32 = 4;
+
+/// Sobol dimensions at the start of each path vertex.
+pub const VERTEX_SOBOL_DIMENSIONS: u32 = 8;
+
+/// Vertices (after the camera) whose first numbers come from the Sobol sequence.
+pub const SOBOL_VERTICES: u32 =
+    (sobol_burley::NUM_DIMENSION_SETS_4D - 1) / (VERTEX_SOBOL_DIMENSIONS / 4);
+
+/// Sample indices served by the Sobol sequence (`sobol_burley` supports 2^16); later
+/// samples of a pixel are hashed.
+pub const SOBOL_SAMPLES: u32 = 1 << 16;
 
 /// The largest `f32` strictly below 1.
 pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
@@ -38,45 +55,80 @@ pub fn bits_to_unit_f32(bits: u32) -> f32 {
     (bits >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
-/// Deterministic per-pixel sample stream.
+/// Deterministic per-pixel sample stream, grouped by path vertex (see the module docs).
 #[derive(Clone, Debug)]
 pub struct PixelSampler {
-    pixel_seed: u64,
+    /// Seed of the pixel's scrambled Sobol sequence.
+    sobol_seed: u32,
     sample_index: u32,
-    dimension: u32,
+    /// Hash of (pixel, sample) for the hashed dimensions.
+    hash_base: u64,
+    /// Current vertex (0 = camera).
+    vertex: u32,
+    /// Numbers drawn in the current vertex.
+    used: u32,
+    /// The current 4-dimensional Sobol set.
+    sobol: [f32; 4],
 }
 
 impl PixelSampler {
-    /// Starts sample `sample_index` of pixel `(px, py)` for the render seed `seed`.
+    /// Starts sample `sample_index` of pixel `(px, py)` for the render seed `seed`, at the
+    /// camera vertex.
     #[must_use]
     pub fn new(seed: u64, px: u32, py: u32, sample_index: u32) -> Self {
         let pixel_seed = hash_words(&[seed, ((px as u64) << 32) | py as u64]);
         PixelSampler {
-            pixel_seed,
+            sobol_seed: pixel_seed as u32,
             sample_index,
-            dimension: 0,
+            hash_base: hash_words(&[pixel_seed, sample_index as u64]),
+            vertex: 0,
+            used: 0,
+            sobol: [0.0; 4],
         }
     }
+
+    /// Moves to the next path vertex: its first numbers come from a fresh Sobol block.
+    pub fn start_vertex(&mut self) {
+        self.vertex = self.vertex.saturating_add(1);
+        self.used = 0;
+    }
+
     /// The next uniform number in `[0, 1)`.
+    #[inline]
     pub fn next_1d(&mut self) -> f32 {
-        let d = self.dimension;
-        self.dimension += 1;
-        if d < SOBOL_DIMENSIONS {
-            let v = sobol_burley::sample(self.sample_index, d, self.pixel_seed as u32);
-            v.min(ONE_MINUS_EPSILON)
+        let j = self.used;
+        self.used = self.used.saturating_add(1);
+        let (sobol_dims, first_set) = if self.vertex == 0 {
+            (CAMERA_SOBOL_DIMENSIONS, 0)
         } else {
-            let h = hash_words(&[self.pixel_seed, self.sample_index as u64, d as u64]);
-            bits_to_unit_f32(h as u32)
+            (
+                VERTEX_SOBOL_DIMENSIONS,
+                1 + (self.vertex - 1) * (VERTEX_SOBOL_DIMENSIONS / 4),
+            )
+        };
+        if j < sobol_dims && self.vertex <= SOBOL_VERTICES && self.sample_index < SOBOL_SAMPLES {
+            if j % 4 == 0 {
+                let set = first_set + j / 4;
+                self.sobol = sobol_burley::sample_4d(self.sample_index, set, self.sobol_seed)
+                    .map(|v| v.min(ONE_MINUS_EPSILON));
+            }
+            return self.sobol[(j % 4) as usize];
         }
+        let key = (u64::from(self.vertex) << 32) | u64::from(j);
+        let bits = mix64(self.hash_base ^ key.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        bits_to_unit_f32((bits >> 32) as u32)
     }
+
     /// The next two uniform numbers.
+    #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         Vec2::new(self.next_1d(), self.next_1d())
     }
-    /// Dimensions consumed so far.
+
+    /// The current vertex (0 = camera) and the numbers drawn in it so far.
     #[must_use]
-    pub fn dimension(&self) -> u32 {
-        self.dimension
+    pub fn position(&self) -> (u32, u32) {
+        (self.vertex, self.used)
     }
 }
 

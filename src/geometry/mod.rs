@@ -18,6 +18,7 @@
 //!   the winding, which [`TriangleMesh::make_outward`] makes outward for closed meshes).
 
 mod bvh;
+mod icosphere;
 mod mesh;
 mod ply;
 mod sphere;
@@ -28,6 +29,7 @@ use std::path::PathBuf;
 use crate::math::{Mat3, Mat4, Vec2, Vec3};
 
 pub use bvh::SceneGeometry;
+pub use icosphere::icosphere;
 pub use mesh::{MeshTopology, TriangleMesh};
 pub use ply::{load_ply, write_ply};
 pub use sphere::{intersect_sphere, SphereHit};

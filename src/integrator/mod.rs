@@ -138,6 +138,7 @@ fn radiance(
     let mut path = PathState::new(ray);
     loop {
         stats.rays += 1;
+        sampler.start_vertex();
         let (step, hit) = path.interior_step(scene, sampler, stats);
         match step {
             Step::Trace => continue,
