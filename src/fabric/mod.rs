@@ -19,12 +19,16 @@
 //!   preview renderer.
 //! * [`shell`]: a voxelised patch tiled over a mesh shell (draped cloth), with the exact
 //!   shell map from world points to patch voxels.
+//! * [`lod`]: the level-of-detail policy of a rendered fabric: the mip level a view needs, the
+//!   tiles that give a shell's weave its true size, the normalisation of fibre-projected
+//!   extinction.
 //!
 //! Lengths: the yarn presets are in **centimetres** (the units of the released fits); every
 //! length in this module is in the same unit as the yarn parameters it came from. Use
 //! [`yarn::YarnParams::scaled`] to convert to scene units.
 
 pub mod fibre_scattering;
+pub mod lod;
 pub mod shell;
 pub mod voxelise;
 pub mod weave;
