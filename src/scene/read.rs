@@ -250,20 +250,29 @@ fn closest<'a>(key: &str, accepted: &[&'a str]) -> Option<&'a str> {
         .map(|(_, k)| k)
 }
 
-/// Levenshtein distance (insertions, deletions, substitutions) between two strings.
+/// Edit distance between two strings counting insertions, deletions, substitutions and
+/// swaps of neighbouring characters (the optimal-string-alignment distance).
 fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut diagonal = row[0];
-        row[0] = i + 1;
-        for (j, &cb) in b.iter().enumerate() {
-            let substitute = diagonal + usize::from(ca != cb);
-            diagonal = row[j + 1];
-            row[j + 1] = substitute.min(row[j] + 1).min(diagonal + 1);
+    let (a, b): (Vec<char>, Vec<char>) = (a.chars().collect(), b.chars().collect());
+    // d[i][j]: distance between the first i characters of a and the first j of b.
+    let mut d = vec![vec![0usize; b.len() + 1]; a.len() + 1];
+    for (i, row) in d.iter_mut().enumerate() {
+        row[0] = i;
+    }
+    for (j, cell) in d[0].iter_mut().enumerate() {
+        *cell = j;
+    }
+    for i in 1..=a.len() {
+        for j in 1..=b.len() {
+            let substitute = d[i - 1][j - 1] + usize::from(a[i - 1] != b[j - 1]);
+            let mut best = substitute.min(d[i - 1][j] + 1).min(d[i][j - 1] + 1);
+            if i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] {
+                best = best.min(d[i - 2][j - 2] + 1);
+            }
+            d[i][j] = best;
         }
     }
-    row[b.len()]
+    d[a.len()][b.len()]
 }
 
 /// `"a"`, `"a" or "b"`, `"a", "b" or "c"`.
@@ -372,6 +381,8 @@ mod tests {
         assert_eq!(quoted_list(&["a", "b", "c"]), "\"a\", \"b\" or \"c\"");
         assert_eq!(edit_distance("albdo", "albedo"), 1);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("shpae", "shape"), 1);
+        assert_eq!(edit_distance("", "abc"), 3);
         assert_eq!(closest("albdo", &["attenuation", "albedo"]), Some("albedo"));
         assert_eq!(closest("xyz", &["attenuation", "albedo"]), None);
     }

@@ -29,15 +29,16 @@ impl Scattering {
         phase: Option<&PhaseDesc>,
     ) -> Result<Scattering, SceneError> {
         let albedo = at.unit_colour("albedo", albedo, Rgb::splat(0.8))?;
-        let mode =
-            match albedo_mode.unwrap_or("multiple") {
-                "multiple" => AlbedoMode::MultipleScattering,
-                "single" => AlbedoMode::SingleScattering,
-                other => return Err(at.invalid(format!(
+        let mode = match albedo_mode.unwrap_or("multiple") {
+            "multiple" => AlbedoMode::MultipleScattering,
+            "single" => AlbedoMode::SingleScattering,
+            other => {
+                return Err(at.invalid(format!(
                     "{}.albedo_mode = \"{other}\" is unknown (expected \"multiple\" or \"single\")",
                     at.owner
-                ))),
-            };
+                )))
+            }
+        };
         let phase = build_phase(at, phase)?;
         Ok(Scattering {
             albedo,

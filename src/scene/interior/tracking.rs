@@ -26,9 +26,11 @@ pub(super) fn build_tracking(
     cfg.free_flight = match t.free_flight.as_deref().unwrap_or("delta") {
         "delta" => FreeFlightMethod::DeltaTracking,
         "ray_march" => FreeFlightMethod::RayMarching { step: need_step()? },
-        other => return Err(at.invalid(format!(
+        other => {
+            return Err(at.invalid(format!(
             "{owner}.free_flight = \"{other}\" is unknown (expected \"delta\" or \"ray_march\")"
-        ))),
+        )))
+        }
     };
     let control = match t.control.as_deref().unwrap_or("novak") {
         "novak" => ControlVariate::Novak,
@@ -46,13 +48,14 @@ pub(super) fn build_tracking(
     if level > 20 {
         return Err(at.invalid(format!("{owner}.level = {level} is outside [0, 20]")));
     }
-    cfg.majorant =
-        match t.majorant.as_deref().unwrap_or("pyramid") {
-            "pyramid" => MajorantMode::Hierarchical { finest: level },
-            "global" => MajorantMode::Global,
-            other => return Err(at.invalid(format!(
+    cfg.majorant = match t.majorant.as_deref().unwrap_or("pyramid") {
+        "pyramid" => MajorantMode::Hierarchical { finest: level },
+        "global" => MajorantMode::Global,
+        other => {
+            return Err(at.invalid(format!(
                 "{owner}.majorant = \"{other}\" is unknown (expected \"pyramid\" or \"global\")"
-            ))),
-        };
+            )))
+        }
+    };
     Ok(cfg)
 }
