@@ -83,10 +83,10 @@ fn array_of_tables<'i>(
 }
 
 /// One `[[object]]`: its common keys, then its typed `surface` and `interior`.
-fn read_object<'i>(
+fn read_object(
     ctx: &Ctx,
     index: usize,
-    value: Spanned<DeValue<'i>>,
+    value: Spanned<DeValue<'_>>,
 ) -> Result<Spanned<ObjectDesc>, SceneError> {
     let span = value.span();
     let line = ctx.line_of(span.start);
@@ -105,11 +105,11 @@ fn read_object<'i>(
         DeValue::Table(table),
     )))
     .map_err(|e| match unknown_own_key(&e, &own_keys) {
-        Some((key, key_line)) => {
+        Some((key, key_span)) => {
             let mut accepted = keys_of(|d| ObjectDesc::deserialize(d).map(Some)).to_vec();
             accepted.extend(ObjectDesc::TYPED_KEYS);
             ctx.parse(
-                ctx.line_of(key_line.start),
+                ctx.line_of(key_span.start),
                 format!("{name}: {}", unknown_key_message(key, "", &accepted)),
             )
         }
@@ -351,11 +351,16 @@ impl<'de> de::Deserializer<'de> for KeyList {
 
 /// Turns a toml/serde error into one naming its line (the line of the key for an unknown key,
 /// of the value for a wrong value, of the table for a missing key).
-pub(super) fn parse_error(ctx: &Ctx, e: &toml::de::Error) -> SceneError {
+fn parse_error(ctx: &Ctx, e: &toml::de::Error) -> SceneError {
     let message = e.message().trim().to_string();
     let line = e.span().map_or(1, |s| ctx.line_of(s.start));
     if let Some(key) = unknown_field(&message) {
-        return ctx.parse(line, format!("unknown key `{key}` ({message})"));
+        // serde lists the accepted keys after "expected": "one of `a`, `b`" or "`a`".
+        let accepted: Vec<&str> = message
+            .split_once(", expected ")
+            .map(|(_, list)| list.split('`').skip(1).step_by(2).collect())
+            .unwrap_or_default();
+        return ctx.parse(line, unknown_key_message(key, "", &accepted));
     }
     // serde's untagged enums say only "data did not match any variant": say what fits.
     let message = match message
