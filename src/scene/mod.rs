@@ -5,7 +5,8 @@
 //! One file per job: `read` turns the text into the descriptions of [`desc`]; `validate`
 //! holds the shared checks; `camera` builds the film and camera, `lights` the lights,
 //! `objects` the shapes, transforms and object list, `surface` the boundaries and `interior`
-//! the media (one file per interior type); `build` puts them together.
+//! the media (a file per kind of interior); `build` puts them together. The fabric
+//! level-of-detail policy the interiors apply is [`crate::fabric::lod`].
 
 mod build;
 mod camera;
