@@ -118,3 +118,27 @@ fn toml_syntax_errors_name_the_line() {
     let e = err(&text);
     assert!(e.contains("bad.toml:"), "{e}");
 }
+
+#[test]
+fn keys_of_another_type_name_the_types_that_use_them() {
+    let text = BASE.replace(
+        "attenuation = 0.5 }",
+        "attenuation = 0.5, resolution = 64 }",
+    );
+    let e = err(&text);
+    assert!(e.starts_with("bad.toml:17: skin: interior: "), "{e}");
+    assert!(
+        e.contains("key `resolution` is not used by type \"homogeneous\" (only by \"fabric\")"),
+        "{e}"
+    );
+}
+
+#[test]
+fn unknown_interior_types_name_the_line_and_the_choices() {
+    let e = err(&BASE.replace("type = \"homogeneous\"", "type = \"nebula\""));
+    assert!(
+        e.starts_with("bad.toml:17: skin: interior.type = \"nebula\""),
+        "{e}"
+    );
+    assert!(e.contains("\"voxel\", \"fbm\" or \"fabric\""), "{e}");
+}

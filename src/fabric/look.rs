@@ -26,11 +26,12 @@ pub enum FibreExtinction {
 
 impl FibreExtinction {
     /// The factor on σ_t⁰ that makes the direction-averaged extinction equal the isotropic
-    /// one: the mean of sin θ over the sphere is π/4, so 4/π for projected extinction.
+    /// one: [`super::lod::PROJECTED_EXTINCTION_SCALE`] (4/π) for projected extinction, 1 for
+    /// isotropic.
     #[must_use]
     pub fn sigma_scale(self) -> f32 {
         match self {
-            FibreExtinction::Projected => 4.0 / std::f32::consts::PI,
+            FibreExtinction::Projected => super::lod::PROJECTED_EXTINCTION_SCALE,
             FibreExtinction::Isotropic => 1.0,
         }
     }

@@ -21,12 +21,16 @@
 //!   shell map from world points to patch voxels.
 //! * [`look`]: how a voxelised patch is shaded and looked up by the renderer: fibre phase
 //!   functions per yarn family, fibre tangents in world space, fibre-projected extinction.
+//! * [`lod`]: the level-of-detail policy of a rendered fabric: the mip level a view needs, the
+//!   tiles that give a shell's weave its true size, the normalisation of fibre-projected
+//!   extinction.
 //!
 //! Lengths: the yarn presets are in **centimetres** (the units of the released fits); every
 //! length in this module is in the same unit as the yarn parameters it came from. Use
 //! [`yarn::YarnParams::scaled`] to convert to scene units.
 
 pub mod fibre_scattering;
+pub mod lod;
 pub mod look;
 pub mod shell;
 pub mod voxelise;

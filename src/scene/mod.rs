@@ -1,9 +1,23 @@
 //! Scenes: the only module that reads scene files and calls loaders. It turns a TOML file
 //! (documented key by key in `docs/scene-format.md`) into an immutable [`Scene`] of index
 //! handles: objects, media, lights and one [`SceneGeometry`].
+//!
+//! One file per job: `read` turns the text into the descriptions of [`desc`]; `validate`
+//! holds the shared checks; `camera` builds the film and camera, `lights` the lights,
+//! `objects` the shapes, transforms and object list, `surface` the boundaries and `interior`
+//! the media (a file per kind of interior); `build` puts them together. The fabric
+//! level-of-detail policy the interiors apply is [`crate::fabric::lod`].
 
 mod build;
+mod camera;
+mod context;
 pub mod desc;
+mod interior;
+mod lights;
+mod objects;
+mod read;
+mod surface;
+mod validate;
 
 use std::path::{Path, PathBuf};
 

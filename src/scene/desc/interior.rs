@@ -1,0 +1,259 @@
+//! `interior = { ... }`: one description per interior `type`, and the tables they nest
+//! (`phase`, `tracking`, `noise`).
+
+use serde::Deserialize;
+
+use super::{ColorValue, MipValue, TilesValue, TypedTable};
+
+/// An object's `interior` table, by its `type`.
+#[derive(Clone, Debug)]
+pub enum InteriorDesc {
+    /// `type = "absorption"`.
+    Absorption(AbsorptionDesc),
+    /// `type = "homogeneous"`.
+    Homogeneous(HomogeneousDesc),
+    /// `type = "voxel"`.
+    Voxel(VoxelDesc),
+    /// `type = "fbm"`.
+    Fbm(FbmDesc),
+    /// `type = "fabric"`.
+    Fabric(FabricDesc),
+}
+
+/// `type = "absorption"`: absorbing only (coloured glass), σ_a = density / attenuation.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AbsorptionDesc {
+    /// Attenuation distance per channel (world units), > 0 (default 1).
+    pub attenuation: Option<ColorValue>,
+    /// Density multiplier ≥ 0 (default 1).
+    pub density: Option<f32>,
+    /// "exit" or "interior".
+    pub nee: Option<String>,
+}
+
+/// `type = "homogeneous"`: a scattering medium of constant density.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HomogeneousDesc {
+    /// Artist albedo in [0, 1] (default 0.8).
+    pub albedo: Option<ColorValue>,
+    /// "multiple" (default) or "single".
+    pub albedo_mode: Option<String>,
+    /// Attenuation distance per channel (world units), > 0 (default 1).
+    pub attenuation: Option<ColorValue>,
+    /// Density multiplier ≥ 0 (default 1).
+    pub density: Option<f32>,
+    /// Phase function (default isotropic).
+    pub phase: Option<PhaseDesc>,
+    /// "exit" or "interior".
+    pub nee: Option<String>,
+}
+
+/// `type = "voxel"`: a density grid from an OpenVDB file, optionally added to a homogeneous
+/// medium (a combined interior, `base_albedo`/`base_attenuation`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VoxelDesc {
+    /// OpenVDB file, relative to the scene file (required).
+    pub file: Option<String>,
+    /// Grid name in the file (default "density").
+    pub grid: Option<String>,
+    /// Artist albedo in [0, 1] (default 0.8).
+    pub albedo: Option<ColorValue>,
+    /// "multiple" (default) or "single".
+    pub albedo_mode: Option<String>,
+    /// Attenuation distance per channel at density 1 (world units), > 0 (default 1).
+    pub attenuation: Option<ColorValue>,
+    /// Density multiplier ≥ 0 (default 1).
+    pub density: Option<f32>,
+    /// Phase function (default isotropic).
+    pub phase: Option<PhaseDesc>,
+    /// "exit" or "interior".
+    pub nee: Option<String>,
+    /// Albedo of a homogeneous medium added to the density field (combined interior).
+    pub base_albedo: Option<ColorValue>,
+    /// Attenuation distance of that homogeneous medium.
+    pub base_attenuation: Option<ColorValue>,
+    /// Estimator choices.
+    pub tracking: Option<TrackingDesc>,
+}
+
+/// `type = "fbm"`: procedural fBm noise density in the object's rest space, optionally added
+/// to a homogeneous medium like [`VoxelDesc`].
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FbmDesc {
+    /// Noise parameters.
+    pub noise: Option<NoiseDesc>,
+    /// "baked" (default), "lazy" or "exact".
+    pub evaluation: Option<String>,
+    /// Voxel size of the baked/bounding lattice in the object's rest space.
+    pub voxel_size: Option<f32>,
+    /// "analytic", "artist" or "estimated" (lazy and exact evaluation).
+    pub bound: Option<String>,
+    /// Artist minimum density (bound = "artist").
+    pub bound_min: Option<f32>,
+    /// Artist maximum density (bound = "artist").
+    pub bound_max: Option<f32>,
+    /// Trial samples per brick (bound = "estimated").
+    pub trial_samples: Option<u32>,
+    /// Safety factor ≥ 1 on estimated bounds.
+    pub safety: Option<f32>,
+    /// Artist albedo in [0, 1] (default 0.8).
+    pub albedo: Option<ColorValue>,
+    /// "multiple" (default) or "single".
+    pub albedo_mode: Option<String>,
+    /// Attenuation distance per channel at density 1 (world units), > 0 (default 1).
+    pub attenuation: Option<ColorValue>,
+    /// Density multiplier ≥ 0 (default 1).
+    pub density: Option<f32>,
+    /// Phase function (default isotropic).
+    pub phase: Option<PhaseDesc>,
+    /// "exit" or "interior".
+    pub nee: Option<String>,
+    /// Albedo of a homogeneous medium added to the density field (combined interior).
+    pub base_albedo: Option<ColorValue>,
+    /// Attenuation distance of that homogeneous medium.
+    pub base_attenuation: Option<ColorValue>,
+    /// Estimator choices.
+    pub tracking: Option<TrackingDesc>,
+}
+
+/// `type = "fabric"`: a procedurally woven, voxelised patch, free-standing or as a shell over
+/// a mesh.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FabricDesc {
+    /// Weave pattern: "plain" (default), "twill", "basket", "satin" or "velvet".
+    pub pattern: Option<String>,
+    /// Yarn preset, e.g. "cotton1" (default), "silk1", "polyester1".
+    pub yarn: Option<String>,
+    /// Voxels across the patch's largest side (default 128).
+    pub resolution: Option<u32>,
+    /// Pattern repeats per side of the patch (default 1).
+    pub repeats: Option<u32>,
+    /// Generator seed (default 1).
+    pub seed: Option<u64>,
+    /// Flyaway fraction: 0 = none, 1 = as fitted (default).
+    pub flyaways: Option<f32>,
+    /// Warp yarn colour.
+    pub warp_albedo: Option<ColorValue>,
+    /// Weft yarn colour.
+    pub weft_albedo: Option<ColorValue>,
+    /// Patch tiles across the unit UV square (shell on a mesh only).
+    pub tiles: Option<TilesValue>,
+    /// Mip level of the voxelised patch: 0–6 or "auto".
+    pub mip: Option<MipValue>,
+    /// "fibre" (default: projected fibre width) or "isotropic" extinction.
+    pub extinction: Option<String>,
+    /// Attenuation distance per unit fibre fraction (world units), > 0 (default 1).
+    pub attenuation: Option<ColorValue>,
+    /// Density multiplier ≥ 0 (default 1).
+    pub density: Option<f32>,
+    /// "exit" or "interior".
+    pub nee: Option<String>,
+}
+
+/// `tracking = { ... }`: estimator choices of a heterogeneous interior.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackingDesc {
+    /// "delta" (default) or "ray_march".
+    pub free_flight: Option<String>,
+    /// "residual" (default), "ratio" or "ray_march".
+    pub transmittance: Option<String>,
+    /// Control variate of residual ratio tracking: "novak" (default), "mean" or "minorant".
+    pub control: Option<String>,
+    /// "pyramid" (default) or "global".
+    pub majorant: Option<String>,
+    /// Finest pyramid level used (0 = bricks; default 0).
+    pub level: Option<u8>,
+    /// Ray-marching step, world units.
+    pub step: Option<f32>,
+}
+
+/// `noise = { ... }`: procedural fBm density.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseDesc {
+    /// Base frequency, 1/length in rest space.
+    pub frequency: Option<f32>,
+    /// Octaves.
+    pub octaves: Option<u32>,
+    /// Frequency multiplier per octave.
+    pub lacunarity: Option<f32>,
+    /// Amplitude multiplier per octave.
+    pub gain: Option<f32>,
+    /// Noise scale.
+    pub amplitude: Option<f32>,
+    /// Offset added to the scaled noise.
+    pub offset: Option<f32>,
+    /// Lower clamp.
+    pub min: Option<f32>,
+    /// Upper clamp.
+    pub max: Option<f32>,
+    /// Seed.
+    pub seed: Option<u32>,
+}
+
+/// `phase = { ... }`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhaseDesc {
+    /// "hg" (default) or "double_hg".
+    #[serde(rename = "type")]
+    pub kind: Option<String>,
+    /// Mean cosine (hg).
+    pub g: Option<f32>,
+    /// First lobe (double_hg).
+    pub g1: Option<f32>,
+    /// Second lobe (double_hg).
+    pub g2: Option<f32>,
+    /// Weight of the first lobe (double_hg).
+    pub w: Option<f32>,
+}
+
+impl InteriorDesc {
+    /// The `type` of the interior, as written in the file.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            InteriorDesc::Absorption(_) => "absorption",
+            InteriorDesc::Homogeneous(_) => "homogeneous",
+            InteriorDesc::Voxel(_) => "voxel",
+            InteriorDesc::Fbm(_) => "fbm",
+            InteriorDesc::Fabric(_) => "fabric",
+        }
+    }
+
+    /// The `nee` key, which every interior type has.
+    #[must_use]
+    pub fn nee(&self) -> Option<&str> {
+        match self {
+            InteriorDesc::Absorption(d) => d.nee.as_deref(),
+            InteriorDesc::Homogeneous(d) => d.nee.as_deref(),
+            InteriorDesc::Voxel(d) => d.nee.as_deref(),
+            InteriorDesc::Fbm(d) => d.nee.as_deref(),
+            InteriorDesc::Fabric(d) => d.nee.as_deref(),
+        }
+    }
+}
+
+impl TypedTable for InteriorDesc {
+    const TYPES: &'static [&'static str] = &["absorption", "homogeneous", "voxel", "fbm", "fabric"];
+
+    fn read<'de, D: serde::Deserializer<'de>>(
+        kind: &str,
+        keys: D,
+    ) -> Result<Option<Self>, D::Error> {
+        Ok(Some(match kind {
+            "absorption" => InteriorDesc::Absorption(AbsorptionDesc::deserialize(keys)?),
+            "homogeneous" => InteriorDesc::Homogeneous(HomogeneousDesc::deserialize(keys)?),
+            "voxel" => InteriorDesc::Voxel(VoxelDesc::deserialize(keys)?),
+            "fbm" => InteriorDesc::Fbm(FbmDesc::deserialize(keys)?),
+            "fabric" => InteriorDesc::Fabric(FabricDesc::deserialize(keys)?),
+            _ => return Ok(None),
+        }))
+    }
+}

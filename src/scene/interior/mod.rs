@@ -1,0 +1,145 @@
+//! `interior = { ... }`: what fills an object, one builder per interior type.
+//!
+//! * `absorption`, `homogeneous` ([`homogeneous`]): constant coefficients.
+//! * `voxel` ([`voxel`]): a density grid from an OpenVDB file.
+//! * `fbm` ([`fbm`]): procedural fBm noise, baked, baked lazily or evaluated exactly.
+//! * `fabric` ([`fabric`]): a woven patch voxelised at load time, free-standing or as a shell
+//!   over a mesh.
+//!
+//! `voxel` and `fbm` share their coefficients, combined homogeneous base medium and
+//! estimator choices ([`heterogeneous`], [`tracking`]); `homogeneous`, `voxel` and `fbm` share
+//! the scattering keys ([`scattering`]).
+
+mod fabric;
+mod fbm;
+mod heterogeneous;
+mod homogeneous;
+mod scattering;
+mod tracking;
+mod voxel;
+
+pub(super) use fabric::fabric_note;
+
+use super::context::Ctx;
+use super::desc::{ColorValue, InteriorDesc};
+use super::validate::{check_range, color};
+use super::SceneError;
+use crate::fabric::lod::ViewFootprint;
+use crate::geometry::TriangleMesh;
+use crate::math::{Aabb, Mat4};
+use crate::medium::{Medium, NeeStrategy};
+use crate::spectrum::Rgb;
+
+/// Where an interior sits: the object transform and its rest shape, and the camera's view.
+pub(super) struct Placement<'a> {
+    /// Object to world.
+    pub xf: Mat4,
+    /// The rest-space box of a mesh or sphere shape (none for `shape = "bounds"`).
+    pub rest_bounds: Option<Aabb>,
+    /// The rest-space mesh of a mesh shape.
+    pub rest_mesh: Option<&'a TriangleMesh>,
+    /// The camera's pixel footprint, for fabric mip selection.
+    pub view: ViewFootprint,
+}
+
+/// The medium of object `name`'s interior and its NEE strategy. `line` is the line of the
+/// interior table.
+pub(super) fn build_medium(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    interior: &InteriorDesc,
+    placement: &Placement<'_>,
+) -> Result<(Medium, NeeStrategy), SceneError> {
+    let at = Site {
+        ctx,
+        line,
+        name,
+        owner: format!("{name}: interior"),
+    };
+    match interior {
+        InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d),
+        InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d),
+        InteriorDesc::Voxel(d) => voxel::build(&at, d, placement),
+        InteriorDesc::Fbm(d) => fbm::build(&at, d, placement),
+        InteriorDesc::Fabric(d) => fabric::build(&at, d, placement),
+    }
+}
+
+/// What an interior builder reports errors with: the scene, the interior table's line, the
+/// object's name and `"<name>: interior"`.
+struct Site<'a> {
+    ctx: &'a Ctx<'a>,
+    line: usize,
+    name: &'a str,
+    owner: String,
+}
+
+impl Site<'_> {
+    /// An invalid-value error at the interior's line.
+    fn invalid(&self, message: impl Into<String>) -> SceneError {
+        self.ctx.invalid(self.line, message)
+    }
+
+    /// An error of a loader or constructor, prefixed with the owner.
+    fn failed(&self, e: &dyn std::fmt::Display) -> SceneError {
+        self.invalid(format!("{}: {e}", self.owner))
+    }
+
+    /// `v` when it is finite and in `[min, max]`; `key` is the interior's key.
+    fn range(&self, key: &str, v: f32, min: f32, max: f32) -> Result<f32, SceneError> {
+        check_range(
+            self.ctx,
+            self.line,
+            &format!("{}.{key}", self.owner),
+            v,
+            min,
+            max,
+        )
+    }
+
+    /// A colour key in `[0, 1]`, or `default`.
+    fn unit_colour(
+        &self,
+        key: &str,
+        v: Option<ColorValue>,
+        default: Rgb,
+    ) -> Result<Rgb, SceneError> {
+        super::validate::check_finite_rgb(
+            self.ctx,
+            self.line,
+            &format!("{}.{key}", self.owner),
+            color(v, default),
+            0.0,
+            1.0,
+        )
+    }
+}
+
+/// The keys every interior type has: `density` (≥ 0, default 1) and `attenuation` (a
+/// distance > 0 per channel, default 1), and `nee`.
+fn extinction_and_nee(
+    at: &Site,
+    density: Option<f32>,
+    attenuation: Option<ColorValue>,
+    nee: Option<&str>,
+) -> Result<(f32, Rgb, NeeStrategy), SceneError> {
+    let density = at.range("density", density.unwrap_or(1.0), 0.0, 1e12)?;
+    let attenuation = color(attenuation, Rgb::ONE);
+    for v in attenuation.0 {
+        if !(v > 0.0) || v.is_nan() {
+            return Err(at.invalid(format!("{}.attenuation = {:?}: every channel must be a distance > 0 (use a large value for no attenuation)", at.owner, attenuation.0)));
+        }
+    }
+    let nee = match nee.unwrap_or("exit") {
+        "exit" => NeeStrategy::ExitPoint,
+        "interior" => NeeStrategy::Interior,
+        other => {
+            return Err(at.invalid(format!(
+                "{}: interior.nee = \"{other}\" is unknown (expected \"exit\" or \"interior\")",
+                at.name
+            )))
+        }
+    };
+    Ok((density, attenuation, nee))
+}

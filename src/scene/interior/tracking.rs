@@ -1,0 +1,61 @@
+//! `tracking = { ... }`: the estimator choices of a `voxel` or `fbm` interior.
+
+use super::Site;
+use crate::majorant::MajorantMode;
+use crate::scene::desc::TrackingDesc;
+use crate::scene::SceneError;
+use crate::tracking::{ControlVariate, TransmittanceMode};
+use crate::tracking::{FreeFlightMethod, TrackingConfig};
+
+/// The tracking configuration: the defaults (delta tracking, residual ratio tracking with
+/// Novák's control, the majorant pyramid from the bricks up) for every absent key.
+pub(super) fn build_tracking(
+    at: &Site,
+    t: Option<&TrackingDesc>,
+) -> Result<TrackingConfig, SceneError> {
+    let mut cfg = TrackingConfig::default();
+    let Some(t) = t else { return Ok(cfg) };
+    let owner = format!("{}.tracking", at.owner);
+    let step = match t.step {
+        Some(s) => Some(at.range("tracking.step", s, 1e-9, 1e9)?),
+        None => None,
+    };
+    let need_step = || {
+        step.ok_or_else(|| at.invalid(format!("{owner}: ray marching needs `step` (world units)")))
+    };
+    cfg.free_flight = match t.free_flight.as_deref().unwrap_or("delta") {
+        "delta" => FreeFlightMethod::DeltaTracking,
+        "ray_march" => FreeFlightMethod::RayMarch { step: need_step()? },
+        other => {
+            return Err(at.invalid(format!(
+            "{owner}.free_flight = \"{other}\" is unknown (expected \"delta\" or \"ray_march\")"
+        )))
+        }
+    };
+    let control = match t.control.as_deref().unwrap_or("novak") {
+        "novak" => ControlVariate::Novak,
+        "mean" => ControlVariate::Mean,
+        "minorant" => ControlVariate::Minorant,
+        other => return Err(at.invalid(format!("{owner}.control = \"{other}\" is unknown (expected \"novak\", \"mean\" or \"minorant\")"))),
+    };
+    cfg.transmittance = match t.transmittance.as_deref().unwrap_or("residual") {
+        "residual" => TransmittanceMode::ResidualRatio(control),
+        "ratio" => TransmittanceMode::Ratio,
+        "ray_march" => TransmittanceMode::RayMarch { step: need_step()? },
+        other => return Err(at.invalid(format!("{owner}.transmittance = \"{other}\" is unknown (expected \"residual\", \"ratio\" or \"ray_march\")"))),
+    };
+    let level = t.level.unwrap_or(0);
+    if level > 20 {
+        return Err(at.invalid(format!("{owner}.level = {level} is outside [0, 20]")));
+    }
+    cfg.majorant = match t.majorant.as_deref().unwrap_or("pyramid") {
+        "pyramid" => MajorantMode::Hierarchical { finest: level },
+        "global" => MajorantMode::Global,
+        other => {
+            return Err(at.invalid(format!(
+                "{owner}.majorant = \"{other}\" is unknown (expected \"pyramid\" or \"global\")"
+            )))
+        }
+    };
+    Ok(cfg)
+}

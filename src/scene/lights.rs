@@ -1,0 +1,98 @@
+//! `[[light]]`: one builder per light type.
+
+use super::context::Ctx;
+use super::desc::LightDesc;
+use super::validate::{check_finite_rgb, check_range, color, vec3};
+use super::SceneError;
+use crate::light::{EnvironmentMap, Light};
+use crate::spectrum::Rgb;
+
+/// The light of a `[[light]]` table starting at `line`.
+pub(super) fn build_light(ctx: &Ctx, line: usize, l: &LightDesc) -> Result<Light, SceneError> {
+    match l {
+        LightDesc::Environment(d) => {
+            let radiance = check_finite_rgb(
+                ctx,
+                line,
+                "light.radiance",
+                color(d.radiance, Rgb::ONE),
+                0.0,
+                1e12,
+            )?;
+            Ok(Light::ConstantEnvironment { radiance })
+        }
+        LightDesc::Envmap(d) => {
+            let file = d
+                .file
+                .as_ref()
+                .ok_or_else(|| ctx.invalid(line, "light \"envmap\" needs `file`"))?;
+            let scale = check_range(ctx, line, "light.scale", d.scale.unwrap_or(1.0), 0.0, 1e12)?;
+            let rotation = check_range(
+                ctx,
+                line,
+                "light.rotation",
+                d.rotation.unwrap_or(0.0),
+                -36000.0,
+                36000.0,
+            )?;
+            let map = crate::image_io::read_latlong_exr(&ctx.resolve(file))
+                .map_err(|e| ctx.invalid(line, format!("light \"envmap\": {e}")))?;
+            Ok(Light::EnvironmentMap(Box::new(EnvironmentMap::new(
+                map, scale, rotation,
+            ))))
+        }
+        LightDesc::Distant(d) => {
+            let direction = d.direction.ok_or_else(|| {
+                ctx.invalid(
+                    line,
+                    "light \"distant\" needs `direction` (towards the light)",
+                )
+            })?;
+            let dir = vec3(ctx, line, "light.direction", direction)?;
+            if dir.length() < 1e-12 {
+                return Err(ctx.invalid(line, "light.direction must not be zero"));
+            }
+            let e = check_finite_rgb(
+                ctx,
+                line,
+                "light.irradiance",
+                color(d.irradiance, Rgb::splat(3.0)),
+                0.0,
+                1e12,
+            )?;
+            let r = check_range(
+                ctx,
+                line,
+                "light.angular_radius",
+                d.angular_radius.unwrap_or(0.0),
+                0.0,
+                90.0,
+            )?;
+            Ok(Light::distant(dir, e, r))
+        }
+        LightDesc::Sphere(d) => {
+            let center = vec3(ctx, line, "light.center", d.center.unwrap_or([0.0; 3]))?;
+            let radius = check_range(
+                ctx,
+                line,
+                "light.radius",
+                d.radius.unwrap_or(0.1),
+                1e-9,
+                1e9,
+            )?;
+            let radiance = check_finite_rgb(
+                ctx,
+                line,
+                "light.radiance",
+                color(d.radiance, Rgb::splat(10.0)),
+                0.0,
+                1e12,
+            )?;
+            Ok(Light::Sphere {
+                center,
+                radius,
+                radiance,
+            })
+        }
+    }
+}

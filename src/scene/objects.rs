@@ -1,0 +1,346 @@
+//! `[[object]]`: shapes, transforms and the object list, each object with its surface
+//! ([`super::surface`]) and interior ([`super::interior`]).
+
+use toml::Spanned;
+
+use super::context::Ctx;
+use super::desc::{ObjectDesc, ScaleValue};
+use super::interior::{build_medium, fabric_note, Placement};
+use super::surface::build_surface;
+use super::validate::{check_range, reject_unused, vec3};
+use super::{Object, ObjectSurface, SceneError};
+use crate::fabric::lod::ViewFootprint;
+use crate::geometry::{load_ply, Shape, TriangleMesh};
+use crate::math::{Aabb, Mat4, Vec3};
+use crate::medium::{DensityField, Medium, NeeStrategy};
+
+/// The objects built so far and the interiors they own.
+#[derive(Default)]
+pub(super) struct ObjectList {
+    /// Objects, in file order.
+    pub objects: Vec<Object>,
+    /// Interiors, indexed by [`Object::medium`].
+    pub media: Vec<Medium>,
+}
+
+impl ObjectList {
+    /// Builds the `index`-th `[[object]]` of the file (its interior seen from `view`), adds it
+    /// and returns its world shape. Warnings and notes go to the scene's lists.
+    pub fn add(
+        &mut self,
+        ctx: &Ctx,
+        index: usize,
+        spanned: &Spanned<ObjectDesc>,
+        view: ViewFootprint,
+        warnings: &mut Vec<String>,
+        notes: &mut Vec<String>,
+    ) -> Result<Shape, SceneError> {
+        let line = ctx.line_of(spanned.span().start);
+        let desc = spanned.get_ref();
+        let name = desc
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("object {}", index + 1));
+        let (xf, uniform) = object_transform(ctx, line, &name, desc)?;
+        let rest = build_rest_shape(ctx, line, &name, desc, uniform)?;
+        let (surface, ior) = match &desc.surface {
+            Some(s) => build_surface(ctx, ctx.line_of(s.span().start), &name, Some(s.get_ref()))?,
+            None => build_surface(ctx, line, &name, None)?,
+        };
+        let (medium, nee) = match &desc.interior {
+            Some(interior) => {
+                let placement = Placement {
+                    xf,
+                    rest_bounds: rest.bounds(),
+                    rest_mesh: match &rest {
+                        RestShape::Mesh(m) => Some(m),
+                        _ => None,
+                    },
+                    view,
+                };
+                let interior_line = ctx.line_of(interior.span().start);
+                let (m, nee) =
+                    build_medium(ctx, interior_line, &name, interior.get_ref(), &placement)?;
+                self.media.push(m);
+                (Some((self.media.len() - 1) as u32), nee)
+            }
+            None => (None, NeeStrategy::ExitPoint),
+        };
+        let media = &self.media;
+        if let Some(note) = medium.and_then(|m| fabric_note(&media[m as usize])) {
+            notes.push(format!("{name}: {note}"));
+        }
+        let shell_boundary = medium.and_then(|m| match &media[m as usize] {
+            Medium::Heterogeneous(h) => match &h.field {
+                DensityField::Shell(shell) => Some(shell.boundary_mesh().clone()),
+                _ => None,
+            },
+            _ => None,
+        });
+        let (shape, open_mesh) = match (rest, shell_boundary) {
+            // A fabric shell: the object is the closed shell around the cloth mesh.
+            (RestShape::Mesh(_), Some(mesh)) => {
+                let closed = mesh.is_closed();
+                (Shape::Mesh(mesh), !closed)
+            }
+            (RestShape::Mesh(mut mesh), None) => {
+                mesh.transform(xf);
+                let closed = mesh.is_closed();
+                if closed {
+                    mesh.make_outward();
+                }
+                (Shape::Mesh(mesh), !closed)
+            }
+            (RestShape::Sphere { center, radius }, _) => {
+                let scale = uniform.unwrap_or(1.0).abs();
+                (
+                    Shape::Sphere {
+                        center: xf.transform_point3(center),
+                        radius: radius * scale,
+                    },
+                    false,
+                )
+            }
+            (RestShape::Bounds, _) => {
+                let Some(Medium::Heterogeneous(h)) = medium.map(|m| &media[m as usize]) else {
+                    return Err(ctx.invalid(
+                        line,
+                        format!(
+                            "{name}: shape \"bounds\" needs a \"voxel\" or \"fabric\" interior"
+                        ),
+                    ));
+                };
+                let b = h.pyramid.world_bounds().ok_or_else(|| {
+                    ctx.invalid(line, format!("{name}: the interior's grid is empty"))
+                })?;
+                (Shape::Mesh(box_mesh(b)), false)
+            }
+        };
+        // Exit-point NEE needs a scattering boundary: behind an index-matched one (no surface,
+        // or a dielectric of IOR 1) it would never happen, so NEE moves to the interior
+        // vertices, where transparent shadows through such a boundary are exact.
+        let index_matched = matches!(&surface, ObjectSurface::Null)
+            || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
+        let nee = if medium.is_some() && index_matched && nee == NeeStrategy::ExitPoint {
+            if desc
+                .interior
+                .as_ref()
+                .is_some_and(|i| i.get_ref().nee().is_some())
+            {
+                warnings.push(format!(
+                    "{}:{line}: {name}: nee = \"exit\" behind an index-matched boundary finds no exit vertices; using \"interior\"",
+                    ctx.path.display()
+                ));
+            }
+            NeeStrategy::Interior
+        } else {
+            nee
+        };
+        if medium.is_some() && !surface.transmits() {
+            warnings.push(format!("{}:{line}: {name}: has an interior but its surface does not transmit light; the interior is never reached", ctx.path.display()));
+        }
+        if medium.is_none() && matches!(surface, ObjectSurface::Null) {
+            return Err(ctx.invalid(
+                line,
+                format!("{name}: an object needs a surface, an interior, or both"),
+            ));
+        }
+        if open_mesh && surface.transmits() {
+            warnings.push(format!(
+                "{}:{line}: {name}: mesh is not closed (some edges are not shared by exactly two triangles); as an interior boundary it can leak paths",
+                ctx.path.display()
+            ));
+        }
+        self.objects.push(Object {
+            name,
+            surface,
+            medium,
+            priority: desc.priority.unwrap_or(0),
+            ior,
+            nee,
+        });
+        Ok(shape)
+    }
+}
+
+/// The object transform `translate · rotate · scale`, and the scale when it is uniform.
+fn object_transform(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    d: &ObjectDesc,
+) -> Result<(Mat4, Option<f32>), SceneError> {
+    let t = vec3(
+        ctx,
+        line,
+        &format!("{name}: translate"),
+        d.translate.unwrap_or([0.0; 3]),
+    )?;
+    let r = vec3(
+        ctx,
+        line,
+        &format!("{name}: rotate"),
+        d.rotate.unwrap_or([0.0; 3]),
+    )?;
+    let (s, uniform) = match d.scale {
+        None => (Vec3::ONE, Some(1.0)),
+        Some(ScaleValue::Uniform(u)) => (Vec3::splat(u), Some(u)),
+        Some(ScaleValue::PerAxis(a)) => {
+            let v = vec3(ctx, line, &format!("{name}: scale"), a)?;
+            (
+                v,
+                if v.x == v.y && v.y == v.z {
+                    Some(v.x)
+                } else {
+                    None
+                },
+            )
+        }
+    };
+    if !s.is_finite() || s.abs().min_element() < 1e-12 || s.abs().max_element() > 1e12 {
+        return Err(ctx.invalid(
+            line,
+            format!(
+                "{name}: scale {:?} must be finite and non-zero",
+                s.to_array()
+            ),
+        ));
+    }
+    let rot = Mat4::from_rotation_z(r.z.to_radians())
+        * Mat4::from_rotation_y(r.y.to_radians())
+        * Mat4::from_rotation_x(r.x.to_radians());
+    Ok((
+        Mat4::from_translation(t) * rot * Mat4::from_scale(s),
+        uniform,
+    ))
+}
+
+/// A shape in the object's rest space.
+enum RestShape {
+    /// A triangle mesh.
+    Mesh(TriangleMesh),
+    /// A sphere.
+    Sphere {
+        /// Centre.
+        center: Vec3,
+        /// Radius.
+        radius: f32,
+    },
+    /// The world box of the interior's grid.
+    Bounds,
+}
+
+impl RestShape {
+    /// The rest-space box (none for [`RestShape::Bounds`], which is already in world space).
+    fn bounds(&self) -> Option<Aabb> {
+        match self {
+            RestShape::Mesh(m) => Some(m.bounds()),
+            RestShape::Sphere { center, radius } => Some(Aabb {
+                min: *center - Vec3::splat(*radius),
+                max: *center + Vec3::splat(*radius),
+            }),
+            RestShape::Bounds => None,
+        }
+    }
+}
+
+/// A closed, outward-wound box mesh.
+fn box_mesh(b: Aabb) -> TriangleMesh {
+    let c = |i: usize| {
+        Vec3::new(
+            if i & 1 != 0 { b.max.x } else { b.min.x },
+            if i & 2 != 0 { b.max.y } else { b.min.y },
+            if i & 4 != 0 { b.max.z } else { b.min.z },
+        )
+    };
+    let positions = (0..8).map(c).collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let mut indices = Vec::new();
+    for q in quads {
+        indices.push([q[0], q[1], q[2]]);
+        indices.push([q[0], q[2], q[3]]);
+    }
+    let mut mesh = TriangleMesh {
+        positions,
+        normals: None,
+        uvs: None,
+        indices,
+    };
+    mesh.make_outward();
+    mesh
+}
+
+/// The object's `shape` in its rest space (meshes are loaded here).
+fn build_rest_shape(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    d: &ObjectDesc,
+    uniform: Option<f32>,
+) -> Result<RestShape, SceneError> {
+    match d.shape.as_str() {
+        "mesh" => {
+            reject_unused(
+                ctx,
+                line,
+                name,
+                "mesh",
+                &[("center", d.center.is_some()), ("radius", d.radius.is_some())],
+            )?;
+            let file = d.file.as_ref().ok_or_else(|| {
+                ctx.invalid(line, format!("{name}: shape \"mesh\" needs `file`"))
+            })?;
+            let path = ctx.resolve(file);
+            let mesh = load_ply(&path).map_err(|e| ctx.invalid(line, format!("{name}: {e}")))?;
+            Ok(RestShape::Mesh(mesh))
+        }
+        "sphere" => {
+            reject_unused(ctx, line, name, "sphere", &[("file", d.file.is_some())])?;
+            let center = vec3(
+                ctx,
+                line,
+                &format!("{name}: center"),
+                d.center.unwrap_or([0.0; 3]),
+            )?;
+            let radius = check_range(
+                ctx,
+                line,
+                &format!("{name}: radius"),
+                d.radius.unwrap_or(1.0),
+                1e-9,
+                1e9,
+            )?;
+            if uniform.is_none() {
+                return Err(ctx.invalid(line, format!("{name}: a sphere needs a uniform scale")));
+            }
+            Ok(RestShape::Sphere { center, radius })
+        }
+        "bounds" => {
+            reject_unused(
+                ctx,
+                line,
+                name,
+                "bounds",
+                &[
+                    ("file", d.file.is_some()),
+                    ("center", d.center.is_some()),
+                    ("radius", d.radius.is_some()),
+                ],
+            )?;
+            Ok(RestShape::Bounds)
+        }
+        other => Err(ctx.invalid(
+            line,
+            format!(
+                "{name}: shape = \"{other}\" is unknown (expected \"mesh\", \"sphere\" or \"bounds\")"
+            ),
+        )),
+    }
+}
