@@ -1,19 +1,12 @@
-//! One compressed wide BVH (`obvhs`: PLOC build, CWBVH traversal) over every triangle and
-//! sphere of a scene, traversed with a conservative node test and our own primitive tests.
-
-use std::time::Duration;
-
-use glam::{UVec2, Vec3A, Vec4};
-use obvhs::aabb::Aabb as OAabb;
-use obvhs::cwbvh::builder::build_cwbvh;
-use obvhs::cwbvh::node::{extract_byte64, CwBvhNode};
-use obvhs::cwbvh::CwBvh;
-use obvhs::{Boundable, BvhBuildParams};
+//! The scene's surfaces: one 4-wide BVH over every triangle ([`super::wide_bvh`], conservative
+//! node test, our watertight triangle test), and the analytic shapes (spheres) tested directly,
+//! outside the triangle hierarchy.
 
 use crate::math::{Aabb, Ray, Vec2, Vec3};
 
 use super::sphere::{intersect_sphere, SphereHit};
 use super::triangle::{ShearedRay, TriangleHit};
+use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
 /// A primitive in BVH order: a triangle `(a, b, c)` or a sphere (`a` = centre, `b.x` = radius).
@@ -24,22 +17,16 @@ struct Prim {
     c: Vec3,
     shape: u32,
     prim: u32,
-    sphere: bool,
-}
-
-struct PrimBox(OAabb);
-
-impl Boundable for PrimBox {
-    fn aabb(&self) -> OAabb {
-        self.0
-    }
 }
 
 /// The scene's surfaces and their acceleration structure (immutable once built).
 #[derive(Clone, Debug)]
 pub struct SceneGeometry {
-    bvh: Option<CwBvh>,
+    bvh: WideBvh,
+    /// Triangles in BVH order.
     prims: Vec<Prim>,
+    /// Analytic spheres, tested directly.
+    spheres: Vec<Prim>,
     shapes: Vec<Shape>,
     topologies: Vec<Option<MeshTopology>>,
     bounds: Aabb,
@@ -48,106 +35,6 @@ pub struct SceneGeometry {
 enum Best {
     Tri(usize, TriangleHit),
     Sphere(usize, SphereHit),
-}
-
-/// Reciprocal direction with magnitudes capped at 1e20 (sign kept, `-0` treated as `+0`
-/// like the octant test), so that node slab tests never produce `0·∞`.
-fn capped_inverse(d: Vec3) -> Vec3A {
-    let f = |x: f32| {
-        if x.abs() < 1e-20 {
-            if x < 0.0 {
-                -1e20
-            } else {
-                1e20
-            }
-        } else {
-            1.0 / x
-        }
-    };
-    Vec3A::new(f(d.x), f(d.y), f(d.z))
-}
-
-/// Conservative ray test against the 8 quantised child boxes of a CWBVH node (Ylitie et al.
-/// 2017 layout). Each slab distance `t = q·(e/d) + (p − o)/d` carries an absolute rounding
-/// error below `4ε(255|e/d| + |(p − o)/d|)`, which is subtracted from entry and added to
-/// exit distances; the interval is clipped to `[0, t_max]` (obvhs's stock test clips at
-/// `1e-4`, which would cull hits just in front of the origin).
-#[inline(always)]
-fn node_hits(
-    node: &CwBvhNode,
-    o: Vec3A,
-    inv: Vec3A,
-    neg: [bool; 3],
-    t_max: f32,
-    oct_inv4: u32,
-) -> u32 {
-    let s = node.compute_extent() * inv;
-    let a = (Vec3A::from(node.p) - o) * inv;
-    let err = (s.abs() * 255.0 + a.abs()) * (4.0 * f32::EPSILON);
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let q = |arr: &[u8; 8], h: usize| {
-        Vec4::new(
-            f32::from(arr[4 * h]),
-            f32::from(arr[4 * h + 1]),
-            f32::from(arr[4 * h + 2]),
-            f32::from(arr[4 * h + 3]),
-        )
-    };
-    let mut hit_mask = 0u32;
-    for h in 0..2 {
-        let (nx, fx) = if neg[0] {
-            (&node.child_max_x, &node.child_min_x)
-        } else {
-            (&node.child_min_x, &node.child_max_x)
-        };
-        let (ny, fy) = if neg[1] {
-            (&node.child_max_y, &node.child_min_y)
-        } else {
-            (&node.child_min_y, &node.child_max_y)
-        };
-        let (nz, fz) = if neg[2] {
-            (&node.child_max_z, &node.child_min_z)
-        } else {
-            (&node.child_min_z, &node.child_max_z)
-        };
-        let tn_x = q(nx, h) * s.x + Vec4::splat(a.x - err.x);
-        let tf_x = q(fx, h) * s.x + Vec4::splat(a.x + err.x);
-        let tn_y = q(ny, h) * s.y + Vec4::splat(a.y - err.y);
-        let tf_y = q(fy, h) * s.y + Vec4::splat(a.y + err.y);
-        let tn_z = q(nz, h) * s.z + Vec4::splat(a.z - err.z);
-        let tf_z = q(fz, h) * s.z + Vec4::splat(a.z + err.z);
-        let tn = tn_x.max(tn_y).max(tn_z).max(Vec4::ZERO);
-        let tf = tf_x.min(tf_y).min(tf_z).min(Vec4::splat(t_max));
-        let m = tn.cmple(tf).bitmask();
-        for j in 0..4 {
-            if m & (1 << j) != 0 {
-                let child = 4 * h + j;
-                hit_mask |= extract_byte64(child_bits8, child) << extract_byte64(bit_index8, child);
-            }
-        }
-    }
-    hit_mask
-}
-
-/// Depth (in nodes) of a compressed wide BVH.
-fn cwbvh_depth(bvh: &CwBvh) -> usize {
-    if bvh.nodes.is_empty() {
-        return 0;
-    }
-    let mut max = 0;
-    let mut stack = vec![(0u32, 1usize)];
-    while let Some((i, d)) = stack.pop() {
-        max = max.max(d);
-        let Some(node) = bvh.nodes.get(i as usize) else {
-            continue;
-        };
-        for c in 0..8 {
-            if !node.is_leaf(c) && !node.is_child_empty(c) {
-                stack.push((node.child_node_index(c), d + 1));
-            }
-        }
-    }
-    max
 }
 
 impl SceneGeometry {
@@ -182,6 +69,7 @@ impl SceneGeometry {
             }
         }
         let mut prims = Vec::new();
+        let mut spheres = Vec::new();
         let mut bounds = Aabb::EMPTY;
         for (si, s) in shapes.iter().enumerate() {
             bounds = bounds.union(s.bounds());
@@ -195,28 +83,17 @@ impl SceneGeometry {
                             c,
                             shape: si as u32,
                             prim: ti as u32,
-                            sphere: false,
                         });
                     }
                 }
-                Shape::Sphere { center, radius } => prims.push(Prim {
+                Shape::Sphere { center, radius } => spheres.push(Prim {
                     a: *center,
                     b: Vec3::splat(*radius),
                     c: Vec3::ZERO,
                     shape: si as u32,
                     prim: 0,
-                    sphere: true,
                 }),
             }
-        }
-        if prims.is_empty() {
-            return Ok(SceneGeometry {
-                bvh: None,
-                prims,
-                shapes,
-                topologies,
-                bounds,
-            });
         }
         if prims.len() > (u32::MAX / 2) as usize {
             return Err(GeometryError::InvalidShape {
@@ -224,42 +101,24 @@ impl SceneGeometry {
                 message: "too many primitives".to_string(),
             });
         }
-        // Padding covers the non-conservative rounding of obvhs's box quantisation (below an
-        // ulp of the node extent) with a wide margin.
+        // Padding covers the rounding of the slab test's box planes with a wide margin.
         let mag = bounds
             .min
             .abs()
             .max(bounds.max.abs())
             .max_element()
             .max(bounds.extent().max_element());
-        let pad = 16.0 * f32::EPSILON * mag;
-        let boxes: Vec<PrimBox> = prims
+        let pad = Vec3::splat(16.0 * f32::EPSILON * mag);
+        let boxes: Vec<(Vec3, Vec3)> = prims
             .iter()
-            .map(|p| {
-                let (lo, hi) = if p.sphere {
-                    (p.a - p.b, p.a + p.b)
-                } else {
-                    (p.a.min(p.b).min(p.c), p.a.max(p.b).max(p.c))
-                };
-                PrimBox(OAabb::new(
-                    Vec3A::from(lo - Vec3::splat(pad)),
-                    Vec3A::from(hi + Vec3::splat(pad)),
-                ))
-            })
+            .map(|p| (p.a.min(p.b).min(p.c) - pad, p.a.max(p.b).max(p.c) + pad))
             .collect();
-        let bvh = build_cwbvh(
-            &boxes,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
-        let ordered: Vec<Prim> = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| prims[i as usize])
-            .collect();
+        let bvh = WideBvh::build(&boxes);
+        let ordered: Vec<Prim> = bvh.order().iter().map(|&i| prims[i as usize]).collect();
         Ok(SceneGeometry {
-            bvh: Some(bvh),
+            bvh,
             prims: ordered,
+            spheres,
             shapes,
             topologies,
             bounds,
@@ -270,7 +129,6 @@ impl SceneGeometry {
     /// leave a surface must start at [`crate::math::offset_ray_origin`]; `t_min` is 0.
     #[must_use]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        let bvh = self.bvh.as_ref()?;
         if !ray.o.is_finite()
             || !ray.d.is_finite()
             || ray.d == Vec3::ZERO
@@ -279,42 +137,33 @@ impl SceneGeometry {
         {
             return None;
         }
-        let sr = ShearedRay::new(ray);
-        let o = Vec3A::from(ray.o);
-        let inv = capped_inverse(ray.d);
-        let neg = [ray.d.x < 0.0, ray.d.y < 0.0, ray.d.z < 0.0];
         let mut closest = t_max;
         let mut best: Option<Best> = None;
-        let mut state = bvh.new_traversal(Vec3A::from(ray.d));
-        let mut node;
-        obvhs::traverse!(
-            bvh,
-            node,
-            state,
-            node_hits(node, o, inv, neg, closest, state.oct_inv4),
-            {
-                let slot = state.primitive_id as usize;
-                let p = &self.prims[slot];
-                if p.sphere {
-                    if let Some(h) = intersect_sphere(ray, p.a, p.b.x, closest) {
-                        closest = h.t;
-                        best = Some(Best::Sphere(slot, h));
-                    }
-                } else if let Some(h) = sr.intersect(p.a, p.b, p.c, closest) {
-                    closest = h.t;
-                    best = Some(Best::Tri(slot, h));
-                }
+        for (slot, p) in self.spheres.iter().enumerate() {
+            if let Some(h) = intersect_sphere(ray, p.a, p.b.x, closest) {
+                closest = h.t;
+                best = Some(Best::Sphere(slot, h));
             }
-        );
+        }
+        if !self.prims.is_empty() {
+            let sr = ShearedRay::new(ray);
+            self.bvh.traverse(ray, closest, |slot, t_max| {
+                let p = &self.prims[slot as usize];
+                match sr.intersect(p.a, p.b, p.c, t_max) {
+                    Some(h) => {
+                        best = Some(Best::Tri(slot as usize, h));
+                        h.t
+                    }
+                    None => t_max,
+                }
+            });
+        }
         best.map(|b| self.make_hit(ray, b))
     }
 
     /// True when anything is hit with `0 < t < t_max` (shadow rays; stops at the first hit).
     #[must_use]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else {
-            return false;
-        };
         if !ray.o.is_finite()
             || !ray.d.is_finite()
             || ray.d == Vec3::ZERO
@@ -323,38 +172,33 @@ impl SceneGeometry {
         {
             return false;
         }
-        let sr = ShearedRay::new(ray);
-        let o = Vec3A::from(ray.o);
-        let inv = capped_inverse(ray.d);
-        let neg = [ray.d.x < 0.0, ray.d.y < 0.0, ray.d.z < 0.0];
+        if self
+            .spheres
+            .iter()
+            .any(|p| intersect_sphere(ray, p.a, p.b.x, t_max).is_some())
+        {
+            return true;
+        }
         let mut found = false;
-        let mut state = bvh.new_traversal(Vec3A::from(ray.d));
-        let mut node;
-        obvhs::traverse!(
-            bvh,
-            node,
-            state,
-            node_hits(node, o, inv, neg, t_max, state.oct_inv4),
-            {
-                let p = &self.prims[state.primitive_id as usize];
-                let hit = if p.sphere {
-                    intersect_sphere(ray, p.a, p.b.x, t_max).is_some()
-                } else {
-                    sr.intersect(p.a, p.b, p.c, t_max).is_some()
-                };
-                if hit {
+        if !self.prims.is_empty() {
+            let sr = ShearedRay::new(ray);
+            self.bvh.traverse(ray, t_max, |slot, t| {
+                let p = &self.prims[slot as usize];
+                if sr.intersect(p.a, p.b, p.c, t).is_some() {
                     found = true;
-                    break;
+                    0.0
+                } else {
+                    t
                 }
-            }
-        );
+            });
+        }
         found
     }
 
     fn make_hit(&self, ray: &Ray, best: Best) -> Hit {
         match best {
             Best::Sphere(slot, h) => {
-                let p = &self.prims[slot];
+                let p = &self.spheres[slot];
                 // p = c + r n: rounding grows with |c| + r, not with |p|.
                 let p_error = match self.shapes.get(p.shape as usize) {
                     Some(Shape::Sphere { center, radius }) => {
@@ -423,13 +267,13 @@ impl SceneGeometry {
     /// Depth of the BVH in nodes (diagnostics; 0 when empty).
     #[must_use]
     pub fn bvh_depth(&self) -> usize {
-        self.bvh.as_ref().map_or(0, cwbvh_depth)
+        self.bvh.depth()
     }
 
-    /// Number of BVH primitives (triangles plus spheres).
+    /// Number of primitives (triangles plus spheres).
     #[must_use]
     pub fn primitive_count(&self) -> usize {
-        self.prims.len()
+        self.prims.len() + self.spheres.len()
     }
 
     /// The shape with index `i` as stored (closed meshes already oriented outward).

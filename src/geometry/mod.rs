@@ -23,6 +23,7 @@ mod mesh;
 mod ply;
 mod sphere;
 mod triangle;
+mod wide_bvh;
 
 use std::path::PathBuf;
 

@@ -1,0 +1,408 @@
+//! An 8-wide BVH with full-precision boxes in structure-of-arrays layout, traversed nearest
+//! child first with SIMD slab tests (two 4-wide halves, glam's `Vec4`: SSE on x86-64).
+//!
+//! The binary hierarchy comes from `obvhs` (PLOC build with SAH reinsertion); it is collapsed
+//! into nodes of up to eight children by repeatedly opening the child with the largest surface
+//! area (Wald et al. 2008, "Getting Rid of Packets"), and subtrees of at most
+//! [`MAX_LEAF_PRIMITIVES`] primitives become leaves. Primitives are re-ordered so that every
+//! leaf's primitives are contiguous.
+//!
+//! The node test is conservative: the far slab distance is enlarged by its rounding-error bound
+//! (1 + 2γ₃, Ize 2013 "Robust BVH Ray Traversal", as in pbrt-v4), the boxes were padded when they
+//! were built, and the interval is clipped to `[0, t_max]`, so a primitive the ray hits is never
+//! culled.
+
+use glam::{Vec3A, Vec4};
+use obvhs::aabb::Aabb as OAabb;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::bvh2::Bvh2;
+use obvhs::ploc::PlocBuilder;
+use obvhs::{Boundable, BvhBuildParams};
+
+use crate::math::{Ray, Vec3};
+
+/// Leaves hold at most this many primitives.
+pub const MAX_LEAF_PRIMITIVES: u32 = 2;
+
+/// Entries of the traversal stack kept on the machine stack; deeper trees spill to the heap.
+const STACK_INLINE: usize = 48;
+
+/// Children per node.
+const WIDTH: usize = 8;
+
+/// One node: the boxes of up to eight children, per axis in two 4-wide halves, and what each
+/// child is.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Node8 {
+    /// Minima of the children's boxes: x, y, z (empty slots hold +∞).
+    lo: [[Vec4; 2]; 3],
+    /// Maxima (empty slots hold −∞).
+    hi: [[Vec4; 2]; 3],
+    /// Child node index, or the first primitive of a leaf.
+    child: [u32; WIDTH],
+    /// Primitives of a leaf child (0 for an inner child or an empty slot).
+    count: [u32; WIDTH],
+}
+
+impl Node8 {
+    fn empty() -> Self {
+        Node8 {
+            lo: [[Vec4::splat(f32::INFINITY); 2]; 3],
+            hi: [[Vec4::splat(f32::NEG_INFINITY); 2]; 3],
+            child: [0; WIDTH],
+            count: [0; WIDTH],
+        }
+    }
+}
+
+/// A wide BVH over primitive boxes. Primitive indices it reports are positions in
+/// [`WideBvh::order`].
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    nodes: Vec<Node8>,
+    /// Original primitive index of each position.
+    order: Vec<u32>,
+    /// A single leaf root (fewer primitives than make a node), or none.
+    root_leaf: Option<(u32, u32)>,
+    depth: usize,
+}
+
+struct BoxPrim(OAabb);
+
+impl Boundable for BoxPrim {
+    fn aabb(&self) -> OAabb {
+        self.0
+    }
+}
+
+/// The ray quantities the slab test needs, per axis.
+struct SlabRay {
+    /// Origin, splatted per axis.
+    o: [Vec4; 3],
+    /// Capped reciprocal direction, splatted per axis.
+    inv: [Vec4; 3],
+    /// Per axis: true when the direction is negative (near plane = box maximum).
+    neg: [bool; 3],
+}
+
+/// Reciprocal direction with magnitudes capped at 1e20 (sign kept, `-0` treated as `+0`),
+/// so that slab tests never produce `0·∞`.
+fn capped_inverse(x: f32) -> f32 {
+    if x.abs() < 1e-20 {
+        if x < 0.0 {
+            -1e20
+        } else {
+            1e20
+        }
+    } else {
+        1.0 / x
+    }
+}
+
+impl SlabRay {
+    fn new(ray: &Ray) -> Self {
+        let inv = [
+            capped_inverse(ray.d.x),
+            capped_inverse(ray.d.y),
+            capped_inverse(ray.d.z),
+        ];
+        SlabRay {
+            o: [
+                Vec4::splat(ray.o.x),
+                Vec4::splat(ray.o.y),
+                Vec4::splat(ray.o.z),
+            ],
+            inv: inv.map(Vec4::splat),
+            neg: [inv[0] < 0.0, inv[1] < 0.0, inv[2] < 0.0],
+        }
+    }
+
+    /// Entry distances of the four children and the mask of those the ray enters in
+    /// `[0, t_max]`.
+    #[inline(always)]
+    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+        let (a, ma) = self.test_half(node, 0, t_max);
+        let (b, mb) = self.test_half(node, 1, t_max);
+        let mut near = [0.0; WIDTH];
+        near[..4].copy_from_slice(&a.to_array());
+        near[4..].copy_from_slice(&b.to_array());
+        (near, ma | (mb << 4))
+    }
+
+    #[inline(always)]
+    fn test_half(&self, node: &Node8, h: usize, t_max: f32) -> (Vec4, u32) {
+        /// 1 + 2γ₃: the relative rounding bound of a slab distance.
+        const FAR_SCALE: f32 =
+            1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+        let mut near = Vec4::ZERO;
+        let mut far = Vec4::splat(t_max);
+        for k in 0..3 {
+            let (n, f) = if self.neg[k] {
+                (node.hi[k][h], node.lo[k][h])
+            } else {
+                (node.lo[k][h], node.hi[k][h])
+            };
+            near = near.max((n - self.o[k]) * self.inv[k]);
+            far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
+        }
+        (near, near.cmple(far).bitmask())
+    }
+}
+
+/// A traversal stack entry: an inner node with the distance the ray enters it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry {
+    node: u32,
+    t: f32,
+}
+
+/// The traversal stack: inline entries, spilling to the heap only for unusually deep trees.
+struct Stack {
+    inline: [Entry; STACK_INLINE],
+    len: usize,
+    spill: Vec<Entry>,
+}
+
+impl Stack {
+    fn new() -> Self {
+        Stack {
+            inline: [Entry::default(); STACK_INLINE],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+    #[inline(always)]
+    fn push(&mut self, e: Entry) {
+        if self.len < STACK_INLINE {
+            self.inline[self.len] = e;
+            self.len += 1;
+        } else {
+            self.spill.push(e);
+        }
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<Entry> {
+        if let Some(e) = self.spill.pop() {
+            return Some(e);
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.inline[self.len])
+    }
+}
+
+impl WideBvh {
+    /// Builds the hierarchy over `boxes` (min, max per primitive). Primitive positions follow
+    /// [`WideBvh::order`].
+    #[must_use]
+    pub fn build(boxes: &[(Vec3, Vec3)]) -> Self {
+        let n = boxes.len();
+        if n == 0 {
+            return WideBvh::default();
+        }
+        let prims: Vec<BoxPrim> = boxes
+            .iter()
+            .map(|(lo, hi)| BoxPrim(OAabb::new(Vec3A::from(*lo), Vec3A::from(*hi))))
+            .collect();
+        let params = BvhBuildParams::medium_build();
+        let mut bvh2 = PlocBuilder::with_capacity(n).build(
+            params.ploc_search_distance,
+            &prims,
+            (0..n as u32).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
+        );
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        let counts = subtree_counts(&bvh2);
+        let mut out = WideBvh::default();
+        if counts[0] <= MAX_LEAF_PRIMITIVES {
+            let first = out.order.len() as u32;
+            collect_primitives(&bvh2, 0, &mut out.order);
+            out.root_leaf = Some((first, out.order.len() as u32 - first));
+            out.depth = 1;
+            return out;
+        }
+        out.nodes.push(Node8::empty());
+        let mut work = vec![(0usize, 0usize, 1usize)]; // (bvh2 node, wide node, depth)
+        while let Some((b, w, depth)) = work.pop() {
+            out.depth = out.depth.max(depth);
+            let children = open_children(&bvh2, b, &counts);
+            let mut node = Node8::empty();
+            for (slot, &c) in children.iter().enumerate() {
+                let bb = bvh2.nodes[c].aabb;
+                for k in 0..3 {
+                    node.lo[k][slot / 4][slot % 4] = bb.min[k];
+                    node.hi[k][slot / 4][slot % 4] = bb.max[k];
+                }
+                if counts[c] <= MAX_LEAF_PRIMITIVES {
+                    let first = out.order.len() as u32;
+                    collect_primitives(&bvh2, c, &mut out.order);
+                    node.child[slot] = first;
+                    node.count[slot] = out.order.len() as u32 - first;
+                } else {
+                    let index = out.nodes.len();
+                    out.nodes.push(Node8::empty());
+                    node.child[slot] = index as u32;
+                    work.push((c, index, depth + 1));
+                }
+            }
+            out.nodes[w] = node;
+        }
+        out
+    }
+
+    /// Original primitive index of each position the traversal reports.
+    #[must_use]
+    pub fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    /// Depth in nodes (0 when empty).
+    #[must_use]
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// Visits, nearest first, every leaf the ray enters within `[0, t_max]`, calling
+    /// `primitive(position, t_max)` for each of its primitives; `primitive` returns the new
+    /// `t_max` (the distance of a closer hit, or the same value). Returns early when
+    /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
+    #[inline]
+    pub fn traverse(&self, ray: &Ray, mut t_max: f32, mut primitive: impl FnMut(u32, f32) -> f32) {
+        if let Some((first, count)) = self.root_leaf {
+            for i in first..first + count {
+                t_max = primitive(i, t_max);
+                if t_max <= 0.0 {
+                    return;
+                }
+            }
+            return;
+        }
+        if self.nodes.is_empty() {
+            return;
+        }
+        let slab = SlabRay::new(ray);
+        let mut stack = Stack::new();
+        stack.push(Entry { node: 0, t: 0.0 });
+        while let Some(e) = stack.pop() {
+            if e.t > t_max {
+                continue;
+            }
+            let node = &self.nodes[e.node as usize];
+            let (near, mut mask) = slab.test(node, t_max);
+            // The entered children sorted by entry distance, nearest first.
+            let mut order = [(0usize, 0.0f32); WIDTH];
+            let mut n = 0;
+            while mask != 0 {
+                let slot = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let t = near[slot];
+                let mut j = n;
+                while j > 0 && order[j - 1].1 > t {
+                    order[j] = order[j - 1];
+                    j -= 1;
+                }
+                order[j] = (slot, t);
+                n += 1;
+            }
+            // Leaves are intersected at once, nearest first (a hit shortens the ray for the
+            // rest); inner children are pushed farthest first, so the nearest is visited next.
+            let mut inner = [Entry::default(); WIDTH];
+            let mut m = 0;
+            for &(slot, t) in &order[..n] {
+                if t > t_max {
+                    break;
+                }
+                let count = node.count[slot];
+                if count > 0 {
+                    let first = node.child[slot];
+                    for i in first..first + count {
+                        t_max = primitive(i, t_max);
+                        if t_max <= 0.0 {
+                            return;
+                        }
+                    }
+                } else {
+                    inner[m] = Entry {
+                        node: node.child[slot],
+                        t,
+                    };
+                    m += 1;
+                }
+            }
+            for e in inner[..m].iter().rev() {
+                stack.push(*e);
+            }
+        }
+    }
+}
+
+/// Primitives under each bvh2 node.
+fn subtree_counts(bvh2: &Bvh2) -> Vec<u32> {
+    let mut counts = vec![0u32; bvh2.nodes.len()];
+    // Children come after their parents in PLOC's layout only sometimes: compute iteratively
+    // in post-order.
+    let mut stack = vec![(0usize, false)];
+    while let Some((i, done)) = stack.pop() {
+        let node = &bvh2.nodes[i];
+        if node.prim_count > 0 {
+            counts[i] = node.prim_count;
+            continue;
+        }
+        let (a, b) = (node.first_index as usize, node.first_index as usize + 1);
+        if done {
+            counts[i] = counts[a].saturating_add(counts[b]);
+        } else {
+            stack.push((i, true));
+            stack.push((a, false));
+            stack.push((b, false));
+        }
+    }
+    counts
+}
+
+/// Appends the primitives under bvh2 node `i` to `order`.
+fn collect_primitives(bvh2: &Bvh2, i: usize, order: &mut Vec<u32>) {
+    let mut stack = vec![i];
+    while let Some(j) = stack.pop() {
+        let node = &bvh2.nodes[j];
+        if node.prim_count > 0 {
+            let first = node.first_index as usize;
+            for k in first..first + node.prim_count as usize {
+                order.push(bvh2.primitive_indices[k]);
+            }
+        } else {
+            stack.push(node.first_index as usize + 1);
+            stack.push(node.first_index as usize);
+        }
+    }
+}
+
+/// Up to four bvh2 nodes that become the children of the wide node for bvh2 node `i`: its
+/// two children, then repeatedly the largest inner one (that is not to become a leaf) opened.
+fn open_children(bvh2: &Bvh2, i: usize, counts: &[u32]) -> Vec<usize> {
+    let first = bvh2.nodes[i].first_index as usize;
+    let mut children = vec![first, first + 1];
+    while children.len() < WIDTH {
+        let candidate = children
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| bvh2.nodes[c].prim_count == 0 && counts[c] > MAX_LEAF_PRIMITIVES)
+            .max_by(|(_, &a), (_, &b)| {
+                bvh2.nodes[a]
+                    .aabb
+                    .half_area()
+                    .total_cmp(&bvh2.nodes[b].aabb.half_area())
+            })
+            .map(|(k, _)| k);
+        let Some(k) = candidate else { break };
+        let c = children.swap_remove(k);
+        let f = bvh2.nodes[c].first_index as usize;
+        children.push(f);
+        children.push(f + 1);
+    }
+    children
+}
