@@ -1,15 +1,16 @@
-//! The scene's surfaces: one 4-wide BVH over every triangle ([`super::wide_bvh`], conservative
-//! node test, our watertight triangle test), and the analytic shapes (spheres) tested directly,
-//! outside the triangle hierarchy.
+//! The scene's surfaces: one wide BVH over every triangle ([`super::wide_bvh`], conservative
+//! node test, our watertight triangle test), and the analytic shapes (spheres, boxes) tested
+//! directly, outside the triangle hierarchy.
 
 use crate::math::{Aabb, Ray, Vec2, Vec3};
 
+use super::aabox::{intersect_box, BoxHit};
 use super::sphere::{intersect_sphere, SphereHit};
 use super::triangle::{ShearedRay, TriangleHit};
 use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
-/// A primitive in BVH order: a triangle `(a, b, c)` or a sphere (`a` = centre, `b.x` = radius).
+/// A triangle `(a, b, c)` in BVH order.
 #[derive(Clone, Copy, Debug)]
 struct Prim {
     a: Vec3,
@@ -25,16 +26,32 @@ pub struct SceneGeometry {
     bvh: WideBvh,
     /// Triangles in BVH order.
     prims: Vec<Prim>,
-    /// Analytic spheres, tested directly.
-    spheres: Vec<Prim>,
+    /// Analytic shapes, tested directly.
+    analytic: Vec<Analytic>,
     shapes: Vec<Shape>,
     topologies: Vec<Option<MeshTopology>>,
     bounds: Aabb,
 }
 
+/// An analytic shape and the index of the shape it is.
+#[derive(Clone, Copy, Debug)]
+enum Analytic {
+    Sphere {
+        center: Vec3,
+        radius: f32,
+        shape: u32,
+    },
+    Box {
+        min: Vec3,
+        max: Vec3,
+        shape: u32,
+    },
+}
+
 enum Best {
     Tri(usize, TriangleHit),
-    Sphere(usize, SphereHit),
+    Sphere(u32, SphereHit),
+    Box(u32, BoxHit),
 }
 
 impl SceneGeometry {
@@ -66,10 +83,23 @@ impl SceneGeometry {
                     }
                     topologies.push(None);
                 }
+                Shape::Box { min, max } => {
+                    let far = min.abs().max(max.abs()).max_element() > super::mesh::MAX_COORDINATE;
+                    if !min.is_finite() || !max.is_finite() || !min.cmplt(*max).all() || far {
+                        return Err(GeometryError::InvalidShape {
+                            shape: i,
+                            message: format!(
+                                "box needs finite corners with min < max on every axis, within ±{:e} (got {min:?}, {max:?})",
+                                super::mesh::MAX_COORDINATE
+                            ),
+                        });
+                    }
+                    topologies.push(None);
+                }
             }
         }
         let mut prims = Vec::new();
-        let mut spheres = Vec::new();
+        let mut analytic = Vec::new();
         let mut bounds = Aabb::EMPTY;
         for (si, s) in shapes.iter().enumerate() {
             bounds = bounds.union(s.bounds());
@@ -86,12 +116,15 @@ impl SceneGeometry {
                         });
                     }
                 }
-                Shape::Sphere { center, radius } => spheres.push(Prim {
-                    a: *center,
-                    b: Vec3::splat(*radius),
-                    c: Vec3::ZERO,
+                Shape::Sphere { center, radius } => analytic.push(Analytic::Sphere {
+                    center: *center,
+                    radius: *radius,
                     shape: si as u32,
-                    prim: 0,
+                }),
+                Shape::Box { min, max } => analytic.push(Analytic::Box {
+                    min: *min,
+                    max: *max,
+                    shape: si as u32,
                 }),
             }
         }
@@ -118,7 +151,7 @@ impl SceneGeometry {
         Ok(SceneGeometry {
             bvh,
             prims: ordered,
-            spheres,
+            analytic,
             shapes,
             topologies,
             bounds,
@@ -139,10 +172,24 @@ impl SceneGeometry {
         }
         let mut closest = t_max;
         let mut best: Option<Best> = None;
-        for (slot, p) in self.spheres.iter().enumerate() {
-            if let Some(h) = intersect_sphere(ray, p.a, p.b.x, closest) {
-                closest = h.t;
-                best = Some(Best::Sphere(slot, h));
+        for a in &self.analytic {
+            match *a {
+                Analytic::Sphere {
+                    center,
+                    radius,
+                    shape,
+                } => {
+                    if let Some(h) = intersect_sphere(ray, center, radius, closest) {
+                        closest = h.t;
+                        best = Some(Best::Sphere(shape, h));
+                    }
+                }
+                Analytic::Box { min, max, shape } => {
+                    if let Some(h) = intersect_box(ray, min, max, closest) {
+                        closest = h.t;
+                        best = Some(Best::Box(shape, h));
+                    }
+                }
             }
         }
         if !self.prims.is_empty() {
@@ -172,11 +219,12 @@ impl SceneGeometry {
         {
             return false;
         }
-        if self
-            .spheres
-            .iter()
-            .any(|p| intersect_sphere(ray, p.a, p.b.x, t_max).is_some())
-        {
+        if self.analytic.iter().any(|a| match *a {
+            Analytic::Sphere { center, radius, .. } => {
+                intersect_sphere(ray, center, radius, t_max).is_some()
+            }
+            Analytic::Box { min, max, .. } => intersect_box(ray, min, max, t_max).is_some(),
+        }) {
             return true;
         }
         let mut found = false;
@@ -197,10 +245,9 @@ impl SceneGeometry {
 
     fn make_hit(&self, ray: &Ray, best: Best) -> Hit {
         match best {
-            Best::Sphere(slot, h) => {
-                let p = &self.spheres[slot];
+            Best::Sphere(shape, h) => {
                 // p = c + r n: rounding grows with |c| + r, not with |p|.
-                let p_error = match self.shapes.get(p.shape as usize) {
+                let p_error = match self.shapes.get(shape as usize) {
                     Some(Shape::Sphere { center, radius }) => {
                         crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius)
                     }
@@ -212,7 +259,24 @@ impl SceneGeometry {
                     ng: h.n,
                     ns: h.n,
                     uv: h.uv,
-                    shape: p.shape,
+                    shape,
+                    prim: 0,
+                    p_error,
+                }
+            }
+            Best::Box(shape, h) => {
+                // p = o + t d on the face's two other axes.
+                let p_error = crate::math::gamma(7)
+                    * (ray.o.abs() + (ray.d * h.t).abs())
+                        .max(h.p.abs())
+                        .max_element();
+                Hit {
+                    t: h.t,
+                    p: h.p,
+                    ng: h.n,
+                    ns: h.n,
+                    uv: h.uv,
+                    shape,
                     prim: 0,
                     p_error,
                 }
@@ -270,10 +334,10 @@ impl SceneGeometry {
         self.bvh.depth()
     }
 
-    /// Number of primitives (triangles plus spheres).
+    /// Number of primitives (triangles plus analytic shapes).
     #[must_use]
     pub fn primitive_count(&self) -> usize {
-        self.prims.len() + self.spheres.len()
+        self.prims.len() + self.analytic.len()
     }
 
     /// The shape with index `i` as stored (closed meshes already oriented outward).
@@ -282,7 +346,7 @@ impl SceneGeometry {
         self.shapes.get(i)
     }
 
-    /// Whether shape `i` bounds a volume: spheres always, meshes when
+    /// Whether shape `i` bounds a volume: spheres and boxes always, meshes when
     /// [`super::TriangleMesh::is_closed`]. The scene loader warns (naming the mesh) when an
     /// open mesh is used as the boundary of an interior medium.
     #[must_use]

@@ -17,6 +17,7 @@
 //! - [`Hit::ng`] always points to the outside of the shape (spheres: radially; meshes: along
 //!   the winding, which [`TriangleMesh::make_outward`] makes outward for closed meshes).
 
+mod aabox;
 mod bvh;
 mod icosphere;
 mod mesh;
@@ -29,6 +30,7 @@ use std::path::PathBuf;
 
 use crate::math::{Mat3, Mat4, Vec2, Vec3};
 
+pub use aabox::{intersect_box, BoxHit};
 pub use bvh::SceneGeometry;
 pub use icosphere::icosphere;
 pub use mesh::{MeshTopology, TriangleMesh};
@@ -152,6 +154,13 @@ pub enum Shape {
         /// Radius (> 0).
         radius: f32,
     },
+    /// An analytic axis-aligned box (world units), closed.
+    Box {
+        /// Smallest corner.
+        min: Vec3,
+        /// Largest corner (every component > `min`'s).
+        max: Vec3,
+    },
 }
 
 impl Shape {
@@ -183,6 +192,25 @@ impl Shape {
                 *radius *= k.sqrt();
                 Ok(())
             }
+            Shape::Box { min, max } => {
+                let l = Mat3::from_mat4(m);
+                let diagonal = l.x_axis.y == 0.0
+                    && l.x_axis.z == 0.0
+                    && l.y_axis.x == 0.0
+                    && l.y_axis.z == 0.0
+                    && l.z_axis.x == 0.0
+                    && l.z_axis.y == 0.0;
+                if !diagonal {
+                    return Err(GeometryError::InvalidTransform {
+                        message: "an axis-aligned box can only be scaled and translated"
+                            .to_string(),
+                    });
+                }
+                let (a, b) = (m.transform_point3(*min), m.transform_point3(*max));
+                *min = a.min(b);
+                *max = a.max(b);
+                Ok(())
+            }
         }
     }
 
@@ -194,6 +222,10 @@ impl Shape {
             Shape::Sphere { center, radius } => crate::math::Aabb {
                 min: *center - Vec3::splat(*radius),
                 max: *center + Vec3::splat(*radius),
+            },
+            Shape::Box { min, max } => crate::math::Aabb {
+                min: *min,
+                max: *max,
             },
         }
     }

@@ -113,7 +113,13 @@ impl ObjectList {
                 let b = h.pyramid.world_bounds().ok_or_else(|| {
                     ctx.invalid(line, format!("{name}: the interior's grid is empty"))
                 })?;
-                (Shape::Mesh(box_mesh(b)), false)
+                (
+                    Shape::Box {
+                        min: b.min,
+                        max: b.max,
+                    },
+                    false,
+                )
             }
         };
         // Exit-point NEE needs a scattering boundary: behind an index-matched one (no surface,
@@ -242,39 +248,6 @@ impl RestShape {
             RestShape::Bounds => None,
         }
     }
-}
-
-/// A closed, outward-wound box mesh.
-fn box_mesh(b: Aabb) -> TriangleMesh {
-    let c = |i: usize| {
-        Vec3::new(
-            if i & 1 != 0 { b.max.x } else { b.min.x },
-            if i & 2 != 0 { b.max.y } else { b.min.y },
-            if i & 4 != 0 { b.max.z } else { b.min.z },
-        )
-    };
-    let positions = (0..8).map(c).collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let mut indices = Vec::new();
-    for q in quads {
-        indices.push([q[0], q[1], q[2]]);
-        indices.push([q[0], q[2], q[3]]);
-    }
-    let mut mesh = TriangleMesh {
-        positions,
-        normals: None,
-        uvs: None,
-        indices,
-    };
-    mesh.make_outward();
-    mesh
 }
 
 /// The object's `shape` in its rest space (meshes are loaded here).
