@@ -12,11 +12,11 @@ use glam::{DVec3, IVec3};
 use super::{Bounds, MajorantPyramid, SEGMENT_COST};
 use crate::grid::BRICK_DIM;
 
-/// Levels below the root the iterative walk descends at most. A cubic grid within
-/// [`super::MAX_LEVEL0_CELLS`] has at most 9 levels; only grids more than 2^15 bricks long on
-/// one axis have more, and their deepest levels are then emitted whole (coarser, still
-/// conservative).
-pub(super) const MAX_LEVELS: usize = 16;
+/// Levels the iterative walk keeps a DDA state for. A cubic grid within
+/// [`super::MAX_LEVEL0_CELLS`] has at most 9 levels; only grids more than 2^11 bricks (16,384
+/// voxels) long on one axis have more, and their deepest levels are then emitted whole
+/// (coarser, still conservative). Kept small: the walk is moved by value.
+pub(super) const MAX_LEVELS: usize = 12;
 
 /// One cell the walk emits: a ray interval (index-space ray parameter, which equals the world
 /// distance) with the cell's bounds and its lookup density (see
@@ -29,15 +29,14 @@ pub(super) struct WalkCell {
     pub lookup: f32,
 }
 
-/// One level's DDA state.
+/// One level's DDA state (64 bytes).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Frame {
-    pub level: u32,
+    pub level: u8,
     pub done: bool,
     pub cell: IVec3,
-    /// Cells `[lo, hi)` of this level inside the parent cell.
+    /// Cells `[lo, min(lo + 2, dims))` of this level lie inside the parent cell.
     pub lo: IVec3,
-    pub hi: IVec3,
     /// Distance at which the ray leaves the current cell across each axis.
     pub t_next: DVec3,
     /// Where the parent cell ends.
@@ -200,10 +199,9 @@ impl<'a> Walk<'a> {
             }
         }
         walk.stack[0] = Frame {
-            level: top as u32,
+            level: top as u8,
             cell,
             lo: IVec3::ZERO,
-            hi: root.dims,
             t_next,
             t_end: t1,
             done: false,
@@ -243,7 +241,8 @@ impl Iterator for Walk<'_> {
             let t_exit = exits[axis].min(f.t_end).max(t);
             f.cell[axis] += step[axis];
             f.t_next[axis] += delta0[axis] * (1u64 << level) as f64;
-            if f.cell[axis] < f.lo[axis] || f.cell[axis] >= f.hi[axis] || t_exit >= f.t_end {
+            let hi = (f.lo[axis] + 2).min(self.pyramid.levels[level].dims[axis]);
+            if f.cell[axis] < f.lo[axis] || f.cell[axis] >= hi || t_exit >= f.t_end {
                 f.done = true;
             }
             if !(t_exit > t) {
@@ -263,10 +262,9 @@ impl Iterator for Walk<'_> {
                 let hi = (lo + IVec3::splat(2)).min(child.dims);
                 if c.cmpge(lo).all() && c.cmplt(hi).all() && self.depth < MAX_LEVELS {
                     self.stack[self.depth] = Frame {
-                        level: (level - 1) as u32,
+                        level: (level - 1) as u8,
                         cell: c,
                         lo,
-                        hi,
                         t_next: c_next,
                         t_end: t_exit,
                         done: false,
