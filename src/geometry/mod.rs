@@ -1,6 +1,6 @@
-//! Surface geometry: triangle meshes (PLY I/O through `ply-rs-bw`), analytic spheres, and one
-//! BVH over every primitive of a scene (PLOC build and compressed-wide-BVH traversal from
-//! `obvhs`) with our own robust primitive tests.
+//! Surface geometry: triangle meshes (PLY reading of our own, writing through `ply-rs-bw`),
+//! analytic spheres, and one BVH over every primitive of a scene (PLOC build and
+//! compressed-wide-BVH traversal from `obvhs`) with our own robust primitive tests.
 //!
 //! Robustness contract (what the integrator relies on):
 //! - Ray–triangle hits use the watertight test of Woop, Benthin & Wald 2013 ("Watertight
@@ -29,7 +29,7 @@ use crate::math::{Mat3, Mat4, Vec2, Vec3};
 
 pub use bvh::SceneGeometry;
 pub use mesh::{MeshTopology, TriangleMesh};
-pub use ply::{load_ply, write_ply};
+pub use ply::{load_ply, parse_ply, write_ply};
 pub use sphere::{intersect_sphere, SphereHit};
 pub use triangle::{intersect_triangle, TriangleHit};
 
