@@ -41,9 +41,31 @@ pub const LAZY_ABOVE_BYTES: usize = 256 << 20;
 /// [`LAZY_ABOVE_BYTES`]).
 pub struct CountingAlloc;
 
+/// Live bytes from `System` (all threads) above which requests are refused: the test binary
+/// then aborts with Rust's "memory allocation failed" message instead of driving a shared
+/// machine out of memory.
+pub const LIVE_CAP_BYTES: usize = 6 << 30;
+
+static LIVE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
 thread_local! {
     static LARGEST: Cell<usize> = const { Cell::new(0) };
     static TOTAL: Cell<usize> = const { Cell::new(0) };
+}
+
+/// Counts `size` more live bytes, or refuses (false) when that would pass [`LIVE_CAP_BYTES`].
+fn reserve_live(size: usize) -> bool {
+    let before = LIVE.fetch_add(size, Ordering::Relaxed);
+    if before.saturating_add(size) > LIVE_CAP_BYTES {
+        LIVE.fetch_sub(size, Ordering::Relaxed);
+        let msg = b"fuzz_support: live allocations would pass LIVE_CAP_BYTES; refusing (the input under test may be in the target tmp folder's fuzz-current-input file)\n";
+        // SAFETY: writes a static buffer to standard error; no allocation.
+        unsafe {
+            libc::write(2, msg.as_ptr().cast(), msg.len());
+        }
+        return false;
+    }
+    true
 }
 
 fn note(size: usize) {
@@ -79,15 +101,23 @@ unsafe fn lazy_alloc(layout: Layout) -> *mut u8 {
 
 // SAFETY: blocks of at most LAZY_ABOVE_BYTES come from `System`, larger ones from `mmap`
 // (page aligned, zeroed) and go back to `munmap`; which is which follows from the size in the
-// layout, which the caller passes unchanged to `dealloc`/`realloc`. Accounting only touches
-// `Cell`s of constant-initialised thread-locals (no allocation, no unwinding).
+// layout, which the caller passes unchanged to `dealloc`/`realloc`. Accounting only touches an
+// atomic counter and `Cell`s of constant-initialised thread-locals (no allocation, no
+// unwinding).
 unsafe impl GlobalAlloc for CountingAlloc {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         note(layout.size());
         if is_lazy(layout.size()) {
             return lazy_alloc(layout);
         }
-        System.alloc(layout)
+        if !reserve_live(layout.size()) {
+            return std::ptr::null_mut();
+        }
+        let p = System.alloc(layout);
+        if p.is_null() {
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        }
+        p
     }
 
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
@@ -95,30 +125,45 @@ unsafe impl GlobalAlloc for CountingAlloc {
         if is_lazy(layout.size()) {
             return lazy_alloc(layout);
         }
-        System.alloc_zeroed(layout)
+        if !reserve_live(layout.size()) {
+            return std::ptr::null_mut();
+        }
+        let p = System.alloc_zeroed(layout);
+        if p.is_null() {
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        }
+        p
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         if is_lazy(layout.size()) {
             libc::munmap(ptr.cast(), layout.size());
         } else {
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
             System.dealloc(ptr, layout)
         }
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         note(new_size);
-        if !is_lazy(layout.size()) && !is_lazy(new_size) {
-            return System.realloc(ptr, layout, new_size);
-        }
         let Ok(new_layout) = Layout::from_size_align(new_size, layout.align()) else {
             return std::ptr::null_mut();
         };
-        let new = if is_lazy(new_size) {
-            lazy_alloc(new_layout)
-        } else {
-            System.alloc(new_layout)
-        };
+        if !is_lazy(layout.size()) && !is_lazy(new_size) {
+            if new_size > layout.size() && !reserve_live(new_size - layout.size()) {
+                return std::ptr::null_mut();
+            }
+            let p = System.realloc(ptr, layout, new_size);
+            if p.is_null() {
+                if new_size > layout.size() {
+                    LIVE.fetch_sub(new_size - layout.size(), Ordering::Relaxed);
+                }
+            } else if new_size < layout.size() {
+                LIVE.fetch_sub(layout.size() - new_size, Ordering::Relaxed);
+            }
+            return p;
+        }
+        let new = self.alloc(new_layout);
         if !new.is_null() {
             std::ptr::copy_nonoverlapping(ptr, new, layout.size().min(new_size));
             self.dealloc(ptr, layout);
@@ -153,24 +198,34 @@ pub fn measure_allocations<R>(f: impl FnOnce() -> R) -> (R, AllocStats) {
 }
 
 thread_local! {
-    /// Set while [`catch_panic`] runs: the panic hook then records instead of printing.
+    /// Set while [`catch_panic`] runs on this thread.
     static QUIET: Cell<bool> = const { Cell::new(false) };
-    static LAST_LOCATION: std::cell::RefCell<String> = const { std::cell::RefCell::new(String::new()) };
 }
 
-/// Installs (once) a panic hook that stays silent on threads inside [`catch_panic`], only
-/// recording where the panic happened, and defers to the previous hook elsewhere.
+/// Number of [`catch_panic`] calls running on any thread.
+static ACTIVE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+/// Where the last silenced panic happened.
+static LAST_LOCATION: std::sync::Mutex<String> = std::sync::Mutex::new(String::new());
+
+/// Installs (once) a panic hook that stays silent, only recording where the panic happened,
+/// for panics on a thread inside [`catch_panic`] and, while one runs, on unnamed threads (the
+/// thread pool the code under test may use, whose panics come back to the caller); it defers
+/// to the previous hook for everything else (test threads are named).
 fn install_quiet_hook() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            if QUIET.with(Cell::get) {
+            let pool_thread =
+                ACTIVE.load(Ordering::SeqCst) > 0 && std::thread::current().name().is_none();
+            if QUIET.with(Cell::get) || pool_thread {
                 let location = info
                     .location()
                     .map(|l| format!("{}:{}:{}", l.file(), l.line(), l.column()))
                     .unwrap_or_default();
-                LAST_LOCATION.with(|l| *l.borrow_mut() = location);
+                if let Ok(mut last) = LAST_LOCATION.lock() {
+                    *last = location;
+                }
             } else {
                 previous(info);
             }
@@ -183,7 +238,9 @@ fn install_quiet_hook() {
 pub fn catch_panic<R>(f: impl FnOnce() -> R) -> Result<R, String> {
     install_quiet_hook();
     let was_quiet = QUIET.with(|q| q.replace(true));
+    ACTIVE.fetch_add(1, Ordering::SeqCst);
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    ACTIVE.fetch_sub(1, Ordering::SeqCst);
     QUIET.with(|q| q.set(was_quiet));
     result.map_err(|payload| {
         let message = payload
@@ -191,7 +248,7 @@ pub fn catch_panic<R>(f: impl FnOnce() -> R) -> Result<R, String> {
             .map(|s| (*s).to_string())
             .or_else(|| payload.downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "(non-string panic payload)".to_string());
-        let location = LAST_LOCATION.with(|l| l.borrow().clone());
+        let location = LAST_LOCATION.lock().map(|l| l.clone()).unwrap_or_default();
         format!("{message} (at {location})")
     })
 }
