@@ -590,7 +590,7 @@ fn mutated_scenes_never_panic() {
         data
     };
     fuzz(
-        Budget::from_env(5000, 20.0, 0x53_4345_4e45),
+        Budget::from_env(3000, 20.0, 0x53_4345_4e45),
         FuzzTarget {
             name: "fuzz_scene",
             strategy: (0..seeds.len(), prop::collection::vec(edit(), 1..=4)),
