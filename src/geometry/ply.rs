@@ -5,7 +5,8 @@
 //! fit in the bytes after it (at least one byte per binary scalar or list length, two bytes
 //! per ASCII value) before any memory is reserved, and every list length is checked against
 //! the data left before its items are read. Memory use is therefore bounded by a small
-//! multiple of the file's size (at most 12 bytes of mesh per byte of file), and so is the time.
+//! multiple of the file's size (the mesh takes at most 12 bytes per byte of file, the buffers
+//! that grow while it is read at most twice that), and so is the time.
 
 mod body;
 mod header;
@@ -62,9 +63,10 @@ pub fn load_ply(path: &Path) -> Result<TriangleMesh, GeometryError> {
 /// Reads a triangle mesh from the bytes of a PLY file, as [`load_ply`] does; `path` only
 /// names the file in errors.
 ///
-/// Nothing is allocated before the header's element counts have been checked against the
-/// bytes after it, and no allocation exceeds 12 bytes per byte of `bytes`: a header
-/// declaring 10¹¹ vertices over a few bytes of data is refused at once.
+/// Nothing is reserved from a count in the header before the counts have been checked
+/// against the bytes after it, and every reservation is backed by the bytes it will hold (see
+/// the module documentation): a header declaring 10¹¹ vertices over a few bytes of data is
+/// refused at once, without allocating.
 pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriangleMesh, GeometryError> {
     let parse_error = |message: String| GeometryError::Parse {
         path: path.to_path_buf(),
