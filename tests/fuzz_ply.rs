@@ -283,7 +283,7 @@ fn absurd_list_lengths_are_refused_and_empty_elements_cost_nothing() {
 }
 
 #[test]
-fn ascii_errors_name_the_line_and_binary_errors_the_byte() {
+fn errors_are_clear_and_name_the_line_or_byte() {
     let good = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
     assert!(parse(good.as_bytes()).0.unwrap().is_ok());
     let cases = [
@@ -314,6 +314,30 @@ fn ascii_errors_name_the_line_and_binary_errors_the_byte() {
         (
             good.replace("end_header\n", "end_header\n0 0 0\n"),
             "line 13: element `face` 0 of 1: unexpected value `1`",
+        ),
+        // Wrong property types, non-finite values, bad indices and faces.
+        (
+            good.replace("property float x", "property list uchar float x"),
+            "element `vertex` has no usable property `x`",
+        ),
+        (
+            good.replace(
+                "list uchar int vertex_indices",
+                "list uchar float vertex_indices",
+            ),
+            "element `face` has no usable property `vertex_indices (or vertex_index) integer list`",
+        ),
+        (
+            good.replace("0 1 0\n", "0 -inf 0\n"),
+            "vertex 2 has a non-finite position",
+        ),
+        (
+            good.replace("3 0 1 2\n", "3 0 1 3\n"),
+            "face 0 refers to vertex 3 but there are only 3 vertices",
+        ),
+        (
+            good.replace("3 0 1 2\n", "2 0 1\n"),
+            "face 0 has 2 vertices (at least 3 needed)",
         ),
     ];
     for (text, want) in &cases {
