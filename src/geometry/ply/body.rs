@@ -201,8 +201,9 @@ impl<'a> BinarySource<'a> {
         self.data.len() - self.pos
     }
 
+    /// The next `N` bytes, in big-endian order whatever the file's byte order.
     fn take<const N: usize>(&mut self) -> Result<[u8; N], String> {
-        let bytes: [u8; N] = self
+        let mut bytes: [u8; N] = self
             .data
             .get(self.pos..self.pos + N)
             .and_then(|s| s.try_into().ok())
@@ -213,13 +214,10 @@ impl<'a> BinarySource<'a> {
                 )
             })?;
         self.pos += N;
-        Ok(if self.big_endian {
-            bytes
-        } else {
-            let mut b = bytes;
-            b.reverse();
-            b
-        })
+        if !self.big_endian {
+            bytes.reverse();
+        }
+        Ok(bytes)
     }
 }
 
@@ -229,7 +227,6 @@ impl ValueSource for BinarySource<'_> {
     }
 
     fn scalar(&mut self, ty: Scalar) -> Result<Value, String> {
-        // `take` returns big-endian byte order.
         Ok(match ty {
             Scalar::Char => Value::Int(i8::from_be_bytes(self.take()?).into()),
             Scalar::UChar => Value::Int(u8::from_be_bytes(self.take()?).into()),
@@ -308,25 +305,26 @@ mod tests {
     }
 
     #[test]
-    fn ascii_lines_values_and_leftovers() {
+    fn ascii_lines_values_and_leftovers() -> Result<(), String> {
         let body = b"1 -2.5\n  7\t\r\n3 4\n\n";
         let mut s = AsciiSource::new(body, 5);
-        s.begin_element().unwrap();
+        s.begin_element()?;
         assert_eq!(s.location(), "line 5");
         assert_eq!(s.scalar(Scalar::UChar), Ok(Value::Int(1)));
         assert_eq!(s.scalar(Scalar::Float), Ok(Value::Float(-2.5)));
         assert!(s.scalar(Scalar::Float).is_err());
-        s.begin_element().unwrap();
+        s.begin_element()?;
         assert!(s.scalar(Scalar::Char).is_ok());
         assert!(s.end_element().is_ok());
-        s.begin_element().unwrap();
+        s.begin_element()?;
         assert!(s.scalar(Scalar::UChar).is_ok());
-        assert!(s.end_element().unwrap_err().contains("`4`"));
+        assert!(s.end_element().is_err_and(|e| e.contains("`4`")));
         assert_eq!(s.trailing_bytes(), 0);
         let mut bad = AsciiSource::new(b"300 -1 x\n", 1);
-        bad.begin_element().unwrap();
+        bad.begin_element()?;
         assert!(bad.scalar(Scalar::UChar).is_err());
         assert!(bad.list_len(Scalar::Int, Scalar::Int).is_err());
         assert!(bad.scalar(Scalar::Double).is_err());
+        Ok(())
     }
 }
