@@ -1,6 +1,6 @@
-//! Surface geometry: triangle meshes (PLY I/O through `ply-rs-bw`), analytic spheres, and one
-//! BVH over every primitive of a scene (PLOC build and compressed-wide-BVH traversal from
-//! `obvhs`) with our own robust primitive tests.
+//! Surface geometry: triangle meshes (PLY reading of our own, writing through `ply-rs-bw`),
+//! analytic spheres, and one BVH over every primitive of a scene (PLOC build and
+//! compressed-wide-BVH traversal from `obvhs`) with our own robust primitive tests.
 //!
 //! Robustness contract (what the integrator relies on):
 //! - Ray–triangle hits use the watertight test of Woop, Benthin & Wald 2013 ("Watertight
@@ -34,7 +34,7 @@ pub use aabox::{intersect_box, BoxHit};
 pub use bvh::SceneGeometry;
 pub use icosphere::icosphere;
 pub use mesh::{MeshTopology, TriangleMesh};
-pub use ply::{load_ply, write_ply};
+pub use ply::{load_ply, parse_ply, write_ply};
 pub use sphere::{intersect_sphere, SphereHit};
 pub use triangle::{intersect_triangle, TriangleHit};
 
