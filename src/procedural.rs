@@ -33,6 +33,10 @@ pub enum ProceduralError {
     Grid(String),
 }
 
+/// The largest noise-space coordinate (rest coordinate × the finest octave's frequency) an fBm
+/// is evaluated at: see [`FbmParams::check_extent`].
+pub const MAX_NOISE_COORDINATE: f64 = 1e12;
+
 /// Parameters of a procedural fBm density: d(p) = clamp(offset + amplitude · fbm(frequency · p),
 /// min, max), with `fbm` the sum of `octaves` Perlin octaves (lacunarity, gain), normalised to
 /// [−1, 1] (the `noise` crate's convention). `p` is in the object's rest space.
@@ -112,6 +116,27 @@ impl FbmParams {
         Ok(())
     }
 
+    /// The frequency of the finest octave, frequency × lacunarity^(octaves − 1) (1/length).
+    #[must_use]
+    pub fn highest_frequency(&self) -> f64 {
+        f64::from(self.frequency) * f64::from(self.lacunarity).powi(self.octaves as i32 - 1)
+    }
+
+    /// Checks that the finest octave over rest-space coordinates up to `max_abs_coordinate`
+    /// stays within [`MAX_NOISE_COORDINATE`] noise periods (beyond, the noise's lattice
+    /// arithmetic overflows and its f64 coordinates lose their fraction).
+    pub fn check_extent(&self, max_abs_coordinate: f64) -> Result<(), ProceduralError> {
+        let reach = self.highest_frequency() * max_abs_coordinate;
+        if reach.is_finite() && reach <= MAX_NOISE_COORDINATE {
+            return Ok(());
+        }
+        Err(ProceduralError::Parameter {
+            name: "noise.frequency",
+            value: f64::from(self.frequency),
+            allowed: "too high for the object: frequency × lacunarity^(octaves − 1) × the largest rest-space coordinate must stay below 1e12",
+        })
+    }
+
     /// The analytic range of the density: |fbm| ≤ 1, so d ∈ clamp(offset ± |amplitude|).
     #[must_use]
     pub fn analytic_bounds(&self) -> Bounds {
@@ -168,6 +193,13 @@ impl FbmField {
     /// Density at a rest-space point.
     #[must_use]
     pub fn density_rest(&self, p: DVec3) -> f32 {
+        // Points beyond the checked extent (never reached inside a checked object) are clamped
+        // so that the noise's lattice arithmetic cannot overflow.
+        let limit = MAX_NOISE_COORDINATE / self.params.highest_frequency().max(1e-300);
+        let p = p.clamp(DVec3::splat(-limit), DVec3::splat(limit));
+        if !p.is_finite() {
+            return self.params.min;
+        }
         let n = self.noise.get([p.x, p.y, p.z]) as f32;
         (self.params.offset + self.params.amplitude * n).clamp(self.params.min, self.params.max)
     }

@@ -75,22 +75,7 @@ fn case_limit() -> Duration {
 /// goes wrong. Their inputs are in `tests/data/fuzz/scene/regressions/open/`, replayed by the
 /// ignored test `open_issues_replay`. The fuzz test counts inputs that hit them instead of
 /// failing; remove an entry once fixed and move its input up to `regressions/`.
-const KNOWN_OPEN: &[(&str, &str)] = &[
-    (
-        "noise-0.9.0/src/math/vectors.rs",
-        "an fBm interior with a huge finite noise.frequency (e.g. 1.8e19) makes the noise crate \
-         unwrap a failed float-to-integer conversion while the interior is baked \
-         (FbmParams::validate accepts any finite frequency); input fbm_huge_frequency.toml",
-    ),
-    (
-        "obvhs-0.4.0/src/cwbvh/mod.rs",
-        "builds with debug assertions only (`cargo test` without --release): obvhs validates \
-         every new BVH with an absolute tolerance of 1e-5, which the rounding of its quantised \
-         node boxes exceeds once coordinates reach thousands of units, e.g. a sphere 2^31 units \
-         away (the geometry pads primitive boxes by far more, so release traversal stays \
-         conservative); input obvhs_debug_check_far_sphere.toml",
-    ),
-];
+const KNOWN_OPEN: &[(&str, &str)] = &[];
 
 /// Outcome of one input.
 #[derive(Debug, PartialEq)]
@@ -652,7 +637,11 @@ fn open_issues_replay() {
 #[test]
 fn every_open_issue_has_an_input() {
     let files = files_with_extension(&data_dir().join("regressions/open"), "toml");
-    assert!(files.len() >= KNOWN_OPEN.len(), "{files:?}");
+    assert_eq!(
+        files.len(),
+        KNOWN_OPEN.len(),
+        "open inputs and entries: {files:?}"
+    );
 }
 
 /// Runs `velour render` on `text` written to a temporary scene file whose relative mesh and

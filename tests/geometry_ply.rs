@@ -455,11 +455,31 @@ fn volume_orientation_and_transforms() {
             let want = Vec3::Y + glam::Quat::from_rotation_z(0.7) * Vec3::new(2.0, 0.0, 0.0);
             assert!((center - want).length() < 1e-5);
         }
-        Shape::Mesh(_) => unreachable!(),
+        _ => unreachable!(),
     }
     assert!(sph
         .transform(Mat4::from_scale(Vec3::new(1.0, 2.0, 1.0)))
         .is_err());
+    // Axis-aligned boxes take scales (also negative) and translations, not rotations.
+    let mut aabox = Shape::Box {
+        min: Vec3::new(-1.0, 0.0, 1.0),
+        max: Vec3::new(1.0, 2.0, 3.0),
+    };
+    aabox
+        .transform(Mat4::from_scale_rotation_translation(
+            Vec3::new(2.0, -1.0, 1.0),
+            glam::Quat::IDENTITY,
+            Vec3::X,
+        ))
+        .unwrap();
+    match aabox {
+        Shape::Box { min, max } => {
+            assert_eq!(min, Vec3::new(-1.0, -2.0, 1.0));
+            assert_eq!(max, Vec3::new(3.0, 0.0, 3.0));
+        }
+        _ => unreachable!(),
+    }
+    assert!(aabox.transform(Mat4::from_rotation_z(0.3)).is_err());
     assert!(sph.transform(Mat4::from_scale(Vec3::ZERO)).is_err());
     let mut mesh = Shape::Mesh(m);
     assert!(mesh

@@ -68,6 +68,14 @@ fn fbm_field(
         seed: n.seed.unwrap_or(defaults.seed),
     };
     let field = FbmField::new(params, xf).map_err(|e| bad(&e))?;
+    let reach = f64::from(
+        rest_bounds
+            .min
+            .abs()
+            .max(rest_bounds.max.abs())
+            .max_element(),
+    );
+    field.params().check_extent(reach).map_err(|e| bad(&e))?;
     let extent = rest_bounds.extent().max_element().max(1e-9);
     let voxel_size = at.range(
         "voxel_size",
