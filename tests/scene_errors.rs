@@ -142,3 +142,14 @@ fn unknown_interior_types_name_the_line_and_the_choices() {
     );
     assert!(e.contains("\"voxel\", \"fbm\" or \"fabric\""), "{e}");
 }
+
+#[test]
+fn a_value_of_the_wrong_type_names_its_key() {
+    let text =
+        "[camera]\neye = [0, 0, 3]\nlook_at = [0, 0, 0]\nfov = 30\n[film]\nwidth = \"wide\"\n";
+    let e = velour::scene::load_scene_str(text, std::path::Path::new("typed.toml"))
+        .err()
+        .expect("a string width is refused")
+        .to_string();
+    assert!(e.contains("typed.toml:6") && e.contains("`width`"), "{e}");
+}

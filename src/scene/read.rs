@@ -373,12 +373,39 @@ fn parse_error(ctx: &Ctx, e: &toml::de::Error) -> SceneError {
         Some("MipValue") => format!("`mip` expects a level 0–{MAX_MIP_LEVEL} or \"auto\""),
         _ => message,
     };
+    // A value of the wrong type: name the key it was given for.
+    let message = match e.span().and_then(|s| key_before(ctx.text, s.start)) {
+        Some(key) if !message.contains(&format!("`{key}`")) => format!("`{key}`: {message}"),
+        _ => message,
+    };
     ctx.parse(line, message)
+}
+
+/// The key of the `key = value` whose value starts at byte `offset` of `text` (plain or
+/// inline-table keys; the last segment of a dotted key).
+fn key_before(text: &str, offset: usize) -> Option<&str> {
+    let head = text.get(..offset)?;
+    let before_eq = head.trim_end().strip_suffix('=')?.trim_end();
+    let start = before_eq
+        .rfind(|c: char| !(c.is_alphanumeric() || c == '_' || c == '-'))
+        .map_or(0, |i| i + 1);
+    let key = &before_eq[start..];
+    (!key.is_empty()).then_some(key)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_key_of_a_value_is_found_before_its_equals_sign() {
+        let text = "[film]\nwidth = \"wide\"\nx = { a = 1, b_c = [1] }\n";
+        let at = |needle: &str| text.find(needle).map(|i| key_before(text, i));
+        assert_eq!(at("\"wide\""), Some(Some("width")));
+        assert_eq!(at("1,"), Some(Some("a")));
+        assert_eq!(at("[1]"), Some(Some("b_c")));
+        assert_eq!(at("[film]"), Some(None));
+    }
 
     #[test]
     fn lists_and_distances() {
