@@ -13,6 +13,7 @@
 //! tolerate as long as every segment they bound is looked up: see
 //! [`MajorantSegment::is_homogeneous`]).
 
+mod plan;
 mod segments;
 mod walk;
 
@@ -123,6 +124,8 @@ pub struct MajorantPyramid {
     world_to_index: DAffine3,
     /// True when every bound is proven (see [`MajorantSegment::exact`]).
     exact: bool,
+    /// The adaptive walk's plan for the first extinction scale it was asked for.
+    plan: std::sync::OnceLock<plan::WalkPlan>,
 }
 
 /// Statistics of one pyramid level (for `velour majorants`).
@@ -246,6 +249,7 @@ impl MajorantPyramid {
             background,
             world_to_index,
             exact: true,
+            plan: std::sync::OnceLock::new(),
         }
     }
 
@@ -273,6 +277,14 @@ impl MajorantPyramid {
         bounds_of: impl FnMut(IVec3) -> Bounds,
     ) -> Result<Self, MajorantError> {
         Self::build(key_lo, key_hi, background, world_to_index, false, bounds_of)
+    }
+
+    /// The adaptive walk's plan for extinction `sigma` per unit density: made on the first
+    /// request and kept (a medium has one extinction scale); `None` for another `sigma`, which
+    /// then walks by the single-threshold rule.
+    pub(crate) fn plan_for(&self, sigma: f32) -> Option<&plan::WalkPlan> {
+        let plan = self.plan.get_or_init(|| plan::WalkPlan::new(self, sigma));
+        (plan.sigma == sigma).then_some(plan)
     }
 
     /// True when every bound of the pyramid is proven.
@@ -398,6 +410,7 @@ impl MajorantPyramid {
             background,
             world_to_index,
             exact,
+            plan: std::sync::OnceLock::new(),
         })
     }
 

@@ -245,10 +245,10 @@ impl MajorantPyramid {
                 out.before = self.background_segment(t_min, a);
                 let top = self.levels.len() - 1;
                 let finest = (finest as usize).min(top);
-                let sigma = sigma_scale
-                    .filter(|s| s.is_finite() && *s > 0.0)
-                    .map(f64::from);
-                let walk = Walk::new(self, a as f64, c as f64, o, d, finest, sigma);
+                let sigma_scale = sigma_scale.filter(|s| s.is_finite() && *s > 0.0);
+                let plan = sigma_scale.and_then(|s| self.plan_for(s));
+                let sigma = sigma_scale.map(f64::from);
+                let walk = Walk::new(self, a as f64, c as f64, o, d, finest, sigma, plan);
                 out.walk = Some(Merged::new(walk, sigma, self.exact));
                 out.after = self.background_segment(c, t_max);
             }

@@ -9,6 +9,7 @@
 
 use glam::{DVec3, IVec3};
 
+use super::plan::WalkPlan;
 use super::{Bounds, MajorantPyramid, SEGMENT_COST};
 use crate::grid::BRICK_DIM;
 
@@ -125,8 +126,11 @@ pub(super) struct Walk<'a> {
     pyramid: &'a MajorantPyramid,
     ray: RaySetup,
     finest: usize,
-    /// Descend where `max − fine > threshold` (one threshold per ray; −∞ = always).
+    /// Descend where `max − fine > threshold` (one threshold per ray; −∞ = always), unless a
+    /// plan decides.
     threshold: f32,
+    /// The cells to open, decided per medium (the adaptive walk).
+    plan: Option<&'a WalkPlan>,
     stack: [Frame; MAX_LEVELS],
     depth: usize,
     t: f64,
@@ -137,7 +141,9 @@ pub(super) struct Walk<'a> {
 
 impl<'a> Walk<'a> {
     /// Prepares the walk of the index-space ray `o + t d` over `[t0, t1]`. `sigma` is the
-    /// medium's extinction per unit density for the adaptive walk (`None`: exhaustive).
+    /// medium's extinction per unit density for the adaptive walk (`None`: exhaustive), `plan`
+    /// its cells to open (else a single threshold per ray decides).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         pyramid: &'a MajorantPyramid,
         t0: f64,
@@ -146,6 +152,7 @@ impl<'a> Walk<'a> {
         d: DVec3,
         finest: usize,
         sigma: Option<f64>,
+        plan: Option<&'a WalkPlan>,
     ) -> Self {
         let base = pyramid.origin.as_dvec3() - DVec3::splat(0.5);
         let mut walk = Walk {
@@ -159,6 +166,7 @@ impl<'a> Walk<'a> {
                 None => f32::NEG_INFINITY,
                 Some(s) => (SEGMENT_COST * d.abs().element_sum() / (BRICK_DIM as f64 * s)) as f32,
             },
+            plan,
             stack: [Frame::default(); MAX_LEVELS],
             depth: 0,
             t: t0,
@@ -174,7 +182,11 @@ impl<'a> Walk<'a> {
         if rb.is_empty() {
             return walk;
         }
-        if top <= finest || rb.min == rb.max || !(rb.max - rf > walk.threshold) {
+        let open_root = match plan {
+            Some(p) => p.open[top][0],
+            None => rb.min != rb.max && rb.max - rf > walk.threshold,
+        };
+        if top <= finest || !open_root {
             walk.single = Some(WalkCell {
                 t0,
                 t1,
@@ -255,7 +267,11 @@ impl Iterator for Walk<'_> {
                 self.t = t_exit;
                 continue;
             }
-            if level > self.finest && b.min != b.max && b.max - lv.fine[i] > self.threshold {
+            let open = match self.plan {
+                Some(p) => p.open[level][i],
+                None => b.min != b.max && b.max - lv.fine[i] > self.threshold,
+            };
+            if level > self.finest && open {
                 let child = &self.pyramid.levels[level - 1];
                 let (c, c_next) = self.ray.child_state(level, cell, exits, t);
                 let lo = cell * 2;
