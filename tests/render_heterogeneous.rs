@@ -68,6 +68,22 @@ fn pyramid_and_global_majorants_agree_and_the_pyramid_saves_lookups() {
 }
 
 #[test]
+fn decomposition_and_delta_tracking_agree() {
+    let (a, sa) = run(&cloud_scene(r#"free_flight = "decomposition""#), 13);
+    let (b, sb) = run(&cloud_scene(r#"free_flight = "delta""#), 14);
+    let z = compare(&a, &b).expect("compare").z_test.expect("variance");
+    assert!(z.consistent, "decomposition vs delta tracking: {z:?}");
+    let per =
+        |s: &RenderSummary| s.tracking.lookups as f64 / s.tracking.real_collisions.max(1) as f64;
+    assert!(
+        per(&sa) < per(&sb),
+        "decomposition should save lookups: {} vs {}",
+        per(&sa),
+        per(&sb)
+    );
+}
+
+#[test]
 fn ratio_and_residual_tracking_agree() {
     let (a, _) = run(&cloud_scene(r#"transmittance = "ratio""#), 4);
     let (b, _) = run(

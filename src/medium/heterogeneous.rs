@@ -15,8 +15,8 @@ use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
 use crate::spectrum::Rgb;
 use crate::tracking::{
-    delta_track, ray_march_free_flight, transmittance, DensityCoefficients, Flight,
-    FreeFlightMethod, TrackingConfig, TrackingStats,
+    decomposition_track, delta_track, ray_march_free_flight, transmittance, DensityCoefficients,
+    Flight, FreeFlightMethod, TrackingConfig, TrackingStats,
 };
 
 /// Where a heterogeneous interior's density comes from.
@@ -155,6 +155,14 @@ impl HeterogeneousMedium {
         let mut lookup = self.density_along(ray);
         let flight = match self.tracking.free_flight {
             FreeFlightMethod::DeltaTracking => delta_track(
+                segments,
+                &self.coefficients,
+                |t| lookup.at(t),
+                beta,
+                u,
+                stats,
+            ),
+            FreeFlightMethod::Decomposition => decomposition_track(
                 segments,
                 &self.coefficients,
                 |t| lookup.at(t),

@@ -1,9 +1,10 @@
 //! Delta tracking over majorant segments with one-sample MIS over channels, written as
-//! weighted null-collision tracking.
+//! weighted null-collision tracking, and its decomposition-tracking variant.
 
 use super::channels::hero_probabilities;
 use super::{pick_channel, DensityCoefficients, Flight, TrackingStats};
 use crate::majorant::MajorantSegment;
+use crate::sampling::ONE_MINUS_EPSILON;
 use crate::spectrum::Rgb;
 
 /// Running numerator (per channel contribution) and per-hero-channel path probabilities of a
@@ -38,10 +39,51 @@ impl MisChain {
 pub fn delta_track<S, D, U>(
     segments: S,
     coeff: &DensityCoefficients,
+    density: D,
+    beta: Rgb,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Flight
+where
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    U: FnMut() -> f32,
+{
+    track(segments, coeff, density, beta, u, stats, false)
+}
+
+/// Decomposition tracking (Kutz, Habel, Li, Novák 2017; docs/references.md §11.3): delta
+/// tracking with each segment's extinction split into a constant control, σ_t at the
+/// segment's minorant, and the residual above it. A tentative collision belongs to the control
+/// with probability σ_c/M and is then a real collision at the control's albedo that needs **no
+/// density lookup**; otherwise the density is looked up and the residual decides between a
+/// real collision (at the residual's albedo) and a null one. Lookups fall roughly in the ratio
+/// (M − σ_c)/M. Unbiased for any bounds (weighted tracking where the minorant is violated).
+pub fn decomposition_track<S, D, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    density: D,
+    beta: Rgb,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Flight
+where
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    U: FnMut() -> f32,
+{
+    track(segments, coeff, density, beta, u, stats, true)
+}
+
+/// The delta tracker, with (`decompose`) or without a control part.
+fn track<S, D, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
     mut density: D,
     beta: Rgb,
     u: &mut U,
     stats: &mut TrackingStats,
+    decompose: bool,
 ) -> Flight
 where
     S: IntoIterator<Item = MajorantSegment>,
@@ -90,6 +132,15 @@ where
         if !(majorant > 0.0) || !majorant.is_finite() {
             continue;
         }
+        // The control part (decomposition tracking) and each channel's probability, as hero,
+        // that a tentative collision belongs to it; zero for plain delta tracking.
+        let (control_t, control_s) = if decompose {
+            (coeff.sigma_t_at(seg.min), coeff.sigma_s_at(seg.min))
+        } else {
+            (Rgb::ZERO, Rgb::ZERO)
+        };
+        let p_control = control_t / majorant;
+        let p_rest = Rgb::ONE - p_control;
         // Distance from the segment start: keeps advancing where a step is below half an ulp
         // of the absolute distance (far from the origin).
         let mut local = 0.0f32;
@@ -99,6 +150,22 @@ where
                 break;
             }
             let t = seg.t0 + local;
+            let mut u_event = u();
+            if decompose {
+                if u_event < p_control[hero] {
+                    // A control collision: real, no lookup.
+                    chain.f *= control_s;
+                    chain.p *= control_t;
+                    stats.real_collisions += 1;
+                    return Flight::Scatter {
+                        t,
+                        weight: chain.weight(probs),
+                        density: seg.min,
+                    };
+                }
+                // The same number decides the residual's event.
+                u_event = ((u_event - p_control[hero]) / p_rest[hero]).min(ONE_MINUS_EPSILON);
+            }
             let d = density(t);
             stats.lookups += 1;
             if d > seg.max || d < seg.min {
@@ -106,9 +173,11 @@ where
             }
             let sigma_t = coeff.sigma_t_at(d);
             let sigma_n = Rgb::splat(majorant) - sigma_t;
-            // Decision probabilities of each channel as hero (weighted tracking: |σ_t| vs |σ_n|).
+            let sigma_r = sigma_t - control_t;
+            // Decision probabilities of each channel as hero (weighted tracking: the
+            // residual's |σ_r| against |σ_n|).
             let p_real = Rgb([0, 1, 2].map(|k| {
-                let a = sigma_t[k].abs();
+                let a = sigma_r[k].abs();
                 let b = sigma_n[k].abs();
                 if a + b > 0.0 {
                     a / (a + b)
@@ -116,9 +185,9 @@ where
                     0.0
                 }
             }));
-            if u() < p_real[hero] {
-                chain.f *= coeff.sigma_s_at(d);
-                chain.p *= p_real * majorant;
+            if u_event < p_real[hero] {
+                chain.f *= coeff.sigma_s_at(d) - control_s;
+                chain.p *= p_rest * p_real * majorant;
                 stats.real_collisions += 1;
                 return Flight::Scatter {
                     t,
@@ -127,7 +196,7 @@ where
                 };
             }
             chain.f *= sigma_n;
-            chain.p *= (Rgb::ONE - p_real) * majorant;
+            chain.p *= p_rest * (Rgb::ONE - p_real) * majorant;
             chain.renormalise();
             stats.null_collisions += 1;
             if chain.p.is_black() {

@@ -29,7 +29,7 @@ mod march;
 mod ratio;
 
 pub use channels::{channel_probabilities, pick_channel};
-pub use delta::delta_track;
+pub use delta::{decomposition_track, delta_track};
 pub use homogeneous::{sample_homogeneous, HomogeneousFlight};
 pub use march::ray_march_free_flight;
 pub use ratio::transmittance;
@@ -144,6 +144,9 @@ pub enum Flight {
 pub enum FreeFlightMethod {
     /// Delta (Woodcock) tracking over the majorant segments: unbiased.
     DeltaTracking,
+    /// Decomposition tracking (Kutz et al. 2017): delta tracking whose segments' minorant part
+    /// is sampled without lookups: unbiased.
+    Decomposition,
     /// Fixed-step ray marching: biased, the notes' §2.2.2 baseline.
     RayMarch {
         /// Step length, world units.
