@@ -143,6 +143,10 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
             edits: vec![tracking(&[])],
         });
         out.push(Configuration {
+            name: "decomposition + residual ratio (novak), pyramid L0".into(),
+            edits: vec![tracking(&[("free_flight", s("decomposition"))])],
+        });
+        out.push(Configuration {
             name: "delta + ratio, pyramid L0".into(),
             edits: vec![tracking(&[("transmittance", s("ratio"))])],
         });
