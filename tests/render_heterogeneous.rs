@@ -61,8 +61,11 @@ fn pyramid_and_global_majorants_agree_and_the_pyramid_saves_lookups() {
     assert!(z.consistent, "pyramid vs global renders disagree: {z:?}");
     let la = sa.tracking.lookups as f64 / sa.tracking.real_collisions.max(1) as f64;
     let lb = sb.tracking.lookups as f64 / sb.tracking.real_collisions.max(1) as f64;
+    // The `bounds` box is cut to the finest occupied majorant cells (2³ voxels), so the
+    // global majorant no longer tracks through the empty brick margins either: the pyramid's
+    // gain is over the global bound inside that box.
     assert!(
-        la * 2.0 < lb,
+        la * 1.5 < lb,
         "lookups per real collision: pyramid {la:.2}, global {lb:.2}"
     );
 }

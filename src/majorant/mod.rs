@@ -118,6 +118,8 @@ impl Level {
 pub struct MajorantPyramid {
     /// Voxel coordinate of level-0 cell (0, 0, 0)'s first voxel.
     origin: IVec3,
+    /// Level-0 cells are `2^cell_log2` voxels wide (3: one brick).
+    cell_log2: i32,
     levels: Vec<Level>,
     /// Value outside the pyramid's box.
     background: f32,
@@ -145,8 +147,9 @@ pub struct LevelReport {
 }
 
 impl MajorantPyramid {
-    /// Builds the pyramid of channel `channel` of `grid` with exact bounds (brick + one-voxel
-    /// apron).
+    /// Builds the pyramid of channel `channel` of `grid` with exact bounds (each cell plus a
+    /// one-voxel apron). The finest cells are smaller than a brick where memory allows
+    /// ([`finest_cell_log2`]): 2³ voxels for up to 2^16 bricks, 4³ up to 2^21, else the bricks.
     pub fn from_grid(grid: &SparseGrid, channel: usize) -> Result<Self, MajorantError> {
         let background = grid.background(channel);
         // Region: every brick and every non-background tile.
@@ -167,77 +170,47 @@ impl MajorantPyramid {
         if lo.x > hi.x {
             return Ok(Self::empty(background, world_to_index));
         }
-        let key_lo = (lo - IVec3::ONE) >> 3;
-        let key_hi = (hi + IVec3::ONE) >> 3;
+        let key_lo: IVec3 = (lo - IVec3::ONE) >> 3;
+        let key_hi: IVec3 = (hi + IVec3::ONE) >> 3;
+        let span: IVec3 = key_hi - key_lo + IVec3::ONE;
+        let bricks = span.as_dvec3();
+        let cell_log2 = finest_cell_log2(bricks.x * bricks.y * bricks.z);
+        let per_brick = BRICK_DIM >> cell_log2;
+        let dims = (key_hi - key_lo + IVec3::ONE) * per_brick;
+        let count = dims.x as usize * dims.y as usize * dims.z as usize;
+        if dims.min_element() <= 0 || count > MAX_LEVEL0_CELLS {
+            return Err(MajorantError::TooLarge {
+                cells: count,
+                max: MAX_LEVEL0_CELLS,
+            });
+        }
+        let mut cells = vec![Bounds::constant(background); count];
         let mut acc = grid.accessor(channel);
-        Self::from_brick_bounds(key_lo, key_hi, background, world_to_index, |key| {
-            let mut nodes = [Node::Tile {
-                tile: 0,
-                level: crate::grid::TileLevel::Root,
-                active: false,
-            }; 27];
-            let mut all_tiles = true;
-            let mut i = 0;
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let n = grid.node_at_brick(key + IVec3::new(dx, dy, dz));
-                        all_tiles &= matches!(n, Node::Tile { .. });
-                        nodes[i] = n;
-                        i += 1;
-                    }
+        let index = |c: IVec3| {
+            ((c.z as usize * dims.y as usize) + c.y as usize) * dims.x as usize + c.x as usize
+        };
+        for kz in key_lo.z..=key_hi.z {
+            for ky in key_lo.y..=key_hi.y {
+                for kx in key_lo.x..=key_hi.x {
+                    let key = IVec3::new(kx, ky, kz);
+                    let first = (key - key_lo) * per_brick;
+                    brick_cell_bounds(grid, channel, &mut acc, key, cell_log2, |sub, b| {
+                        cells[index(first + sub)] = b;
+                    });
                 }
             }
-            let own = nodes[13];
-            if all_tiles {
-                let mut b = Bounds {
-                    min: f32::INFINITY,
-                    max: f32::NEG_INFINITY,
-                    mean: 0.0,
-                };
-                for n in nodes {
-                    if let Node::Tile { tile, .. } = n {
-                        let v = grid.tile_value(channel, tile);
-                        b.min = b.min.min(v);
-                        b.max = b.max.max(v);
-                    }
-                }
-                if let Node::Tile { tile, .. } = own {
-                    b.mean = grid.tile_value(channel, tile);
-                }
-                return b;
-            }
-            let base = key << 3;
-            let mut b = Bounds {
-                min: f32::INFINITY,
-                max: f32::NEG_INFINITY,
-                mean: 0.0,
-            };
-            for z in -1..=BRICK_DIM {
-                for y in -1..=BRICK_DIM {
-                    for x in -1..=BRICK_DIM {
-                        let v = acc.value(base + IVec3::new(x, y, z));
-                        b.min = b.min.min(v);
-                        b.max = b.max.max(v);
-                    }
-                }
-            }
-            b.mean = match own {
-                Node::Tile { tile, .. } => grid.tile_value(channel, tile),
-                Node::Brick(_) => {
-                    let mut s = 0.0f64;
-                    for z in 0..BRICK_DIM {
-                        for y in 0..BRICK_DIM {
-                            for x in 0..BRICK_DIM {
-                                s += acc.value(base + IVec3::new(x, y, z)) as f64;
-                            }
-                        }
-                    }
-                    (s / 512.0) as f32
-                }
-            };
-            b
-        })
+        }
+        let cell_lo = key_lo * per_brick;
+        let cell_hi = (key_hi + IVec3::ONE) * per_brick - IVec3::ONE;
+        Self::build(
+            cell_lo,
+            cell_hi,
+            cell_log2,
+            background,
+            world_to_index,
+            true,
+            |key| cells[index(key - cell_lo)],
+        )
     }
 
     /// An empty pyramid (the value is `background` everywhere).
@@ -245,6 +218,7 @@ impl MajorantPyramid {
     pub fn empty(background: f32, world_to_index: DAffine3) -> Self {
         MajorantPyramid {
             origin: IVec3::ZERO,
+            cell_log2: 3,
             levels: Vec::new(),
             background,
             world_to_index,
@@ -263,7 +237,15 @@ impl MajorantPyramid {
         world_to_index: DAffine3,
         bounds_of: impl FnMut(IVec3) -> Bounds,
     ) -> Result<Self, MajorantError> {
-        Self::build(key_lo, key_hi, background, world_to_index, true, bounds_of)
+        Self::build(
+            key_lo,
+            key_hi,
+            3,
+            background,
+            world_to_index,
+            true,
+            bounds_of,
+        )
     }
 
     /// [`Self::from_brick_bounds`] for bounds that may be violated (estimated from trial
@@ -276,7 +258,15 @@ impl MajorantPyramid {
         world_to_index: DAffine3,
         bounds_of: impl FnMut(IVec3) -> Bounds,
     ) -> Result<Self, MajorantError> {
-        Self::build(key_lo, key_hi, background, world_to_index, false, bounds_of)
+        Self::build(
+            key_lo,
+            key_hi,
+            3,
+            background,
+            world_to_index,
+            false,
+            bounds_of,
+        )
     }
 
     /// The adaptive walk's plan for extinction `sigma` per unit density: made on the first
@@ -309,9 +299,13 @@ impl MajorantPyramid {
         }
     }
 
+    /// Builds the pyramid over level-0 cells of `2^cell_log2` voxels with keys (voxel
+    /// coordinate >> `cell_log2`) in `[key_lo, key_hi]`.
+    #[allow(clippy::too_many_arguments)]
     fn build(
         key_lo: IVec3,
         key_hi: IVec3,
+        cell_log2: i32,
         background: f32,
         world_to_index: DAffine3,
         exact: bool,
@@ -405,13 +399,20 @@ impl MajorantPyramid {
             levels.push(parent);
         }
         Ok(MajorantPyramid {
-            origin: key_lo << 3,
+            origin: key_lo << cell_log2,
+            cell_log2,
             levels,
             background,
             world_to_index,
             exact,
             plan: std::sync::OnceLock::new(),
         })
+    }
+
+    /// Edge of a level-0 cell in voxels (8 = one brick).
+    #[must_use]
+    pub fn finest_cell_voxels(&self) -> i32 {
+        1 << self.cell_log2
     }
 
     /// Number of levels (0 when empty).
@@ -458,8 +459,9 @@ impl MajorantPyramid {
             return None;
         }
         let index_to_world = self.world_to_index.inverse();
-        let a = (self.origin + lo * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
-        let b = (self.origin + (hi + IVec3::ONE) * BRICK_DIM).as_dvec3() - DVec3::splat(0.5);
+        let cell = 1 << self.cell_log2;
+        let a = (self.origin + lo * cell).as_dvec3() - DVec3::splat(0.5);
+        let b = (self.origin + (hi + IVec3::ONE) * cell).as_dvec3() - DVec3::splat(0.5);
         Some(crate::math::Aabb::around_transformed(a, b, &index_to_world))
     }
 
@@ -471,7 +473,7 @@ impl MajorantPyramid {
             .enumerate()
             .map(|(i, l)| LevelReport {
                 level: i,
-                cell_voxels: BRICK_DIM << i,
+                cell_voxels: 1 << (self.cell_log2 + i as i32),
                 cells: l.cells.len(),
                 occupied: l.cells.iter().filter(|b| !b.is_empty()).count(),
                 homogeneous: l
@@ -489,7 +491,7 @@ impl MajorantPyramid {
         let Some(l) = self.levels.get(level) else {
             return Bounds::constant(self.background);
         };
-        let c = (ijk - self.origin) >> (3 + level as i32);
+        let c = (ijk - self.origin) >> (self.cell_log2 + level as i32);
         if c.cmplt(IVec3::ZERO).any() || c.cmpge(l.dims).any() {
             return Bounds::constant(self.background);
         }
@@ -509,3 +511,132 @@ impl MajorantPyramid {
 /// exponential sample and the tracker's per-segment set-up, about what one tentative collision
 /// costs; measured with callgrind on the grid scenes, docs/BENCHMARKS.md).
 pub const SEGMENT_COST: f64 = 1.0;
+
+/// log₂ of the finest cell edge (voxels) for a grid region of `bricks` bricks: 2³-voxel cells
+/// (64 per brick) up to 2^16 bricks, 4³ (8 per brick) up to 2^21, else whole bricks, so that
+/// level 0 stays within 2^22 cells (16 bytes each).
+#[must_use]
+pub fn finest_cell_log2(bricks: f64) -> i32 {
+    if bricks * 64.0 <= f64::from(1u32 << 22) {
+        1
+    } else if bricks * 8.0 <= f64::from(1u32 << 24) {
+        2
+    } else {
+        3
+    }
+}
+
+/// Calls `emit(sub, bounds)` for each of the `(8 >> cell_log2)³` cells of brick `key`: the min
+/// and max over every value a trilinear lookup inside the cell can return (its voxels plus a
+/// one-voxel apron, across neighbouring bricks and tiles) and the mean of its own voxels.
+fn brick_cell_bounds(
+    grid: &SparseGrid,
+    channel: usize,
+    acc: &mut crate::grid::Accessor<'_>,
+    key: IVec3,
+    cell_log2: i32,
+    mut emit: impl FnMut(IVec3, Bounds),
+) {
+    let size = 1 << cell_log2;
+    let n = BRICK_DIM >> cell_log2;
+    let mut nodes = [Node::Tile {
+        tile: 0,
+        level: crate::grid::TileLevel::Root,
+        active: false,
+    }; 27];
+    let mut all_tiles = true;
+    let mut i = 0;
+    for dz in -1..=1 {
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let node = grid.node_at_brick(key + IVec3::new(dx, dy, dz));
+                all_tiles &= matches!(node, Node::Tile { .. });
+                nodes[i] = node;
+                i += 1;
+            }
+        }
+    }
+    let tile_value = |node: Node| match node {
+        Node::Tile { tile, .. } => grid.tile_value(channel, tile),
+        Node::Brick(_) => 0.0,
+    };
+    if all_tiles {
+        // Each cell sees its own tile and the neighbours its apron reaches.
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    let c = IVec3::new(x, y, z);
+                    let reach = |k: i32| -> (i32, i32) {
+                        (if k == 0 { -1 } else { 0 }, if k == n - 1 { 1 } else { 0 })
+                    };
+                    let (rx, ry, rz) = (reach(c.x), reach(c.y), reach(c.z));
+                    let mut b = Bounds {
+                        min: f32::INFINITY,
+                        max: f32::NEG_INFINITY,
+                        mean: tile_value(nodes[13]),
+                    };
+                    for dz in rz.0..=rz.1 {
+                        for dy in ry.0..=ry.1 {
+                            for dx in rx.0..=rx.1 {
+                                let v = tile_value(
+                                    nodes[((dz + 1) * 9 + (dy + 1) * 3 + dx + 1) as usize],
+                                );
+                                b.min = b.min.min(v);
+                                b.max = b.max.max(v);
+                            }
+                        }
+                    }
+                    emit(c, b);
+                }
+            }
+        }
+        return;
+    }
+    // The brick with its one-voxel apron: block[z][y][x] is voxel base − 1 + (x, y, z).
+    const SIDE: usize = BRICK_DIM as usize + 2;
+    let base = key << 3;
+    let mut block = [0.0f32; SIDE * SIDE * SIDE];
+    for z in 0..SIDE {
+        for y in 0..SIDE {
+            for x in 0..SIDE {
+                let ijk = base + IVec3::new(x as i32 - 1, y as i32 - 1, z as i32 - 1);
+                block[(z * SIDE + y) * SIDE + x] = acc.value(ijk);
+            }
+        }
+    }
+    let own_tile = match nodes[13] {
+        Node::Tile { tile, .. } => Some(grid.tile_value(channel, tile)),
+        Node::Brick(_) => None,
+    };
+    let s = size as usize;
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let (x0, y0, z0) = (x as usize * s, y as usize * s, z as usize * s);
+                let mut b = Bounds {
+                    min: f32::INFINITY,
+                    max: f32::NEG_INFINITY,
+                    mean: 0.0,
+                };
+                let mut sum = 0.0f64;
+                for bz in z0..z0 + s + 2 {
+                    for by in y0..y0 + s + 2 {
+                        for bx in x0..x0 + s + 2 {
+                            let v = block[(bz * SIDE + by) * SIDE + bx];
+                            b.min = b.min.min(v);
+                            b.max = b.max.max(v);
+                            let own = (x0 + 1..x0 + s + 1).contains(&bx)
+                                && (y0 + 1..y0 + s + 1).contains(&by)
+                                && (z0 + 1..z0 + s + 1).contains(&bz);
+                            if own {
+                                sum += f64::from(v);
+                            }
+                        }
+                    }
+                }
+                b.mean = own_tile.unwrap_or((sum / (s * s * s) as f64) as f32);
+                emit(IVec3::new(x, y, z), b);
+            }
+        }
+    }
+}

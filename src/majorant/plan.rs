@@ -4,10 +4,10 @@
 //! Cost model, in lookups per unit of ray length, divided by the medium's extinction scale σ
 //! (so in density units): a segment whose bounds need lookups costs its *lookup density* `L`
 //! (its majorant, or 0 when it is empty or of proven constant density), and every segment
-//! boundary costs [`SEGMENT_COST`] lookups. A ray crosses about `|d|₁ / (8·2^ℓ)` boundaries of
-//! level-ℓ cells per unit length (`d` its index-space direction, cells `8·2^ℓ` voxels wide);
-//! with `λ = SEGMENT_COST · ⟨|d|₁⟩ / (8σ)` (⟨·⟩ over directions) that is `λ/2^ℓ` in density
-//! units. Opening a level-ℓ cell adds the child boundaries inside it, `λ/2^ℓ`, and replaces its
+//! boundary costs [`SEGMENT_COST`] lookups. A ray crosses about `|d|₁ / (w·2^ℓ)` boundaries of
+//! level-ℓ cells per unit length (`d` its index-space direction, level-0 cells `w` voxels
+//! wide); with `λ = SEGMENT_COST · ⟨|d|₁⟩ / (wσ)` (⟨·⟩ over directions) that is `λ/2^ℓ` in
+//! density units. Opening a level-ℓ cell adds the child boundaries inside it, `λ/2^ℓ`, and replaces its
 //! lookup density by the mean of its children's best costs:
 //!
 //! `best(c) = min(L(c), mean over children of best(child) + λ/2^ℓ)`, `best = L` at level 0,
@@ -19,7 +19,6 @@
 use glam::{DAffine3, DVec3, IVec3};
 
 use super::{MajorantPyramid, SEGMENT_COST};
-use crate::grid::BRICK_DIM;
 
 /// The cells the adaptive walk opens for one extinction scale.
 #[derive(Clone, Debug)]
@@ -50,7 +49,7 @@ impl WalkPlan {
     /// The plan for a medium whose extinction is `sigma` per unit density.
     pub(crate) fn new(pyramid: &MajorantPyramid, sigma: f32) -> Self {
         let lambda = SEGMENT_COST * mean_l1_step(&pyramid.world_to_index)
-            / (BRICK_DIM as f64 * f64::from(sigma));
+            / (f64::from(pyramid.finest_cell_voxels()) * f64::from(sigma));
         let mut open: Vec<Vec<bool>> = Vec::with_capacity(pyramid.levels.len());
         let mut best_below: Vec<f64> = Vec::new();
         for (level, lv) in pyramid.levels.iter().enumerate() {
@@ -102,6 +101,7 @@ impl WalkPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::BRICK_DIM;
     use crate::majorant::Bounds;
 
     /// A pyramid over `n`³ bricks whose brick majorants are `field(brick centre)`.

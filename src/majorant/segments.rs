@@ -7,7 +7,6 @@ use glam::DVec3;
 
 use super::walk::{Walk, WalkCell};
 use super::{Bounds, MajorantMode, MajorantPyramid, SEGMENT_COST};
-use crate::grid::BRICK_DIM;
 use crate::math::Ray;
 
 /// A piece of ray `[t0, t1]` (world distances) over which the density is bounded.
@@ -299,7 +298,7 @@ impl MajorantPyramid {
     fn clip_index(&self, o: DVec3, d: DVec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
         let l0 = self.levels.first()?;
         let lo = self.origin.as_dvec3() - DVec3::splat(0.5);
-        let hi = lo + (l0.dims * BRICK_DIM).as_dvec3();
+        let hi = lo + (l0.dims * self.finest_cell_voxels()).as_dvec3();
         let mut t0 = t_min as f64;
         let mut t1 = t_max as f64;
         for k in 0..3 {

@@ -11,7 +11,6 @@ use glam::{DVec3, IVec3};
 
 use super::plan::WalkPlan;
 use super::{Bounds, MajorantPyramid, SEGMENT_COST};
-use crate::grid::BRICK_DIM;
 
 /// Levels the iterative walk keeps a DDA state for. A cubic grid within
 /// [`super::MAX_LEVEL0_CELLS`] has at most 9 levels; only grids more than 2^11 bricks (16,384
@@ -54,10 +53,12 @@ pub(super) struct RaySetup {
     pub delta0: DVec3,
     /// Index-space position of the pyramid box's corner (voxel extents start at −½).
     pub base: DVec3,
+    /// Edge of a level-0 cell, voxels.
+    pub cell0: f64,
 }
 
 impl RaySetup {
-    pub(super) fn new(o: DVec3, d: DVec3, base: DVec3) -> Self {
+    pub(super) fn new(o: DVec3, d: DVec3, base: DVec3, cell0: f64) -> Self {
         let mut step = IVec3::ZERO;
         let mut inv_d = DVec3::ZERO;
         for k in 0..3 {
@@ -71,7 +72,7 @@ impl RaySetup {
         }
         let across = |k: usize| {
             if step[k] != 0 {
-                (BRICK_DIM as f64 * inv_d[k]).abs()
+                (cell0 * inv_d[k]).abs()
             } else {
                 f64::INFINITY
             }
@@ -82,6 +83,7 @@ impl RaySetup {
             inv_d,
             delta0: DVec3::new(across(0), across(1), across(2)),
             base,
+            cell0,
         }
     }
 
@@ -96,7 +98,7 @@ impl RaySetup {
         exits: DVec3,
         t: f64,
     ) -> (IVec3, DVec3) {
-        let half = (BRICK_DIM << (level - 1)) as f64;
+        let half = self.cell0 * (1u64 << (level - 1)) as f64;
         let mut c = cell * 2;
         let mut c_next = exits;
         for k in 0..3 {
@@ -155,16 +157,17 @@ impl<'a> Walk<'a> {
         plan: Option<&'a WalkPlan>,
     ) -> Self {
         let base = pyramid.origin.as_dvec3() - DVec3::splat(0.5);
+        let cell0 = f64::from(pyramid.finest_cell_voxels());
         let mut walk = Walk {
             pyramid,
-            ray: RaySetup::new(o, d, base),
+            ray: RaySetup::new(o, d, base, cell0),
             finest,
-            // Descending to the bricks saves σ·Δt·(max − fine) lookups and costs one more
-            // segment per brick boundary crossed, Δt·|d|₁/8: both scale with Δt, so the test
-            // is `max − fine > threshold` with one threshold per ray.
+            // Descending to the finest cells saves σ·Δt·(max − fine) lookups and costs one more
+            // segment per finest-cell boundary crossed, Δt·|d|₁/cell: both scale with Δt, so
+            // the test is `max − fine > threshold` with one threshold per ray.
             threshold: match sigma {
                 None => f32::NEG_INFINITY,
-                Some(s) => (SEGMENT_COST * d.abs().element_sum() / (BRICK_DIM as f64 * s)) as f32,
+                Some(s) => (SEGMENT_COST * d.abs().element_sum() / (cell0 * s)) as f32,
             },
             plan,
             stack: [Frame::default(); MAX_LEVELS],
@@ -196,7 +199,7 @@ impl<'a> Walk<'a> {
             return walk;
         }
         let r = &walk.ray;
-        let size = (BRICK_DIM << top) as f64;
+        let size = cell0 * (1u64 << top) as f64;
         let p = o + d * (t0 + (t1 - t0) * 1e-6);
         let cell = ((p - r.base) / size)
             .floor()
@@ -312,7 +315,7 @@ mod tests {
     use super::*;
 
     fn setup(o: [f64; 3], d: [f64; 3]) -> RaySetup {
-        RaySetup::new(DVec3::from(o), DVec3::from(d), DVec3::splat(-0.5))
+        RaySetup::new(DVec3::from(o), DVec3::from(d), DVec3::splat(-0.5), 8.0)
     }
 
     #[test]
