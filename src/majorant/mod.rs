@@ -80,6 +80,18 @@ impl Bounds {
     }
 }
 
+/// What a segment costs its tracker in density lookups per unit length and unit extinction:
+/// the model the adaptive walk optimises.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LookupModel {
+    /// Tentative collisions at the majorant's rate each need a lookup (delta and ratio
+    /// tracking): a segment costs its majorant.
+    Majorant,
+    /// Only collisions above the segment's minorant need a lookup (decomposition tracking,
+    /// residual ratio tracking with the minorant as control): a segment costs max − min.
+    AboveMinorant,
+}
+
 /// How segments are produced along a ray.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MajorantMode {
@@ -272,9 +284,11 @@ impl MajorantPyramid {
     /// The adaptive walk's plan for extinction `sigma` per unit density: made on the first
     /// request and kept (a medium has one extinction scale); `None` for another `sigma`, which
     /// then walks by the single-threshold rule.
-    pub(crate) fn plan_for(&self, sigma: f32) -> Option<&plan::WalkPlan> {
-        let plan = self.plan.get_or_init(|| plan::WalkPlan::new(self, sigma));
-        (plan.sigma == sigma).then_some(plan)
+    pub(crate) fn plan_for(&self, sigma: f32, model: LookupModel) -> Option<&plan::WalkPlan> {
+        let plan = self
+            .plan
+            .get_or_init(|| plan::WalkPlan::new(self, sigma, model));
+        (plan.sigma == sigma && plan.model == model).then_some(plan)
     }
 
     /// True when every bound of the pyramid is proven.
@@ -283,19 +297,22 @@ impl MajorantPyramid {
         self.exact
     }
 
-    /// The lookup density of a cell emitted whole: its majorant, or 0 when it needs no
-    /// lookups (empty, or proven constant).
-    pub(crate) fn lookup_density(&self, b: &Bounds) -> f32 {
-        Self::lookup_density_of(b.min, b.max, self.exact)
+    /// The lookup density of a cell emitted whole under `model`: its majorant (or its
+    /// majorant above the minorant), 0 when it needs no lookups (empty, or proven constant).
+    pub(crate) fn lookup_density(&self, b: &Bounds, model: LookupModel) -> f32 {
+        Self::lookup_density_of(b.min, b.max, self.exact, model)
     }
 
     /// [`Self::lookup_density`] of bounds `[min, max]`, proven or not.
-    pub(crate) fn lookup_density_of(min: f32, max: f32, exact: bool) -> f32 {
+    pub(crate) fn lookup_density_of(min: f32, max: f32, exact: bool, model: LookupModel) -> f32 {
         let empty = max <= 0.0 && min >= 0.0;
         if empty || (exact && min == max) {
             0.0
         } else {
-            max
+            match model {
+                LookupModel::Majorant => max,
+                LookupModel::AboveMinorant => (max - min).max(0.0),
+            }
         }
     }
 
@@ -311,7 +328,8 @@ impl MajorantPyramid {
         exact: bool,
         mut bounds_of: impl FnMut(IVec3) -> Bounds,
     ) -> Result<Self, MajorantError> {
-        let lookup_density = |b: &Bounds| Self::lookup_density_of(b.min, b.max, exact);
+        let lookup_density =
+            |b: &Bounds| Self::lookup_density_of(b.min, b.max, exact, LookupModel::Majorant);
         let dims = key_hi - key_lo + IVec3::ONE;
         let cells = dims.x as usize * dims.y as usize * dims.z as usize;
         if dims.min_element() <= 0 || cells > MAX_LEVEL0_CELLS {

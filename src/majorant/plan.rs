@@ -18,13 +18,15 @@
 
 use glam::{DAffine3, DVec3, IVec3};
 
-use super::{MajorantPyramid, SEGMENT_COST};
+use super::{LookupModel, MajorantPyramid, SEGMENT_COST};
 
 /// The cells the adaptive walk opens for one extinction scale.
 #[derive(Clone, Debug)]
 pub(crate) struct WalkPlan {
     /// The extinction per unit density the plan was made for.
     pub sigma: f32,
+    /// The tracker's lookup cost the plan was made for.
+    pub model: LookupModel,
     /// Per level, per cell: open it (descend) or emit it whole.
     pub open: Vec<Vec<bool>>,
 }
@@ -47,7 +49,7 @@ fn mean_l1_step(world_to_index: &DAffine3) -> f64 {
 
 impl WalkPlan {
     /// The plan for a medium whose extinction is `sigma` per unit density.
-    pub(crate) fn new(pyramid: &MajorantPyramid, sigma: f32) -> Self {
+    pub(crate) fn new(pyramid: &MajorantPyramid, sigma: f32, model: LookupModel) -> Self {
         let lambda = SEGMENT_COST * mean_l1_step(&pyramid.world_to_index)
             / (f64::from(pyramid.finest_cell_voxels()) * f64::from(sigma));
         let mut open: Vec<Vec<bool>> = Vec::with_capacity(pyramid.levels.len());
@@ -56,7 +58,7 @@ impl WalkPlan {
             let whole: Vec<f64> = lv
                 .cells
                 .iter()
-                .map(|b| f64::from(pyramid.lookup_density(b)))
+                .map(|b| f64::from(pyramid.lookup_density(b, model)))
                 .collect();
             if level == 0 {
                 open.push(vec![false; whole.len()]);
@@ -94,7 +96,7 @@ impl WalkPlan {
             open.push(opens);
             best_below = best;
         }
-        WalkPlan { sigma, open }
+        WalkPlan { sigma, model, open }
     }
 }
 
@@ -131,9 +133,9 @@ mod tests {
             }
         });
         let top = p.levels.len() - 1;
-        let thin = WalkPlan::new(&p, 1e-3);
+        let thin = WalkPlan::new(&p, 1e-3, LookupModel::Majorant);
         assert!(!thin.open[top][0], "a thin medium should not open the root");
-        let thick = WalkPlan::new(&p, 1e4);
+        let thick = WalkPlan::new(&p, 1e4, LookupModel::Majorant);
         assert!(thick.open[top][0], "a thick medium should open the root");
         let opened: usize = thick.open.iter().flatten().filter(|&&o| o).count();
         assert!(opened > 8, "{opened} cells opened");
@@ -143,7 +145,7 @@ mod tests {
     fn a_uniform_field_is_never_split() {
         // Equal majorants everywhere: splitting only adds boundaries.
         let p = pyramid(8, |_| 3.0);
-        let plan = WalkPlan::new(&p, 1e6);
+        let plan = WalkPlan::new(&p, 1e6, LookupModel::Majorant);
         assert!(plan.open.iter().flatten().all(|&o| !o));
     }
 }

@@ -6,7 +6,7 @@
 use glam::DVec3;
 
 use super::walk::{Walk, WalkCell};
-use super::{Bounds, MajorantMode, MajorantPyramid, SEGMENT_COST};
+use super::{Bounds, LookupModel, MajorantMode, MajorantPyramid, SEGMENT_COST};
 use crate::math::Ray;
 
 /// A piece of ray `[t0, t1]` (world distances) over which the density is bounded.
@@ -73,16 +73,18 @@ pub(super) struct Merged<I> {
     inner: I,
     sigma: Option<f64>,
     exact: bool,
+    model: LookupModel,
     /// The segment being grown, with the lookup density it stands for.
     pending: Option<(MajorantSegment, f32)>,
 }
 
 impl<I: Iterator<Item = WalkCell>> Merged<I> {
-    pub(super) fn new(inner: I, sigma: Option<f64>, exact: bool) -> Self {
+    pub(super) fn new(inner: I, sigma: Option<f64>, exact: bool, model: LookupModel) -> Self {
         Merged {
             inner,
             sigma,
             exact,
+            model,
             pending: None,
         }
     }
@@ -91,6 +93,7 @@ impl<I: Iterator<Item = WalkCell>> Merged<I> {
     fn try_merge(
         sigma: Option<f64>,
         exact: bool,
+        model: LookupModel,
         last: &mut (MajorantSegment, f32),
         seg: &MajorantSegment,
         lookup: f32,
@@ -105,25 +108,26 @@ impl<I: Iterator<Item = WalkCell>> Merged<I> {
             return false;
         };
         // Lookups added by one segment over both (and the empty gap between):
-        // σ·(L·max − the lookup integrals of the two as they are).
+        // σ·(L·(its lookup density) − the lookup integrals of the two as they are).
         let max = prev.max.max(seg.max);
+        let mut min = prev.min.min(seg.min);
+        if seg.t0 > prev.t1 {
+            min = min.min(0.0);
+        }
+        let merged = MajorantPyramid::lookup_density_of(min, max, false, model);
         let (la, gap, lb) = (
             f64::from(prev.length()),
             f64::from((seg.t0 - prev.t1).max(0.0)),
             f64::from(seg.length()),
         );
         let extra = s
-            * ((la + gap + lb) * f64::from(max)
+            * ((la + gap + lb) * f64::from(merged)
                 - la * f64::from(*last_lookup)
                 - lb * f64::from(lookup));
         if !(extra < SEGMENT_COST) {
             return false;
         }
         let total = la + gap + lb;
-        let mut min = prev.min.min(seg.min);
-        if gap > 0.0 {
-            min = min.min(0.0);
-        }
         let mean = if total > 0.0 {
             ((la * f64::from(prev.mean) + lb * f64::from(seg.mean)) / total) as f32
         } else {
@@ -137,7 +141,7 @@ impl<I: Iterator<Item = WalkCell>> Merged<I> {
             mean: mean.clamp(min, max),
             exact,
         };
-        *last_lookup = MajorantPyramid::lookup_density_of(min, max, exact);
+        *last_lookup = MajorantPyramid::lookup_density_of(min, max, exact, model);
         true
     }
 }
@@ -152,7 +156,14 @@ impl<I: Iterator<Item = WalkCell>> Iterator for Merged<I> {
                 None => self.pending = Some((seg, cell.lookup)),
                 Some(last) => {
                     let mut grown = *last;
-                    if Self::try_merge(self.sigma, self.exact, &mut grown, &seg, cell.lookup) {
+                    if Self::try_merge(
+                        self.sigma,
+                        self.exact,
+                        self.model,
+                        &mut grown,
+                        &seg,
+                        cell.lookup,
+                    ) {
                         self.pending = Some(grown);
                     } else {
                         let done = last.0;
@@ -206,6 +217,8 @@ impl MajorantPyramid {
     /// it descends to its finest level wherever a cell is neither empty nor homogeneous,
     /// whatever the medium's extinction (what `velour majorants` reports per level).
     ///
+    /// `model` is what a segment costs the medium's tracker (the adaptive walk minimises it).
+    ///
     /// Segments of zero density are skipped; the others tile their part of the interval.
     #[must_use]
     pub fn segments_along(
@@ -215,6 +228,7 @@ impl MajorantPyramid {
         t_max: f32,
         mode: MajorantMode,
         sigma_scale: Option<f32>,
+        model: LookupModel,
     ) -> Segments<'_> {
         let mut out = Segments {
             before: None,
@@ -245,10 +259,10 @@ impl MajorantPyramid {
                 let top = self.levels.len() - 1;
                 let finest = (finest as usize).min(top);
                 let sigma_scale = sigma_scale.filter(|s| s.is_finite() && *s > 0.0);
-                let plan = sigma_scale.and_then(|s| self.plan_for(s));
+                let plan = sigma_scale.and_then(|s| self.plan_for(s, model));
                 let sigma = sigma_scale.map(f64::from);
-                let walk = Walk::new(self, a as f64, c as f64, o, d, finest, sigma, plan);
-                out.walk = Some(Merged::new(walk, sigma, self.exact));
+                let walk = Walk::new(self, a as f64, c as f64, o, d, finest, sigma, plan, model);
+                out.walk = Some(Merged::new(walk, sigma, self.exact, model));
                 out.after = self.background_segment(c, t_max);
             }
         }
@@ -265,7 +279,7 @@ impl MajorantPyramid {
         mode: MajorantMode,
         out: &mut Vec<MajorantSegment>,
     ) {
-        out.extend(self.segments_along(ray, t_min, t_max, mode, None));
+        out.extend(self.segments_along(ray, t_min, t_max, mode, None, LookupModel::Majorant));
     }
 
     /// Appends to `out` the segments of the adaptive walk for a medium whose extinction is at
@@ -279,7 +293,14 @@ impl MajorantPyramid {
         sigma_scale: f32,
         out: &mut Vec<MajorantSegment>,
     ) {
-        out.extend(self.segments_along(ray, t_min, t_max, mode, Some(sigma_scale)));
+        out.extend(self.segments_along(
+            ray,
+            t_min,
+            t_max,
+            mode,
+            Some(sigma_scale),
+            LookupModel::Majorant,
+        ));
     }
 
     fn background_segment(&self, t0: f32, t1: f32) -> Option<MajorantSegment> {

@@ -10,7 +10,7 @@
 use glam::{DVec3, IVec3};
 
 use super::plan::WalkPlan;
-use super::{Bounds, MajorantPyramid, SEGMENT_COST};
+use super::{Bounds, LookupModel, MajorantPyramid, SEGMENT_COST};
 
 /// Levels the iterative walk keeps a DDA state for. A cubic grid within
 /// [`super::MAX_LEVEL0_CELLS`] has at most 9 levels; only grids more than 2^11 bricks (16,384
@@ -133,6 +133,8 @@ pub(super) struct Walk<'a> {
     threshold: f32,
     /// The cells to open, decided per medium (the adaptive walk).
     plan: Option<&'a WalkPlan>,
+    /// The lookup cost of emitted cells.
+    model: LookupModel,
     stack: [Frame; MAX_LEVELS],
     depth: usize,
     t: f64,
@@ -155,6 +157,7 @@ impl<'a> Walk<'a> {
         finest: usize,
         sigma: Option<f64>,
         plan: Option<&'a WalkPlan>,
+        model: LookupModel,
     ) -> Self {
         let base = pyramid.origin.as_dvec3() - DVec3::splat(0.5);
         let cell0 = f64::from(pyramid.finest_cell_voxels());
@@ -170,6 +173,7 @@ impl<'a> Walk<'a> {
                 Some(s) => (SEGMENT_COST * d.abs().element_sum() / (cell0 * s)) as f32,
             },
             plan,
+            model,
             stack: [Frame::default(); MAX_LEVELS],
             depth: 0,
             t: t0,
@@ -194,7 +198,7 @@ impl<'a> Walk<'a> {
                 t0,
                 t1,
                 bounds: rb,
-                lookup: pyramid.lookup_density(&rb),
+                lookup: pyramid.lookup_density(&rb, model),
             });
             return walk;
         }
@@ -296,7 +300,7 @@ impl Iterator for Walk<'_> {
                 t0: t,
                 t1: t_exit,
                 bounds: b,
-                lookup: self.pyramid.lookup_density(&b),
+                lookup: self.pyramid.lookup_density(&b, self.model),
             };
             self.t = t_exit;
             // Leave finished levels at once (saves a loop turn per level).

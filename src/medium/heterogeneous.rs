@@ -9,7 +9,7 @@ use super::event::{MediumEvent, ScatterVertex, VertexPhase};
 use super::lookup::{DensityLookup, GridLookup};
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
-use crate::majorant::{MajorantPyramid, MajorantSegment, Segments};
+use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments};
 use crate::math::Ray;
 use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
@@ -94,12 +94,19 @@ impl HeterogeneousMedium {
     /// adjustments.
     #[must_use]
     pub fn segments_along(&self, ray: &Ray, t0: f32, t1: f32) -> MediumSegments<'_> {
+        // Decomposition tracking pays lookups only above each segment's minorant: the walk
+        // then prefers cells with tight minorants too.
+        let model = match self.tracking.free_flight {
+            FreeFlightMethod::Decomposition => LookupModel::AboveMinorant,
+            _ => LookupModel::Majorant,
+        };
         let inner = self.pyramid.segments_along(
             ray,
             t0,
             t1,
             self.tracking.majorant,
             Some(self.coefficients.max_sigma_t()),
+            model,
         );
         let fill = (!self.coefficients.base_t.is_black() && t1.is_finite()).then_some(GapFill {
             t: t0,
