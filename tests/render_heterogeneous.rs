@@ -87,6 +87,14 @@ fn decomposition_and_delta_tracking_agree() {
 }
 
 #[test]
+fn unbiased_ray_marching_and_ratio_tracking_agree() {
+    let (a, _) = run(&cloud_scene(r#"transmittance = "unbiased_ray_march""#), 15);
+    let (b, _) = run(&cloud_scene(r#"transmittance = "ratio""#), 16);
+    let z = compare(&a, &b).expect("compare").z_test.expect("variance");
+    assert!(z.consistent, "unbiased ray marching vs ratio tracking: {z:?}");
+}
+
+#[test]
 fn ratio_and_residual_tracking_agree() {
     let (a, _) = run(&cloud_scene(r#"transmittance = "ratio""#), 4);
     let (b, _) = run(

@@ -151,6 +151,14 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
             edits: vec![tracking(&[("transmittance", s("ratio"))])],
         });
         out.push(Configuration {
+            name: "delta + unbiased ray marching".into(),
+            edits: vec![tracking(&[("transmittance", s("unbiased_ray_march"))])],
+        });
+        out.push(Configuration {
+            name: "delta + jackknife (biased)".into(),
+            edits: vec![tracking(&[("transmittance", s("jackknife"))])],
+        });
+        out.push(Configuration {
             name: "delta + residual ratio (mean)".into(),
             edits: vec![tracking(&[("control", s("mean"))])],
         });

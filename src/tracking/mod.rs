@@ -26,12 +26,16 @@ mod channels;
 mod delta;
 mod homogeneous;
 mod march;
+mod march_estimators;
 mod ratio;
 
 pub use channels::{channel_probabilities, pick_channel};
 pub use delta::{decomposition_track, delta_track};
 pub use homogeneous::{sample_homogeneous, HomogeneousFlight};
 pub use march::ray_march_free_flight;
+pub use march_estimators::{
+    comb_teeth, jackknife_segment, order_survival, unbiased_ray_march_segment, URM_MAX_ORDER,
+};
 pub use ratio::transmittance;
 
 use crate::majorant::{MajorantMode, MajorantSegment};
@@ -202,4 +206,12 @@ pub enum TransmittanceMode {
         /// Step length.
         step: f32,
     },
+    /// Unbiased ray marching (Kettunen et al. 2021): combs sized by each segment's coarse
+    /// optical depth, debiased by a randomly truncated power series. Unbiased; values outside
+    /// [0, 1] occur.
+    UnbiasedRayMarch,
+    /// The jackknife estimator (Peters 2025): two jittered combs per segment, cos(s)·e^(−m).
+    /// **Biased** (the bias shrinks with the comb size, not with samples per pixel), at a fixed
+    /// cost.
+    Jackknife,
 }

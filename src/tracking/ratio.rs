@@ -60,6 +60,12 @@ where
             tr *= (coeff.sigma_t_at(seg.max) * len).map(|x| (-x).exp());
         } else {
             match mode {
+                TransmittanceMode::UnbiasedRayMarch => {
+                    tr *= super::unbiased_ray_march_segment(&seg, coeff, &mut density, u, stats);
+                }
+                TransmittanceMode::Jackknife => {
+                    tr *= super::jackknife_segment(&seg, coeff, &mut density, u, stats);
+                }
                 TransmittanceMode::RayMarch { step } => {
                     let n = (len / step.max(1e-12)).ceil().clamp(1.0, 1e7) as u32;
                     let dt = len / n as f32;

@@ -42,8 +42,10 @@ pub(super) fn build_tracking(
     cfg.transmittance = match t.transmittance.as_deref().unwrap_or("residual") {
         "residual" => TransmittanceMode::ResidualRatio(control),
         "ratio" => TransmittanceMode::Ratio,
+        "unbiased_ray_march" => TransmittanceMode::UnbiasedRayMarch,
+        "jackknife" => TransmittanceMode::Jackknife,
         "ray_march" => TransmittanceMode::RayMarch { step: need_step()? },
-        other => return Err(at.invalid(format!("{owner}.transmittance = \"{other}\" is unknown (expected \"residual\", \"ratio\" or \"ray_march\")"))),
+        other => return Err(at.invalid(format!("{owner}.transmittance = \"{other}\" is unknown (expected \"residual\", \"ratio\", \"unbiased_ray_march\", \"jackknife\" or \"ray_march\")"))),
     };
     let level = t.level.unwrap_or(0);
     if level > 20 {
