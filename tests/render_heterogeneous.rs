@@ -91,7 +91,20 @@ fn unbiased_ray_marching_and_ratio_tracking_agree() {
     let (a, _) = run(&cloud_scene(r#"transmittance = "unbiased_ray_march""#), 15);
     let (b, _) = run(&cloud_scene(r#"transmittance = "ratio""#), 16);
     let z = compare(&a, &b).expect("compare").z_test.expect("variance");
-    assert!(z.consistent, "unbiased ray marching vs ratio tracking: {z:?}");
+    assert!(
+        z.consistent,
+        "unbiased ray marching vs ratio tracking: {z:?}"
+    );
+}
+
+#[test]
+fn split_flights_and_delta_tracking_agree_in_a_thin_cloud() {
+    let thin =
+        |tracking: &str| cloud_scene(tracking).replace("attenuation = 0.05", "attenuation = 2.0");
+    let (a, _) = run(&thin(r#"free_flight = "split""#), 17);
+    let (b, _) = run(&thin(r#"free_flight = "delta""#), 18);
+    let z = compare(&a, &b).expect("compare").z_test.expect("variance");
+    assert!(z.consistent, "split vs delta tracking: {z:?}");
 }
 
 #[test]

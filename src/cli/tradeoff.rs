@@ -151,6 +151,10 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
             edits: vec![tracking(&[("transmittance", s("ratio"))])],
         });
         out.push(Configuration {
+            name: "split flight + residual ratio (novak)".into(),
+            edits: vec![tracking(&[("free_flight", s("split"))])],
+        });
+        out.push(Configuration {
             name: "delta + unbiased ray marching".into(),
             edits: vec![tracking(&[("transmittance", s("unbiased_ray_march"))])],
         });

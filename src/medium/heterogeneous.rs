@@ -15,8 +15,8 @@ use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
 use crate::spectrum::Rgb;
 use crate::tracking::{
-    decomposition_track, delta_track, ray_march_free_flight, transmittance, DensityCoefficients,
-    Flight, FreeFlightMethod, TrackingConfig, TrackingStats,
+    decomposition_track, delta_track, ray_march_free_flight, split_flight, transmittance,
+    DensityCoefficients, Flight, FreeFlightMethod, TrackingConfig, TrackingStats,
 };
 
 /// Where a heterogeneous interior's density comes from.
@@ -162,6 +162,24 @@ impl HeterogeneousMedium {
         let mut lookup = self.density_along(ray);
         let flight = match self.tracking.free_flight {
             FreeFlightMethod::DeltaTracking => delta_track(
+                segments,
+                &self.coefficients,
+                |t| lookup.at(t),
+                beta,
+                u,
+                stats,
+            ),
+            FreeFlightMethod::Split if t_max.is_finite() => split_flight(
+                |a, b| self.segments_along(ray, a, b),
+                &self.coefficients,
+                |t| lookup.at(t),
+                self.tracking.transmittance,
+                t_max,
+                u,
+                stats,
+            ),
+            // An open interior (no boundary ahead): delta tracking.
+            FreeFlightMethod::Split => delta_track(
                 segments,
                 &self.coefficients,
                 |t| lookup.at(t),

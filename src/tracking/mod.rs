@@ -28,6 +28,7 @@ mod homogeneous;
 mod march;
 mod march_estimators;
 mod ratio;
+mod split;
 
 pub use channels::{channel_probabilities, pick_channel};
 pub use delta::{decomposition_track, delta_track};
@@ -37,6 +38,7 @@ pub use march_estimators::{
     comb_teeth, jackknife_segment, order_survival, unbiased_ray_march_segment, URM_MAX_ORDER,
 };
 pub use ratio::transmittance;
+pub use split::{split_flight, SPLIT_MIN_SCATTER};
 
 use crate::majorant::{MajorantMode, MajorantSegment};
 use crate::spectrum::Rgb;
@@ -151,6 +153,10 @@ pub enum FreeFlightMethod {
     /// Decomposition tracking (Kutz et al. 2017): delta tracking whose segments' minorant part
     /// is sampled without lookups: unbiased.
     Decomposition,
+    /// The split flight for optically thin media ([`split_flight`]): scatter with a
+    /// probability from the coarse optical depth at a distance that cannot escape, or pass
+    /// with the estimated transmittance; unbiased with an unbiased transmittance estimator.
+    Split,
     /// Fixed-step ray marching: biased, the notes' §2.2.2 baseline.
     RayMarch {
         /// Step length, world units.

@@ -26,10 +26,11 @@ pub(super) fn build_tracking(
     cfg.free_flight = match t.free_flight.as_deref().unwrap_or("delta") {
         "delta" => FreeFlightMethod::DeltaTracking,
         "decomposition" => FreeFlightMethod::Decomposition,
+        "split" => FreeFlightMethod::Split,
         "ray_march" => FreeFlightMethod::RayMarch { step: need_step()? },
         other => {
             return Err(at.invalid(format!(
-            "{owner}.free_flight = \"{other}\" is unknown (expected \"delta\", \"decomposition\" or \"ray_march\")"
+            "{owner}.free_flight = \"{other}\" is unknown (expected \"delta\", \"decomposition\", \"split\" or \"ray_march\")"
         )))
         }
     };
