@@ -394,6 +394,8 @@ def race(args, scene):
     os.makedirs(refdir, exist_ok=True)
     ref, var_ref, rinfo = reference(args, scene, refdir)
     entry["reference"] = rinfo
+    if args.references_only:
+        return entry
     print(f"{name}: reference {rinfo['spp']:.0f} spp ({'reused' if rinfo['reused'] else 'rendered'})", file=sys.stderr)
 
     renderers = [Velour(args.velour, scene, args.width, args.height, args.threads, workdir, name)]
@@ -524,6 +526,7 @@ def main():
     ap.add_argument("--variant", default="llvm_ad_rgb")
     ap.add_argument("--cycles-python", default="", help="Python with bpy 5.0.1 (empty: no Cycles)")
     ap.add_argument("--no-scalar", dest="scalar", action="store_false")
+    ap.add_argument("--references-only", action="store_true", help="render (or reuse) the references and stop")
     ap.add_argument("--translate-only", action="store_true",
                     help="write the Mitsuba XML and the Cycles .blend of each scene to --out and stop")
     args = ap.parse_args()
@@ -542,11 +545,11 @@ def main():
         for r in entry.get("results", []):
             if r["renderer"] == "Cycles":
                 results["cycles"] = f"Cycles (Blender {r.get('blender', '5.0.1')})"
-        if args.translate_only:
+        if args.translate_only or args.references_only:
             continue
         with open(os.path.join(args.out, "best.json"), "w") as f:
             json.dump(results, f, indent=2)
-    if args.translate_only:
+    if args.translate_only or args.references_only:
         return
     md = markdown(results)
     with open(os.path.join(args.out, "best.md"), "w") as f:
