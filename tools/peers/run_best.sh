@@ -109,7 +109,8 @@ fi
 
 cargo build --release --quiet
 VELOUR="$(pwd)/target/release/velour"
-VERSION="$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet -- src 2>/dev/null || echo '+dirty')"
+# velour is named by the last commit that changed its sources (the tools do not change it).
+VERSION="$(git log -1 --format=%h -- src Cargo.toml Cargo.lock 2>/dev/null || echo unknown)$(git diff --quiet -- src Cargo.toml Cargo.lock 2>/dev/null || echo '+dirty')"
 if [ "$TRANSLATE" = 1 ]; then
   OUT=tools/peers/generated
 fi
