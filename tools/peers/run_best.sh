@@ -2,7 +2,7 @@
 # The peer benchmark race: velour against Mitsuba 3 (LLVM) and Blender Cycles at equal render time.
 #
 #   tools/peers/run_best.sh [--budget S] [--rounds R] [--reference-seconds S] [--width W] [--height H]
-#                           [--threads T] [--no-scalar] [--references-only] [--translate-only]
+#                           [--threads T] [--seed-offset K] [--no-scalar] [--references-only] [--translate-only]
 #                           [SCENE.toml ...]
 #
 # Default scenes: tools/peers/bench/*.toml. Their large inputs (fBm cloud grids, icosphere) are
@@ -43,7 +43,7 @@ SCENES=()
 TRANSLATE=0
 while [ $# -gt 0 ]; do
   case "$1" in
-    --budget|--rounds|--reference-seconds|--width|--height|--threads|--passes-per-round) ARGS+=("$1" "$2"); shift 2 ;;
+    --budget|--rounds|--reference-seconds|--width|--height|--threads|--passes-per-round|--seed-offset) ARGS+=("$1" "$2"); shift 2 ;;
     --no-scalar|--references-only) ARGS+=("$1"); shift ;;
     --translate-only) TRANSLATE=1; ARGS+=("$1"); shift ;;
     *) SCENES+=("$1"); shift ;;
