@@ -3,7 +3,8 @@
 
     python best.py --velour BIN --out DIR [--budget 60] [--rounds 3] [--reference-seconds 600]
                    [--width 256] [--height 256] [--threads 2] [--cycles-python PY] [--no-scalar]
-                   SCENE.toml ...
+                   [--seed-offset K] [--references-only | --translate-only] SCENE.toml ...
+    python best.py --markdown-from DIR/best.json
 
 Runs in the Mitsuba environment (mitsuba, numpy, OpenEXR; tools/peers/run_best.sh makes it). For
 each scene (a velour TOML file; docs/peers.md, "The benchmark race"):
@@ -17,8 +18,9 @@ each scene (a velour TOML file; docs/peers.md, "The benchmark race"):
      field). Its per-pixel variance of the mean is var_ref.
   3. Race: every renderer gets the same render-time budget B, spent in `--rounds` interleaved
      rounds (velour, Mitsuba LLVM, Cycles, Mitsuba scalar, then again, each round starting one
-     renderer later), so that load changes on a shared machine hit all of them alike. velour renders `--spp n` per round (n calibrated from
-     its measured speed); Mitsuba renders passes of a fixed spp (`mi.render`, timed per call, after
+     renderer later), so that load changes on a shared machine hit all of them alike. velour
+     renders `--spp n` per round (n brings its total to k B / R seconds after round k, at the
+     speed measured so far); Mitsuba renders passes of a fixed spp (`mi.render`, timed per call, after
      one untimed warm-up pass that compiles its kernels); Cycles renders passes (its own
      `render_time`, without scene synchronisation). Each renderer's image is the sample-weighted
      mean of its rounds or passes; its per-pixel variance of the mean comes from velour's own
@@ -33,7 +35,10 @@ each scene (a velour TOML file; docs/peers.md, "The benchmark race"):
      and 3, mean z^2, over all tested pixel-channels and over those where both variance estimates
      are non-zero (rare-event pixels, where one renderer saw no event and so estimates a zero
      variance, are where the all-pixel numbers blow up), and the aggregate bias z per channel.
-     Pairwise velour-vs-peer the same way (as compare.py does).
+     Pairwise velour-vs-peer the same way (as compare.py does). The tables show the per-pixel
+     fractions of the pairwise test: against the reference, z is normalised almost entirely by
+     the raced image's own variance estimate, which is correlated with its error at low sample
+     counts of a skewed integrand, so those fractions run high for every renderer.
   6. Throughput: samples/s for every renderer; rays/s, density lookups/s and lookups per real
      collision for velour (from its render summary); the peers do not report those.
 
