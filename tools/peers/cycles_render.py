@@ -180,7 +180,7 @@ def build(scene_path, width, height, threads, max_depth):
     c.light_sampling_threshold = 0.0
     c.caustics_reflective = True
     c.caustics_refractive = True
-    c.use_animated_seed = True  # passes differ by frame number (see main)
+    c.use_animated_seed = True  # the frame number changes the pattern as well (see main)
     c.pixel_filter_type = "BOX"
     c.filter_width = 1.0
     c.time_limit = 0.0
@@ -411,8 +411,9 @@ def main():
             break
         if not args.passes and (sum(render_t) >= args.budget or k >= args.max_passes):
             break
-        # Persistent data keeps the synchronised scene between the passes; each pass gets its own
-        # seed and frame number (the animated seed hashes both) and its own file.
+        # Persistent data keeps the synchronised scene between the passes. Each pass gets its own
+        # seed and frame number (the animated seed hashes both) and its own file: two passes
+        # written to one file name read back as the same image.
         scene.cycles.seed = args.seed0 + k
         scene.frame_set(k + 1)
         exr = os.path.abspath(f"{args.out}.pass{k}.exr")
