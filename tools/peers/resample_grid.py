@@ -15,8 +15,9 @@ rounding (checked at random points before writing). The coarse grid must have ba
 zero values on the faces of its stored box (make_fbm_cloud.py's cloud has a zero border), so the
 fine grid needs no values outside the coarse data's index box.
 
-For the 128^3 cloud: factor 2 gives a 256^3 grid (255 x 255 x 255 fine lattice points span the
-coarse box; the stored voxels are those with non-zero values), factor 4 a 512^3 grid.
+For the 128^3 cloud (voxel 1/128 of its box): factor 2 gives the 256^3 grid (voxel 1/256; the
+non-zero values fill an active box of 231 x 229 x 229 voxels), factor 4 the 512^3 grid (voxel
+1/512; 463 x 459 x 459, 38 M active voxels). Only non-zero values are stored.
 """
 
 import argparse
