@@ -15,7 +15,7 @@ per-pass times. Prints one JSON object: Blender's version, the pass count, the s
 the render times (Cycles' own `render_time` from the EXR metadata, without scene synchronisation)
 and the synchronisation times. --check-only translates, saves the .blend if asked and exits.
 
-Settings (the brief of the comparison): Cycles on the CPU with T threads, null-scattering
+Settings (docs/peers.md, "Settings per renderer"): Cycles on the CPU with T threads, null-scattering
 volumes (`volume_biased = False`), every bounce limit 1000 (Cycles' `volume_bounces` defaults to
 0), no denoising, no adaptive sampling, no clamping, no glossy filter, light threshold 0, a box
 pixel filter one pixel wide, the standard view transform (the EXR is scene-linear anyway).
