@@ -235,13 +235,22 @@ def check_grid(record):
     for p, v in record["check"]:
         w = m @ np.array(list(p) + [1.0])
         it.p = mi.Point3f(*w[:3].tolist())
+        # np.array(...).ravel() reads both scalar variants' numbers and JIT variants' 1-wide arrays.
         if record["channels"] == 1:
-            got = np.array([float(vol.eval_1(it))] * 3)
+            got = np.array([float(np.array(vol.eval_1(it), dtype=float).ravel()[0])] * 3)
         else:
-            got = np.array(vol.eval_3(it), dtype=float)
+            got = np.array(vol.eval_3(it), dtype=float).ravel()[:3]
         want = v * np.array(record["tint"])
         worst = max(worst, float(np.abs(got - want).max()))
     return worst
+
+
+def ply_has_normals(path):
+    """Whether a PLY file's vertices carry normals (nx, ny, nz)."""
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    header = head[: head.find(b"end_header")].decode("ascii", "replace").split()
+    return all(n in header for n in ("nx", "ny", "nz"))
 
 
 def translate(scene_path, width, height, max_depth, assets):
@@ -314,10 +323,14 @@ def translate(scene_path, width, height, max_depth, assets):
             c = m @ np.array(list(o.get("center", [0, 0, 0])) + [1.0])
             shape = {"type": "sphere", "center": c[:3].tolist(), "radius": float(o.get("radius", 1.0)) * abs(sc[0])}
         elif o["shape"] == "mesh":
+            ply = os.path.join(folder, o["file"])
             shape = {
                 "type": "ply",
-                "filename": os.path.join(folder, o["file"]),
+                "filename": ply,
                 "to_world": mi.ScalarTransform4f(m.tolist()),
+                # velour shades a PLY without normals with its facets' geometric normals; Mitsuba
+                # would interpolate vertex normals it computes itself unless told otherwise.
+                "face_normals": not ply_has_normals(ply),
             }
         elif o["shape"] == "bounds" and o.get("interior", {}).get("type") == "voxel":
             # velour: an invisible box around the grid's non-empty bricks. Mitsuba: a `cube` on the
