@@ -1,6 +1,7 @@
 //! `velour diff A.exr B.exr`: compares an image against a reference (B) and prints RMSE,
-//! relative MSE, mean bias and, when both files carry variance layers, a per-pixel z-test
-//! summary with a verdict; optionally writes a false-colour error PNG. See `docs/diff.md`.
+//! relative MSE, relative RMSE, mean bias and, when both files carry variance layers, a
+//! per-pixel z-test summary with a verdict; optionally only over the white pixels of a mask
+//! PNG, and optionally writes a false-colour error PNG. See `docs/diff.md`.
 
 use super::CliResult;
 use crate::image_io::{self, compare, ImageComparison};
@@ -32,6 +33,11 @@ pub struct DiffArgs {
     /// Exit with an error when the z-test verdict is "inconsistent".
     #[arg(long)]
     pub check: bool,
+    /// Compare only the pixels that are white in this PNG (same size as the images; a pixel
+    /// counts when its R, G and B are all at least 128): e.g. the pixels of one object. The
+    /// error map still shows every pixel.
+    #[arg(long, value_name = "PNG")]
+    pub mask: Option<PathBuf>,
 }
 
 /// The JSON document printed by `--json`.
@@ -39,6 +45,7 @@ pub struct DiffArgs {
 struct JsonReport<'a> {
     a: String,
     b: String,
+    mask: Option<String>,
     #[serde(flatten)]
     comparison: &'a ImageComparison,
     verdict: Option<&'static str>,
@@ -66,7 +73,11 @@ fn verdict(c: &ImageComparison) -> Option<&'static str> {
 pub fn run(args: &DiffArgs) -> CliResult {
     let a = image_io::read_exr(&args.a)?;
     let b = image_io::read_exr(&args.b)?;
-    let cmp = compare::compare_layer(&a, &b, &args.layer)?;
+    let mask = match &args.mask {
+        Some(path) => Some(compare::PixelMask::read_png(path)?),
+        None => None,
+    };
+    let cmp = compare::compare_layer_masked(&a, &b, &args.layer, mask.as_ref())?;
     let mut png_info = None;
     if let Some(path) = &args.error_png {
         let map = compare::error_map(&a, &b, &args.layer, args.error_scale)?;
@@ -81,6 +92,7 @@ pub fn run(args: &DiffArgs) -> CliResult {
         let report = JsonReport {
             a: args.a.display().to_string(),
             b: args.b.display().to_string(),
+            mask: args.mask.as_ref().map(|m| m.display().to_string()),
             comparison: &cmp,
             verdict: verdict(&cmp),
             error_png: png_info,
@@ -110,6 +122,15 @@ fn human_report(args: &DiffArgs, c: &ImageComparison, png: Option<&ErrorPngInfo>
     let _ = writeln!(s, "A:         {}", args.a.display());
     let _ = writeln!(s, "B (ref):   {}", args.b.display());
     let _ = writeln!(s, "size:      {}x{}   layer: {layer}", c.width, c.height);
+    if let Some(m) = &args.mask {
+        let total = u64::from(c.width) * u64::from(c.height);
+        let _ = writeln!(
+            s,
+            "mask:      {} ({} of {total} pixels compared)",
+            m.display(),
+            total - c.masked_out
+        );
+    }
     if c.skipped_non_finite > 0 {
         let _ = writeln!(
             s,
@@ -134,6 +155,23 @@ fn human_report(args: &DiffArgs, c: &ImageComparison, png: Option<&ErrorPngInfo>
         "{:<12} {:>13.6e} {:>13.6e} {:>13.6e} {:>13.6e}",
         "all", c.rmse, c.rel_mse, c.mean_bias, c.max_abs_error
     );
+    let rel: Vec<String> = c
+        .per_channel
+        .iter()
+        .map(|ch| format!("{} {:.4}", ch.name, ch.rel_rmse))
+        .collect();
+    let _ = writeln!(
+        s,
+        "\nrelative RMSE sqrt(mean(((a-b)/b)^2)): {:.4} ({})",
+        c.rel_rmse,
+        rel.join(", ")
+    );
+    let over_mean = if c.mean_reference != 0.0 {
+        format!("{:.4}", c.rmse / c.mean_reference.abs())
+    } else {
+        "undefined (mean of B is 0)".to_string()
+    };
+    let _ = writeln!(s, "RMSE / mean(b): {over_mean}");
     match &c.z_test {
         None => {
             let _ = writeln!(

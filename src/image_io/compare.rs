@@ -8,8 +8,12 @@
 //!   dominating),
 //! - mean bias = mean(d),
 //! - max |d|,
+//! - relative RMSE = sqrt(mean((d / b)^2)) over the pixel-channels whose reference value is not
+//!   zero (the strict per-pixel form: every pixel counts by its own relative error),
+//! - mean reference = mean(b) (so that `RMSE / mean reference` gives the looser relative form),
 //!
-//! each over all channels of the layer together and per channel.
+//! each over all channels of the layer together and per channel. A [`PixelMask`] restricts the
+//! metrics and the z-test to the pixels it marks (e.g. the pixels of one object).
 //!
 //! The z-test (after the per-pixel render tests of Mitsuba 3) runs when both images hold a
 //! variance channel for every compared channel (`variance.R` for `R`; `L.variance.X` for `L.X`),
@@ -69,6 +73,26 @@ pub enum CompareError {
         /// The channels looked for or present.
         detail: String,
     },
+    /// The mask image could not be read or decoded.
+    #[error("{}: not a readable PNG mask: {message}", path.display())]
+    MaskRead {
+        /// The mask file.
+        path: std::path::PathBuf,
+        /// What the decoder reported.
+        message: String,
+    },
+    /// The mask differs in size from the compared images.
+    #[error("the mask is {wm}x{hm} but the images are {w}x{h}")]
+    MaskSize {
+        /// Width of the mask.
+        wm: u32,
+        /// Height of the mask.
+        hm: u32,
+        /// Width of the images.
+        w: u32,
+        /// Height of the images.
+        h: u32,
+    },
     /// A channel does not hold `width * height` samples.
     #[error("image {image}: channel {channel} holds {len} samples, expected {expected}")]
     BadChannel {
@@ -94,6 +118,10 @@ pub struct ChannelStats {
     pub rmse: f64,
     /// Mean of `(a - b)^2 / (b^2 + 0.01)`.
     pub rel_mse: f64,
+    /// `sqrt(mean(((a - b) / b)^2))` over the compared pixels where `b != 0`.
+    pub rel_rmse: f64,
+    /// Mean of `b` (the reference) over the compared pixels.
+    pub mean_reference: f64,
     /// Mean of `a - b`.
     pub mean_bias: f64,
     /// Largest `|a - b|`.
@@ -153,10 +181,17 @@ pub struct ImageComparison {
     pub compared: u64,
     /// Pixel-channels skipped because a value is NaN or infinite.
     pub skipped_non_finite: u64,
+    /// Pixels left out because the mask does not mark them (0 without a mask).
+    pub masked_out: u64,
     /// RMSE over all channels.
     pub rmse: f64,
     /// Relative MSE over all channels.
     pub rel_mse: f64,
+    /// Relative RMSE `sqrt(mean(((a - b) / b)^2))` over all channels (pixel-channels with
+    /// `b != 0`).
+    pub rel_rmse: f64,
+    /// Mean of the reference over all compared pixel-channels.
+    pub mean_reference: f64,
     /// Mean bias over all channels.
     pub mean_bias: f64,
     /// Largest `|a - b|` over all channels.
@@ -165,6 +200,90 @@ pub struct ImageComparison {
     pub per_channel: Vec<ChannelStats>,
     /// The z-test, when both images carry variance channels.
     pub z_test: Option<ZTest>,
+}
+
+/// Which pixels a comparison counts: e.g. the pixels covered by one object, so that its error
+/// is not diluted by (or hidden in) the rest of the frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PixelMask {
+    width: u32,
+    height: u32,
+    counted: Vec<bool>,
+}
+
+/// The 8-bit level from which a mask pixel's channel counts as white.
+pub const MASK_WHITE_LEVEL: u8 = 128;
+
+impl PixelMask {
+    /// A mask from `width * height` flags, row-major, top row first (`true` = counted).
+    /// `None` when the length does not match the size.
+    #[must_use]
+    pub fn from_flags(width: u32, height: u32, counted: Vec<bool>) -> Option<Self> {
+        (counted.len() == width as usize * height as usize).then_some(PixelMask {
+            width,
+            height,
+            counted,
+        })
+    }
+
+    /// A mask from 8-bit RGB bytes (`3 * width * height`, row-major, top row first): a pixel is
+    /// counted when its three channels are all at least [`MASK_WHITE_LEVEL`] (white or light
+    /// grey); black, dark and coloured pixels (e.g. an error map's magenta) are not. `None`
+    /// when the length does not match the size.
+    #[must_use]
+    pub fn from_rgb8(width: u32, height: u32, rgb8: &[u8]) -> Option<Self> {
+        if rgb8.len() != 3 * width as usize * height as usize {
+            return None;
+        }
+        let counted = rgb8
+            .chunks_exact(3)
+            .map(|p| p.iter().all(|&c| c >= MASK_WHITE_LEVEL))
+            .collect();
+        PixelMask::from_flags(width, height, counted)
+    }
+
+    /// Reads a mask from a PNG file (any bit depth or colour type; converted to 8-bit RGB, so a
+    /// grey-scale mask works too). See [`PixelMask::from_rgb8`] for which pixels count.
+    pub fn read_png(path: &std::path::Path) -> Result<Self, CompareError> {
+        let read_error = |message: String| CompareError::MaskRead {
+            path: path.to_path_buf(),
+            message,
+        };
+        let img = image::ImageReader::open(path)
+            .map_err(|e| read_error(e.to_string()))?
+            .with_guessed_format()
+            .map_err(|e| read_error(e.to_string()))?
+            .decode()
+            .map_err(|e| read_error(e.to_string()))?
+            .to_rgb8();
+        let (w, h) = img.dimensions();
+        PixelMask::from_rgb8(w, h, img.as_raw())
+            .ok_or_else(|| read_error("decoded pixel data does not match its size".to_string()))
+    }
+
+    /// Width in pixels.
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Number of counted pixels.
+    #[must_use]
+    pub fn counted_pixels(&self) -> u64 {
+        self.counted.iter().filter(|&&c| c).count() as u64
+    }
+
+    /// True when pixel `i` (row-major index) is counted.
+    #[must_use]
+    pub fn counts(&self, i: usize) -> bool {
+        self.counted.get(i).copied().unwrap_or(false)
+    }
 }
 
 /// The channels of one side, resolved and checked.
@@ -181,6 +300,7 @@ struct Prepared<'a> {
     a: Side<'a>,
     b: Side<'a>,
     pixels: usize,
+    mask: Option<&'a PixelMask>,
 }
 
 /// The channel names compared for a layer: its R/G/B (or X/Y/Z) triple when present, else all
@@ -213,6 +333,7 @@ fn prepare<'a>(
     a: &'a ExrImage,
     b: &'a ExrImage,
     layer: &str,
+    mask: Option<&'a PixelMask>,
 ) -> Result<Prepared<'a>, CompareError> {
     if a.width != b.width || a.height != b.height {
         return Err(CompareError::SizeMismatch {
@@ -221,6 +342,16 @@ fn prepare<'a>(
             wb: b.width,
             hb: b.height,
         });
+    }
+    if let Some(m) = mask {
+        if m.width != a.width || m.height != a.height {
+            return Err(CompareError::MaskSize {
+                wm: m.width,
+                hm: m.height,
+                w: a.width,
+                h: a.height,
+            });
+        }
     }
     let names = layer_channel_names(a, layer);
     if names.is_empty() {
@@ -281,6 +412,7 @@ fn prepare<'a>(
         a: sa,
         b: sb,
         pixels,
+        mask,
     })
 }
 
@@ -298,6 +430,11 @@ struct ZOutcome {
 }
 
 impl Prepared<'_> {
+    /// True when pixel `i` is compared (no mask, or the mask counts it).
+    fn counts(&self, i: usize) -> bool {
+        self.mask.is_none_or(|m| m.counts(i))
+    }
+
     fn z_enabled(&self) -> bool {
         self.a.variances.is_some() && self.b.variances.is_some()
     }
@@ -380,6 +517,70 @@ impl Prepared<'_> {
     }
 }
 
+/// Running sums of the error metrics over pixel-channels.
+#[derive(Default)]
+struct Sums {
+    /// Pixel-channels added.
+    n: u64,
+    /// Sum of `d^2`.
+    sq: f64,
+    /// Sum of `d^2 / (b^2 + REL_MSE_EPSILON)`.
+    rel: f64,
+    /// Sum of `(d / b)^2` over pixel-channels with `b != 0`, and their count.
+    rel_strict: f64,
+    rel_strict_n: u64,
+    /// Sum of `b`.
+    b: f64,
+    /// Sum of `d`.
+    d: f64,
+    /// Largest `|d|`.
+    max: f64,
+}
+
+impl Sums {
+    fn add(&mut self, a: f64, b: f64) {
+        let d = a - b;
+        self.n += 1;
+        self.sq += d * d;
+        self.rel += d * d / (b * b + REL_MSE_EPSILON);
+        if b != 0.0 {
+            self.rel_strict += (d / b) * (d / b);
+            self.rel_strict_n += 1;
+        }
+        self.b += b;
+        self.d += d;
+        self.max = self.max.max(d.abs());
+    }
+
+    fn merge(&mut self, o: &Sums) {
+        self.n += o.n;
+        self.sq += o.sq;
+        self.rel += o.rel;
+        self.rel_strict += o.rel_strict;
+        self.rel_strict_n += o.rel_strict_n;
+        self.b += o.b;
+        self.d += o.d;
+        self.max = self.max.max(o.max);
+    }
+
+    /// `x / n`, or 0 when nothing was added.
+    fn mean(&self, x: f64) -> f64 {
+        if self.n > 0 {
+            x / self.n as f64
+        } else {
+            0.0
+        }
+    }
+
+    fn rel_rmse(&self) -> f64 {
+        if self.rel_strict_n > 0 {
+            (self.rel_strict / self.rel_strict_n as f64).sqrt()
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Compares one layer of `a` against the reference `b` (`""` = the default `R`, `G`, `B`;
 /// otherwise the layer's R/G/B or X/Y/Z triple, or all of its channels, e.g. `depth` ->
 /// `depth.Z`). Metrics and the z-test are defined in the module documentation.
@@ -388,56 +589,62 @@ pub fn compare_layer(
     b: &ExrImage,
     layer: &str,
 ) -> Result<ImageComparison, CompareError> {
-    let p = prepare(a, b, layer)?;
+    compare_layer_masked(a, b, layer, None)
+}
+
+/// [`compare_layer`] restricted to the pixels `mask` counts (all pixels without one): the
+/// metrics and the z-test see only those pixels; `masked_out` reports how many were left out.
+/// A mask of another size than the images is an error.
+pub fn compare_layer_masked(
+    a: &ExrImage,
+    b: &ExrImage,
+    layer: &str,
+    mask: Option<&PixelMask>,
+) -> Result<ImageComparison, CompareError> {
+    let p = prepare(a, b, layer, mask)?;
     let nc = p.names.len();
+    let masked_out = (0..p.pixels).filter(|&i| !p.counts(i)).count() as u64;
 
     let mut per_channel = Vec::with_capacity(nc);
-    let (mut all_n, mut all_sq, mut all_rel, mut all_d, mut all_max) =
-        (0u64, 0.0, 0.0, 0.0, 0.0f64);
+    let mut all = Sums::default();
     let mut skipped = 0u64;
     for c in 0..nc {
-        let (mut n, mut sq, mut rel, mut sd, mut mx) = (0u64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
-        for i in 0..p.pixels {
+        let mut ch = Sums::default();
+        for i in (0..p.pixels).filter(|&i| p.counts(i)) {
             let (av, bv) = (f64::from(p.a.values[c][i]), f64::from(p.b.values[c][i]));
             if !(av.is_finite() && bv.is_finite()) {
                 skipped += 1;
                 continue;
             }
-            let d = av - bv;
-            n += 1;
-            sq += d * d;
-            rel += d * d / (bv * bv + REL_MSE_EPSILON);
-            sd += d;
-            mx = mx.max(d.abs());
+            ch.add(av, bv);
         }
-        let div = |x: f64| if n > 0 { x / n as f64 } else { 0.0 };
         per_channel.push(ChannelStats {
             name: p.names[c].clone(),
-            compared: n,
-            rmse: div(sq).sqrt(),
-            rel_mse: div(rel),
-            mean_bias: div(sd),
-            max_abs_error: mx,
+            compared: ch.n,
+            rmse: ch.mean(ch.sq).sqrt(),
+            rel_mse: ch.mean(ch.rel),
+            rel_rmse: ch.rel_rmse(),
+            mean_reference: ch.mean(ch.b),
+            mean_bias: ch.mean(ch.d),
+            max_abs_error: ch.max,
         });
-        all_n += n;
-        all_sq += sq;
-        all_rel += rel;
-        all_d += sd;
-        all_max = all_max.max(mx);
+        all.merge(&ch);
     }
-    let div = |x: f64| if all_n > 0 { x / all_n as f64 } else { 0.0 };
 
     let z_test = p.z_enabled().then(|| z_test(&p));
     Ok(ImageComparison {
         width: a.width,
         height: a.height,
         layer: layer.to_string(),
-        compared: all_n,
+        compared: all.n,
         skipped_non_finite: skipped,
-        rmse: div(all_sq).sqrt(),
-        rel_mse: div(all_rel),
-        mean_bias: div(all_d),
-        max_abs_error: all_max,
+        masked_out,
+        rmse: all.mean(all.sq).sqrt(),
+        rel_mse: all.mean(all.rel),
+        rel_rmse: all.rel_rmse(),
+        mean_reference: all.mean(all.b),
+        mean_bias: all.mean(all.d),
+        max_abs_error: all.max,
         per_channel,
         z_test,
     })
@@ -454,7 +661,7 @@ fn z_test(p: &Prepared<'_>) -> ZTest {
     for c in 0..nc {
         let (mut n_c, mut k3_c) = (0u64, 0u64);
         let (mut dsum, mut vsum) = (0.0f64, 0.0f64);
-        for i in 0..p.pixels {
+        for i in (0..p.pixels).filter(|&i| p.counts(i)) {
             let Some(o) = p.z_at(c, i) else {
                 untestable += 1;
                 continue;
@@ -551,7 +758,7 @@ pub fn error_map(
     layer: &str,
     scale: Option<f64>,
 ) -> Result<ErrorMap, CompareError> {
-    let p = prepare(a, b, layer)?;
+    let p = prepare(a, b, layer, None)?;
     let nc = p.names.len();
     const MAGENTA: [u8; 3] = [255, 0, 255];
     let mut rgb8 = Vec::with_capacity(3 * p.pixels);
