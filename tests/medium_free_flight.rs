@@ -117,7 +117,7 @@ fn van_de_hulst_inversion_round_trips() {
         assert!(alpha >= last);
         last = alpha;
     }
-    // Published sample values (REFERENCES §1.2: vdH and Chiang agree to ~0.002 for A ≤ 0.9).
+    // Published sample values (docs/references.md §1.2: vdH and Chiang agree to ~0.002 for A ≤ 0.9).
     assert!((single_scattering_albedo_from_multiple(0.5, 0.0) - 0.9123).abs() < 5e-3);
     assert!((single_scattering_albedo_from_multiple(0.8, 0.0) - 0.9901).abs() < 3e-3);
 }
