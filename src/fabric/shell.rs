@@ -406,13 +406,19 @@ impl FabricShell {
     /// Trilinear density of the patch at index point `q`, periodic in `x` and `y`.
     #[inline]
     fn density_at_q(&self, acc: &mut Accessor<'_>, q: Vec3) -> f32 {
-        let f = q.floor();
-        let t = q - f;
-        let i = f.as_ivec3();
+        let i = super::floor_ivec3(q);
+        let base = self.wrap(i);
+        if base.x + 1 < self.dims.x && base.y + 1 < self.dims.y {
+            // No corner wraps: the accessor's trilinear lookup (one brick resolve, coherent
+            // reads) at the point shifted into the tile. The shift is a whole number of tiles,
+            // so `q + shift` and its fractional part are exact: the same value as below.
+            return acc.sample_trilinear(q + (base - i).as_vec3());
+        }
+        let t = q - i.as_vec3();
         let mut v = [0.0f32; 8];
         for (k, vk) in v.iter_mut().enumerate() {
             let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
-            *vk = acc.value(self.wrap(i + d));
+            *vk = acc.value(self.wrap(base + d));
         }
         let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
         let y0 = lerp(lerp(v[0], v[4], t.x), lerp(v[2], v[6], t.x), t.y);
@@ -423,8 +429,8 @@ impl FabricShell {
     #[inline]
     fn wrap(&self, i: IVec3) -> IVec3 {
         IVec3::new(
-            i.x.rem_euclid(self.dims.x),
-            i.y.rem_euclid(self.dims.y),
+            wrap_axis(i.x, self.dims.x),
+            wrap_axis(i.y, self.dims.y),
             i.z,
         )
     }
@@ -616,6 +622,16 @@ impl FabricShell {
                 Bounds::constant(0.0)
             }
         })
+    }
+}
+
+/// `x` modulo `n` (`n > 0`), without a division when `x` is already in `[0, n)`.
+#[inline(always)]
+fn wrap_axis(x: i32, n: i32) -> i32 {
+    if (0..n).contains(&x) {
+        x
+    } else {
+        x.rem_euclid(n)
     }
 }
 
