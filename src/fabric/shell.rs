@@ -77,9 +77,28 @@ impl ShellTet {
             z.iter().copied().fold(f32::NEG_INFINITY, f32::max),
         )
     }
+}
+
+/// What point location reads of a tetrahedron (its world → barycentric map), one cache line
+/// per tetrahedron: a lookup tests the last tetrahedron and then a cell's list, and most of
+/// its time is waiting for these.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct TetLocator {
+    w0: Vec3,
+    world_to_bary: Mat3,
+}
+
+impl TetLocator {
+    fn of(t: &ShellTet) -> TetLocator {
+        TetLocator {
+            w0: t.w0,
+            world_to_bary: t.world_to_bary,
+        }
+    }
 
     /// Barycentrics `(λ1, λ2, λ3)` of `p`, and whether `p` lies inside (with tolerance).
-    #[inline]
+    #[inline(always)]
     fn locate(&self, p: Vec3) -> Option<Vec3> {
         let l = self.world_to_bary * (p - self.w0);
         const EPS: f32 = -1e-5;
@@ -100,6 +119,8 @@ pub struct FabricShell {
     patch: SparseGrid,
     dims: IVec3,
     tets: Vec<ShellTet>,
+    /// `tets[i]`'s point-location map, packed.
+    locators: Vec<TetLocator>,
     cell_origin: Vec3,
     inv_cell: f32,
     cell_dims: IVec3,
@@ -268,6 +289,7 @@ impl FabricShell {
         let mut shell = FabricShell {
             patch: patch.grid.clone(),
             dims,
+            locators: tets.iter().map(TetLocator::of).collect(),
             tets,
             cell_origin: Vec3::ZERO,
             inv_cell: 1.0,
@@ -369,7 +391,7 @@ impl FabricShell {
     /// tetrahedron found) is tried first and updated.
     #[inline]
     fn find(&self, p: Vec3, hint: &mut u32) -> Option<(usize, Vec3)> {
-        if let Some(t) = self.tets.get(*hint as usize) {
+        if let Some(t) = self.locators.get(*hint as usize) {
             if let Some(l) = t.locate(p) {
                 return Some((*hint as usize, l));
             }
@@ -386,7 +408,10 @@ impl FabricShell {
         let cell = ((c.z * d.y + c.y) * d.x + c.x) as usize;
         let (s, e) = (self.cell_start[cell], self.cell_start[cell + 1]);
         for &i in &self.cell_tets[s as usize..e as usize] {
-            if let Some(l) = self.tets[i as usize].locate(p) {
+            let Some(t) = self.locators.get(i as usize) else {
+                continue;
+            };
+            if let Some(l) = t.locate(p) {
                 *hint = i;
                 return Some((i as usize, l));
             }
