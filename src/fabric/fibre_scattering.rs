@@ -268,6 +268,7 @@ pub struct FibreSample {
 }
 
 /// Directions of a fibre event in the tangent frame.
+#[derive(Clone, Copy, Debug)]
 struct Angles {
     sin_t: f32,
     cos_t: f32,
@@ -310,6 +311,46 @@ struct NodeLobes {
     gamma_o: f32,
     gamma_t: f32,
     a: [Rgb; 4],
+}
+
+/// Unique (unmirrored) quadrature nodes whose terms a [`PreparedFibre`] keeps: all of them
+/// for up to 128 nodes (every automatic count); beyond, the rest are computed per evaluation.
+const CACHED_NODES: usize = 64;
+
+/// What one unique node contributes for a fixed `wo`: the attenuations, their RGB averages,
+/// `Φ(p, h)` for the three azimuthal lobes and the total lobe weight.
+#[derive(Clone, Copy, Debug)]
+struct NodeTerms {
+    a: [Rgb; 4],
+    w: [f32; 4],
+    phi: [f32; 3],
+    total: f32,
+}
+
+impl NodeTerms {
+    const ZERO: NodeTerms = NodeTerms {
+        a: [Rgb::ZERO; 4],
+        w: [0.0; 4],
+        phi: [0.0; 3],
+        total: 0.0,
+    };
+}
+
+/// A [`FibrePhase`] with its outgoing direction and tangent fixed (one scattering vertex):
+/// the tangent frame, the angles of `wo` and the per-node lobe terms are computed once and
+/// shared by every evaluation and the sample at that vertex (next event estimation evaluates
+/// the light direction, sampling evaluates the sampled one). Evaluations through it are
+/// bit-identical to [`FibrePhase::eval`] and [`FibrePhase::pdf`]. No heap allocation.
+#[derive(Clone, Debug)]
+pub struct PreparedFibre {
+    /// `None` for a zero or non-finite tangent (value and pdf 0, no sample).
+    frame: Option<Frame>,
+    o: Angles,
+    /// Diffuse albedo × diffuse weight, and its RGB average.
+    ad: Rgb,
+    wd: f32,
+    /// Terms of the first `min(unique nodes, CACHED_NODES)` unique nodes.
+    terms: [NodeTerms; CACHED_NODES],
 }
 
 impl FibrePhase {
@@ -476,27 +517,72 @@ impl FibrePhase {
         (2.0 / PI) * i.cos_t * diffuse_azimuthal(i.phi - o.phi)
     }
 
-    /// Evaluates value (RGB) and pdf together.
-    fn eval_pdf(&self, wo: Vec3, wi: Vec3, tangent: Vec3) -> (Rgb, f32) {
-        let Some(frame) = tangent_frame(tangent) else {
+    /// The terms of unique node `k` for the outgoing angles `o`.
+    fn terms(&self, k: usize, o: &Angles, wd: f32) -> NodeTerms {
+        let node = self.node(k, o.sin_t, o.cos_t);
+        let w: [f32; 4] = std::array::from_fn(|p| node.a[p].average());
+        let total: f32 = w.iter().sum::<f32>() + wd;
+        NodeTerms {
+            a: node.a,
+            w,
+            phi: std::array::from_fn(|p| Self::phi_p(p, &node)),
+            total,
+        }
+    }
+
+    /// Fixes `wo` and the tangent of one scattering vertex; see [`PreparedFibre`].
+    #[must_use]
+    pub fn prepare(&self, wo: Vec3, tangent: Vec3) -> PreparedFibre {
+        let ad = self.params.diffuse_albedo * self.params.diffuse_weight;
+        let wd = ad.average();
+        let mut prepared = PreparedFibre {
+            frame: tangent_frame(tangent),
+            o: Angles {
+                sin_t: 0.0,
+                cos_t: 1.0,
+                phi: 0.0,
+            },
+            ad,
+            wd,
+            terms: [NodeTerms::ZERO; CACHED_NODES],
+        };
+        if let Some(frame) = &prepared.frame {
+            let o = angles(frame, wo);
+            prepared.o = o;
+            let unique = self.nodes.len().div_ceil(2).min(CACHED_NODES);
+            for (k, t) in prepared.terms[..unique].iter_mut().enumerate() {
+                *t = self.terms(k, &o, wd);
+            }
+        }
+        prepared
+    }
+
+    /// Value (RGB) and pdf of `wi` at a prepared vertex (bit-identical to
+    /// [`FibrePhase::eval`] and [`FibrePhase::pdf`] with the vertex's `wo` and tangent).
+    #[must_use]
+    pub fn eval_pdf_prepared(&self, prepared: &PreparedFibre, wi: Vec3) -> (Rgb, f32) {
+        let Some(frame) = &prepared.frame else {
             return (Rgb::ZERO, 0.0);
         };
-        let o = angles(&frame, wo);
-        let i = angles(&frame, wi);
-        let m = self.mp(&o, &i);
+        let o = &prepared.o;
+        let i = angles(frame, wi);
+        let m = self.mp(o, &i);
         let dphi = i.phi - o.phi;
-        let dd = Self::diffuse_density(&o, &i);
-        let ad = self.params.diffuse_albedo * self.params.diffuse_weight;
+        let dd = Self::diffuse_density(o, &i);
+        let ad = prepared.ad;
         let mut value = Rgb::ZERO;
         let mut pdf = 0.0;
         let n_nodes = self.nodes.len();
-        let wd = ad.average();
+        let wd = prepared.wd;
         // A_p(h) = A_p(−h) and Φ(p, −h) ≡ −Φ(p, h) (mod 2π): one node evaluation serves the
         // mirrored pair.
         for k in 0..n_nodes.div_ceil(2) {
-            let node = self.node(k, o.sin_t, o.cos_t);
-            let w: [f32; 4] = std::array::from_fn(|p| node.a[p].average());
-            let total: f32 = w.iter().sum::<f32>() + wd;
+            let node = match prepared.terms.get(k) {
+                Some(t) => *t,
+                None => self.terms(k, o, wd),
+            };
+            let w = node.w;
+            let total = node.total;
             let mirrored = n_nodes - 1 - k != k;
             for sign in [1.0f32, -1.0] {
                 if sign < 0.0 && !mirrored {
@@ -505,7 +591,7 @@ impl FibrePhase {
                 let mut lobe_pdf = wd * dd;
                 for p in 0..4 {
                     let n = if p < 3 {
-                        let phi = sign * Self::phi_p(p, &node);
+                        let phi = sign * node.phi[p];
                         trimmed_logistic_norm(wrap(dphi - phi), self.s, self.inv_logistic_norm)
                     } else {
                         INV_2PI
@@ -521,6 +607,13 @@ impl FibrePhase {
         }
         value = value * (1.0 / n_nodes as f32) + ad * dd;
         (value, pdf / n_nodes as f32)
+    }
+
+    /// Value (RGB) and pdf together (one pass; [`FibrePhase::eval`] and
+    /// [`FibrePhase::pdf`] are its two halves).
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3, tangent: Vec3) -> (Rgb, f32) {
+        self.eval_pdf_prepared(&self.prepare(wo, tangent), wi)
     }
 
     /// Phase function value (RGB, per unit solid angle of `wi`), averaged over `h`. The
@@ -543,13 +636,20 @@ impl FibrePhase {
     /// surface normal). `None` when every lobe is black or the direction is degenerate.
     #[must_use]
     pub fn sample(&self, wo: Vec3, tangent: Vec3, u: [f32; 4]) -> Option<FibreSample> {
-        let frame = tangent_frame(tangent)?;
-        let o = angles(&frame, wo);
+        self.sample_prepared(&self.prepare(wo, tangent), u)
+    }
+
+    /// [`FibrePhase::sample`] at a prepared vertex (bit-identical to it with the vertex's `wo`
+    /// and tangent).
+    #[must_use]
+    pub fn sample_prepared(&self, prepared: &PreparedFibre, u: [f32; 4]) -> Option<FibreSample> {
+        let frame = prepared.frame?;
+        let o = prepared.o;
         let n_nodes = self.nodes.len();
         let k = ((u[0] * n_nodes as f32) as usize).min(n_nodes - 1);
         let mut u0 = (u[0] * n_nodes as f32 - k as f32).clamp(0.0, 1.0);
         let node = self.node(k, o.sin_t, o.cos_t);
-        let wd = (self.params.diffuse_albedo * self.params.diffuse_weight).average();
+        let wd = prepared.wd;
         let w: [f32; 5] = std::array::from_fn(|p| if p < 4 { node.a[p].average() } else { wd });
         let total: f32 = w.iter().sum();
         if total <= 0.0 {
@@ -595,7 +695,7 @@ impl FibrePhase {
         if !wi.is_finite() {
             return None;
         }
-        let (value, pdf) = self.eval_pdf(wo, wi, tangent);
+        let (value, pdf) = self.eval_pdf_prepared(prepared, wi);
         if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }

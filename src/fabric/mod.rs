@@ -38,7 +38,8 @@ pub mod weave;
 pub mod yarn;
 
 pub use fibre_scattering::{
-    FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, SggxFibrePhase, SggxSample,
+    FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, PreparedFibre, SggxFibrePhase,
+    SggxSample,
 };
 pub use look::{projected_width, FabricLook, FibreExtinction, FibreGridLookup, ShellLookup};
 pub use shell::{FabricShell, FibreVoxel, ShellParams};
@@ -155,13 +156,12 @@ pub(crate) fn check_positive(name: &str, x: f32, hi: f32) -> Result<(), FabricEr
 /// applies any wrapping).
 #[inline]
 pub fn tangent_near(p: glam::Vec3, mut fetch: impl FnMut(glam::IVec3) -> glam::Vec3) -> glam::Vec3 {
-    let nearest = fetch((p + glam::Vec3::splat(0.5)).floor().as_ivec3());
+    let nearest = fetch(floor_ivec3(p + glam::Vec3::splat(0.5)));
     if nearest != glam::Vec3::ZERO {
         return nearest;
     }
-    let f = p.floor();
-    let t = p - f;
-    let base = f.as_ivec3();
+    let base = floor_ivec3(p);
+    let t = p - base.as_vec3();
     let mut best = (0.0f32, glam::Vec3::ZERO);
     for k in 0..8 {
         let d = glam::IVec3::new(k >> 2, (k >> 1) & 1, k & 1);
@@ -176,4 +176,19 @@ pub fn tangent_near(p: glam::Vec3, mut fetch: impl FnMut(glam::IVec3) -> glam::V
         }
     }
     best.1
+}
+
+/// `p.floor().as_ivec3()` without a libm call (the x86-64 baseline has no rounding
+/// instruction): the same result for every `p` within the `i32` range (saturating outside
+/// it; NaN gives 0, as the cast does).
+#[inline(always)]
+#[must_use]
+pub fn floor_ivec3(p: glam::Vec3) -> glam::IVec3 {
+    let t = p.as_ivec3(); // truncation toward zero, saturating
+    let tf = t.as_vec3();
+    t - glam::IVec3::new(
+        i32::from(tf.x > p.x),
+        i32::from(tf.y > p.y),
+        i32::from(tf.z > p.z),
+    )
 }

@@ -77,9 +77,28 @@ impl ShellTet {
             z.iter().copied().fold(f32::NEG_INFINITY, f32::max),
         )
     }
+}
+
+/// What point location reads of a tetrahedron (its world → barycentric map), one cache line
+/// per tetrahedron: a lookup tests the last tetrahedron and then a cell's list, and most of
+/// its time is waiting for these.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct TetLocator {
+    w0: Vec3,
+    world_to_bary: Mat3,
+}
+
+impl TetLocator {
+    fn of(t: &ShellTet) -> TetLocator {
+        TetLocator {
+            w0: t.w0,
+            world_to_bary: t.world_to_bary,
+        }
+    }
 
     /// Barycentrics `(λ1, λ2, λ3)` of `p`, and whether `p` lies inside (with tolerance).
-    #[inline]
+    #[inline(always)]
     fn locate(&self, p: Vec3) -> Option<Vec3> {
         let l = self.world_to_bary * (p - self.w0);
         const EPS: f32 = -1e-5;
@@ -100,6 +119,8 @@ pub struct FabricShell {
     patch: SparseGrid,
     dims: IVec3,
     tets: Vec<ShellTet>,
+    /// `tets[i]`'s point-location map, packed.
+    locators: Vec<TetLocator>,
     cell_origin: Vec3,
     inv_cell: f32,
     cell_dims: IVec3,
@@ -268,6 +289,7 @@ impl FabricShell {
         let mut shell = FabricShell {
             patch: patch.grid.clone(),
             dims,
+            locators: tets.iter().map(TetLocator::of).collect(),
             tets,
             cell_origin: Vec3::ZERO,
             inv_cell: 1.0,
@@ -369,7 +391,7 @@ impl FabricShell {
     /// tetrahedron found) is tried first and updated.
     #[inline]
     fn find(&self, p: Vec3, hint: &mut u32) -> Option<(usize, Vec3)> {
-        if let Some(t) = self.tets.get(*hint as usize) {
+        if let Some(t) = self.locators.get(*hint as usize) {
             if let Some(l) = t.locate(p) {
                 return Some((*hint as usize, l));
             }
@@ -386,7 +408,10 @@ impl FabricShell {
         let cell = ((c.z * d.y + c.y) * d.x + c.x) as usize;
         let (s, e) = (self.cell_start[cell], self.cell_start[cell + 1]);
         for &i in &self.cell_tets[s as usize..e as usize] {
-            if let Some(l) = self.tets[i as usize].locate(p) {
+            let Some(t) = self.locators.get(i as usize) else {
+                continue;
+            };
+            if let Some(l) = t.locate(p) {
                 *hint = i;
                 return Some((i as usize, l));
             }
@@ -406,13 +431,19 @@ impl FabricShell {
     /// Trilinear density of the patch at index point `q`, periodic in `x` and `y`.
     #[inline]
     fn density_at_q(&self, acc: &mut Accessor<'_>, q: Vec3) -> f32 {
-        let f = q.floor();
-        let t = q - f;
-        let i = f.as_ivec3();
+        let i = super::floor_ivec3(q);
+        let base = self.wrap(i);
+        if base.x + 1 < self.dims.x && base.y + 1 < self.dims.y {
+            // No corner wraps: the accessor's trilinear lookup (one brick resolve, coherent
+            // reads) at the point shifted into the tile. The shift is a whole number of tiles,
+            // so `q + shift` and its fractional part are exact: the same value as below.
+            return acc.sample_trilinear(q + (base - i).as_vec3());
+        }
+        let t = q - i.as_vec3();
         let mut v = [0.0f32; 8];
         for (k, vk) in v.iter_mut().enumerate() {
             let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
-            *vk = acc.value(self.wrap(i + d));
+            *vk = acc.value(self.wrap(base + d));
         }
         let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
         let y0 = lerp(lerp(v[0], v[4], t.x), lerp(v[2], v[6], t.x), t.y);
@@ -423,8 +454,8 @@ impl FabricShell {
     #[inline]
     fn wrap(&self, i: IVec3) -> IVec3 {
         IVec3::new(
-            i.x.rem_euclid(self.dims.x),
-            i.y.rem_euclid(self.dims.y),
+            wrap_axis(i.x, self.dims.x),
+            wrap_axis(i.y, self.dims.y),
             i.z,
         )
     }
@@ -616,6 +647,16 @@ impl FabricShell {
                 Bounds::constant(0.0)
             }
         })
+    }
+}
+
+/// `x` modulo `n` (`n > 0`), without a division when `x` is already in `[0, n)`.
+#[inline(always)]
+fn wrap_axis(x: i32, n: i32) -> i32 {
+    if (0..n).contains(&x) {
+        x
+    } else {
+        x.rem_euclid(n)
     }
 }
 

@@ -235,6 +235,7 @@ impl PathState {
         let p = vertex.p;
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
+        let phase = vertex.phase.prepare(wo);
         if interior_nee {
             let st = self.stack;
             self.radiance += self.beta
@@ -242,13 +243,13 @@ impl PathState {
                     scene,
                     p,
                     |_| (p, st),
-                    |wi| vertex.phase.eval(wo, wi),
+                    |wi| phase.eval(wi),
                     ShadowMode::Transparent,
                     sampler,
                     stats,
                 );
         }
-        let Some(s) = vertex.phase.sample(wo, sampler) else {
+        let Some(s) = phase.sample(sampler) else {
             return Step::Stop;
         };
         self.beta *= s.weight;

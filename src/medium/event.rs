@@ -2,7 +2,7 @@
 //! of the flight, any radiance the medium emitted along it, and, where the flight ended in a
 //! real collision, the scattering vertex with its albedo and the phase function chosen there.
 
-use crate::fabric::FibrePhase;
+use crate::fabric::{FibrePhase, PreparedFibre};
 use crate::math::Vec3;
 use crate::phase::PhaseFunction;
 use crate::sampling::PixelSampler;
@@ -73,15 +73,27 @@ pub struct PhaseDirection {
     pub pdf: f32,
 }
 
-impl VertexPhase<'_> {
+impl<'a> VertexPhase<'a> {
     /// Value (RGB, 1/sr) and solid-angle pdf of scattering `wo → wi` (both pointing away).
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
         match self {
             VertexPhase::Hg(p) => (Rgb::splat(p.eval(wo, wi)), p.pdf(wo, wi)),
-            VertexPhase::Fibre { phase, tangent } => {
-                (phase.eval(wo, wi, *tangent), phase.pdf(wo, wi, *tangent))
-            }
+            VertexPhase::Fibre { phase, tangent } => phase.eval_pdf(wo, wi, *tangent),
+        }
+    }
+
+    /// Fixes the outgoing direction `wo` of this vertex: what every evaluation and the sample
+    /// there share is computed once (the fibre phase function's per-offset lobe terms).
+    /// Results are bit-identical to [`VertexPhase::eval`] and [`VertexPhase::sample`].
+    #[must_use]
+    pub fn prepare(&self, wo: Vec3) -> PreparedPhase<'a> {
+        match *self {
+            VertexPhase::Hg(p) => PreparedPhase::Hg { phase: p, wo },
+            VertexPhase::Fibre { phase, tangent } => PreparedPhase::Fibre {
+                phase,
+                prepared: phase.prepare(wo, tangent),
+            },
         }
     }
 
@@ -104,6 +116,60 @@ impl VertexPhase<'_> {
                     sampler.next_1d(),
                 ];
                 let s = phase.sample(wo, *tangent, u)?;
+                (s.pdf > 0.0).then_some(PhaseDirection {
+                    wi: s.wi,
+                    weight: s.weight,
+                    pdf: s.pdf,
+                })
+            }
+        }
+    }
+}
+
+/// A [`VertexPhase`] with its outgoing direction fixed ([`VertexPhase::prepare`]).
+#[derive(Clone, Debug)]
+pub enum PreparedPhase<'a> {
+    /// Henyey–Greenstein (nothing to precompute).
+    Hg {
+        /// The phase function.
+        phase: &'a PhaseFunction,
+        /// Outgoing direction (pointing away).
+        wo: Vec3,
+    },
+    /// A fibre phase function with its per-vertex terms.
+    Fibre {
+        /// The yarn family's phase function.
+        phase: &'a FibrePhase,
+        /// Frame, outgoing angles and per-offset terms of this vertex.
+        prepared: PreparedFibre,
+    },
+}
+
+impl PreparedPhase<'_> {
+    /// Value (RGB, 1/sr) and solid-angle pdf of scattering towards `wi` (pointing away).
+    #[must_use]
+    pub fn eval(&self, wi: Vec3) -> (Rgb, f32) {
+        match self {
+            PreparedPhase::Hg { phase, wo } => {
+                (Rgb::splat(phase.eval(*wo, wi)), phase.pdf(*wo, wi))
+            }
+            PreparedPhase::Fibre { phase, prepared } => phase.eval_pdf_prepared(prepared, wi),
+        }
+    }
+
+    /// Samples a direction (`None` when the sample failed or has zero pdf); the same random
+    /// numbers and results as [`VertexPhase::sample`].
+    pub fn sample(&self, sampler: &mut PixelSampler) -> Option<PhaseDirection> {
+        match self {
+            PreparedPhase::Hg { phase, wo } => VertexPhase::Hg(phase).sample(*wo, sampler),
+            PreparedPhase::Fibre { phase, prepared } => {
+                let u = [
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                    sampler.next_1d(),
+                ];
+                let s = phase.sample_prepared(prepared, u)?;
                 (s.pdf > 0.0).then_some(PhaseDirection {
                     wi: s.wi,
                     weight: s.weight,

@@ -19,7 +19,7 @@ pub use artist::{
     multiple_scattering_albedo, single_scattering_albedo_from_multiple, AlbedoMode, Coefficients,
     MAX_SINGLE_SCATTERING_ALBEDO,
 };
-pub use event::{MediumEvent, PhaseDirection, ScatterVertex, VertexPhase};
+pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
 pub use lookup::{DensityLookup, GridLookup};
 
