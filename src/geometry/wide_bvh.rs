@@ -35,10 +35,10 @@ const WIDTH: usize = 8;
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node8 {
-    /// Minima of the children's boxes: x, y, z (empty slots hold +∞).
-    lo: [[Vec4; 2]; 3],
-    /// Maxima (empty slots hold −∞).
-    hi: [[Vec4; 2]; 3],
+    /// Box planes of the children: minima x, y, z (empty slots hold +∞), then maxima x, y, z
+    /// (empty slots hold −∞). One array, so that a ray picks its near and far plane per axis
+    /// by index instead of by a branch.
+    planes: [[Vec4; 2]; 6],
     /// Child node index, or the first primitive of a leaf.
     child: [u32; WIDTH],
     /// Primitives of a leaf child (0 for an inner child or an empty slot).
@@ -48,8 +48,14 @@ struct Node8 {
 impl Node8 {
     fn empty() -> Self {
         Node8 {
-            lo: [[Vec4::splat(f32::INFINITY); 2]; 3],
-            hi: [[Vec4::splat(f32::NEG_INFINITY); 2]; 3],
+            planes: [
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+            ],
             child: [0; WIDTH],
             count: [0; WIDTH],
         }
@@ -82,8 +88,10 @@ struct SlabRay {
     o: [Vec4; 3],
     /// Capped reciprocal direction, splatted per axis.
     inv: [Vec4; 3],
-    /// Per axis: true when the direction is negative (near plane = box maximum).
-    neg: [bool; 3],
+    /// Per axis: index in [`Node8::planes`] of the plane the ray enters by (the maximum
+    /// when the direction is negative) and of the one it leaves by.
+    near: [usize; 3],
+    far: [usize; 3],
 }
 
 /// Reciprocal direction with magnitudes capped at 1e20 (sign kept, `-0` treated as `+0`),
@@ -114,7 +122,8 @@ impl SlabRay {
                 Vec4::splat(ray.o.z),
             ],
             inv: inv.map(Vec4::splat),
-            neg: [inv[0] < 0.0, inv[1] < 0.0, inv[2] < 0.0],
+            near: [0, 1, 2].map(|k| if inv[k] < 0.0 { k + 3 } else { k }),
+            far: [0, 1, 2].map(|k| if inv[k] < 0.0 { k } else { k + 3 }),
         }
     }
 
@@ -138,11 +147,8 @@ impl SlabRay {
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
         for k in 0..3 {
-            let (n, f) = if self.neg[k] {
-                (node.hi[k][h], node.lo[k][h])
-            } else {
-                (node.lo[k][h], node.hi[k][h])
-            };
+            let n = node.planes[self.near[k]][h];
+            let f = node.planes[self.far[k]][h];
             near = near.max((n - self.o[k]) * self.inv[k]);
             far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
         }
@@ -234,8 +240,8 @@ impl WideBvh {
             for (slot, &c) in children.iter().enumerate() {
                 let bb = bvh2.nodes[c].aabb;
                 for k in 0..3 {
-                    node.lo[k][slot / 4][slot % 4] = bb.min[k];
-                    node.hi[k][slot / 4][slot % 4] = bb.max[k];
+                    node.planes[k][slot / 4][slot % 4] = bb.min[k];
+                    node.planes[k + 3][slot / 4][slot % 4] = bb.max[k];
                 }
                 if counts[c] <= MAX_LEAF_PRIMITIVES {
                     let first = out.order.len() as u32;
@@ -286,12 +292,9 @@ impl WideBvh {
         }
         let slab = SlabRay::new(ray);
         let mut stack = Stack::new();
-        stack.push(Entry { node: 0, t: 0.0 });
-        while let Some(e) = stack.pop() {
-            if e.t > t_max {
-                continue;
-            }
-            let node = &self.nodes[e.node as usize];
+        let mut current = 0u32;
+        loop {
+            let node = &self.nodes[current as usize];
             let (near, mut mask) = slab.test(node, t_max);
             // The entered children sorted by entry distance, nearest first.
             let mut order = [(0usize, 0.0f32); WIDTH];
@@ -333,8 +336,26 @@ impl WideBvh {
                     m += 1;
                 }
             }
-            for e in inner[..m].iter().rev() {
-                stack.push(*e);
+            // The nearest inner child is visited next; the others wait, farthest deepest.
+            if m > 0 {
+                for e in inner[1..m].iter().rev() {
+                    stack.push(*e);
+                }
+                // (A leaf after it may have shortened the ray.)
+                if !(inner[0].t > t_max) {
+                    current = inner[0].node;
+                    continue;
+                }
+            }
+            loop {
+                match stack.pop() {
+                    None => return,
+                    Some(e) if !(e.t > t_max) => {
+                        current = e.node;
+                        break;
+                    }
+                    Some(_) => {}
+                }
             }
         }
     }
