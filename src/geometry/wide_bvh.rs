@@ -69,8 +69,6 @@ pub struct WideBvh {
     nodes: Vec<Node8>,
     /// Original primitive index of each position.
     order: Vec<u32>,
-    /// A single leaf root (fewer primitives than make a node), or none.
-    root_leaf: Option<(u32, u32)>,
     depth: usize,
 }
 
@@ -227,7 +225,15 @@ impl WideBvh {
         if counts[0] <= MAX_LEAF_PRIMITIVES {
             let first = out.order.len() as u32;
             collect_primitives(&bvh2, 0, &mut out.order);
-            out.root_leaf = Some((first, out.order.len() as u32 - first));
+            // One node with one leaf child whose box is all of space (always entered).
+            let mut node = Node8::empty();
+            for k in 0..3 {
+                node.planes[k][0][0] = f32::NEG_INFINITY;
+                node.planes[k + 3][0][0] = f32::INFINITY;
+            }
+            node.child[0] = first;
+            node.count[0] = out.order.len() as u32 - first;
+            out.nodes.push(node);
             out.depth = 1;
             return out;
         }
@@ -278,26 +284,20 @@ impl WideBvh {
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
     #[inline]
     pub fn traverse(&self, ray: &Ray, mut t_max: f32, mut primitive: impl FnMut(u32, f32) -> f32) {
-        if let Some((first, count)) = self.root_leaf {
-            for i in first..first + count {
-                t_max = primitive(i, t_max);
-                if t_max <= 0.0 {
-                    return;
-                }
-            }
-            return;
-        }
         if self.nodes.is_empty() {
             return;
         }
         let slab = SlabRay::new(ray);
         let mut stack = Stack::new();
         let mut current = 0u32;
+        // Scratch for the children of the node visited (only entries below the counts are
+        // read), initialised once per ray.
+        let mut order = [(0usize, 0.0f32); WIDTH];
+        let mut inner = [Entry::default(); WIDTH];
         loop {
             let node = &self.nodes[current as usize];
             let (near, mut mask) = slab.test(node, t_max);
             // The entered children sorted by entry distance, nearest first.
-            let mut order = [(0usize, 0.0f32); WIDTH];
             let mut n = 0;
             while mask != 0 {
                 let slot = mask.trailing_zeros() as usize;
@@ -313,7 +313,6 @@ impl WideBvh {
             }
             // Leaves are intersected at once, nearest first (a hit shortens the ray for the
             // rest); inner children are pushed farthest first, so the nearest is visited next.
-            let mut inner = [Entry::default(); WIDTH];
             let mut m = 0;
             for &(slot, t) in &order[..n] {
                 if t > t_max {
