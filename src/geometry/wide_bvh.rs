@@ -426,3 +426,80 @@ fn open_children(bvh2: &Bvh2, i: usize, counts: &[u32]) -> Vec<usize> {
     }
     children
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (tests only).
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn vec(&mut self) -> Vec3 {
+            Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE
+        }
+    }
+
+    /// Entry and exit of the ray through a box in f64, or `None`.
+    fn slab(ray: &Ray, lo: Vec3, hi: Vec3) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for k in 0..3 {
+            let (o, d) = (f64::from(ray.o[k]), f64::from(ray.d[k]));
+            let (a, b) = ((f64::from(lo[k]) - o) / d, (f64::from(hi[k]) - o) / d);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    #[test]
+    fn every_box_a_ray_crosses_is_visited_nearest_leaf_first_and_any_hit_stops() {
+        let mut rng = Lcg(3);
+        for n in [1usize, 2, 3, 9, 64, 2000] {
+            let boxes: Vec<(Vec3, Vec3)> = (0..n)
+                .map(|_| {
+                    let c = rng.vec();
+                    let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.2;
+                    (c - e, c + e)
+                })
+                .collect();
+            let bvh = WideBvh::build(&boxes);
+            let mut seen = vec![false; n];
+            for &i in bvh.order() {
+                seen[i as usize] = true;
+            }
+            assert!(
+                seen.iter().all(|&s| s),
+                "order is a permutation ({n} boxes)"
+            );
+            for _ in 0..300 {
+                let ray = Ray::new(rng.vec() * 1.5, rng.vec().normalize_or(Vec3::X));
+                let mut visited = vec![false; n];
+                bvh.traverse(&ray, f32::INFINITY, |pos, t| {
+                    visited[bvh.order()[pos as usize] as usize] = true;
+                    t
+                });
+                for (i, b) in boxes.iter().enumerate() {
+                    if let Some((t0, t1)) = slab(&ray, b.0, b.1) {
+                        if t1 - t0 > 1e-4 {
+                            assert!(visited[i], "{n} boxes: box {i} crossed but not visited");
+                        }
+                    }
+                }
+                let mut calls = 0;
+                bvh.traverse(&ray, f32::INFINITY, |_, _| {
+                    calls += 1;
+                    0.0
+                });
+                assert!(calls <= 1, "an any-hit query continues after a hit");
+            }
+        }
+    }
+}
