@@ -6,7 +6,8 @@
 //! Run: `cargo bench --bench ray_casting`. Three ray sets: rays from outside through the
 //! sphere's bounding box, rays from inside in random directions (what a walk inside the skin
 //! traces to find the boundary), and short rays from inside (a walk's free flight in a dense
-//! medium, traced only up to the sampled distance). Times are on-CPU times of the thread.
+//! medium, traced only up to the sampled distance). Times are on-CPU times of the thread, best
+//! of five passes. `RAY_CASTING_SUBDIV=n` changes the icosphere's subdivision level (default 5).
 
 use std::time::Duration;
 
@@ -19,16 +20,19 @@ use velour::geometry::{icosphere, SceneGeometry, Shape};
 use velour::math::{Ray, Vec3};
 use velour::sampling::{sample_uniform_sphere, Rng};
 
-/// On-CPU time of the calling thread in seconds (`/proc/thread-self/schedstat`).
+/// On-CPU time of the calling thread in seconds (`CLOCK_THREAD_CPUTIME_ID`, nanosecond
+/// resolution; `/proc/thread-self/schedstat` advances in scheduler ticks on some kernels).
 fn thread_cpu() -> f64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| {
-            s.split_whitespace()
-                .next()
-                .and_then(|x| x.parse::<f64>().ok())
-        })
-        .map_or(f64::NAN, |ns| ns * 1e-9)
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 struct RaySet {
@@ -94,7 +98,11 @@ fn rate(rays: &[(Ray, f32)], repeats: usize, mut f: impl FnMut(&Ray, f32) -> boo
 }
 
 fn main() {
-    let mesh = icosphere(5);
+    let subdiv = std::env::var("RAY_CASTING_SUBDIV")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    let mesh = icosphere(subdiv);
     let triangles: Vec<RtTriangle> = mesh
         .indices
         .iter()
@@ -120,9 +128,9 @@ fn main() {
         "rays", "velour closest", "velour occl.", "obvhs closest", "velour/obvhs"
     );
     for set in ray_sets(n) {
-        let (v, hv) = rate(&set.rays, 3, |r, t| geometry.intersect(r, t).is_some());
-        let (o, _) = rate(&set.rays, 3, |r, t| geometry.occluded(r, t));
-        let (s, hs) = rate(&set.rays, 3, |r, t| {
+        let (v, hv) = rate(&set.rays, 5, |r, t| geometry.intersect(r, t).is_some());
+        let (o, _) = rate(&set.rays, 5, |r, t| geometry.occluded(r, t));
+        let (s, hs) = rate(&set.rays, 5, |r, t| {
             let ray = ORay::new(Vec3A::from(r.o), Vec3A::from(r.d), 0.0, t);
             let mut hit = RayHit::none();
             stock.ray_traverse(ray, &mut hit, |ray, id| {

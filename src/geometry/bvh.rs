@@ -6,7 +6,7 @@ use crate::math::{Aabb, Ray, Vec2, Vec3};
 
 use super::aabox::{intersect_box, BoxHit};
 use super::sphere::{intersect_sphere, SphereHit};
-use super::triangle::{ShearedRay, TriangleHit};
+use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
@@ -26,6 +26,8 @@ pub struct SceneGeometry {
     bvh: WideBvh,
     /// Triangles in BVH order.
     prims: Vec<Prim>,
+    /// The same triangles transposed for the traversal's triangle test (BVH order).
+    tris: Vec<TriangleSoa>,
     /// Analytic shapes, tested directly.
     analytic: Vec<Analytic>,
     shapes: Vec<Shape>,
@@ -148,9 +150,14 @@ impl SceneGeometry {
             .collect();
         let bvh = WideBvh::build(&boxes);
         let ordered: Vec<Prim> = bvh.order().iter().map(|&i| prims[i as usize]).collect();
+        let tris = ordered
+            .iter()
+            .map(|p| TriangleSoa::new(p.a, p.b, p.c))
+            .collect();
         Ok(SceneGeometry {
             bvh,
             prims: ordered,
+            tris,
             analytic,
             shapes,
             topologies,
@@ -195,8 +202,7 @@ impl SceneGeometry {
         if !self.prims.is_empty() {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, closest, |slot, t_max| {
-                let p = &self.prims[slot as usize];
-                match sr.intersect(p.a, p.b, p.c, t_max) {
+                match sr.intersect(&self.tris[slot as usize], t_max) {
                     Some(h) => {
                         best = Some(Best::Tri(slot as usize, h));
                         h.t
@@ -231,8 +237,7 @@ impl SceneGeometry {
         if !self.prims.is_empty() {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, t_max, |slot, t| {
-                let p = &self.prims[slot as usize];
-                if sr.intersect(p.a, p.b, p.c, t).is_some() {
+                if sr.intersect(&self.tris[slot as usize], t).is_some() {
                     found = true;
                     0.0
                 } else {

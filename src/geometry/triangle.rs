@@ -1,6 +1,8 @@
 //! Watertight ray–triangle intersection (Woop, Benthin & Wald 2013, "Watertight Ray/Triangle
 //! Intersection", JCGT 2(1)) with exact tie-breaking on shared edges and vertices.
 
+use glam::{Vec4, Vec4Swizzles};
+
 use crate::math::{Ray, Vec3};
 
 /// Barycentric hit on one triangle.
@@ -16,16 +18,38 @@ pub struct TriangleHit {
     pub b2: f32,
 }
 
+/// A triangle's vertices transposed for the watertight test: `v[k]` holds coordinate `k` of
+/// the three vertices in lanes 0, 1, 2 (lane 3 repeats vertex 0), so the per-ray axis
+/// permutation is an indexed load instead of a branch per coordinate.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub(crate) struct TriangleSoa {
+    v: [Vec4; 3],
+}
+
+impl TriangleSoa {
+    pub(crate) fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Self {
+        let lane = |k: usize| Vec4::new(p0[k], p1[k], p2[k], p0[k]);
+        TriangleSoa {
+            v: [lane(0), lane(1), lane(2)],
+        }
+    }
+}
+
 /// Per-ray constants of the watertight test: the dominant axis `kz`, the two others in an
 /// order that keeps the winding, and the shear that maps the ray to `+z` from the origin.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ShearedRay {
-    o: Vec3,
     kx: usize,
     ky: usize,
     kz: usize,
-    sx: f32,
-    sy: f32,
+    /// Origin coordinates `o[kx]`, `o[ky]`, `o[kz]`, splatted.
+    okx: Vec4,
+    oky: Vec4,
+    okz: Vec4,
+    /// `sx`, `sy` splatted.
+    sxv: Vec4,
+    syv: Vec4,
     sz: f32,
 }
 
@@ -46,12 +70,14 @@ impl ShearedRay {
             std::mem::swap(&mut kx, &mut ky);
         }
         ShearedRay {
-            o: ray.o,
             kx,
             ky,
             kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
+            okx: Vec4::splat(ray.o[kx]),
+            oky: Vec4::splat(ray.o[ky]),
+            okz: Vec4::splat(ray.o[kz]),
+            sxv: Vec4::splat(d[kx] / d[kz]),
+            syv: Vec4::splat(d[ky] / d[kz]),
             sz: 1.0 / d[kz],
         }
     }
@@ -61,74 +87,38 @@ impl ShearedRay {
     /// triangles sharing an edge see exactly negated values; exact zeros are re-evaluated in
     /// f64 (exact for products of f32) and then resolved by a symbolic perturbation of the
     /// ray origin by `(ε, ε²)`, which assigns a point on a shared edge or vertex to exactly
-    /// one of the triangles around it.
-    #[inline]
-    pub(crate) fn intersect(
-        &self,
-        p0: Vec3,
-        p1: Vec3,
-        p2: Vec3,
-        t_max: f32,
-    ) -> Option<TriangleHit> {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let a = p0 - self.o;
-        let b = p1 - self.o;
-        let c = p2 - self.o;
-        let ax = a[kx] - self.sx * a[kz];
-        let ay = a[ky] - self.sy * a[kz];
-        let bx = b[kx] - self.sx * b[kz];
-        let by = b[ky] - self.sy * b[kz];
-        let cx = c[kx] - self.sx * c[kz];
-        let cy = c[ky] - self.sy * c[kz];
-
-        let mut u = cx * by - cy * bx; // E(B, C): weight of vertex 0
-        let mut v = ax * cy - ay * cx; // E(C, A): weight of vertex 1
-        let mut w = bx * ay - by * ax; // E(A, B): weight of vertex 2
-
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            let ud = f64::from(cx) * f64::from(by) - f64::from(cy) * f64::from(bx);
-            let vd = f64::from(ax) * f64::from(cy) - f64::from(ay) * f64::from(cx);
-            let wd = f64::from(bx) * f64::from(ay) - f64::from(by) * f64::from(ax);
-            let s = if ud > 0.0 || vd > 0.0 || wd > 0.0 {
-                1.0
-            } else if ud < 0.0 || vd < 0.0 || wd < 0.0 {
-                -1.0
-            } else {
-                return None; // the ray lies in the triangle's plane
-            };
-            if ud * s < 0.0 || vd * s < 0.0 || wd * s < 0.0 {
+    /// one of the triangles around it. The three vertices are processed in SIMD lanes with
+    /// exactly the scalar operations of the paper, so results are bit-identical to a scalar
+    /// evaluation.
+    #[inline(always)]
+    pub(crate) fn intersect(&self, tri: &TriangleSoa, t_max: f32) -> Option<TriangleHit> {
+        // Lanes: vertices 0, 1, 2 (a, b, c) relative to the origin, permuted and sheared.
+        let px = tri.v[self.kx] - self.okx;
+        let py = tri.v[self.ky] - self.oky;
+        let pz = tri.v[self.kz] - self.okz;
+        let x = px - self.sxv * pz;
+        let y = py - self.syv * pz;
+        // Lane 0: E(B, C) = cx·by − cy·bx (weight of vertex 0); lane 1: E(C, A); lane 2: E(A, B).
+        let e = x.zxyw() * y.yzxw() - y.zxyw() * x.yzxw();
+        let zero = e.cmpeq(Vec4::ZERO).bitmask() & 7;
+        let (u, v, w) = if zero != 0 {
+            edge_functions_exact([x.x, y.x], [x.y, y.y], [x.z, y.z])?
+        } else {
+            let neg = e.cmplt(Vec4::ZERO).bitmask() & 7;
+            let pos = e.cmpgt(Vec4::ZERO).bitmask() & 7;
+            if neg != 0 && pos != 0 {
                 return None;
             }
-            // A zero edge function: the ray passes exactly through the edge's line. Decide by
-            // the sign the edge function takes when the origin moves by (ε, ε²).
-            let inside = |e: f64, px: f32, py: f32, qx: f32, qy: f32| -> bool {
-                if e != 0.0 {
-                    return true;
-                }
-                let dy = qy - py;
-                let pert = if dy != 0.0 { dy } else { px - qx };
-                pert != 0.0 && (f64::from(pert) * s) > 0.0
-            };
-            if !inside(ud, bx, by, cx, cy)
-                || !inside(vd, cx, cy, ax, ay)
-                || !inside(wd, ax, ay, bx, by)
-            {
-                return None;
-            }
-            u = ud as f32;
-            v = vd as f32;
-            w = wd as f32;
-        } else if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return None;
-        }
+            (e.x, e.y, e.z)
+        };
 
         let det = u + v + w;
         if det == 0.0 || !det.is_finite() {
             return None;
         }
-        let az = self.sz * a[kz];
-        let bz = self.sz * b[kz];
-        let cz = self.sz * c[kz];
+        let az = self.sz * pz.x;
+        let bz = self.sz * pz.y;
+        let cz = self.sz * pz.z;
         let tn = u * az + v * bz + w * cz;
         let inv = 1.0 / det;
         let t = tn * inv;
@@ -142,6 +132,42 @@ impl ShearedRay {
             b2: w * inv,
         })
     }
+}
+
+/// The edge functions when one of them is exactly zero in f32: re-evaluated in f64 (exact for
+/// products of f32), and a zero resolved by the sign the edge function takes when the origin
+/// moves by `(ε, ε²)`. `None` when the ray misses or lies in the triangle's plane.
+#[cold]
+#[inline(never)]
+fn edge_functions_exact(a: [f32; 2], b: [f32; 2], c: [f32; 2]) -> Option<(f32, f32, f32)> {
+    let ([ax, ay], [bx, by], [cx, cy]) = (a, b, c);
+    let ud = f64::from(cx) * f64::from(by) - f64::from(cy) * f64::from(bx);
+    let vd = f64::from(ax) * f64::from(cy) - f64::from(ay) * f64::from(cx);
+    let wd = f64::from(bx) * f64::from(ay) - f64::from(by) * f64::from(ax);
+    let s = if ud > 0.0 || vd > 0.0 || wd > 0.0 {
+        1.0
+    } else if ud < 0.0 || vd < 0.0 || wd < 0.0 {
+        -1.0
+    } else {
+        return None; // the ray lies in the triangle's plane
+    };
+    if ud * s < 0.0 || vd * s < 0.0 || wd * s < 0.0 {
+        return None;
+    }
+    // A zero edge function: the ray passes exactly through the edge's line. Decide by the
+    // sign the edge function takes when the origin moves by (ε, ε²).
+    let inside = |e: f64, px: f32, py: f32, qx: f32, qy: f32| -> bool {
+        if e != 0.0 {
+            return true;
+        }
+        let dy = qy - py;
+        let pert = if dy != 0.0 { dy } else { px - qx };
+        pert != 0.0 && (f64::from(pert) * s) > 0.0
+    };
+    if !inside(ud, bx, by, cx, cy) || !inside(vd, cx, cy, ax, ay) || !inside(wd, ax, ay, bx, by) {
+        return None;
+    }
+    Some((ud as f32, vd as f32, wd as f32))
 }
 
 /// Intersects `ray` (unit direction) with the triangle `(p0, p1, p2)`, accepting hits with
@@ -159,5 +185,5 @@ pub fn intersect_triangle(
     if !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO {
         return None;
     }
-    ShearedRay::new(ray).intersect(p0, p1, p2, t_max)
+    ShearedRay::new(ray).intersect(&TriangleSoa::new(p0, p1, p2), t_max)
 }

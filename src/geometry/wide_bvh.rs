@@ -35,10 +35,10 @@ const WIDTH: usize = 8;
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node8 {
-    /// Minima of the children's boxes: x, y, z (empty slots hold +∞).
-    lo: [[Vec4; 2]; 3],
-    /// Maxima (empty slots hold −∞).
-    hi: [[Vec4; 2]; 3],
+    /// Box planes of the children: minima x, y, z (empty slots hold +∞), then maxima x, y, z
+    /// (empty slots hold −∞). One array, so that a ray picks its near and far plane per axis
+    /// by index instead of by a branch.
+    planes: [[Vec4; 2]; 6],
     /// Child node index, or the first primitive of a leaf.
     child: [u32; WIDTH],
     /// Primitives of a leaf child (0 for an inner child or an empty slot).
@@ -48,8 +48,14 @@ struct Node8 {
 impl Node8 {
     fn empty() -> Self {
         Node8 {
-            lo: [[Vec4::splat(f32::INFINITY); 2]; 3],
-            hi: [[Vec4::splat(f32::NEG_INFINITY); 2]; 3],
+            planes: [
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+            ],
             child: [0; WIDTH],
             count: [0; WIDTH],
         }
@@ -63,8 +69,6 @@ pub struct WideBvh {
     nodes: Vec<Node8>,
     /// Original primitive index of each position.
     order: Vec<u32>,
-    /// A single leaf root (fewer primitives than make a node), or none.
-    root_leaf: Option<(u32, u32)>,
     depth: usize,
 }
 
@@ -82,8 +86,10 @@ struct SlabRay {
     o: [Vec4; 3],
     /// Capped reciprocal direction, splatted per axis.
     inv: [Vec4; 3],
-    /// Per axis: true when the direction is negative (near plane = box maximum).
-    neg: [bool; 3],
+    /// Per axis: index in [`Node8::planes`] of the plane the ray enters by (the maximum
+    /// when the direction is negative) and of the one it leaves by.
+    near: [usize; 3],
+    far: [usize; 3],
 }
 
 /// Reciprocal direction with magnitudes capped at 1e20 (sign kept, `-0` treated as `+0`),
@@ -114,7 +120,8 @@ impl SlabRay {
                 Vec4::splat(ray.o.z),
             ],
             inv: inv.map(Vec4::splat),
-            neg: [inv[0] < 0.0, inv[1] < 0.0, inv[2] < 0.0],
+            near: [0, 1, 2].map(|k| if inv[k] < 0.0 { k + 3 } else { k }),
+            far: [0, 1, 2].map(|k| if inv[k] < 0.0 { k } else { k + 3 }),
         }
     }
 
@@ -138,11 +145,8 @@ impl SlabRay {
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
         for k in 0..3 {
-            let (n, f) = if self.neg[k] {
-                (node.hi[k][h], node.lo[k][h])
-            } else {
-                (node.lo[k][h], node.hi[k][h])
-            };
+            let n = node.planes[self.near[k]][h];
+            let f = node.planes[self.far[k]][h];
             near = near.max((n - self.o[k]) * self.inv[k]);
             far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
         }
@@ -221,7 +225,15 @@ impl WideBvh {
         if counts[0] <= MAX_LEAF_PRIMITIVES {
             let first = out.order.len() as u32;
             collect_primitives(&bvh2, 0, &mut out.order);
-            out.root_leaf = Some((first, out.order.len() as u32 - first));
+            // One node with one leaf child whose box is all of space (always entered).
+            let mut node = Node8::empty();
+            for k in 0..3 {
+                node.planes[k][0][0] = f32::NEG_INFINITY;
+                node.planes[k + 3][0][0] = f32::INFINITY;
+            }
+            node.child[0] = first;
+            node.count[0] = out.order.len() as u32 - first;
+            out.nodes.push(node);
             out.depth = 1;
             return out;
         }
@@ -234,8 +246,8 @@ impl WideBvh {
             for (slot, &c) in children.iter().enumerate() {
                 let bb = bvh2.nodes[c].aabb;
                 for k in 0..3 {
-                    node.lo[k][slot / 4][slot % 4] = bb.min[k];
-                    node.hi[k][slot / 4][slot % 4] = bb.max[k];
+                    node.planes[k][slot / 4][slot % 4] = bb.min[k];
+                    node.planes[k + 3][slot / 4][slot % 4] = bb.max[k];
                 }
                 if counts[c] <= MAX_LEAF_PRIMITIVES {
                     let first = out.order.len() as u32;
@@ -272,29 +284,20 @@ impl WideBvh {
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
     #[inline]
     pub fn traverse(&self, ray: &Ray, mut t_max: f32, mut primitive: impl FnMut(u32, f32) -> f32) {
-        if let Some((first, count)) = self.root_leaf {
-            for i in first..first + count {
-                t_max = primitive(i, t_max);
-                if t_max <= 0.0 {
-                    return;
-                }
-            }
-            return;
-        }
         if self.nodes.is_empty() {
             return;
         }
         let slab = SlabRay::new(ray);
         let mut stack = Stack::new();
-        stack.push(Entry { node: 0, t: 0.0 });
-        while let Some(e) = stack.pop() {
-            if e.t > t_max {
-                continue;
-            }
-            let node = &self.nodes[e.node as usize];
+        let mut current = 0u32;
+        // Scratch for the children of the node visited (only entries below the counts are
+        // read), initialised once per ray.
+        let mut order = [(0usize, 0.0f32); WIDTH];
+        let mut inner = [Entry::default(); WIDTH];
+        loop {
+            let node = &self.nodes[current as usize];
             let (near, mut mask) = slab.test(node, t_max);
             // The entered children sorted by entry distance, nearest first.
-            let mut order = [(0usize, 0.0f32); WIDTH];
             let mut n = 0;
             while mask != 0 {
                 let slot = mask.trailing_zeros() as usize;
@@ -310,7 +313,6 @@ impl WideBvh {
             }
             // Leaves are intersected at once, nearest first (a hit shortens the ray for the
             // rest); inner children are pushed farthest first, so the nearest is visited next.
-            let mut inner = [Entry::default(); WIDTH];
             let mut m = 0;
             for &(slot, t) in &order[..n] {
                 if t > t_max {
@@ -333,8 +335,26 @@ impl WideBvh {
                     m += 1;
                 }
             }
-            for e in inner[..m].iter().rev() {
-                stack.push(*e);
+            // The nearest inner child is visited next; the others wait, farthest deepest.
+            if m > 0 {
+                for e in inner[1..m].iter().rev() {
+                    stack.push(*e);
+                }
+                // (A leaf after it may have shortened the ray.)
+                if !(inner[0].t > t_max) {
+                    current = inner[0].node;
+                    continue;
+                }
+            }
+            loop {
+                match stack.pop() {
+                    None => return,
+                    Some(e) if !(e.t > t_max) => {
+                        current = e.node;
+                        break;
+                    }
+                    Some(_) => {}
+                }
             }
         }
     }
@@ -405,4 +425,81 @@ fn open_children(bvh2: &Bvh2, i: usize, counts: &[u32]) -> Vec<usize> {
         children.push(f + 1);
     }
     children
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (tests only).
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn vec(&mut self) -> Vec3 {
+            Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE
+        }
+    }
+
+    /// Entry and exit of the ray through a box in f64, or `None`.
+    fn slab(ray: &Ray, lo: Vec3, hi: Vec3) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for k in 0..3 {
+            let (o, d) = (f64::from(ray.o[k]), f64::from(ray.d[k]));
+            let (a, b) = ((f64::from(lo[k]) - o) / d, (f64::from(hi[k]) - o) / d);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    #[test]
+    fn every_box_a_ray_crosses_is_visited_nearest_leaf_first_and_any_hit_stops() {
+        let mut rng = Lcg(3);
+        for n in [1usize, 2, 3, 9, 64, 2000] {
+            let boxes: Vec<(Vec3, Vec3)> = (0..n)
+                .map(|_| {
+                    let c = rng.vec();
+                    let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.2;
+                    (c - e, c + e)
+                })
+                .collect();
+            let bvh = WideBvh::build(&boxes);
+            let mut seen = vec![false; n];
+            for &i in bvh.order() {
+                seen[i as usize] = true;
+            }
+            assert!(
+                seen.iter().all(|&s| s),
+                "order is a permutation ({n} boxes)"
+            );
+            for _ in 0..300 {
+                let ray = Ray::new(rng.vec() * 1.5, rng.vec().normalize_or(Vec3::X));
+                let mut visited = vec![false; n];
+                bvh.traverse(&ray, f32::INFINITY, |pos, t| {
+                    visited[bvh.order()[pos as usize] as usize] = true;
+                    t
+                });
+                for (i, b) in boxes.iter().enumerate() {
+                    if let Some((t0, t1)) = slab(&ray, b.0, b.1) {
+                        if t1 - t0 > 1e-4 {
+                            assert!(visited[i], "{n} boxes: box {i} crossed but not visited");
+                        }
+                    }
+                }
+                let mut calls = 0;
+                bvh.traverse(&ray, f32::INFINITY, |_, _| {
+                    calls += 1;
+                    0.0
+                });
+                assert!(calls <= 1, "an any-hit query continues after a hit");
+            }
+        }
+    }
 }
