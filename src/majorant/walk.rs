@@ -29,18 +29,18 @@ pub(super) struct WalkCell {
     pub lookup: f32,
 }
 
-/// One level's DDA state (64 bytes).
+/// One level's DDA state (48 bytes: the walk is moved by value, so the stack is kept small).
+/// The frame at stack depth `i` walks level `top − i` (each descent goes one level down), and
+/// the cells of its level inside the parent cell are `[lo, min(lo + 2, dims))` with
+/// `lo = cell & !1` (the parent's cell doubled), so neither is stored.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Frame {
-    pub level: u8,
-    pub done: bool,
-    pub cell: IVec3,
-    /// Cells `[lo, min(lo + 2, dims))` of this level lie inside the parent cell.
-    pub lo: IVec3,
     /// Distance at which the ray leaves the current cell across each axis.
     pub t_next: DVec3,
     /// Where the parent cell ends.
     pub t_end: f64,
+    pub cell: IVec3,
+    pub done: bool,
 }
 
 /// The ray's fixed DDA quantities in the pyramid's index space.
@@ -137,6 +137,8 @@ pub(super) struct Walk<'a> {
     model: LookupModel,
     stack: [Frame; MAX_LEVELS],
     depth: usize,
+    /// The pyramid's coarsest level (that of `stack[0]`).
+    top: usize,
     t: f64,
     t1: f64,
     /// The root emitted whole (no DDA needed).
@@ -176,6 +178,7 @@ impl<'a> Walk<'a> {
             model,
             stack: [Frame::default(); MAX_LEVELS],
             depth: 0,
+            top: 0,
             t: t0,
             t1,
             single: None,
@@ -218,14 +221,13 @@ impl<'a> Walk<'a> {
             }
         }
         walk.stack[0] = Frame {
-            level: top as u8,
-            cell,
-            lo: IVec3::ZERO,
             t_next,
             t_end: t1,
+            cell,
             done: false,
         };
         walk.depth = 1;
+        walk.top = top;
         walk
     }
 }
@@ -246,7 +248,7 @@ impl Iterator for Walk<'_> {
                 self.depth -= 1;
                 continue;
             }
-            let level = f.level as usize;
+            let level = self.top - (self.depth - 1);
             let cell = f.cell;
             let exits = f.t_next;
             let axis = if exits.x <= exits.y && exits.x <= exits.z {
@@ -260,8 +262,9 @@ impl Iterator for Walk<'_> {
             let t_exit = exits[axis].min(f.t_end).max(t);
             f.cell[axis] += step[axis];
             f.t_next[axis] += delta0[axis] * (1u64 << level) as f64;
-            let hi = (f.lo[axis] + 2).min(self.pyramid.levels[level].dims[axis]);
-            if f.cell[axis] < f.lo[axis] || f.cell[axis] >= hi || t_exit >= f.t_end {
+            let lo = cell[axis] & !1;
+            let hi = (lo + 2).min(self.pyramid.levels[level].dims[axis]);
+            if f.cell[axis] < lo || f.cell[axis] >= hi || t_exit >= f.t_end {
                 f.done = true;
             }
             if !(t_exit > t) {
@@ -285,11 +288,9 @@ impl Iterator for Walk<'_> {
                 let hi = (lo + IVec3::splat(2)).min(child.dims);
                 if c.cmpge(lo).all() && c.cmplt(hi).all() && self.depth < MAX_LEVELS {
                     self.stack[self.depth] = Frame {
-                        level: (level - 1) as u8,
-                        cell: c,
-                        lo,
                         t_next: c_next,
                         t_end: t_exit,
+                        cell: c,
                         done: false,
                     };
                     self.depth += 1;

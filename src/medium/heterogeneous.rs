@@ -158,11 +158,13 @@ impl HeterogeneousMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
-        let segments = self.segments_along(ray, 0.0, t_max);
+        // Made only where used, and passed by reference: the segment iterator holds the walk's
+        // DDA stack, which a move would copy.
+        let segments = || self.segments_along(ray, 0.0, t_max);
         let mut lookup = self.density_along(ray);
         let flight = match self.tracking.free_flight {
             FreeFlightMethod::DeltaTracking => delta_track(
-                segments,
+                &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
                 beta,
@@ -180,7 +182,7 @@ impl HeterogeneousMedium {
             ),
             // An open interior (no boundary ahead): delta tracking.
             FreeFlightMethod::Split => delta_track(
-                segments,
+                &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
                 beta,
@@ -188,7 +190,7 @@ impl HeterogeneousMedium {
                 stats,
             ),
             FreeFlightMethod::Decomposition => decomposition_track(
-                segments,
+                &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
                 beta,
@@ -196,7 +198,7 @@ impl HeterogeneousMedium {
                 stats,
             ),
             FreeFlightMethod::RayMarch { step } => ray_march_free_flight(
-                segments,
+                &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
                 step,
@@ -233,10 +235,10 @@ impl HeterogeneousMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
-        let segments = self.segments_along(ray, 0.0, t_max);
+        let mut segments = self.segments_along(ray, 0.0, t_max);
         let mut lookup = self.density_along(ray);
         transmittance(
-            segments,
+            &mut segments,
             &self.coefficients,
             |t| lookup.at(t),
             self.tracking.transmittance,
