@@ -7,78 +7,11 @@ mod common;
 use common::files::mesh_path;
 use rayon::prelude::*;
 use velour::geometry::{
-    intersect_box, intersect_sphere, intersect_triangle, load_ply, SceneGeometry, Shape,
+    icosphere, intersect_box, intersect_sphere, intersect_triangle, load_ply, SceneGeometry, Shape,
     TriangleMesh,
 };
 use velour::math::{offset_ray_origin, Mat4, Ray, Vec2, Vec3};
 use velour::sampling::{sample_uniform_sphere, Rng};
-
-/// Unit icosphere with `subdiv` subdivisions, outward winding.
-fn icosphere(subdiv: u32) -> TriangleMesh {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut pos: Vec<Vec3> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|v| Vec3::from_array(*v).normalize())
-    .collect();
-    let mut tris: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdiv {
-        let mut cache = std::collections::HashMap::new();
-        let mut mid = |a: u32, b: u32, pos: &mut Vec<Vec3>| -> u32 {
-            *cache.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                pos.push(((pos[a as usize] + pos[b as usize]) * 0.5).normalize());
-                (pos.len() - 1) as u32
-            })
-        };
-        let mut next = Vec::new();
-        for [a, b, c] in tris {
-            let ab = mid(a, b, &mut pos);
-            let bc = mid(b, c, &mut pos);
-            let ca = mid(c, a, &mut pos);
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        tris = next;
-    }
-    TriangleMesh {
-        positions: pos,
-        normals: None,
-        uvs: None,
-        indices: tris,
-    }
-}
 
 /// Torus around +z (major radius `r0`, minor `r1`), outward winding.
 fn torus(r0: f32, r1: f32, nu: u32, nv: u32) -> TriangleMesh {
