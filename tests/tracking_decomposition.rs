@@ -101,16 +101,7 @@ fn distances_follow_the_analytic_collision_density() {
         }
     }
     let cdf = |t: f32| 1.0 - (-(s as f64) * ramp_depth(t)).exp();
-    let mut chi2 = 0.0;
-    for (i, &c) in counts.iter().enumerate() {
-        let p = if i < bins {
-            cdf(L * (i + 1) as f32 / bins as f32) - cdf(L * i as f32 / bins as f32)
-        } else {
-            1.0 - cdf(L)
-        };
-        let e = p * n as f64;
-        chi2 += (c as f64 - e).powi(2) / e;
-    }
+    let chi2 = common::chi2::pearson_free_flight(&counts, L, cdf);
     // 20 degrees of freedom: P(χ² > 52.4) ≈ 1e-4.
     assert!(chi2 < 52.4, "chi2 = {chi2}, counts {counts:?}");
 }

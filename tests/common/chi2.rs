@@ -95,3 +95,23 @@ pub fn ln_gamma(x: f64) -> f64 {
     }
     0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
 }
+
+/// Pearson's statistic of free-flight distances binned over `[0, length)`: `counts[..bins]`
+/// are the scatters per equal-width bin and the last entry the escapes, against the
+/// distance CDF `cdf` (so `1 − cdf(length)` is the escape probability). The statistic has
+/// `counts.len() − 1` degrees of freedom.
+pub fn pearson_free_flight(counts: &[usize], length: f32, cdf: impl Fn(f32) -> f64) -> f64 {
+    let bins = counts.len() - 1;
+    let n: usize = counts.iter().sum();
+    let mut chi2 = 0.0;
+    for (i, &c) in counts.iter().enumerate() {
+        let p = if i < bins {
+            cdf(length * (i + 1) as f32 / bins as f32) - cdf(length * i as f32 / bins as f32)
+        } else {
+            1.0 - cdf(length)
+        };
+        let e = p * n as f64;
+        chi2 += (c as f64 - e).powi(2) / e;
+    }
+    chi2
+}
