@@ -840,7 +840,7 @@ pub fn error_map(
 // Distribution tails (standard special-function identities: Abramowitz & Stegun 6.5, 26.5).
 
 /// ln Γ(x) for x > 0 (Lanczos approximation, g = 7, 9 terms; ~1e-15 relative).
-fn ln_gamma(x: f64) -> f64 {
+pub fn ln_gamma(x: f64) -> f64 {
     const G: f64 = 7.0;
     const C: [f64; 9] = [
         0.999_999_999_999_809_9,
@@ -921,8 +921,9 @@ pub fn regularized_incomplete_beta(a: f64, b: f64, x: f64) -> f64 {
     }
 }
 
-/// Regularized upper incomplete gamma function Q(a, x), a > 0, x >= 0.
-fn gamma_q(a: f64, x: f64) -> f64 {
+/// Regularized upper incomplete gamma function Q(a, x), a > 0, x >= 0 (the chi-square upper
+/// tail is `Q(dof / 2, statistic / 2)`).
+pub fn gamma_q(a: f64, x: f64) -> f64 {
     if x <= 0.0 {
         return 1.0;
     }
