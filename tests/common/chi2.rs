@@ -6,6 +6,8 @@
 //! degree of freedom, under 1 % from ten on, so slightly lenient); use it for a plain
 //! `statistic < critical` acceptance test.
 
+use velour::image_io::compare::gamma_q;
+
 /// Upper-tail probability `P(X ≥ statistic)` of a chi-square variable with `dof` degrees of
 /// freedom: `Q(dof / 2, statistic / 2)`.
 pub fn p_value(statistic: f64, dof: usize) -> f64 {
@@ -21,8 +23,6 @@ pub fn critical_value_999(dof: f64) -> f64 {
     let a = 2.0 / (9.0 * dof);
     dof * (1.0 - a + z * a.sqrt()).powi(3)
 }
-
-use velour::image_io::compare::gamma_q;
 
 /// Pearson's statistic of free-flight distances binned over `[0, length)`: `counts[..bins]`
 /// are the scatters per equal-width bin and the last entry the escapes, against the
