@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 
-use super::walk::{Walk, WalkCell};
+use super::walk::{root_step, RootStep, Walk, WalkCell};
 use super::{Bounds, LookupModel, MajorantMode, MajorantPyramid, SEGMENT_COST};
 use crate::math::Ray;
 
@@ -180,6 +180,8 @@ impl<I: Iterator<Item = WalkCell>> Iterator for Merged<I> {
 /// The segments of one ray interval, in ray order: see [`MajorantPyramid::segments_along`].
 pub struct Segments<'a> {
     before: Option<MajorantSegment>,
+    /// The pyramid's root emitted whole: the walk is not prepared at all.
+    whole: Option<MajorantSegment>,
     walk: Option<Merged<Walk<'a>>>,
     after: Option<MajorantSegment>,
 }
@@ -189,6 +191,9 @@ impl Iterator for Segments<'_> {
 
     fn next(&mut self) -> Option<MajorantSegment> {
         if let Some(s) = self.before.take() {
+            return Some(s);
+        }
+        if let Some(s) = self.whole.take() {
             return Some(s);
         }
         if let Some(walk) = self.walk.as_mut() {
@@ -232,6 +237,7 @@ impl MajorantPyramid {
     ) -> Segments<'_> {
         let mut out = Segments {
             before: None,
+            whole: None,
             walk: None,
             after: None,
         };
@@ -261,8 +267,23 @@ impl MajorantPyramid {
                 let sigma_scale = sigma_scale.filter(|s| s.is_finite() && *s > 0.0);
                 let plan = sigma_scale.and_then(|s| self.plan_for(s, model));
                 let sigma = sigma_scale.map(f64::from);
-                let walk = Walk::new(self, a as f64, c as f64, o, d, finest, sigma, plan, model);
-                out.walk = Some(Merged::new(walk, sigma, self.exact, model));
+                let (t0, t1) = (f64::from(a), f64::from(c));
+                match root_step(self, t0, t1, d, finest, sigma, plan, model) {
+                    RootStep::Empty => {}
+                    // What the merge adapter makes of a walk that emits only its root.
+                    RootStep::Whole(cell) => {
+                        out.whole = Some(MajorantSegment::new(
+                            cell.t0 as f32,
+                            cell.t1 as f32,
+                            cell.bounds,
+                            self.exact,
+                        ));
+                    }
+                    RootStep::Open => {
+                        let walk = Walk::new(self, t0, t1, o, d, finest, sigma, plan, model);
+                        out.walk = Some(Merged::new(walk, sigma, self.exact, model));
+                    }
+                }
                 out.after = self.background_segment(c, t_max);
             }
         }

@@ -141,14 +141,73 @@ pub(super) struct Walk<'a> {
     top: usize,
     t: f64,
     t1: f64,
-    /// The root emitted whole (no DDA needed).
-    single: Option<WalkCell>,
+}
+
+/// What the walk does at the pyramid's root for one ray.
+pub(super) enum RootStep {
+    /// The root is empty: no cells.
+    Empty,
+    /// The root is emitted whole (no DDA needed).
+    Whole(WalkCell),
+    /// The root is opened: the walk descends.
+    Open,
+}
+
+/// The per-ray descent threshold of the adaptive walk: descending to the finest cells saves
+/// σ·Δt·(max − fine) lookups and costs one more segment per finest-cell boundary crossed,
+/// Δt·|d|₁/cell; both scale with Δt, so the test is `max − fine > threshold` with one threshold
+/// per ray (−∞ without `sigma`: the exhaustive walk always descends).
+fn descent_threshold(d: DVec3, cell0: f64, sigma: Option<f64>) -> f32 {
+    match sigma {
+        None => f32::NEG_INFINITY,
+        Some(s) => (SEGMENT_COST * d.abs().element_sum() / (cell0 * s)) as f32,
+    }
+}
+
+/// Decides the root of `pyramid` for the index-space direction `d` over `[t0, t1]`, as
+/// [`Walk::new`] does, without preparing the walk: callers emit a whole root directly.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn root_step(
+    pyramid: &MajorantPyramid,
+    t0: f64,
+    t1: f64,
+    d: DVec3,
+    finest: usize,
+    sigma: Option<f64>,
+    plan: Option<&WalkPlan>,
+    model: LookupModel,
+) -> RootStep {
+    let Some(top) = pyramid.levels.len().checked_sub(1) else {
+        return RootStep::Empty;
+    };
+    let root = &pyramid.levels[top];
+    let (rb, rf) = (root.cells[0], root.fine[0]);
+    if rb.is_empty() {
+        return RootStep::Empty;
+    }
+    let open_root = match plan {
+        Some(p) => p.open[top][0],
+        None => {
+            let cell0 = f64::from(pyramid.finest_cell_voxels());
+            rb.min != rb.max && rb.max - rf > descent_threshold(d, cell0, sigma)
+        }
+    };
+    if top <= finest || !open_root {
+        return RootStep::Whole(WalkCell {
+            t0,
+            t1,
+            bounds: rb,
+            lookup: pyramid.lookup_density(&rb, model),
+        });
+    }
+    RootStep::Open
 }
 
 impl<'a> Walk<'a> {
-    /// Prepares the walk of the index-space ray `o + t d` over `[t0, t1]`. `sigma` is the
-    /// medium's extinction per unit density for the adaptive walk (`None`: exhaustive), `plan`
-    /// its cells to open (else a single threshold per ray decides).
+    /// Prepares the walk of the index-space ray `o + t d` over `[t0, t1]` below an opened root
+    /// (the caller asked [`root_step`] first, and emits a whole or empty root itself). `sigma`
+    /// is the medium's extinction per unit density for the adaptive walk (`None`:
+    /// exhaustive), `plan` its cells to open (else a single threshold per ray decides).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         pyramid: &'a MajorantPyramid,
@@ -167,13 +226,7 @@ impl<'a> Walk<'a> {
             pyramid,
             ray: RaySetup::new(o, d, base, cell0),
             finest,
-            // Descending to the finest cells saves σ·Δt·(max − fine) lookups and costs one more
-            // segment per finest-cell boundary crossed, Δt·|d|₁/cell: both scale with Δt, so
-            // the test is `max − fine > threshold` with one threshold per ray.
-            threshold: match sigma {
-                None => f32::NEG_INFINITY,
-                Some(s) => (SEGMENT_COST * d.abs().element_sum() / (cell0 * s)) as f32,
-            },
+            threshold: descent_threshold(d, cell0, sigma),
             plan,
             model,
             stack: [Frame::default(); MAX_LEVELS],
@@ -181,30 +234,11 @@ impl<'a> Walk<'a> {
             top: 0,
             t: t0,
             t1,
-            single: None,
         };
         let Some(top) = pyramid.levels.len().checked_sub(1) else {
             return walk;
         };
-        // The root is one cell over the whole box: emitted whole, no DDA is needed.
         let root = &pyramid.levels[top];
-        let (rb, rf) = (root.cells[0], root.fine[0]);
-        if rb.is_empty() {
-            return walk;
-        }
-        let open_root = match plan {
-            Some(p) => p.open[top][0],
-            None => rb.min != rb.max && rb.max - rf > walk.threshold,
-        };
-        if top <= finest || !open_root {
-            walk.single = Some(WalkCell {
-                t0,
-                t1,
-                bounds: rb,
-                lookup: pyramid.lookup_density(&rb, model),
-            });
-            return walk;
-        }
         let r = &walk.ray;
         let size = cell0 * (1u64 << top) as f64;
         let p = o + d * (t0 + (t1 - t0) * 1e-6);
@@ -236,9 +270,6 @@ impl Iterator for Walk<'_> {
     type Item = WalkCell;
 
     fn next(&mut self) -> Option<WalkCell> {
-        if let Some(cell) = self.single.take() {
-            return Some(cell);
-        }
         let step = self.ray.step;
         let delta0 = self.ray.delta0;
         while self.depth > 0 {
