@@ -42,6 +42,15 @@ use crate::spectrum::Rgb;
 /// Probability of the uniform-sphere component of the direction mixture.
 const DEFENSIVE: f32 = 0.1;
 
+/// Russian roulette on the connection (after the probe): it is made with probability
+/// `clamp(T(x, probe exit) / ROULETTE_TRANSMITTANCE, ROULETTE_MIN, 1)` (max over channels),
+/// and weighted by the inverse. Deep vertices, whose connections carry almost nothing, then
+/// rarely pay for the connection and shadow rays.
+const ROULETTE_TRANSMITTANCE: f32 = 0.1;
+
+/// Lowest connection probability of the roulette (also used when the probe finds no exit).
+const ROULETTE_MIN: f32 = 0.05;
+
 /// Uniform solid-angle density on the sphere.
 const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * std::f32::consts::PI);
 
@@ -80,6 +89,7 @@ pub(super) fn guided_connection(
     let u_mix = sampler.next_1d();
     let u_lobe = sampler.next_1d();
     let u_m = sampler.next_2d();
+    let u_rr = sampler.next_1d();
     let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
@@ -94,11 +104,26 @@ pub(super) fn guided_connection(
 
     // The probe: the boundary normal where x + t u leaves the interior frames the lobe.
     stats.rays += 1;
-    let frame0 = scene
+    let probe = scene
         .geometry
         .intersect(&Ray::new(x, u), f32::INFINITY)
-        .filter(|h| leaves_through(scene, &stack, oi, h, u))
-        .map(|h| Frame::from_normal(h.ns));
+        .filter(|h| leaves_through(scene, &stack, oi, h, u));
+    let frame0 = probe.as_ref().map(|h| Frame::from_normal(h.ns));
+    let q = match &probe {
+        Some(h) => {
+            let tr = medium.transmittance(
+                &Ray::new(x, u),
+                h.t,
+                &mut || sampler.next_1d(),
+                &mut stats.tracking,
+            );
+            (tr.max_component() / ROULETTE_TRANSMITTANCE).clamp(ROULETTE_MIN, 1.0)
+        }
+        None => ROULETTE_MIN,
+    };
+    if !(u_rr < q) {
+        return Rgb::ZERO;
+    }
 
     // The inside direction d (x → boundary), from the mixture.
     let d = match frame0 {
@@ -208,5 +233,5 @@ pub(super) fn guided_connection(
         let q_walk = ph_pdf * surface.pdf(wo_local, wl_local);
         power_heuristic(q_connect, q_walk)
     };
-    ph * tr_medium * f * tr_shadow * ls.radiance * (w * jacobian / (p_sel * ls.pdf * p_d))
+    ph * tr_medium * f * tr_shadow * ls.radiance * (w * jacobian / (q * p_sel * ls.pdf * p_d))
 }
