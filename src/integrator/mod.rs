@@ -2,7 +2,9 @@
 //! microfacet boundary into an interior, free-flight sampling with the RGB channel chosen by
 //! throughput and one-sample MIS over channels (docs/references.md §4.6), phase-function sampling, and
 //! next event estimation either at boundary (exit-point) vertices or at every interior vertex
-//! with transparent shadows (notes §2.3.3), combined with BSDF/phase sampling by MIS.
+//! with transparent shadows (notes §2.3.3), combined with BSDF/phase sampling by MIS; or, for
+//! `nee = "exit_guided"`, guided connections from interior vertices through a rough boundary
+//! (`connect.rs`) MIS-combined with BTDF sampling at the exit.
 //!
 //! Nested and overlapping interiors are resolved with an interior stack and priorities
 //! (Schmidt & Budge 2002, "Simple Nested Dielectrics in Ray Traced Images"): a boundary of an
