@@ -21,7 +21,8 @@ pub(super) enum ShadowMode {
 
 /// Transmittance from `origin` along unit `dir` over `distance` (∞ for distant lights), through
 /// media and boundaries. `ignore_shape` is the light's own shape (never an occluder).
-fn shadow_transmittance(
+#[allow(clippy::too_many_arguments)]
+pub(super) fn shadow_transmittance(
     scene: &Scene,
     mut origin: Vec3,
     dir: Vec3,
@@ -106,6 +107,24 @@ pub(super) struct PrevVertex {
     pub pdf: f32,
     /// True when that vertex did NEE (so light hits must be MIS-weighted against it).
     pub did_nee: bool,
+    /// For an exit vertex reached straight from an `exit_guided` interior vertex (and left
+    /// by transmission): that interior vertex's position and its phase pdf of the direction
+    /// to this vertex; light hits are then MIS-weighted against the guided connection
+    /// ([`super::connect`]) instead of exit-point NEE. `None` otherwise.
+    pub guided: Option<GuidedPrev>,
+}
+
+/// What a light hit needs to weight itself against the guided connection that could have
+/// produced the same path ([`super::connect::guided_connection`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct GuidedPrev {
+    /// The interior vertex the connection starts from.
+    pub x: Vec3,
+    /// Its phase-function pdf of the direction to the exit vertex.
+    pub phase_pdf: f32,
+    /// The boundary's pdf of sampling the inside direction from the light direction
+    /// (`Surface::pdf(wi, wo)`, the connection's direction strategy).
+    pub reverse_pdf: f32,
 }
 
 /// Next event estimation from a point: picks a light, traces a shadow ray, returns the
@@ -177,19 +196,37 @@ pub(super) fn emitted(
     scene: &Scene,
     dir: Vec3,
     prev: &PrevVertex,
-    sphere_light: Option<usize>,
+    sphere_light: Option<(usize, Vec3)>,
 ) -> Rgb {
-    let weight = |li: usize| -> f32 {
+    let weight = |li: usize, light_point: Option<Vec3>| -> f32 {
         if !prev.did_nee {
             return 1.0;
         }
-        let light_pdf = scene.light_sampler.probability(li) * scene.lights[li].pdf_li(prev.p, dir);
-        power_heuristic(prev.pdf, light_pdf)
+        let light = &scene.lights[li];
+        let light_pdf = scene.light_sampler.probability(li) * light.pdf_li(prev.p, dir);
+        match prev.guided {
+            None => power_heuristic(prev.pdf, light_pdf),
+            Some(g) => {
+                // The guided connection samples sphere-light points visible from x only.
+                let seen_from_x = match (light, light_point) {
+                    (crate::light::Light::Sphere { center, .. }, Some(l)) => {
+                        (l - *center).dot(g.x - l) > 0.0
+                    }
+                    _ => true,
+                };
+                let q_connect = if seen_from_x {
+                    light_pdf * g.reverse_pdf
+                } else {
+                    0.0
+                };
+                power_heuristic(g.phase_pdf * prev.pdf, q_connect)
+            }
+        }
     };
     match sphere_light {
-        Some(li) => {
+        Some((li, point)) => {
             if let crate::light::Light::Sphere { radiance, .. } = &scene.lights[li] {
-                *radiance * weight(li)
+                *radiance * weight(li, Some(point))
             } else {
                 Rgb::ZERO
             }
@@ -200,7 +237,7 @@ pub(super) fn emitted(
                 if light.is_infinite() {
                     let le = light.escaped_radiance(dir);
                     if !le.is_black() {
-                        l += le * weight(li);
+                        l += le * weight(li, None);
                     }
                 }
             }

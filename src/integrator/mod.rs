@@ -2,13 +2,16 @@
 //! microfacet boundary into an interior, free-flight sampling with the RGB channel chosen by
 //! throughput and one-sample MIS over channels (docs/references.md §4.6), phase-function sampling, and
 //! next event estimation either at boundary (exit-point) vertices or at every interior vertex
-//! with transparent shadows (notes §2.3.3), combined with BSDF/phase sampling by MIS.
+//! with transparent shadows (notes §2.3.3), combined with BSDF/phase sampling by MIS; or, for
+//! `nee = "exit_guided"`, guided connections from interior vertices through a rough boundary
+//! (`connect.rs`) MIS-combined with BTDF sampling at the exit.
 //!
 //! Nested and overlapping interiors are resolved with an interior stack and priorities
 //! (Schmidt & Budge 2002, "Simple Nested Dielectrics in Ray Traced Images"): a boundary of an
 //! object whose priority is lower than the current interior's is a *false* intersection that
 //! only updates the stack, so overlapping objects are never counted twice.
 
+mod connect;
 mod direct;
 mod interiors;
 
@@ -20,7 +23,7 @@ use interiors::{boundary_surface, current_medium, is_false_intersection};
 use crate::bsdf::Surface;
 use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
-use crate::medium::{NeeStrategy, ScatterVertex};
+use crate::medium::{Medium, NeeStrategy, ScatterVertex};
 use crate::sampling::PixelSampler;
 use crate::scene::{Object, ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -127,6 +130,10 @@ struct PathState {
     aov: Option<Aov>,
     /// Null and false boundary crossings, bounded so that a degenerate scene cannot loop.
     crossings: u32,
+    /// The object whose `exit_guided` interior vertex (a guided connection was made there)
+    /// the ray now leaves, with that vertex's phase pdf of the ray direction; cleared by any
+    /// boundary.
+    guided_from: Option<u32>,
 }
 
 fn radiance(
@@ -172,9 +179,11 @@ impl PathState {
                 p: ray.o,
                 pdf: 0.0,
                 did_nee: false,
+                guided: None,
             },
             aov: None,
             crossings: 0,
+            guided_from: None,
         }
     }
 
@@ -210,7 +219,7 @@ impl PathState {
         }
         self.beta *= event.weight;
         let step = match event.scatter {
-            Some(vertex) => self.scatter_in_medium(scene, obj, &vertex, sampler, stats),
+            Some(vertex) => self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats),
             None if self.beta.is_black() => Step::Stop,
             None => Step::Boundary,
         };
@@ -222,6 +231,7 @@ impl PathState {
     fn scatter_in_medium(
         &mut self,
         scene: &Scene,
+        medium: &Medium,
         obj: &Object,
         vertex: &ScatterVertex<'_>,
         sampler: &mut PixelSampler,
@@ -249,6 +259,16 @@ impl PathState {
                     stats,
                 );
         }
+        self.guided_from = None;
+        if obj.nee == NeeStrategy::ExitGuided && self.depth + 1 < scene.film.max_depth {
+            if let Some(oi) = self.stack.top(&scene.objects, None) {
+                self.radiance += self.beta
+                    * connect::guided_connection(
+                        scene, oi, medium, p, &phase, self.stack, sampler, stats,
+                    );
+                self.guided_from = Some(oi);
+            }
+        }
         let Some(s) = phase.sample(sampler) else {
             return Step::Stop;
         };
@@ -257,6 +277,7 @@ impl PathState {
             p,
             pdf: s.pdf,
             did_nee: interior_nee,
+            guided: None,
         };
         self.ray = Ray::new(p, s.wi);
         self.continue_with_roulette(sampler)
@@ -284,19 +305,22 @@ impl PathState {
         };
         let obj = &scene.objects[oi as usize];
         let entering = self.ray.d.dot(hit.ng) < 0.0;
+        let guided_from = self.guided_from.take();
         if obj.surface.transmits()
             && (is_false_intersection(scene, &self.stack, oi, entering)
                 || matches!(obj.surface, ObjectSurface::Null))
         {
             return self.cross_boundary(scene, hit, oi, entering);
         }
-        self.surface_interaction(scene, hit, oi, entering, sampler, stats)
+        let guided = guided_from == Some(oi) && !entering;
+        self.surface_interaction(scene, hit, oi, entering, guided, sampler, stats)
     }
 
     /// 3. Sphere lights are emitters only.
     fn hit_light(&mut self, scene: &Scene, hit: &Hit, light: usize) {
         if self.ray.d.dot(hit.ng) < 0.0 {
-            self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, Some(light));
+            self.radiance +=
+                self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)));
         }
         if self.aov.is_none() {
             self.aov = Some((Rgb::ZERO, hit.ns, hit.t));
@@ -327,6 +351,7 @@ impl PathState {
         hit: &Hit,
         oi: u32,
         entering: bool,
+        guided: bool,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
     ) -> Step {
@@ -358,7 +383,10 @@ impl PathState {
         let from_interior_nee =
             !entering && transmits && obj.nee == NeeStrategy::Interior && obj.medium.is_some();
         let do_nee = !surface.is_delta() && !from_interior_nee;
-        if do_nee {
+        // Straight from an `exit_guided` interior vertex: the guided connection made there
+        // replaces exit-point NEE here (BTDF sampling below is MIS-weighted against it).
+        let guided = guided && do_nee;
+        if do_nee && !guided {
             let at = SurfaceVertex {
                 hit,
                 oi,
@@ -396,10 +424,20 @@ impl PathState {
             }
         }
         if !(bs.is_delta || from_interior_nee) {
+            let guided_prev = (guided && bs.is_transmission).then(|| direct::GuidedPrev {
+                x: self.prev.p,
+                phase_pdf: self.prev.pdf,
+                reverse_pdf: surface.pdf(bs.wi, wo_local),
+            });
             self.prev = PrevVertex {
                 p: hit.p,
                 pdf: bs.pdf,
-                did_nee: do_nee,
+                did_nee: if guided {
+                    guided_prev.is_some()
+                } else {
+                    do_nee
+                },
+                guided: guided_prev,
             };
         } else if bs.is_delta && !from_interior_nee {
             self.prev.did_nee = false;

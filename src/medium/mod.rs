@@ -36,6 +36,11 @@ pub enum NeeStrategy {
     /// At every interior scattering vertex, with transparent shadows through the boundaries:
     /// for less dense media (liquids). Biased where the boundary refracts (notes §2.3.3).
     Interior,
+    /// Exit-point NEE, plus a guided connection from every interior scattering vertex through
+    /// the rough boundary to a light (docs/choosing-estimators.md, `src/integrator/connect.rs`):
+    /// for dense media behind a rough dielectric lit by small lights, where the BTDF lobe
+    /// makes exit-point NEE noisy. Unbiased; MIS-combined with BTDF sampling at the exit.
+    ExitGuided,
 }
 
 /// A homogeneous scattering medium.

@@ -127,7 +127,7 @@ impl ObjectList {
         // vertices, where transparent shadows through such a boundary are exact.
         let index_matched = matches!(&surface, ObjectSurface::Null)
             || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
-        let nee = if medium.is_some() && index_matched && nee == NeeStrategy::ExitPoint {
+        let nee = if medium.is_some() && index_matched && nee != NeeStrategy::Interior {
             if desc
                 .interior
                 .as_ref()

@@ -134,9 +134,10 @@ fn extinction_and_nee(
     let nee = match nee.unwrap_or("exit") {
         "exit" => NeeStrategy::ExitPoint,
         "interior" => NeeStrategy::Interior,
+        "exit_guided" => NeeStrategy::ExitGuided,
         other => {
             return Err(at.invalid(format!(
-                "{}: interior.nee = \"{other}\" is unknown (expected \"exit\" or \"interior\")",
+                "{}: interior.nee = \"{other}\" is unknown (expected \"exit\", \"exit_guided\" or \"interior\")",
                 at.name
             )))
         }

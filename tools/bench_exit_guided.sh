@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# nee = "exit" against nee = "exit_guided" (docs/choosing-estimators.md): for each scene, two
+# renders at seeds 11 and 12, the rel. MSE between them (`velour diff --json`), the CPU time
+# (user + sys) per render, and the efficiency 1/(rel. MSE x CPU s).
+#
+#   tools/bench_exit_guided.sh [VELOUR_BINARY]    # default: target/release/velour
+#
+# Scenes: the reproducer (a dense r = 1 sphere behind a roughness-0.3 dielectric under a 1° sun),
+# scenes/skin_sphere.toml, and tools/peers/bench/skin_icosphere.toml (its mesh generated here).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bin=$(realpath "${1:-target/release/velour}")
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+cat >"$out/repro_exit.toml" <<'TOML'
+[camera]
+eye = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 24
+[film]
+width = 64
+height = 64
+spp = 16
+max_depth = 1000
+[[light]]
+type = "distant"
+direction = [-0.6, 0.8, 0.5]
+irradiance = [4.0, 4.0, 4.0]
+angular_radius = 1.0
+[[object]]
+name = "skin"
+shape = "sphere"
+radius = 1.0
+surface = { type = "dielectric", ior = 1.4, roughness = 0.3 }
+interior = { type = "homogeneous", albedo = 0.95, albedo_mode = "single", density = 20.0, nee = "exit" }
+TOML
+sed "s#meshes/#$PWD/scenes/meshes/#" scenes/skin_sphere.toml >"$out/skin_exit.toml"
+python3 tools/peers/make_icosphere.py --subdivisions 5 "$out/ico.ply" >/dev/null
+sed "s#../generated/icosphere_20k.ply#$out/ico.ply#" tools/peers/bench/skin_icosphere.toml >"$out/ico_exit.toml"
+for s in repro skin ico; do
+  sed 's/nee = "exit"/nee = "exit_guided"/' "$out/${s}_exit.toml" >"$out/${s}_guided.toml"
+done
+cat /proc/loadavg
+for s in "repro 16" "skin 8" "ico 4"; do
+  set -- $s
+  for nee in exit guided; do
+    cpu=()
+    for seed in 11 12; do
+      t=$( { /usr/bin/time -f "%U %S" "$bin" render "$out/${1}_$nee.toml" -q --spp "$2" --seed $seed \
+        --checkpoint 100000 -o "$out/$seed.exr" >/dev/null; } 2>&1 | tail -1)
+      cpu+=("$(echo "$t" | awk '{print $1 + $2}')")
+    done
+    rel=$("$bin" diff --json "$out/11.exr" "$out/12.exr" | grep -m1 '"rel_mse"' | sed 's/.*: *//; s/,//')
+    awk -v s="$1" -v n="$nee" -v a="${cpu[0]}" -v b="${cpu[1]}" -v r="$rel" \
+      'BEGIN { c = (a + b) / 2; printf "%-6s %-7s cpu %.2f s  rel_mse %.4g  efficiency %.4g\n", s, n, c, r, 1 / (r * c) }'
+  done
+done
+cat /proc/loadavg
