@@ -33,6 +33,8 @@ import tomllib
 
 import numpy as np
 
+from velour_transforms import object_matrix
+
 
 class Unsupported(Exception):
     """A velour feature without a faithful Cycles equivalent in this translator."""
@@ -44,26 +46,6 @@ def colour(v, default):
     if isinstance(v, (int, float)):
         return [float(v)] * 3
     return [float(x) for x in v]
-
-
-def rot_matrix(deg):
-    """velour's rotation: about x, then y, then z (R = Rz Ry Rx), angles in degrees."""
-    rx, ry, rz = (math.radians(a) for a in deg)
-    cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
-    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
-
-def object_matrix(o):
-    t = np.array(o.get("translate", [0, 0, 0]), dtype=float)
-    s = o.get("scale", 1.0)
-    s = np.array([s] * 3 if isinstance(s, (int, float)) else s, dtype=float)
-    m = np.eye(4)
-    m[:3, :3] = rot_matrix(o.get("rotate", [0, 0, 0])) @ np.diag(s)
-    m[:3, 3] = t
-    return m
 
 
 def read_ply(path):
@@ -268,7 +250,7 @@ def build(scene_path, width, height, threads, max_depth):
         raise Unsupported("nested interiors with priorities")
     for k, o in enumerate(s.get("object", [])):
         name = o.get("name", f"object {k}")
-        m = object_matrix(o)
+        m, _ = object_matrix(o)
         interior = o.get("interior")
         mat = bpy.data.materials.new(f"material{k}")
         mat.use_nodes = True

@@ -25,16 +25,7 @@ import sys
 
 import numpy as np
 
-
-def affine(transform):
-    o = np.array(transform.indexToWorld((0, 0, 0)), dtype=float)
-    m = np.eye(4)
-    for a in range(3):
-        e = [0, 0, 0]
-        e[a] = 1
-        m[:3, a] = np.array(transform.indexToWorld(tuple(e)), dtype=float) - o
-    m[:3, 3] = o
-    return m
+from velour_transforms import index_to_world
 
 
 def trilinear_dense(dense, p):
@@ -106,7 +97,7 @@ def main():
         block = block.astype(np.float32)
         fine_grid.copyFromArray(block, ijk=tuple(int(v) for v in (lo[0] * f, lo[1] * f, (lo[2] + z) * f)), tolerance=0.0)
         z = z1
-    m = affine(grid.transform)
+    m = index_to_world(grid.transform)
     mf = m.copy()
     mf[:3, :3] = m[:3, :3] / f
     fine_grid.transform = vdb.createLinearTransform(mf.T.tolist())

@@ -41,16 +41,7 @@ import sys
 import numpy as np
 import pyopenvdb as vdb
 
-
-def affine(transform):
-    o = np.array(transform.indexToWorld((0, 0, 0)), dtype=float)
-    m = np.eye(4)
-    for a in range(3):
-        e = [0, 0, 0]
-        e[a] = 1
-        m[:3, a] = np.array(transform.indexToWorld(tuple(e)), dtype=float) - o
-    m[:3, 3] = o
-    return m
+from velour_transforms import index_to_world
 
 
 def trilinear(acc, p):
@@ -114,7 +105,7 @@ def main():
         data = zyx[..., None]
         channels = 1
     data = np.ascontiguousarray(data, dtype="<f4")
-    m = affine(grid.transform)
+    m = index_to_world(grid.transform)
     # Bounding box header: the world box of the stored cells (informative: Mitsuba ignores it
     # unless use_grid_bbox is set, and it cannot express a rotated grid; compare.py passes
     # to_world instead).
