@@ -6,6 +6,8 @@ pub mod convert;
 pub mod diff;
 pub mod inspect;
 pub mod majorants;
+pub mod merge;
+pub mod metadata;
 pub mod reference;
 pub mod render;
 pub mod tradeoff;

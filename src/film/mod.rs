@@ -454,16 +454,19 @@ impl Film {
         Ok(film)
     }
 
-    /// Adds every pixel of `other` (a film of the same size) to this one: exact, so merging
-    /// parts in any order gives the same bits.
-    pub fn merge_film(&mut self, other: &Film) -> Result<(), FilmError> {
-        if (other.width, other.height) != (self.width, self.height) {
+    /// Adds every pixel of `other`, a band of this film's width whose first row is `row0`
+    /// here, to this film: exact, so merging parts in any order gives the same bits.
+    pub fn merge_rows(&mut self, other: &Film, row0: u32) -> Result<(), FilmError> {
+        if other.width != self.width
+            || u64::from(row0) + u64::from(other.height) > u64::from(self.height)
+        {
             return Err(FilmError::Restore(format!(
-                "a {}x{} film cannot be merged into a {}x{} one",
+                "a {}x{} band at row {row0} does not fit in a {}x{} film",
                 other.width, other.height, self.width, self.height
             )));
         }
-        for (a, b) in self.pixels.iter_mut().zip(&other.pixels) {
+        let start = row0 as usize * self.width as usize;
+        for (a, b) in self.pixels[start..].iter_mut().zip(&other.pixels) {
             a.merge(b);
         }
         self.dropped += other.dropped;

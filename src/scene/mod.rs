@@ -208,6 +208,9 @@ pub struct Scene {
     pub notes: Vec<String>,
     /// Where the scene came from.
     pub source: PathBuf,
+    /// The files the scene file names (meshes, grids, images), in the order they were resolved:
+    /// with the scene file, what its content hash covers.
+    pub inputs: Vec<PathBuf>,
 }
 
 impl Scene {
