@@ -221,12 +221,69 @@ pub struct BudgetOptions {
     /// Absolute index of the first sample of this render in every pixel (a sample range
     /// `A..B` renders from `A`).
     pub first_sample: u32,
-    /// A film to continue (from a checkpoint): it holds the first `resume_done` samples.
-    pub resume: Option<(Film, u32)>,
+    /// A render to continue (from a checkpoint, see [`Resume::from_image`]).
+    pub resume: Option<Resume>,
     /// Set from a signal handler: the pass in flight is abandoned, a checkpoint written and
     /// [`RenderError::Interrupted`] returned.
     pub stop: Option<Arc<AtomicBool>>,
+    /// Adaptive sampling: pixels stop once converged (the budget is then the maximum).
+    pub adaptive: Option<Adaptive>,
+    /// Wall-clock limit in seconds, on top of the budget: no pass starts that is predicted to
+    /// end after it.
+    pub time_limit: Option<f64>,
 }
+
+/// What a checkpoint holds: the exact film, the samples per pixel finished, and (adaptive
+/// sampling) which pixels were still taking samples.
+#[derive(Clone, Debug)]
+pub struct Resume {
+    /// The film so far.
+    pub film: Film,
+    /// Samples per pixel finished (of this render's range).
+    pub done: u32,
+    /// Adaptive sampling's mask of pixels still sampling, row-major over the film.
+    pub active: Option<Vec<bool>>,
+}
+
+/// Name of the `UINT` checkpoint channel holding adaptive sampling's mask (1 = still sampling).
+pub const ACTIVE_CHANNEL: &str = "state.active";
+
+impl Resume {
+    /// Reads a checkpoint image: its exact film state, `velour:done`, and the adaptive mask
+    /// when present.
+    pub fn from_image(img: &crate::image_io::ExrImage) -> Result<Resume, String> {
+        let done = img
+            .attributes
+            .get("velour:done")
+            .and_then(|d| d.parse().ok())
+            .ok_or_else(|| "attribute velour:done is missing".to_string())?;
+        let film = Film::from_exr_image(img).map_err(|e| e.to_string())?;
+        let active = match img.uint_channels.get(ACTIVE_CHANNEL) {
+            Some(v) if v.len() == img.pixel_count() => Some(v.iter().map(|&a| a != 0).collect()),
+            Some(_) => return Err(format!("channel {ACTIVE_CHANNEL} has the wrong length")),
+            None => None,
+        };
+        Ok(Resume { film, done, active })
+    }
+}
+
+/// Adaptive sampling (`--noise-threshold`): after every pass, a pixel with at least `min_spp`
+/// samples stops when the standard error of its luminance mean, divided by
+/// max(luminance, 0.01), is below `threshold`. The standard error is bounded from above by
+/// Σ_c w_c·se_c (Rec. 709 weights w_c; exact when the channels are perfectly correlated), so the
+/// test is conservative. Stopping on a pixel's own samples is slightly biased (Kirk & Arvo
+/// 1991, "Unbiased sampling techniques for image synthesis"): a pixel whose first samples
+/// happen to agree stops early with them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Adaptive {
+    /// Relative standard error at which a pixel stops (> 0).
+    pub threshold: f64,
+    /// Samples every pixel takes before the test applies (≥ 2).
+    pub min_spp: u32,
+}
+
+/// Pass size while adaptive sampling is on: the convergence test runs every this many samples.
+const ADAPTIVE_BLOCK: u32 = 16;
 
 impl BudgetOptions {
     /// Options with the given budget, all cores, no progress, no checkpoints, the whole film
@@ -244,6 +301,8 @@ impl BudgetOptions {
             first_sample: 0,
             resume: None,
             stop: None,
+            adaptive: None,
+            time_limit: None,
         }
     }
 }
@@ -259,6 +318,22 @@ pub struct BudgetResult {
     pub spp: u32,
 }
 
+/// Whether pixel (`x`, `y`) of `film` has converged under `a` after `done` samples (see
+/// [`Adaptive`]).
+fn converged(film: &Film, x: u32, y: u32, done: u32, a: &Adaptive) -> bool {
+    if done < a.min_spp {
+        return false;
+    }
+    const W: [f64; 3] = [0.2126, 0.7152, 0.0722];
+    let mean = film.mean(x, y);
+    let var = film.variance_of_mean(x, y);
+    let lum: f64 = (0..3).map(|c| W[c] * f64::from(mean.0[c])).sum();
+    let se: f64 = (0..3)
+        .map(|c| W[c] * f64::from(var.0[c]).max(0.0).sqrt())
+        .sum();
+    se / lum.abs().max(0.01) < a.threshold
+}
+
 /// Longest a sample pass is planned to take, so that a stop signal loses little work.
 const MAX_PASS_SECONDS: f64 = 5.0;
 
@@ -271,6 +346,7 @@ fn render_tile_pass(
     row0: u32,
     (s0, s1): (u32, u32),
     stop: Option<&AtomicBool>,
+    active: Option<(&[bool], u32)>,
 ) -> Option<TraceStats> {
     tile.clear();
     let mut stats = TraceStats::default();
@@ -280,6 +356,15 @@ fn render_tile_pass(
         }
         let film_y = y + row0;
         for x in tile.x0()..tile.x0() + tile.width() {
+            if let Some((mask, width)) = active {
+                if !mask
+                    .get(y as usize * width as usize + x as usize)
+                    .copied()
+                    .unwrap_or(false)
+                {
+                    continue;
+                }
+            }
             for s in s0..s1 {
                 let mut sampler = PixelSampler::new(seed, x, film_y, s);
                 let film_pos = Vec2::new(x as f32, film_y as f32) + sampler.next_2d();
@@ -339,8 +424,26 @@ pub fn write_state(
             })?;
         }
     }
-    crate::image_io::write_exr_owned(exr, film.to_state_image(attributes))
-        .map_err(crate::film::FilmError::from)?;
+    write_state_image(film.to_state_image(attributes), film, exr, exposure)
+}
+
+/// Writes a state image made from `film` (with extra channels, e.g. the adaptive mask) and the
+/// film's PNG preview.
+fn write_state_image(
+    img: crate::image_io::ExrImage,
+    film: &Film,
+    exr: &Path,
+    exposure: f32,
+) -> Result<(), RenderError> {
+    if let Some(dir) = exr.parent() {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).map_err(|source| RenderError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?;
+        }
+    }
+    crate::image_io::write_exr_owned(exr, img).map_err(crate::film::FilmError::from)?;
     film.write_png(&png_path_for(exr), exposure)?;
     Ok(())
 }
@@ -384,7 +487,7 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
     let threads = pool.current_num_threads();
     let band_height = rows.end - rows.start;
     let (mut film, mut done) = match &options.resume {
-        Some((film, done)) => {
+        Some(Resume { film, done, .. }) => {
             if (film.width(), film.height()) != (scene.film.width, band_height) {
                 return Err(RenderError::BadRegion(format!(
                     "the film to resume is {}x{}, the region is {}x{}",
@@ -421,11 +524,37 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
     let mut stats = TraceStats::default();
     let mut pass_size = 1u32;
     let stop = options.stop.as_deref();
-    let checkpoint = |film: &Film, done: u32| -> Result<(), RenderError> {
+    let width = scene.film.width;
+    // Adaptive sampling: which pixels still take samples (restored from a checkpoint).
+    let pixels = width as usize * band_height as usize;
+    let mut active: Option<Vec<bool>> = match (&options.adaptive, &options.resume) {
+        (None, _) => None,
+        (
+            Some(_),
+            Some(Resume {
+                active: Some(m), ..
+            }),
+        ) if m.len() == pixels => Some(m.clone()),
+        (Some(_), Some(Resume { active: _, .. })) if done > 0 => {
+            return Err(RenderError::BadRegion(
+                "the checkpoint has no adaptive-sampling mask (it was not an adaptive render)"
+                    .to_string(),
+            ))
+        }
+        (Some(_), _) => Some(vec![true; pixels]),
+    };
+    let checkpoint = |film: &Film, done: u32, active: Option<&[bool]>| -> Result<(), RenderError> {
         if let Some(out) = &options.checkpoint {
             let mut attributes = options.attributes.clone();
             attributes.insert("velour:done".to_string(), done.to_string());
-            write_state(film, out, scene.film.exposure, &attributes)?;
+            let mut img = film.to_state_image(&attributes);
+            if let Some(mask) = active {
+                img.uint_channels.insert(
+                    ACTIVE_CHANNEL.to_string(),
+                    mask.iter().map(|&a| u32::from(a)).collect(),
+                );
+            }
+            write_state_image(img, film, out, scene.film.exposure)?;
         }
         Ok(())
     };
@@ -453,6 +582,23 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
         if done > resumed {
             let fits = (MAX_PASS_SECONDS / per_spp.max(1e-12)).floor().max(1.0);
             pass_size = pass_size.min(fits.min(f64::from(MAX_SPP)) as u32);
+            if let Some(limit) = options.time_limit {
+                let fits = ((limit - elapsed) / per_spp.max(1e-12)).floor();
+                if fits < 1.0 {
+                    break;
+                }
+                pass_size = pass_size.min(fits.min(f64::from(MAX_SPP)) as u32);
+            }
+        }
+        if let Some(a) = &options.adaptive {
+            // Passes end on multiples of the block once past the minimum, so that the test runs
+            // at the same sample counts however the render was split in time.
+            let next_stop = if done < a.min_spp {
+                a.min_spp
+            } else {
+                (done / ADAPTIVE_BLOCK + 1) * ADAPTIVE_BLOCK
+            };
+            pass_size = pass_size.min(next_stop - done);
         }
         let (s0, s1) = (done, target.min(done.saturating_add(pass_size)));
         let (a0, a1) = (first.saturating_add(s0), first.saturating_add(s1));
@@ -460,7 +606,8 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
             tiles
                 .par_iter_mut()
                 .map(|tile| {
-                    let st = render_tile_pass(scene, seed, tile, rows.start, (a0, a1), stop);
+                    let mask = active.as_deref().map(|m| (m, width));
+                    let st = render_tile_pass(scene, seed, tile, rows.start, (a0, a1), stop, mask);
                     if let Some(b) = &bar {
                         b.inc(u64::from(tile.width() * tile.height() * (s1 - s0)));
                     }
@@ -472,7 +619,7 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
             if let Some(b) = &bar {
                 b.abandon();
             }
-            checkpoint(&film, done)?;
+            checkpoint(&film, done, active.as_deref())?;
             return Err(RenderError::Interrupted {
                 done,
                 checkpoint: options.checkpoint.clone(),
@@ -484,11 +631,27 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
         }
         done = s1;
         pass_size = pass_size.saturating_mul(2).min(64);
+        let test_point =
+            |a: &Adaptive| done == a.min_spp || (done > a.min_spp && done % ADAPTIVE_BLOCK == 0);
+        if let (Some(mask), Some(a)) = (
+            active.as_mut(),
+            options.adaptive.as_ref().filter(|a| test_point(a)),
+        ) {
+            for (i, on) in mask.iter_mut().enumerate() {
+                if *on {
+                    let (x, y) = ((i % width as usize) as u32, (i / width as usize) as u32);
+                    *on = !converged(&film, x, y, done, a);
+                }
+            }
+            if !mask.contains(&true) {
+                break;
+            }
+        }
         if let Some(b) = &bar {
             b.set_message(format!("{done} spp"));
         }
         if last_write.elapsed() >= options.checkpoint_interval {
-            checkpoint(&film, done)?;
+            checkpoint(&film, done, active.as_deref())?;
             last_write = Instant::now();
         }
         if done >= MAX_SPP {

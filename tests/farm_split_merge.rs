@@ -172,9 +172,13 @@ fn tiles_and_sample_ranges_merge_to_the_same_bits() {
 #[test]
 fn a_render_stopped_by_sigterm_resumes_to_the_same_bits() {
     let dir = TempDir::new("farm-resume");
+    // Adaptive sampling is on, so the resumed mask of converged pixels is checked too.
     let spp = "600";
+    let adaptive = ["--noise-threshold", "0.02", "--min-spp", "8"];
     let full = dir.join("full.exr");
-    render(&["--spp", spp, "-o", full.to_str().unwrap()]);
+    let mut a = vec!["--spp", spp, "-o", full.to_str().unwrap()];
+    a.extend(adaptive);
+    render(&a);
 
     let out = dir.join("frame.exr");
     let partial = dir.join("frame.partial.exr");
@@ -191,6 +195,7 @@ fn a_render_stopped_by_sigterm_resumes_to_the_same_bits() {
             out.to_str().unwrap(),
         ])
         .args(["--checkpoint-every", "0.2"])
+        .args(adaptive)
         .spawn()
         .unwrap();
     // Wait for the first checkpoint, then stop the render.
@@ -231,7 +236,9 @@ fn a_render_stopped_by_sigterm_resumes_to_the_same_bits() {
     args.push(out.display().to_string());
     run_velour(&args).assert_failure_mentioning(&["frame.partial.exr", "seed"]);
 
-    render(&["--spp", spp, "--resume", "-o", out.to_str().unwrap()]);
+    let mut a = vec!["--spp", spp, "--resume", "-o", out.to_str().unwrap()];
+    a.extend(adaptive);
+    render(&a);
     assert!(
         pixel_bits(&out) == pixel_bits(&full),
         "resumed render differs from the uninterrupted one"
@@ -286,4 +293,106 @@ fn frame_ranges_substitute_the_frame_number() {
     no_placeholder.extend(["--frames", "1..3", "-o"].iter().map(|s| s.to_string()));
     no_placeholder.push(dir.join("same.exr").display().to_string());
     run_velour(&no_placeholder).assert_failure_mentioning(&["{frame}"]);
+}
+
+/// The per-pixel sample counts of an image.
+fn sample_counts(path: &Path) -> Vec<f32> {
+    read_exr(path).unwrap().channels["samples.N"].clone()
+}
+
+#[test]
+fn adaptive_sampling_stops_flat_pixels_and_spends_on_noisy_ones() {
+    let dir = TempDir::new("farm-adaptive");
+    // A flat scene: a constant environment and nothing else; every sample is the same.
+    let flat = dir.join("flat.toml");
+    std::fs::write(
+        &flat,
+        "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov = 30\n\n[film]\nwidth = 16\nheight = 12\nspp = 256\n\n[[light]]\ntype = \"environment\"\nradiance = [0.3, 0.4, 0.5]\n",
+    )
+    .unwrap();
+    let out = dir.join("flat.exr");
+    run_velour([
+        "render",
+        flat.to_str().unwrap(),
+        "-q",
+        "--noise-threshold",
+        "0.01",
+        "--min-spp",
+        "8",
+        "-o",
+        out.to_str().unwrap(),
+    ])
+    .assert_success();
+    assert!(
+        sample_counts(&out).iter().all(|&n| n == 8.0),
+        "a flat image stops at --min-spp"
+    );
+
+    // The skin sphere: smooth background pixels stop early, noisy ones take more samples.
+    let out = dir.join("skin.exr");
+    render(&[
+        "--spp",
+        "256",
+        "--noise-threshold",
+        "0.08",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let n = sample_counts(&out);
+    let (min, max) = n
+        .iter()
+        .fold((f32::MAX, 0f32), |(a, b), &v| (a.min(v), b.max(v)));
+    assert!(
+        min >= 16.0 && min < max,
+        "counts {min}..{max}: the default minimum is 16"
+    );
+    assert!(
+        n.iter()
+            .all(|&v| v == 16.0 || v == 256.0 || v % 16.0 == 0.0),
+        "tests run every 16 samples"
+    );
+    let mean = n.iter().sum::<f32>() / n.len() as f32;
+    assert!(
+        mean < 200.0,
+        "adaptive sampling saved nothing (mean spp {mean})"
+    );
+
+    // A time limit ends the render early with whole passes.
+    let out = dir.join("timed.exr");
+    let start = std::time::Instant::now();
+    render(&[
+        "--spp",
+        "1000000",
+        "--time-limit",
+        "0.5",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(start.elapsed() < Duration::from_secs(20));
+    let n = sample_counts(&out);
+    assert!(n[0] >= 1.0 && n[0] < 1_000_000.0 && n.iter().all(|&v| v == n[0]));
+
+    // Refused combinations.
+    let mut args: Vec<String> = vec!["render".into(), scene().display().to_string()];
+    args.extend(SIZE.iter().map(|s| s.to_string()));
+    for (extra, needle) in [
+        (
+            vec![
+                "--samples",
+                "0..4",
+                "--spp",
+                "8",
+                "--noise-threshold",
+                "0.1",
+            ],
+            "cannot be combined",
+        ),
+        (vec!["--noise-threshold=-1"], "positive"),
+        (vec!["--min-spp", "4"], "needs --noise-threshold"),
+        (vec!["--time-limit", "nan"], "positive number of seconds"),
+    ] {
+        let mut a = args.clone();
+        a.extend(extra.iter().map(|s| s.to_string()));
+        run_velour(&a).assert_failure_mentioning(&[needle]);
+    }
 }

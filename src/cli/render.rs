@@ -10,11 +10,10 @@ use std::time::Duration;
 
 use super::CliResult;
 use crate::farm::{self, FrameRange, PartInfo, SampleRange, TileSpec};
-use crate::film::Film;
 use crate::image_io::read_exr;
 use crate::render::{
-    partial_path_for, png_path_for, remove_partial, render_budget, write_film, write_state, Budget,
-    BudgetOptions,
+    partial_path_for, png_path_for, remove_partial, render_budget, write_film, write_state,
+    Adaptive, Budget, BudgetOptions, Resume,
 };
 use crate::scene::Scene;
 
@@ -68,6 +67,22 @@ pub struct RenderArgs {
     /// another scene, seed, resolution, tile or sample range.
     #[arg(long)]
     pub resume: bool,
+    /// Adaptive sampling: a pixel stops once the standard error of its luminance mean over
+    /// max(luminance, 0.01) is below this (e.g. 0.01), tested every 16 samples after --min-spp.
+    /// Slightly biased (see docs/farm.md). Not with --samples.
+    #[arg(long)]
+    pub noise_threshold: Option<f64>,
+    /// Adaptive sampling: samples every pixel takes before it may stop (default 16, at most
+    /// the maximum).
+    #[arg(long)]
+    pub min_spp: Option<u32>,
+    /// Adaptive sampling: the most samples a pixel takes (default: --spp / film.spp).
+    #[arg(long)]
+    pub max_spp: Option<u32>,
+    /// Stop starting new sample passes after this many seconds (the image then has fewer
+    /// samples than asked; every pixel the same number unless adaptive). Not with --samples.
+    #[arg(long)]
+    pub time_limit: Option<f64>,
     /// No progress bar.
     #[arg(long, short = 'q')]
     pub quiet: bool,
@@ -119,6 +134,15 @@ fn load_frame(
     if let Some(seed) = args.seed {
         scene.film.seed = seed;
     }
+    if let Some(max) = args.max_spp {
+        if args.noise_threshold.is_none() {
+            return Err("--max-spp needs --noise-threshold (use --spp for a fixed count)".into());
+        }
+        if max == 0 || max > 1 << 24 {
+            return Err(format!("--max-spp {max} is outside [1, 16777216]").into());
+        }
+        scene.film.spp = max;
+    }
     if let Some(o) = &args.output {
         scene.film.output = o.clone();
     }
@@ -159,6 +183,21 @@ pub fn run(args: &RenderArgs) -> CliResult {
             args.checkpoint_every
         )
         .into());
+    }
+    if args.samples.is_some() && (args.noise_threshold.is_some() || args.time_limit.is_some()) {
+        return Err("--noise-threshold and --time-limit cannot be combined with --samples: a sample range must be rendered whole to merge exactly".into());
+    }
+    if let Some(t) = args.noise_threshold {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(format!("--noise-threshold {t} must be a positive number").into());
+        }
+    } else if args.min_spp.is_some() {
+        return Err("--min-spp needs --noise-threshold".into());
+    }
+    if let Some(t) = args.time_limit {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(format!("--time-limit {t} must be a positive number of seconds").into());
+        }
     }
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
@@ -249,6 +288,15 @@ fn render_frame(args: &RenderArgs, frame: Option<u32>, stop: &Arc<AtomicBool>) -
     }
     attributes.extend(super::metadata::estimator_attributes(&scene));
     let checkpoint = partial_path_for(&output);
+    let adaptive = match args.noise_threshold {
+        Some(threshold) => {
+            let min_spp = args.min_spp.unwrap_or(16).clamp(2, film.spp.max(2));
+            attributes.insert("velour:noise_threshold".into(), threshold.to_string());
+            attributes.insert("velour:min_spp".into(), min_spp.to_string());
+            Some(Adaptive { threshold, min_spp })
+        }
+        None => None,
+    };
     let resume = if args.resume {
         resume_from(&checkpoint, &info)?
     } else {
@@ -264,6 +312,8 @@ fn render_frame(args: &RenderArgs, frame: Option<u32>, stop: &Arc<AtomicBool>) -
         first_sample: samples.start,
         resume,
         stop: Some(Arc::clone(stop)),
+        adaptive,
+        time_limit: args.time_limit,
         ..BudgetOptions::new(Budget::Samples(samples.end - samples.start))
     };
     eprintln!(
@@ -307,7 +357,7 @@ fn render_frame(args: &RenderArgs, frame: Option<u32>, stop: &Arc<AtomicBool>) -
 fn resume_from(
     checkpoint: &Path,
     info: &PartInfo,
-) -> Result<Option<(Film, u32)>, Box<dyn std::error::Error + Send + Sync>> {
+) -> Result<Option<Resume>, Box<dyn std::error::Error + Send + Sync>> {
     if !checkpoint.exists() {
         eprintln!(
             "note: --resume: no checkpoint {} yet; starting from the first sample",
@@ -355,16 +405,12 @@ fn resume_from(
             .into());
         }
     }
-    let done: u32 = img
-        .attributes
-        .get("velour:done")
-        .and_then(|d| d.parse().ok())
-        .ok_or_else(|| bad("attribute velour:done is missing".into()))?;
-    let film = Film::from_exr_image(&img).map_err(|e| bad(e.to_string()))?;
+    let resume = Resume::from_image(&img).map_err(bad)?;
     eprintln!(
-        "resuming from {}: {done} of {} samples per pixel done",
+        "resuming from {}: {} of {} samples per pixel done",
         checkpoint.display(),
+        resume.done,
         info.samples.end - info.samples.start
     );
-    Ok(Some((film, done)))
+    Ok(Some(resume))
 }
