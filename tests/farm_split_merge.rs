@@ -396,3 +396,89 @@ fn adaptive_sampling_stops_flat_pixels_and_spends_on_noisy_ones() {
         run_velour(&a).assert_failure_mentioning(&[needle]);
     }
 }
+
+#[test]
+fn volume_aovs_come_from_the_first_medium_event() {
+    let dir = TempDir::new("farm-aov");
+    let out = dir.join("skin.exr");
+    render(&["--spp", "16", "-o", out.to_str().unwrap()]);
+    let img = read_exr(&out).unwrap();
+    let (w, h) = (img.width as usize, img.height as usize);
+    let ch = |name: &str| &img.channels[name];
+    // The centre pixel sees the skin sphere (radius 0.9 at 4.2 units): its albedo AOV is the
+    // skin interior's artist albedo, not the dielectric boundary's white, its normal faces the
+    // camera and its depth is that of the sphere's front.
+    let c = (h / 2) * w + w / 2;
+    let albedo = [ch("albedo.R")[c], ch("albedo.G")[c], ch("albedo.B")[c]];
+    for (got, want) in albedo.iter().zip([0.9f32, 0.6, 0.45]) {
+        assert!(
+            (got - want).abs() < 1e-5,
+            "albedo AOV {albedo:?}, want the skin's"
+        );
+    }
+    assert!(
+        ch("normal.Z")[c] > 0.8,
+        "normal AOV at the entry faces the camera"
+    );
+    let depth = ch("depth.Z")[c];
+    assert!(
+        depth > 3.1 && depth < 3.6,
+        "depth {depth}: the skin's front, about 3.3 away"
+    );
+    for i in 0..w * h {
+        let n = [ch("normal.X")[i], ch("normal.Y")[i], ch("normal.Z")[i]];
+        let len = n.iter().map(|v| v * v).sum::<f32>().sqrt();
+        assert!(len <= 1.0 + 1e-5, "|N| = {len}");
+        for c in ["albedo.R", "albedo.G", "albedo.B"] {
+            assert!((0.0..=1.0).contains(&ch(c)[i]), "{c} out of [0, 1]");
+        }
+        assert!(!ch("depth.Z")[i].is_nan());
+    }
+    // Metadata: version, scene hash, command, seed, spp, time and the estimators per interior.
+    for key in [
+        "velour:version",
+        "velour:scene_hash",
+        "velour:command",
+        "velour:seed",
+        "velour:spp",
+        "velour:render_seconds",
+        "velour:interior.skin",
+    ] {
+        assert!(
+            img.attributes.contains_key(key),
+            "{key} missing: {:?}",
+            img.attributes
+        );
+    }
+    assert!(img.attributes["velour:interior.skin"].contains("homogeneous"));
+}
+
+#[test]
+fn a_clouds_albedo_aov_is_its_albedo() {
+    let dir = TempDir::new("farm-aov-cloud");
+    let out = dir.join("cloud.exr");
+    run_velour([
+        "render",
+        repo_path("scenes/cloud.toml").to_str().unwrap(),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--spp",
+        "8",
+        "-q",
+        "-o",
+        out.to_str().unwrap(),
+    ])
+    .assert_success();
+    let img = read_exr(&out).unwrap();
+    // Pixels whose every sample scattered in the cloud show its albedo (0.99); pixels where some
+    // samples passed through show a fraction of it; none shows anything else.
+    let r = &img.channels["albedo.R"];
+    let max = r.iter().copied().fold(0f32, f32::max);
+    assert!(
+        (max - 0.99).abs() < 1e-5,
+        "albedo AOV max {max}, want the cloud's 0.99"
+    );
+    assert!(r.iter().all(|&a| a <= 0.99 + 1e-5));
+}

@@ -135,6 +135,9 @@ pub struct Object {
     pub ior: f32,
     /// NEE strategy inside this object.
     pub nee: NeeStrategy,
+    /// The albedo AOV of an event in this object's interior: the artist albedo of a
+    /// homogeneous, voxel or fBm interior; `None` uses the event's single-scattering albedo.
+    pub aov_albedo: Option<crate::spectrum::Rgb>,
 }
 
 /// What a shape of the [`SceneGeometry`] belongs to.
