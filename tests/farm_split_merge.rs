@@ -482,3 +482,34 @@ fn a_clouds_albedo_aov_is_its_albedo() {
     );
     assert!(r.iter().all(|&a| a <= 0.99 + 1e-5));
 }
+
+#[test]
+fn the_render_summary_says_what_was_built() {
+    let dir = TempDir::new("farm-summary");
+    let run = |scene: &str| {
+        let out = dir.join("s.exr");
+        let r = run_velour([
+            "render",
+            repo_path(scene).to_str().unwrap(),
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--spp",
+            "1",
+            "-q",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        r.assert_success();
+        r.stdout
+    };
+    let skin = run("scenes/skin_sphere.toml");
+    assert!(
+        skin.contains("interior skin: homogeneous (no grid)"),
+        "{skin}"
+    );
+    let cloud = run("scenes/cloud.toml");
+    assert!(cloud.contains("interior cloud: grid of"), "{cloud}");
+    assert!(cloud.contains("free flights DeltaTracking"), "{cloud}");
+}

@@ -348,6 +348,9 @@ fn render_frame(args: &RenderArgs, frame: Option<u32>, stop: &Arc<AtomicBool>) -
         png_path_for(&output).display()
     );
     println!("{}", r.summary);
+    for line in super::metadata::interior_summary(&scene) {
+        println!("{line}");
+    }
     Ok(())
 }
 
