@@ -2,6 +2,7 @@
 //! argument struct and its `run` function.
 
 pub mod bench;
+pub mod checksum;
 pub mod convert;
 pub mod diff;
 pub mod inspect;

@@ -120,8 +120,7 @@ fn load_frame(
         (None, Some(_)) => return Err("--frames needs a scene file".into()),
         (None, None) => {
             let scene = crate::scene::default_scene()?;
-            let text = std::fs::read_to_string(&scene.source).unwrap_or_default();
-            (scene, text)
+            (scene, crate::scene::DEFAULT_SCENE_TEXT.to_string())
         }
     };
     super::reference::apply_overrides(&mut scene, &overrides)?;

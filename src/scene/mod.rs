@@ -28,7 +28,7 @@ use crate::light::{Light, LightSampler};
 use crate::medium::{Medium, NeeStrategy};
 use crate::spectrum::Rgb;
 
-pub use build::{load_scene, load_scene_str, DEFAULT_SCENE_NAME};
+pub use build::{load_scene, load_scene_str, DEFAULT_SCENE_NAME, DEFAULT_SCENE_TEXT};
 
 /// Errors while reading or validating a scene.
 #[derive(Debug, thiserror::Error)]
