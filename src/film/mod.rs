@@ -386,14 +386,23 @@ impl Film {
     pub fn to_exr_image(&self, attributes: &BTreeMap<String, String>) -> ExrImage {
         let mut img = ExrImage::new(self.width, self.height);
         let n = self.pixels.len();
+        // The mean and variance need the wide sums converted: once per pixel.
+        let means: Vec<Rgb> = self.pixels.iter().map(Pixel::mean).collect();
+        let variances: Vec<Rgb> = self.pixels.iter().map(Pixel::variance_of_mean).collect();
+        for (c, s) in ["R", "G", "B"].iter().enumerate() {
+            img.channels
+                .insert((*s).to_string(), means.iter().map(|m| m.0[c]).collect());
+            img.channels.insert(
+                format!("variance.{s}"),
+                variances.iter().map(|v| v.0[c]).collect(),
+            );
+        }
         let mut put = |name: &str, f: &dyn Fn(&Pixel) -> f32| {
             let mut v = Vec::with_capacity(n);
             v.extend(self.pixels.iter().map(f));
             img.channels.insert(name.to_string(), v);
         };
         for (c, s) in ["R", "G", "B"].iter().enumerate() {
-            put(s, &|p| p.mean().0[c]);
-            put(&format!("variance.{s}"), &|p| p.variance_of_mean().0[c]);
             put(&format!("albedo.{s}"), &|p| p.aux_mean(p.albedo)[c]);
         }
         for (c, s) in ["X", "Y", "Z"].iter().enumerate() {
