@@ -651,7 +651,16 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
             b.set_message(format!("{done} spp"));
         }
         if last_write.elapsed() >= options.checkpoint_interval {
-            checkpoint(&film, done, active.as_deref())?;
+            // A periodic checkpoint that cannot be written (a full disk) leaves the previous
+            // one whole; the render goes on and tries again at the next interval.
+            if let Err(e) = checkpoint(&film, done, active.as_deref()) {
+                let message =
+                    format!("warning: checkpoint not written ({e}); the previous one is kept");
+                match &bar {
+                    Some(b) => b.println(message),
+                    None => eprintln!("{message}"),
+                }
+            }
             last_write = Instant::now();
         }
         if done >= MAX_SPP {

@@ -311,3 +311,28 @@ fn latlong_maps_are_read_and_bad_texels_named() {
         "{e}"
     );
 }
+
+#[test]
+fn a_failed_write_keeps_the_previous_file_whole() {
+    // The write goes to `<path>.tmp` and is renamed only when complete; when the temporary
+    // file cannot be written (here a directory is in its way, as a full disk would stop it),
+    // the previous file is untouched and no temporary file is left behind.
+    let dir = TempDir::new("exr-atomic");
+    let path = dir.join("frame.partial.exr");
+    let old = noisy_film(4, 3, 2);
+    old.write_exr(&path).unwrap();
+    let before = std::fs::read(&path).unwrap();
+    let tmp = velour::image_io::temp_path(&path);
+    std::fs::create_dir(&tmp).unwrap();
+    let new = noisy_film(4, 3, 5);
+    assert!(new.write_exr(&path).is_err());
+    assert_eq!(
+        std::fs::read(&path).unwrap(),
+        before,
+        "the previous file changed"
+    );
+    std::fs::remove_dir(&tmp).unwrap();
+    new.write_exr(&path).unwrap();
+    assert!(!tmp.exists());
+    assert_ne!(std::fs::read(&path).unwrap(), before);
+}
