@@ -2,18 +2,29 @@
 //! Images"): which objects a point is inside of, which one governs, and which boundary
 //! crossings are false intersections that only update the stack.
 
+use std::borrow::Cow;
+
 use crate::bsdf::Surface;
-use crate::medium::Medium;
+use crate::math::Vec2;
+use crate::medium::{Medium, WalkMedium};
 use crate::scene::{Object, ObjectSurface, Scene};
 
 /// The deepest nesting of interiors tracked; deeper entries are ignored.
 pub const MAX_NESTING: usize = 16;
 
-/// The objects (by index) that a point is inside of, with their priorities.
+/// How many entered objects with per-walk interiors (textured, blended) keep their resolved
+/// medium on the stack at once; a deeper one falls back to its stand-in medium.
+pub const WALK_SLOTS: usize = 2;
+
+/// The objects (by index) that a point is inside of, with their priorities, and the media
+/// resolved at the entry points of the entered objects whose interiors are resolved per walk
+/// (docs/textures.md).
 #[derive(Clone, Copy, Debug)]
 pub struct InteriorStack {
     entries: [u32; MAX_NESTING],
     len: usize,
+    walk: [(u32, WalkMedium); WALK_SLOTS],
+    walk_len: usize,
 }
 
 impl Default for InteriorStack {
@@ -21,6 +32,8 @@ impl Default for InteriorStack {
         InteriorStack {
             entries: [0; MAX_NESTING],
             len: 0,
+            walk: [(u32::MAX, WalkMedium::Scene(0)); WALK_SLOTS],
+            walk_len: 0,
         }
     }
 }
@@ -52,11 +65,42 @@ impl InteriorStack {
         }
     }
 
+    /// Enters `obj` with the medium resolved at its entry point for this walk.
+    pub fn push_walk(&mut self, obj: u32, medium: WalkMedium) {
+        if self.contains(obj) {
+            return;
+        }
+        self.push(obj);
+        if self.walk_len < WALK_SLOTS && self.contains(obj) {
+            self.walk[self.walk_len] = (obj, medium);
+            self.walk_len += 1;
+        }
+    }
+
+    /// The medium resolved for `obj` when it was entered, if any.
+    #[inline]
+    #[must_use]
+    pub fn walk_medium(&self, obj: u32) -> Option<WalkMedium> {
+        self.walk[..self.walk_len]
+            .iter()
+            .find(|(o, _)| *o == obj)
+            .map(|(_, m)| *m)
+    }
+
     /// Leaves `obj` (no-op if not entered).
     pub fn remove(&mut self, obj: u32) {
         if let Some(i) = self.entries().iter().position(|&o| o == obj) {
             self.entries.copy_within(i + 1..self.len, i);
             self.len -= 1;
+        }
+        if self.walk_len > 0 {
+            if let Some(i) = self.walk[..self.walk_len]
+                .iter()
+                .position(|(o, _)| *o == obj)
+            {
+                self.walk.copy_within(i + 1..self.walk_len, i);
+                self.walk_len -= 1;
+            }
         }
     }
 
@@ -85,26 +129,83 @@ impl InteriorStack {
     }
 }
 
-/// The medium governing a point with the given stack, and the object it belongs to.
+/// The medium governing a point with the given stack, and the object it belongs to: the
+/// object's medium, or for an object whose interior is resolved per walk the medium resolved
+/// when the path entered it (a homogeneous one made for this walk, or a medium of the scene).
+#[inline]
 pub(super) fn current_medium<'a>(
     scene: &'a Scene,
     stack: &InteriorStack,
-) -> Option<(&'a Medium, &'a Object)> {
+) -> Option<(Cow<'a, Medium>, &'a Object)> {
     let top = stack.top(&scene.objects, None)?;
     let obj = &scene.objects[top as usize];
-    obj.medium.map(|m| (&scene.media[m as usize], obj))
+    if obj.walk.is_some() {
+        if let Some(w) = stack.walk_medium(top) {
+            let m = match w {
+                WalkMedium::Scene(i) => Cow::Borrowed(scene.media.get(i as usize)?),
+                WalkMedium::Homogeneous(h) => Cow::Owned(Medium::Homogeneous(h)),
+                WalkMedium::Absorbing(sigma_a) => Cow::Owned(Medium::Absorbing { sigma_a }),
+            };
+            return Some((m, obj));
+        }
+    }
+    obj.medium
+        .map(|m| (Cow::Borrowed(&scene.media[m as usize]), obj))
 }
 
-/// Builds the boundary BSDF of `obj` for the media meeting there.
+/// Enters object `oi` at texture coordinates `uv` (footprint `width_uv` wide): an object
+/// whose interior is resolved per walk resolves it here (`u()` gives a blend's random number,
+/// drawn only for blends).
+pub(super) fn enter(
+    scene: &Scene,
+    stack: &mut InteriorStack,
+    oi: u32,
+    uv: Vec2,
+    width_uv: f32,
+    mut u: impl FnMut() -> f32,
+) {
+    match scene
+        .objects
+        .get(oi as usize)
+        .and_then(|o| o.walk.as_deref())
+    {
+        Some(w) => {
+            let r = if w.is_random() { u() } else { 0.0 };
+            stack.push_walk(oi, w.resolve(uv, width_uv, r));
+        }
+        None => stack.push(oi),
+    }
+}
+
+/// Builds the boundary BSDF of `obj` for the media meeting there, with textured parameters
+/// at their means (callers that know the hit use [`boundary_surface_at`]).
 pub(super) fn boundary_surface(obj: &Object, outside_ior: f32) -> Option<Surface> {
+    boundary_surface_at(obj, outside_ior, Vec2::ZERO, f32::INFINITY)
+}
+
+/// Builds the boundary BSDF of `obj` for the media meeting there, its textured parameters
+/// read at texture coordinates `uv` with a footprint `width_uv` wide.
+pub(super) fn boundary_surface_at(
+    obj: &Object,
+    outside_ior: f32,
+    uv: Vec2,
+    width_uv: f32,
+) -> Option<Surface> {
     match &obj.surface {
         ObjectSurface::Fixed(s) => Some(s.clone()),
         ObjectSurface::Null => None,
+        ObjectSurface::Textured(t) => t.at(uv, width_uv),
         ObjectSurface::Dielectric(d) => {
             let eta = d.ior / outside_ior.max(1e-6);
-            let s = Surface::dielectric(eta, d.roughness, d.distribution, d.tint).ok()?;
-            match d.coat {
-                Some((ior, r, w)) => s.with_coat(ior, r, w).ok(),
+            let s = Surface::dielectric(
+                eta,
+                d.roughness.eval(uv, width_uv),
+                d.distribution,
+                d.tint.eval(uv, width_uv),
+            )
+            .ok()?;
+            match &d.coat {
+                Some((ior, r, w)) => s.with_coat(*ior, *r, w.eval(uv, width_uv)).ok(),
                 None => Some(s),
             }
         }

@@ -18,7 +18,7 @@ mod interiors;
 pub use interiors::{InteriorStack, MAX_NESTING};
 
 use direct::{emitted, estimate_direct, PrevVertex, ShadowMode};
-use interiors::{boundary_surface, current_medium, is_false_intersection};
+use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
 use crate::geometry::Hit;
@@ -31,6 +31,45 @@ use crate::tracking::TrackingStats;
 
 /// Depth at which Russian roulette starts.
 const RR_START_DEPTH: u32 = 5;
+
+/// The spread angle (radians) a ray cone takes at least after a non-specular event (rough
+/// or diffuse surface scattering, volume scattering): a widening policy for texture
+/// filtering only (docs/textures.md), not from a paper.
+const NON_SPECULAR_SPREAD: f32 = 0.2;
+
+/// A ray cone (Akenine-Möller et al. 2019/2021; docs/references.md §14.3): the footprint
+/// width at the ray's origin (world units) and how fast it grows per unit distance.
+#[derive(Clone, Copy, Debug)]
+struct RayCone {
+    /// Width at the ray's origin, world units.
+    width: f32,
+    /// Spread angle, radians (width grows by `spread · t`).
+    spread: f32,
+}
+
+impl RayCone {
+    /// The cone advanced by `t` along the ray.
+    #[inline]
+    fn advance(&mut self, t: f32) {
+        if t.is_finite() {
+            self.width += self.spread * t;
+        }
+    }
+
+    /// After a non-specular event.
+    #[inline]
+    fn widen(&mut self) {
+        self.spread = self.spread.max(NON_SPECULAR_SPREAD);
+    }
+
+    /// The footprint width in texture units at a hit of object `obj` seen at `cos` to the
+    /// normal: width / |cos| (the cone's elongated cross-section) × texture units per world
+    /// unit.
+    #[inline]
+    fn width_uv(&self, obj: &Object, cos: f32) -> f32 {
+        self.width / cos.abs().max(1e-3) * obj.uv_scale
+    }
+}
 
 /// Counters gathered while tracing (summed over all paths for the render summary).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -134,6 +173,8 @@ struct PathState {
     /// the ray now leaves, with that vertex's phase pdf of the ray direction; cleared by any
     /// boundary.
     guided_from: Option<u32>,
+    /// The ray's cone, for texture footprints.
+    cone: RayCone,
 }
 
 fn radiance(
@@ -142,7 +183,7 @@ fn radiance(
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
 ) -> (Rgb, Aov) {
-    let mut path = PathState::new(ray);
+    let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
     loop {
         stats.rays += 1;
         sampler.start_vertex();
@@ -167,7 +208,7 @@ fn radiance(
 }
 
 impl PathState {
-    fn new(ray: Ray) -> Self {
+    fn new(ray: Ray, spread: f32) -> Self {
         PathState {
             ray,
             beta: Rgb::ONE,
@@ -184,6 +225,7 @@ impl PathState {
             aov: None,
             crossings: 0,
             guided_from: None,
+            cone: RayCone { width: 0.0, spread },
         }
     }
 
@@ -200,6 +242,9 @@ impl PathState {
     ) -> (Step, Option<Hit>) {
         let Some((medium, obj)) = current_medium(scene, &self.stack) else {
             let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
+            if let Some(h) = &hit {
+                self.cone.advance(h.t);
+            }
             return (Step::Boundary, hit);
         };
         let mut hit = None;
@@ -219,9 +264,18 @@ impl PathState {
         }
         self.beta *= event.weight;
         let step = match event.scatter {
-            Some(vertex) => self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats),
+            Some(vertex) => {
+                self.cone.advance(vertex.t);
+                self.cone.widen();
+                self.scatter_in_medium(scene, &medium, obj, &vertex, sampler, stats)
+            }
             None if self.beta.is_black() => Step::Stop,
-            None => Step::Boundary,
+            None => {
+                if let Some(h) = &hit {
+                    self.cone.advance(h.t);
+                }
+                Step::Boundary
+            }
         };
         (step, hit)
     }
@@ -310,7 +364,7 @@ impl PathState {
             && (is_false_intersection(scene, &self.stack, oi, entering)
                 || matches!(obj.surface, ObjectSurface::Null))
         {
-            return self.cross_boundary(scene, hit, oi, entering);
+            return self.cross_boundary(scene, hit, oi, entering, sampler);
         }
         let guided = guided_from == Some(oi) && !entering;
         self.surface_interaction(scene, hit, oi, entering, guided, sampler, stats)
@@ -329,9 +383,20 @@ impl PathState {
 
     /// 4. False intersections with lower-priority boundaries, and null boundaries, only
     /// update the stack.
-    fn cross_boundary(&mut self, scene: &Scene, hit: &Hit, oi: u32, entering: bool) -> Step {
+    fn cross_boundary(
+        &mut self,
+        scene: &Scene,
+        hit: &Hit,
+        oi: u32,
+        entering: bool,
+        sampler: &mut PixelSampler,
+    ) -> Step {
         if entering {
-            self.stack.push(oi);
+            let obj = &scene.objects[oi as usize];
+            let width = self.cone.width_uv(obj, self.ray.d.dot(hit.ng));
+            enter(scene, &mut self.stack, oi, hit.uv, width, || {
+                sampler.next_1d()
+            });
         } else {
             self.stack.remove(oi);
         }
@@ -358,7 +423,8 @@ impl PathState {
         let obj = &scene.objects[oi as usize];
         let transmits = obj.surface.transmits();
         let outside_ior = self.stack.ior(&scene.objects, Some(oi));
-        let Some(surface) = boundary_surface(obj, outside_ior) else {
+        let width_uv = self.cone.width_uv(obj, self.ray.d.dot(hit.ng));
+        let Some(surface) = boundary_surface_at(obj, outside_ior, hit.uv, width_uv) else {
             return Step::Stop;
         };
         // Opaque surfaces are two-sided: seen from behind, flip the frame.
@@ -387,6 +453,18 @@ impl PathState {
         // replaces exit-point NEE here (BTDF sampling below is MIS-weighted against it).
         let guided = guided && do_nee;
         if do_nee && !guided {
+            // A shadow ray into an interior resolved per walk enters it here.
+            let entry = match obj.walk.as_deref() {
+                Some(w) if transmits => {
+                    let r = if w.is_random() {
+                        sampler.next_1d()
+                    } else {
+                        0.0
+                    };
+                    Some(w.resolve(hit.uv, width_uv, r))
+                }
+                _ => None,
+            };
             let at = SurfaceVertex {
                 hit,
                 oi,
@@ -394,6 +472,7 @@ impl PathState {
                 ng,
                 frame,
                 wo,
+                entry,
             };
             self.radiance +=
                 self.beta * at.direct_light(scene, &surface, self.stack, sampler, stats);
@@ -415,10 +494,15 @@ impl PathState {
             return Step::Stop;
         }
         self.beta *= bs.weight;
+        if !bs.is_delta {
+            self.cone.widen();
+        }
         if bs.is_transmission {
             self.eta_scale *= bs.eta * bs.eta;
             if wi.dot(hit.ng) < 0.0 {
-                self.stack.push(oi);
+                enter(scene, &mut self.stack, oi, hit.uv, width_uv, || {
+                    sampler.next_1d()
+                });
             } else {
                 self.stack.remove(oi);
             }
@@ -467,6 +551,8 @@ struct SurfaceVertex<'a> {
     frame: Frame,
     /// Direction towards the previous vertex.
     wo: Vec3,
+    /// The medium a shadow ray entering the object's per-walk interior here uses.
+    entry: Option<crate::medium::WalkMedium>,
 }
 
 impl SurfaceVertex<'_> {
@@ -491,7 +577,10 @@ impl SurfaceVertex<'_> {
                 let crosses = (wi.dot(ng) > 0.0) != (wo.dot(ng) > 0.0);
                 if crosses && transmits {
                     if wi.dot(hit.ng) < 0.0 {
-                        s.push(oi);
+                        match self.entry {
+                            Some(m) => s.push_walk(oi, m),
+                            None => s.push(oi),
+                        }
                     } else {
                         s.remove(oi);
                     }

@@ -23,7 +23,11 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
 
 /// Builds a scene from TOML text; `path` names it in messages and anchors relative file paths.
 pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
-    let ctx = Ctx { path, text };
+    let ctx = Ctx {
+        path,
+        text,
+        textures: Default::default(),
+    };
     let file = read::read_scene_file(&ctx)?;
     let mut warnings = Vec::new();
     let mut notes = Vec::new();

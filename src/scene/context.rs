@@ -12,6 +12,8 @@ pub(super) struct Ctx<'a> {
     pub path: &'a Path,
     /// The whole TOML text.
     pub text: &'a str,
+    /// Textures loaded so far (shared by every parameter naming the same file and options).
+    pub textures: std::cell::RefCell<super::textures::TextureCache>,
 }
 
 impl Ctx<'_> {

@@ -43,10 +43,22 @@ impl ObjectList {
             .unwrap_or_else(|| format!("object {}", index + 1));
         let (xf, uniform) = object_transform(ctx, line, &name, desc)?;
         let rest = build_rest_shape(ctx, line, &name, desc, uniform)?;
-        let (surface, ior) = match &desc.surface {
-            Some(s) => build_surface(ctx, ctx.line_of(s.span().start), &name, Some(s.get_ref()))?,
-            None => build_surface(ctx, line, &name, None)?,
+        let has_uvs = match &rest {
+            RestShape::Mesh(m) => m.uvs.is_some(),
+            RestShape::Sphere { .. } => true,
+            RestShape::Bounds => false,
         };
+        let (surface, ior) = match &desc.surface {
+            Some(s) => build_surface(
+                ctx,
+                ctx.line_of(s.span().start),
+                &name,
+                Some(s.get_ref()),
+                has_uvs,
+            )?,
+            None => build_surface(ctx, line, &name, None, has_uvs)?,
+        };
+        let mut walk = None;
         let (medium, nee) = match &desc.interior {
             Some(interior) => {
                 let placement = Placement {
@@ -57,12 +69,21 @@ impl ObjectList {
                         _ => None,
                     },
                     view,
+                    has_uvs,
                 };
                 let interior_line = ctx.line_of(interior.span().start);
-                let (m, nee) =
-                    build_medium(ctx, interior_line, &name, interior.get_ref(), &placement)?;
-                self.media.push(m);
-                (Some((self.media.len() - 1) as u32), nee)
+                let built = build_medium(
+                    ctx,
+                    interior_line,
+                    &name,
+                    format!("{name}: interior"),
+                    interior.get_ref(),
+                    &placement,
+                    &mut self.media,
+                )?;
+                walk = built.walk.map(Box::new);
+                self.media.push(built.medium);
+                (Some((self.media.len() - 1) as u32), built.nee)
             }
             None => (None, NeeStrategy::ExitPoint),
         };
@@ -157,6 +178,17 @@ impl ObjectList {
                 ctx.path.display()
             ));
         }
+        if nee == NeeStrategy::ExitGuided && surface.is_textured() {
+            return Err(ctx.invalid(
+                line,
+                format!("{name}: nee = \"exit_guided\" does not support a textured surface yet (use \"exit\")"),
+            ));
+        }
+        let uv_scale = if surface.is_textured() || walk.is_some() {
+            uv_per_world(&shape)
+        } else {
+            0.0
+        };
         self.objects.push(Object {
             name,
             surface,
@@ -164,8 +196,43 @@ impl ObjectList {
             priority: desc.priority.unwrap_or(0),
             ior,
             nee,
+            walk,
+            uv_scale,
         });
         Ok(shape)
+    }
+}
+
+/// Texture units per world unit of a shape's surface: sqrt(UV area / world area) over the
+/// whole shape (a sphere's (φ/2π, θ/π) parameterisation covers the unit square over 4πr²);
+/// it turns a ray cone's width into a footprint in texture units (docs/textures.md).
+fn uv_per_world(shape: &Shape) -> f32 {
+    match shape {
+        Shape::Sphere { radius, .. } => 1.0 / (2.0 * radius * std::f32::consts::PI.sqrt()),
+        Shape::Mesh(m) => {
+            let Some(uvs) = &m.uvs else { return 0.0 };
+            let (mut uv_area, mut area) = (0.0f64, 0.0f64);
+            for tri in &m.indices {
+                let [a, b, c] = tri.map(|i| i as usize);
+                if let (Some(pa), Some(pb), Some(pc), Some(ta), Some(tb), Some(tc)) = (
+                    m.positions.get(a),
+                    m.positions.get(b),
+                    m.positions.get(c),
+                    uvs.get(a),
+                    uvs.get(b),
+                    uvs.get(c),
+                ) {
+                    area += f64::from((*pb - *pa).cross(*pc - *pa).length());
+                    uv_area += f64::from(((*tb - *ta).perp_dot(*tc - *ta)).abs());
+                }
+            }
+            if area > 0.0 {
+                (uv_area / area).sqrt() as f32
+            } else {
+                0.0
+            }
+        }
+        _ => 0.0,
     }
 }
 

@@ -2,7 +2,7 @@
 
 use serde::Deserialize;
 
-use super::{ColorValue, TypedTable};
+use super::{ColorInput, ScalarInput, TypedTable};
 
 /// An object's `surface` table, by its `type`.
 #[derive(Clone, Debug)]
@@ -24,11 +24,11 @@ pub struct DielectricDesc {
     /// Index of refraction of the interior (default 1.4).
     pub ior: Option<f32>,
     /// Roughness in [0, 1] (α = roughness²; default 0).
-    pub roughness: Option<f32>,
+    pub roughness: Option<ScalarInput>,
     /// "ggx" (default) or "beckmann".
     pub distribution: Option<String>,
     /// Multiplier on transmission (default 1).
-    pub tint: Option<ColorValue>,
+    pub tint: Option<ColorInput>,
     /// Optional secondary specular coat.
     pub coat: Option<CoatDesc>,
 }
@@ -38,9 +38,9 @@ pub struct DielectricDesc {
 #[serde(deny_unknown_fields)]
 pub struct DiffuseTransmissionDesc {
     /// Diffuse reflectance (default 0).
-    pub reflectance: Option<ColorValue>,
+    pub reflectance: Option<ColorInput>,
     /// Diffuse transmittance (default 1).
-    pub transmittance: Option<ColorValue>,
+    pub transmittance: Option<ColorInput>,
     /// Optional secondary specular coat.
     pub coat: Option<CoatDesc>,
 }
@@ -50,7 +50,7 @@ pub struct DiffuseTransmissionDesc {
 #[serde(deny_unknown_fields)]
 pub struct LambertianDesc {
     /// Albedo (default 0.8).
-    pub reflectance: Option<ColorValue>,
+    pub reflectance: Option<ColorInput>,
     /// Optional secondary specular coat.
     pub coat: Option<CoatDesc>,
 }
@@ -60,9 +60,9 @@ pub struct LambertianDesc {
 #[serde(deny_unknown_fields)]
 pub struct ConductorDesc {
     /// Colour at normal incidence (default 0.9).
-    pub reflectance: Option<ColorValue>,
+    pub reflectance: Option<ColorInput>,
     /// Roughness in [0, 1] (α = roughness²; default 0).
-    pub roughness: Option<f32>,
+    pub roughness: Option<ScalarInput>,
     /// "ggx" (default) or "beckmann".
     pub distribution: Option<String>,
     /// Optional secondary specular coat.
@@ -77,8 +77,8 @@ pub struct CoatDesc {
     pub ior: Option<f32>,
     /// Coat roughness (default 0.1).
     pub roughness: Option<f32>,
-    /// Coat weight in [0, 1] (default 1).
-    pub weight: Option<f32>,
+    /// Coat weight in [0, 1] (default 1); may be a texture.
+    pub weight: Option<ScalarInput>,
 }
 
 impl SurfaceDesc {
@@ -95,10 +95,10 @@ impl SurfaceDesc {
 
     /// The roughness of the surface types that have one.
     #[must_use]
-    pub fn roughness(&self) -> Option<f32> {
+    pub fn roughness(&self) -> Option<&ScalarInput> {
         match self {
-            SurfaceDesc::Dielectric(d) => d.roughness,
-            SurfaceDesc::Conductor(d) => d.roughness,
+            SurfaceDesc::Dielectric(d) => d.roughness.as_ref(),
+            SurfaceDesc::Conductor(d) => d.roughness.as_ref(),
             SurfaceDesc::DiffuseTransmission(_) | SurfaceDesc::Lambertian(_) => None,
         }
     }
