@@ -63,11 +63,12 @@ impl RayCone {
     }
 
     /// The footprint width in texture units at a hit of object `obj` seen at `cos` to the
-    /// normal: width / |cos| (the cone's elongated cross-section) × texture units per world
-    /// unit.
+    /// normal: width / |cos| (the long axis of the cone's elliptic cross-section, at most 4×
+    /// the width: an isotropic filter cannot follow the ellipse, and would blur silhouettes
+    /// to the texture's mean) × texture units per world unit.
     #[inline]
     fn width_uv(&self, obj: &Object, cos: f32) -> f32 {
-        self.width / cos.abs().max(1e-3) * obj.uv_scale
+        self.width / cos.abs().max(0.25) * obj.uv_scale
     }
 }
 

@@ -222,7 +222,7 @@ fn textured_extinction_and_nee(
     };
     let attenuation = match attenuation {
         Some(ColorInput::Texture(_)) => {
-            p.colour("attenuation", attenuation, Rgb::ONE, 1e-9, f32::MAX)?
+            p.colour("attenuation", attenuation, Rgb::ONE, 1e-9, f32::INFINITY)?
         }
         _ => ColorParam::Constant(a),
     };
