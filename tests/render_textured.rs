@@ -222,3 +222,89 @@ fn entry_projection_is_red_on_one_side_and_blue_on_the_other() {
         "left half not blue: R {r_left}, B {b_left}"
     );
 }
+
+/// A quad facing the camera, 4 × 4 world units, texture coordinates spanning [0, 1]².
+fn write_quad(path: &Path) {
+    let mesh = velour::geometry::TriangleMesh {
+        positions: vec![
+            Vec3::new(-2.0, -2.0, 0.0),
+            Vec3::new(2.0, -2.0, 0.0),
+            Vec3::new(2.0, 2.0, 0.0),
+            Vec3::new(-2.0, 2.0, 0.0),
+        ],
+        normals: None,
+        uvs: Some(vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.0, 1.0),
+        ]),
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    velour::geometry::write_ply(path, &mesh, false).unwrap();
+}
+
+fn quad_scene(reflectance: &str, spp: u32, seed: u32) -> String {
+    format!(
+        r#"
+[camera]
+eye = [0, 0, 4]
+look_at = [0, 0, 0]
+fov = 30
+[film]
+width = 16
+height = 16
+spp = {spp}
+seed = {seed}
+[[light]]
+type = "environment"
+radiance = 1.0
+[[object]]
+name = "quad"
+shape = "mesh"
+file = "quad.ply"
+surface = {{ type = "lambertian", reflectance = {reflectance} }}
+"#
+    )
+}
+
+/// Mean over pixels of channel 0's variance of the pixel mean.
+fn mean_variance(film: &Film) -> f64 {
+    let mut v = 0.0;
+    for y in 0..film.height() {
+        for x in 0..film.width() {
+            v += f64::from(film.variance_of_mean(x, y)[0]);
+        }
+    }
+    v / f64::from(film.width() * film.height())
+}
+
+/// A checker of one-texel cells seen at about 8 texels per pixel: the camera ray's cone picks
+/// a mip level where the checker is its mean, so the pixels are as quiet as a constant grey
+/// plane (point sampling would give every sample 0 or 1: a variance of the pixel mean of
+/// about 0.25 / spp), and the image matches that grey plane.
+#[test]
+fn ray_cones_pick_the_mip_level_of_the_pixel_footprint() {
+    let dir = TempDir::new("render-tex-cone");
+    write_quad(&dir.join("quad.ply"));
+    exr_grey(&dir.join("checker.exr"), 256, 256, |x, y| {
+        ((x + y) % 2) as f32
+    });
+    let spp = 16;
+    let checker = render(
+        &quad_scene(r#"{ texture = "checker.exr" }"#, spp, 11),
+        dir.path(),
+    );
+    let grey = render(&quad_scene("0.5", spp, 12), dir.path());
+    let (vc, vg) = (mean_variance(&checker), mean_variance(&grey));
+    let point_sampled = 0.25 / f64::from(spp);
+    assert!(
+        vc < 2.0 * vg + 0.02 * point_sampled,
+        "checker pixels are noisy: variance {vc} vs grey {vg} (point sampling ≈ {point_sampled})"
+    );
+    assert_agree(
+        image_mean(&checker, 0),
+        image_mean(&grey, 0),
+        "checker vs grey",
+    );
+}
