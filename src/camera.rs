@@ -166,7 +166,7 @@ impl Camera {
     }
 
     /// The spread angle of a ray cone through one pixel (Akenine-Möller et al. 2019;
-    /// docs/references.md §14.3): atan(2 tan(fov/2) / height), radians.
+    /// docs/references.md §14.2): atan(2 tan(fov/2) / height), radians.
     #[must_use]
     pub fn pixel_spread_angle(&self) -> f32 {
         (2.0 * self.tan_half_vfov / self.height.max(1) as f32).atan()

@@ -37,7 +37,7 @@ const RR_START_DEPTH: u32 = 5;
 /// filtering only (docs/textures.md), not from a paper.
 const NON_SPECULAR_SPREAD: f32 = 0.2;
 
-/// A ray cone (Akenine-Möller et al. 2019/2021; docs/references.md §14.3): the footprint
+/// A ray cone (Akenine-Möller et al. 2019/2021; docs/references.md §14.2): the footprint
 /// width at the ray's origin (world units) and how fast it grows per unit distance.
 #[derive(Clone, Copy, Debug)]
 struct RayCone {

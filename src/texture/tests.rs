@@ -1,4 +1,4 @@
-//! Unit tests of decoding, the pyramid and filtered lookups (docs/references.md §14.8).
+//! Unit tests of decoding, the pyramid and filtered lookups (docs/references.md §14.4).
 
 use super::*;
 
