@@ -81,7 +81,7 @@ const SURFACES: [Case; 4] = [
     },
 ];
 
-const INTERIORS: [Case; 5] = [
+const INTERIORS: [Case; 6] = [
     Case {
         kind: "absorption",
         good: "attenuation",
@@ -114,6 +114,13 @@ const INTERIORS: [Case; 5] = [
         kind: "fabric",
         good: "pattern",
         misspelt: "patern",
+        foreign: "albedo",
+        foreign_owner: "homogeneous",
+    },
+    Case {
+        kind: "blend",
+        good: "mask",
+        misspelt: "msk",
         foreign: "albedo",
         foreign_owner: "homogeneous",
     },
