@@ -39,7 +39,8 @@ pub(super) fn shadow_transmittance(
         stats.rays += 1;
         let hit = scene.geometry.intersect(&Ray::new(origin, dir), remaining);
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
-        if let Some((m, _)) = current_medium(scene, &stack) {
+        let mut scratch = None;
+        if let Some((m, _)) = current_medium(scene, &stack, &mut scratch) {
             tr *= m.transmittance(
                 &Ray::new(origin, dir),
                 seg,

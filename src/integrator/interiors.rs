@@ -2,12 +2,11 @@
 //! Images"): which objects a point is inside of, which one governs, and which boundary
 //! crossings are false intersections that only update the stack.
 
-use std::borrow::Cow;
-
 use crate::bsdf::Surface;
 use crate::math::Vec2;
-use crate::medium::{Medium, WalkMedium};
+use crate::medium::{Coefficients, Medium, WalkMedium};
 use crate::scene::{Object, ObjectSurface, Scene};
+use crate::spectrum::Rgb;
 
 /// The deepest nesting of interiors tracked; deeper entries are ignored.
 pub const MAX_NESTING: usize = 16;
@@ -18,13 +17,19 @@ pub const WALK_SLOTS: usize = 2;
 
 /// The objects (by index) that a point is inside of, with their priorities, and the media
 /// resolved at the entry points of the entered objects whose interiors are resolved per walk
-/// (docs/textures.md).
+/// (docs/textures.md). Packed to 124 bytes: it is copied for every shadow ray, and stays
+/// within what the compiler copies inline.
 #[derive(Clone, Copy, Debug)]
 pub struct InteriorStack {
     entries: [u32; MAX_NESTING],
-    len: usize,
-    walk: [(u32, WalkMedium); WALK_SLOTS],
-    walk_len: usize,
+    len: u8,
+    walk_len: u8,
+    /// Per walk slot: 0 a scene medium (index in the first value's bits), 1 homogeneous look
+    /// `a` (or an entry interior), 2 homogeneous look `b`, 3 absorbing.
+    walk_kind: [u8; WALK_SLOTS],
+    walk_obj: [u32; WALK_SLOTS],
+    /// σ_a then σ_s (homogeneous), σ_a (absorbing).
+    walk_data: [[f32; 6]; WALK_SLOTS],
 }
 
 impl Default for InteriorStack {
@@ -32,9 +37,41 @@ impl Default for InteriorStack {
         InteriorStack {
             entries: [0; MAX_NESTING],
             len: 0,
-            walk: [(u32::MAX, WalkMedium::Scene(0)); WALK_SLOTS],
             walk_len: 0,
+            walk_kind: [0; WALK_SLOTS],
+            walk_obj: [u32::MAX; WALK_SLOTS],
+            walk_data: [[0.0; 6]; WALK_SLOTS],
         }
+    }
+}
+
+/// A walk medium as (kind, values) for the stack.
+fn pack(m: WalkMedium) -> (u8, [f32; 6]) {
+    match m {
+        WalkMedium::Scene(i) => (0, [f32::from_bits(i), 0.0, 0.0, 0.0, 0.0, 0.0]),
+        WalkMedium::Homogeneous { coefficients, look } => {
+            let (a, s) = (coefficients.sigma_a.0, coefficients.sigma_s.0);
+            (1 + look.min(1), [a[0], a[1], a[2], s[0], s[1], s[2]])
+        }
+        WalkMedium::Absorbing(sigma_a) => {
+            let a = sigma_a.0;
+            (3, [a[0], a[1], a[2], 0.0, 0.0, 0.0])
+        }
+    }
+}
+
+/// The inverse of [`pack`].
+fn unpack(kind: u8, d: [f32; 6]) -> WalkMedium {
+    match kind {
+        0 => WalkMedium::Scene(d[0].to_bits()),
+        1 | 2 => WalkMedium::Homogeneous {
+            coefficients: Coefficients {
+                sigma_a: Rgb([d[0], d[1], d[2]]),
+                sigma_s: Rgb([d[3], d[4], d[5]]),
+            },
+            look: kind - 1,
+        },
+        _ => WalkMedium::Absorbing(Rgb([d[0], d[1], d[2]])),
     }
 }
 
@@ -48,7 +85,7 @@ impl InteriorStack {
     /// Entered objects, oldest first.
     #[must_use]
     pub fn entries(&self) -> &[u32] {
-        &self.entries[..self.len]
+        &self.entries[..usize::from(self.len)]
     }
 
     /// True if `obj` is on the stack.
@@ -59,8 +96,9 @@ impl InteriorStack {
 
     /// Enters `obj`.
     pub fn push(&mut self, obj: u32) {
-        if self.len < MAX_NESTING && !self.contains(obj) {
-            self.entries[self.len] = obj;
+        let len = usize::from(self.len);
+        if len < MAX_NESTING && !self.contains(obj) {
+            self.entries[len] = obj;
             self.len += 1;
         }
     }
@@ -71,8 +109,12 @@ impl InteriorStack {
             return;
         }
         self.push(obj);
-        if self.walk_len < WALK_SLOTS && self.contains(obj) {
-            self.walk[self.walk_len] = (obj, medium);
+        let slot = usize::from(self.walk_len);
+        if slot < WALK_SLOTS && self.contains(obj) {
+            let (kind, data) = pack(medium);
+            self.walk_kind[slot] = kind;
+            self.walk_obj[slot] = obj;
+            self.walk_data[slot] = data;
             self.walk_len += 1;
         }
     }
@@ -81,24 +123,23 @@ impl InteriorStack {
     #[inline]
     #[must_use]
     pub fn walk_medium(&self, obj: u32) -> Option<WalkMedium> {
-        self.walk[..self.walk_len]
-            .iter()
-            .find(|(o, _)| *o == obj)
-            .map(|(_, m)| *m)
+        let n = usize::from(self.walk_len);
+        let i = self.walk_obj[..n].iter().position(|&o| o == obj)?;
+        Some(unpack(self.walk_kind[i], self.walk_data[i]))
     }
 
     /// Leaves `obj` (no-op if not entered).
     pub fn remove(&mut self, obj: u32) {
         if let Some(i) = self.entries().iter().position(|&o| o == obj) {
-            self.entries.copy_within(i + 1..self.len, i);
+            self.entries.copy_within(i + 1..usize::from(self.len), i);
             self.len -= 1;
         }
         if self.walk_len > 0 {
-            if let Some(i) = self.walk[..self.walk_len]
-                .iter()
-                .position(|(o, _)| *o == obj)
-            {
-                self.walk.copy_within(i + 1..self.walk_len, i);
+            let n = usize::from(self.walk_len);
+            if let Some(i) = self.walk_obj[..n].iter().position(|&o| o == obj) {
+                self.walk_obj.copy_within(i + 1..n, i);
+                self.walk_kind.copy_within(i + 1..n, i);
+                self.walk_data.copy_within(i + 1..n, i);
                 self.walk_len -= 1;
             }
         }
@@ -131,44 +172,72 @@ impl InteriorStack {
 
 /// The medium governing a point with the given stack, and the object it belongs to: the
 /// object's medium, or for an object whose interior is resolved per walk the medium resolved
-/// when the path entered it (a homogeneous one made for this walk, or a medium of the scene).
+/// when the path entered it (a medium of the scene, or one made for this walk in `scratch`).
 #[inline]
 pub(super) fn current_medium<'a>(
     scene: &'a Scene,
     stack: &InteriorStack,
-) -> Option<(Cow<'a, Medium>, &'a Object)> {
+    scratch: &'a mut Option<Medium>,
+) -> Option<(&'a Medium, &'a Object)> {
     let top = stack.top(&scene.objects, None)?;
     let obj = &scene.objects[top as usize];
     if obj.walk.is_some() {
-        if let Some(w) = stack.walk_medium(top) {
-            let m = match w {
-                WalkMedium::Scene(i) => Cow::Borrowed(scene.media.get(i as usize)?),
-                WalkMedium::Homogeneous(h) => Cow::Owned(Medium::Homogeneous(h)),
-                WalkMedium::Absorbing(sigma_a) => Cow::Owned(Medium::Absorbing { sigma_a }),
-            };
-            return Some((m, obj));
-        }
+        return walk_medium(scene, stack, top, obj, scratch);
     }
-    obj.medium
-        .map(|m| (Cow::Borrowed(&scene.media[m as usize]), obj))
+    obj.medium.map(|m| (&scene.media[m as usize], obj))
+}
+
+/// [`current_medium`] for an object whose interior is resolved per walk (kept out of line:
+/// untextured scenes never get here).
+#[cold]
+#[inline(never)]
+fn walk_medium<'a>(
+    scene: &'a Scene,
+    stack: &InteriorStack,
+    top: u32,
+    obj: &'a Object,
+    scratch: &'a mut Option<Medium>,
+) -> Option<(&'a Medium, &'a Object)> {
+    let (Some(walk), Some(w)) = (obj.walk.as_deref(), stack.walk_medium(top)) else {
+        return obj.medium.map(|m| (&scene.media[m as usize], obj));
+    };
+    let m = match w {
+        WalkMedium::Scene(i) => scene.media.get(i as usize)?,
+        own => &*scratch.insert(walk.medium_of(own)?),
+    };
+    Some((m, obj))
 }
 
 /// Enters object `oi` at texture coordinates `uv` (footprint `width_uv` wide): an object
 /// whose interior is resolved per walk resolves it here (`u()` gives a blend's random number,
 /// drawn only for blends).
+#[inline]
 pub(super) fn enter(
     scene: &Scene,
     stack: &mut InteriorStack,
     oi: u32,
     uv: Vec2,
     width_uv: f32,
+    u: impl FnMut() -> f32,
+) {
+    match scene.objects.get(oi as usize) {
+        Some(o) if o.walk.is_some() => enter_walk(o, stack, oi, uv, width_uv, u),
+        _ => stack.push(oi),
+    }
+}
+
+/// [`enter`] for an object whose interior is resolved per walk.
+#[cold]
+#[inline(never)]
+fn enter_walk(
+    obj: &Object,
+    stack: &mut InteriorStack,
+    oi: u32,
+    uv: Vec2,
+    width_uv: f32,
     mut u: impl FnMut() -> f32,
 ) {
-    match scene
-        .objects
-        .get(oi as usize)
-        .and_then(|o| o.walk.as_deref())
-    {
+    match obj.walk.as_deref() {
         Some(w) => {
             let r = if w.is_random() { u() } else { 0.0 };
             stack.push_walk(oi, w.resolve(uv, width_uv, r));
@@ -230,5 +299,45 @@ pub(super) fn is_false_intersection(
             })
     } else {
         !stack.contains(oi) || governing != Some(oi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_stack_stays_small_enough_to_copy_inline() {
+        assert!(std::mem::size_of::<InteriorStack>() <= 128);
+    }
+
+    #[test]
+    fn walk_media_ride_on_the_stack_until_their_object_is_left() {
+        let h = WalkMedium::Homogeneous {
+            coefficients: Coefficients {
+                sigma_a: Rgb([0.1, 0.2, 0.3]),
+                sigma_s: Rgb([4.0, 5.0, 6.0]),
+            },
+            look: 1,
+        };
+        let mut s = InteriorStack::new();
+        s.push(3);
+        s.push_walk(7, h);
+        s.push_walk(9, WalkMedium::Scene(12));
+        s.push_walk(11, WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])));
+        assert_eq!(s.walk_medium(7), Some(h));
+        assert_eq!(s.walk_medium(9), Some(WalkMedium::Scene(12)));
+        // A third per-walk object finds no slot: it falls back to its stand-in medium.
+        assert_eq!(s.walk_medium(11), None);
+        assert!(s.contains(11));
+        s.remove(7);
+        assert_eq!(s.walk_medium(7), None);
+        assert_eq!(s.walk_medium(9), Some(WalkMedium::Scene(12)));
+        assert_eq!(s.entries(), &[3, 9, 11]);
+        s.push_walk(7, WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])));
+        assert_eq!(
+            s.walk_medium(7),
+            Some(WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])))
+        );
     }
 }

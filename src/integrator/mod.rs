@@ -48,12 +48,10 @@ struct RayCone {
 }
 
 impl RayCone {
-    /// The cone advanced by `t` along the ray.
+    /// The cone advanced by `t` (finite) along the ray.
     #[inline]
     fn advance(&mut self, t: f32) {
-        if t.is_finite() {
-            self.width += self.spread * t;
-        }
+        self.width += self.spread * t;
     }
 
     /// After a non-specular event.
@@ -241,7 +239,8 @@ impl PathState {
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
     ) -> (Step, Option<Hit>) {
-        let Some((medium, obj)) = current_medium(scene, &self.stack) else {
+        let mut scratch = None;
+        let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
             let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
             if let Some(h) = &hit {
                 self.cone.advance(h.t);
@@ -266,9 +265,11 @@ impl PathState {
         self.beta *= event.weight;
         let step = match event.scatter {
             Some(vertex) => {
-                self.cone.advance(vertex.t);
+                // Inside a walk the cone only widens: the width the next boundary sees is the
+                // entry's grown over the walk's last segment (the sum of a random walk's
+                // segments would overstate how far it spread).
                 self.cone.widen();
-                self.scatter_in_medium(scene, &medium, obj, &vertex, sampler, stats)
+                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats)
             }
             None if self.beta.is_black() => Step::Stop,
             None => {
@@ -455,16 +456,10 @@ impl PathState {
         let guided = guided && do_nee;
         if do_nee && !guided {
             // A shadow ray into an interior resolved per walk enters it here.
-            let entry = match obj.walk.as_deref() {
-                Some(w) if transmits => {
-                    let r = if w.is_random() {
-                        sampler.next_1d()
-                    } else {
-                        0.0
-                    };
-                    Some(w.resolve(hit.uv, width_uv, r))
-                }
-                _ => None,
+            let entry = if obj.walk.is_some() && transmits {
+                shadow_entry(obj, hit, width_uv, sampler)
+            } else {
+                None
             };
             let at = SurfaceVertex {
                 hit,
@@ -539,6 +534,25 @@ impl PathState {
             Step::Stop
         }
     }
+}
+
+/// The medium a shadow ray entering `obj`'s per-walk interior at `hit` uses (out of line:
+/// untextured scenes never get here).
+#[cold]
+#[inline(never)]
+fn shadow_entry(
+    obj: &Object,
+    hit: &Hit,
+    width_uv: f32,
+    sampler: &mut PixelSampler,
+) -> Option<crate::medium::WalkMedium> {
+    let w = obj.walk.as_deref()?;
+    let r = if w.is_random() {
+        sampler.next_1d()
+    } else {
+        0.0
+    };
+    Some(w.resolve(hit.uv, width_uv, r))
 }
 
 /// A surface vertex seen from the path, for next event estimation through its BSDF.

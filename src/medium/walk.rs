@@ -53,10 +53,10 @@ impl EntryInterior {
             self.mode,
             self.phase.mean_cosine(),
         );
-        WalkMedium::Homogeneous(HomogeneousMedium {
+        WalkMedium::Homogeneous {
             coefficients,
-            phase: self.phase,
-        })
+            look: 0,
+        }
     }
 }
 
@@ -71,12 +71,18 @@ pub enum WalkLook {
 }
 
 impl WalkLook {
-    /// The medium of a walk entering at `uv`.
+    /// The medium of a walk entering at `uv`; `look` (0 for `a`, 1 for `b`) is recorded in
+    /// it, to find the phase function again.
     #[must_use]
-    pub fn at(&self, uv: Vec2, width_uv: f32) -> WalkMedium {
+    pub fn at(&self, uv: Vec2, width_uv: f32, look: u8) -> WalkMedium {
         match self {
             WalkLook::Medium(i) => WalkMedium::Scene(*i),
-            WalkLook::Entry(e) => e.at(uv, width_uv),
+            WalkLook::Entry(e) => match e.at(uv, width_uv) {
+                WalkMedium::Homogeneous { coefficients, .. } => {
+                    WalkMedium::Homogeneous { coefficients, look }
+                }
+                other => other,
+            },
         }
     }
 }
@@ -113,23 +119,60 @@ impl WalkInterior {
             WalkInterior::Entry(e) => e.at(uv, width_uv),
             WalkInterior::Blend { mask, a, b } => {
                 if u < mask.eval(uv, width_uv) {
-                    a.at(uv, width_uv)
+                    a.at(uv, width_uv, 0)
                 } else {
-                    b.at(uv, width_uv)
+                    b.at(uv, width_uv, 1)
                 }
             }
+        }
+    }
+
+    /// The phase function of look `look` (0: the entry interior or `a`, 1: `b`) when it is
+    /// an entry-projected scattering interior.
+    #[must_use]
+    pub fn phase(&self, look: u8) -> Option<PhaseFunction> {
+        let entry = match self {
+            WalkInterior::Entry(e) => e,
+            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
+                WalkLook::Entry(e) => e,
+                WalkLook::Medium(_) => return None,
+            },
+        };
+        Some(entry.phase)
+    }
+
+    /// The scene medium of a resolved walk medium: `Medium::Homogeneous` with the look's
+    /// phase function, `Medium::Absorbing`, or `None` for a medium of the scene (by index).
+    #[must_use]
+    pub fn medium_of(&self, m: WalkMedium) -> Option<super::Medium> {
+        match m {
+            WalkMedium::Scene(_) => None,
+            WalkMedium::Homogeneous { coefficients, look } => {
+                Some(super::Medium::Homogeneous(HomogeneousMedium {
+                    coefficients,
+                    phase: self.phase(look)?,
+                }))
+            }
+            WalkMedium::Absorbing(sigma_a) => Some(super::Medium::Absorbing { sigma_a }),
         }
     }
 }
 
 /// The medium one walk uses inside an object with a [`WalkInterior`]: small and `Copy`, so
-/// that it rides on the path's interior stack (and on the copies shadow rays take).
-#[derive(Clone, Copy, Debug)]
+/// that it rides on the path's interior stack (and on the copies shadow rays take); the
+/// phase function stays with the [`WalkInterior`] ([`WalkInterior::medium_of`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum WalkMedium {
     /// A medium of the scene, by index.
     Scene(u32),
-    /// A homogeneous scattering medium.
-    Homogeneous(HomogeneousMedium),
+    /// A homogeneous scattering medium with these coefficients; `look` is 0 for an entry
+    /// interior or a blend's `a`, 1 for `b`.
+    Homogeneous {
+        /// σ_a and σ_s.
+        coefficients: Coefficients,
+        /// Which look.
+        look: u8,
+    },
     /// An absorbing medium with this σ_a (1/length).
     Absorbing(Rgb),
 }

@@ -5,31 +5,25 @@
 use super::scattering::Scattering;
 use super::{textured_extinction_and_nee, BuiltInterior, Site};
 use crate::math::Vec2;
-use crate::medium::{EntryInterior, HomogeneousMedium, Medium, WalkInterior, WalkMedium};
+use crate::medium::{EntryInterior, HomogeneousMedium, Medium, WalkInterior};
 use crate::phase::PhaseFunction;
 use crate::scene::desc::{AbsorptionDesc, HomogeneousDesc};
 use crate::scene::SceneError;
 use crate::spectrum::Rgb;
 use crate::texture::ColorParam;
 
-/// The scene medium of a resolved walk medium (a textured interior's stand-in).
-fn to_medium(m: WalkMedium) -> Medium {
-    match m {
-        WalkMedium::Homogeneous(h) => Medium::Homogeneous(h),
-        WalkMedium::Absorbing(sigma_a) => Medium::Absorbing { sigma_a },
-        // Not produced by an entry interior.
-        WalkMedium::Scene(_) => Medium::Absorbing { sigma_a: Rgb::ZERO },
-    }
-}
-
 /// An interior with a textured parameter: resolved at each entry point; its stand-in is the
 /// medium of the textures' means.
 fn entry(e: EntryInterior, nee: crate::medium::NeeStrategy) -> BuiltInterior {
     let mean = e.at(Vec2::ZERO, f32::INFINITY);
+    let walk = WalkInterior::Entry(e);
     BuiltInterior {
-        medium: to_medium(mean),
+        // An entry interior always resolves to a medium of its own.
+        medium: walk
+            .medium_of(mean)
+            .unwrap_or(Medium::Absorbing { sigma_a: Rgb::ZERO }),
         nee,
-        walk: Some(WalkInterior::Entry(e)),
+        walk: Some(walk),
     }
 }
 
