@@ -308,3 +308,38 @@ fn ray_cones_pick_the_mip_level_of_the_pixel_footprint() {
         "checker vs grey",
     );
 }
+
+fn opaque_ball(surface: &str, spp: u32, seed: u32) -> String {
+    format!(
+        "{}[[object]]\nname = \"ball\"\nshape = \"sphere\"\nsurface = {surface}\n",
+        head(spp, seed, 24.0)
+    )
+}
+
+/// A convex opaque ball is seen through one surface interaction per camera path, so a
+/// surface blend with a constant mask m renders m · A + (1 − m) · B exactly in expectation.
+#[test]
+fn a_surface_blend_with_a_constant_mask_is_the_weighted_sum_of_its_surfaces() {
+    let dir = TempDir::new("render-tex-surface-blend");
+    let m = 0.7;
+    exr_grey(&dir.join("mask.exr"), 3, 3, |_, _| m);
+    let a = r#"{ type = "lambertian", reflectance = [0.9, 0.2, 0.1] }"#;
+    let b = r#"{ type = "conductor", reflectance = [0.2, 0.5, 0.95], roughness = 0.4 }"#;
+    let blend =
+        format!(r#"{{ type = "blend", mask = {{ texture = "mask.exr" }}, a = {a}, b = {b} }}"#);
+    let fb = render(&opaque_ball(&blend, 128, 21), dir.path());
+    let fa = render(&opaque_ball(a, 64, 22), dir.path());
+    let fbb = render(&opaque_ball(b, 64, 23), dir.path());
+    let m = f64::from(m);
+    for c in 0..3 {
+        let (ma, sa) = image_mean(&fa, c);
+        let (m2, s2) = image_mean(&fbb, c);
+        let expected = m * ma + (1.0 - m) * m2;
+        let se = (m * m * sa * sa + (1.0 - m) * (1.0 - m) * s2 * s2).sqrt();
+        assert_agree(
+            image_mean(&fb, c),
+            (expected, se),
+            &format!("surface blend channel {c}"),
+        );
+    }
+}

@@ -50,7 +50,7 @@ const LIGHTS: [Case; 4] = [
     },
 ];
 
-const SURFACES: [Case; 4] = [
+const SURFACES: [Case; 5] = [
     Case {
         kind: "dielectric",
         good: "roughness",
@@ -77,6 +77,13 @@ const SURFACES: [Case; 4] = [
         good: "distribution",
         misspelt: "distribtion",
         foreign: "tint",
+        foreign_owner: "dielectric",
+    },
+    Case {
+        kind: "blend",
+        good: "mask",
+        misspelt: "msk",
+        foreign: "ior",
         foreign_owner: "dielectric",
     },
 ];

@@ -364,3 +364,43 @@ fn untextured_scenes_have_no_per_walk_interiors() {
         .all(|o| o.walk.is_none() && !o.surface.is_textured()));
     let _ = Path::new("");
 }
+
+#[test]
+fn surface_blends_check_their_looks() {
+    let dir = TempDir::new("tex-surface-blend");
+    let obj = |surface: &str| {
+        format!("[[object]]\nname = \"ball\"\nshape = \"sphere\"\nsurface = {surface}\ninterior = {{ type = \"homogeneous\" }}\n")
+    };
+    let e = err(
+        &dir,
+        &obj("{ type = \"blend\", mask = 0.5, a = { type = \"dielectric\", ior = 1.4 }, b = { type = \"dielectric\", ior = 1.5 } }"),
+    );
+    assert_mentions(&e, &["ball: surface", "same `ior`"]);
+    let e = err(
+        &dir,
+        &obj("{ type = \"blend\", mask = 0.5, a = { type = \"dielectric\" }, b = { type = \"lambertian\" } }"),
+    );
+    assert_mentions(&e, &["ball: surface", "must both be dielectrics"]);
+    let e = err(
+        &dir,
+        &obj("{ type = \"blend\", mask = 0.5, a = { type = \"dielectric\", roughnes = 0.3 }, b = { type = \"dielectric\" } }"),
+    );
+    assert_mentions(&e, &["ball: surface.a", "unknown key `roughnes`"]);
+    let e = err(
+        &dir,
+        &obj("{ type = \"blend\", mask = 1.2, a = { type = \"dielectric\" }, b = { type = \"dielectric\" } }"),
+    );
+    assert_mentions(&e, &["ball: surface.mask = 1.2", "outside [0, 1]"]);
+    let e = err(
+        &dir,
+        &obj("{ type = \"blend\", mask = 0.2, a = { type = \"dielectric\", tint = 2.0 }, b = { type = \"dielectric\" } }"),
+    );
+    assert_mentions(&e, &["ball: surface.a.tint"]);
+    let scene = load(
+        &dir,
+        &obj("{ type = \"blend\", mask = 0.2, a = { type = \"dielectric\", roughness = 0.1 }, b = { type = \"dielectric\", roughness = 0.7 } }"),
+    )
+    .unwrap();
+    assert!(matches!(scene.objects[0].surface, ObjectSurface::Blend(_)));
+    assert_eq!(scene.objects[0].ior, 1.4);
+}

@@ -66,9 +66,15 @@ pub(super) fn shadow_transmittance(
         }
         let entering = dir.dot(h.ng) < 0.0;
         if !is_false_intersection(scene, &stack, oi, entering) {
-            match &obj.surface {
+            let surface = match &obj.surface {
+                ObjectSurface::Blend(_) => obj.surface.pick(h.uv, 0.0, sampler.next_1d()),
+                s => s,
+            };
+            match surface {
                 ObjectSurface::Null => {}
-                ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) => return Rgb::ZERO,
+                ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) | ObjectSurface::Blend(_) => {
+                    return Rgb::ZERO
+                }
                 ObjectSurface::Dielectric(d) => {
                     let outside = stack.ior(&scene.objects, Some(oi));
                     if mode == ShadowMode::Opaque && (d.ior - outside).abs() > 1e-6 {

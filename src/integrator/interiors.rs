@@ -249,18 +249,21 @@ fn enter_walk(
 /// Builds the boundary BSDF of `obj` for the media meeting there, with textured parameters
 /// at their means (callers that know the hit use [`boundary_surface_at`]).
 pub(super) fn boundary_surface(obj: &Object, outside_ior: f32) -> Option<Surface> {
-    boundary_surface_at(obj, outside_ior, Vec2::ZERO, f32::INFINITY)
+    boundary_surface_at(obj, outside_ior, Vec2::ZERO, f32::INFINITY, 0.0)
 }
 
 /// Builds the boundary BSDF of `obj` for the media meeting there, its textured parameters
-/// read at texture coordinates `uv` with a footprint `width_uv` wide.
+/// read at texture coordinates `uv` with a footprint `width_uv` wide; `u_mask` picks a
+/// blend's surface ([`ObjectSurface::pick`]).
 pub(super) fn boundary_surface_at(
     obj: &Object,
     outside_ior: f32,
     uv: Vec2,
     width_uv: f32,
+    u_mask: f32,
 ) -> Option<Surface> {
-    match &obj.surface {
+    match obj.surface.pick(uv, width_uv, u_mask) {
+        ObjectSurface::Blend(_) => None,
         ObjectSurface::Fixed(s) => Some(s.clone()),
         ObjectSurface::Null => None,
         ObjectSurface::Textured(t) => t.at(uv, width_uv),

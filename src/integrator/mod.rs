@@ -426,7 +426,12 @@ impl PathState {
         let transmits = obj.surface.transmits();
         let outside_ior = self.stack.ior(&scene.objects, Some(oi));
         let width_uv = self.cone.width_uv(obj, self.ray.d.dot(hit.ng));
-        let Some(surface) = boundary_surface_at(obj, outside_ior, hit.uv, width_uv) else {
+        let u_mask = if matches!(obj.surface, ObjectSurface::Blend(_)) {
+            sampler.next_1d()
+        } else {
+            0.0
+        };
+        let Some(surface) = boundary_surface_at(obj, outside_ior, hit.uv, width_uv, u_mask) else {
             return Step::Stop;
         };
         // Opaque surfaces are two-sided: seen from behind, flip the frame.

@@ -193,6 +193,17 @@ impl TexturedSurface {
     }
 }
 
+/// Two boundaries mixed per hit by a mask (`surface = { type = "blend", ... }`).
+#[derive(Clone, Debug)]
+pub struct SurfaceBlend {
+    /// The probability of `a`, in [0, 1].
+    pub mask: ScalarParam,
+    /// The first surface.
+    pub a: ObjectSurface,
+    /// The second surface.
+    pub b: ObjectSurface,
+}
+
 /// The scattering model of an object's boundary.
 #[derive(Clone, Debug)]
 pub enum ObjectSurface {
@@ -202,6 +213,9 @@ pub enum ObjectSurface {
     Fixed(Surface),
     /// A surface that does not depend on the neighbouring media, with textured parameters.
     Textured(Box<TexturedSurface>),
+    /// At each hit, surface `a` with probability mask(uv), else `b` (both dielectrics of the
+    /// same IOR, or neither, and both transmitting or neither).
+    Blend(Box<SurfaceBlend>),
     /// An index-matched boundary that only delimits an interior (no scattering).
     Null,
 }
@@ -214,6 +228,24 @@ impl ObjectSurface {
             ObjectSurface::Dielectric(_) | ObjectSurface::Null => true,
             ObjectSurface::Fixed(s) => s.has_transmission(),
             ObjectSurface::Textured(s) => s.transmits(),
+            ObjectSurface::Blend(b) => b.a.transmits() || b.b.transmits(),
+        }
+    }
+
+    /// The surface used at a hit at texture coordinates `uv` with a footprint `width_uv`
+    /// wide: itself, or a blend's `a` when `u < mask(uv)`, else its `b`.
+    #[inline]
+    #[must_use]
+    pub fn pick(&self, uv: crate::math::Vec2, width_uv: f32, u: f32) -> &ObjectSurface {
+        match self {
+            ObjectSurface::Blend(b) => {
+                if u < b.mask.eval(uv, width_uv) {
+                    &b.a
+                } else {
+                    &b.b
+                }
+            }
+            other => other,
         }
     }
 
@@ -222,7 +254,7 @@ impl ObjectSurface {
     pub fn is_textured(&self) -> bool {
         match self {
             ObjectSurface::Dielectric(d) => d.is_textured(),
-            ObjectSurface::Textured(_) => true,
+            ObjectSurface::Textured(_) | ObjectSurface::Blend(_) => true,
             ObjectSurface::Fixed(_) | ObjectSurface::Null => false,
         }
     }

@@ -1,10 +1,12 @@
 //! `surface = { ... }`: an object's boundary, one builder per surface type.
 
 use super::context::Ctx;
-use super::desc::{CoatDesc, ColorInput, SurfaceDesc};
+use super::desc::{CoatDesc, ColorInput, SurfaceBlendDesc, SurfaceDesc};
 use super::textures::ParamSite;
 use super::validate::check_range;
-use super::{DielectricParams, ObjectSurface, SceneError, TexturedKind, TexturedSurface};
+use super::{
+    DielectricParams, ObjectSurface, SceneError, SurfaceBlend, TexturedKind, TexturedSurface,
+};
 use crate::bsdf::{MicrofacetDistribution, Surface};
 use crate::spectrum::Rgb;
 use crate::texture::{ColorParam, ScalarParam};
@@ -82,7 +84,22 @@ pub(super) fn build_surface(
     let Some(s) = s else {
         return Ok((ObjectSurface::Null, 1.0));
     };
-    let owner = format!("{name}: surface");
+    build_named(ctx, line, name, format!("{name}: surface"), s, has_uvs)
+}
+
+/// [`build_surface`] of a surface table named `owner` in messages (`"<name>: surface"`, or a
+/// blend's `"<name>: surface.a"`).
+fn build_named(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    owner: String,
+    s: &SurfaceDesc,
+    has_uvs: bool,
+) -> Result<(ObjectSurface, f32), SceneError> {
+    if let SurfaceDesc::Blend(d) = s {
+        return blend(ctx, line, name, &owner, d, has_uvs);
+    }
     let p = ParamSite {
         ctx,
         line,
@@ -161,6 +178,7 @@ pub(super) fn build_surface(
             }
             Ok((ObjectSurface::Fixed(surf), 1.0))
         }
+        SurfaceDesc::Blend(_) => Err(bad(&"a blend is built by `blend`")),
         SurfaceDesc::Conductor(d) => {
             let r = colour("reflectance", d.reflectance.as_ref(), Rgb::splat(0.9))?;
             let dist = distribution(ctx, line, name, d.distribution.as_deref())?;
@@ -182,4 +200,73 @@ pub(super) fn build_surface(
             Ok((ObjectSurface::Fixed(surf), 1.0))
         }
     }
+}
+
+/// `type = "blend"`: `a` with probability mask(uv) at each hit, else `b`. Both must refract
+/// alike (dielectrics of one IOR, or neither) and both transmit or neither, so that the
+/// object's interior, its IOR and its two-sidedness do not depend on the choice.
+fn blend(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    owner: &str,
+    d: &SurfaceBlendDesc,
+    has_uvs: bool,
+) -> Result<(ObjectSurface, f32), SceneError> {
+    let p = ParamSite {
+        ctx,
+        line,
+        owner,
+        name,
+        has_uvs,
+    };
+    let mask_input = d.mask.as_ref().ok_or_else(|| {
+        ctx.invalid(
+            line,
+            format!("{owner}: a blend needs `mask` (a number in [0, 1] or {{ texture = \"file\", channel = ... }})"),
+        )
+    })?;
+    let mask = p.scalar("mask", Some(mask_input), 0.5, 0.0, 1.0)?;
+    let look = |key: &str, desc: Option<&toml::Spanned<SurfaceDesc>>| {
+        let desc = desc.ok_or_else(|| {
+            ctx.invalid(
+                line,
+                format!("{owner}: a blend needs `{key}` (a surface table with a `type`)"),
+            )
+        })?;
+        let inner_line = ctx.line_of(desc.span().start);
+        if matches!(desc.get_ref(), SurfaceDesc::Blend(_)) {
+            return Err(ctx.invalid(
+                inner_line,
+                format!("{owner}.{key}: a blend's surfaces cannot be blends"),
+            ));
+        }
+        build_named(
+            ctx,
+            inner_line,
+            name,
+            format!("{owner}.{key}"),
+            desc.get_ref(),
+            has_uvs,
+        )
+    };
+    let (a, ior_a) = look("a", d.a.as_deref())?;
+    let (b, ior_b) = look("b", d.b.as_deref())?;
+    let dielectric = |s: &ObjectSurface| matches!(s, ObjectSurface::Dielectric(_));
+    if dielectric(&a) != dielectric(&b) || ior_a != ior_b {
+        return Err(ctx.invalid(
+            line,
+            format!("{owner}: a blend's `a` and `b` must both be dielectrics of the same `ior` (here {ior_a} and {ior_b}), or both other types"),
+        ));
+    }
+    if a.transmits() != b.transmits() {
+        return Err(ctx.invalid(
+            line,
+            format!("{owner}: a blend's `a` and `b` must both transmit light or both be opaque"),
+        ));
+    }
+    Ok((
+        ObjectSurface::Blend(Box::new(SurfaceBlend { mask, a, b })),
+        ior_a,
+    ))
 }

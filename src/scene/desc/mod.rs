@@ -26,7 +26,8 @@ pub use light::{
     DistantLightDesc, EnvironmentLightDesc, EnvmapLightDesc, LightDesc, SphereLightDesc,
 };
 pub use surface::{
-    CoatDesc, ConductorDesc, DielectricDesc, DiffuseTransmissionDesc, LambertianDesc, SurfaceDesc,
+    CoatDesc, ConductorDesc, DielectricDesc, DiffuseTransmissionDesc, LambertianDesc,
+    SurfaceBlendDesc, SurfaceDesc,
 };
 
 /// A colour given either as one number (grey) or as `[r, g, b]`.

@@ -1,6 +1,7 @@
 //! `surface = { ... }`: one description per surface `type`.
 
 use serde::Deserialize;
+use toml::Spanned;
 
 use super::{ColorInput, ScalarInput, TypedTable};
 
@@ -15,6 +16,22 @@ pub enum SurfaceDesc {
     Lambertian(LambertianDesc),
     /// `type = "conductor"`.
     Conductor(ConductorDesc),
+    /// `type = "blend"`.
+    Blend(SurfaceBlendDesc),
+}
+
+/// `type = "blend"`: at each hit, surface `a` with probability mask(uv), else `b`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceBlendDesc {
+    /// The probability of `a`: a number in [0, 1] or a texture table (required).
+    pub mask: Option<ScalarInput>,
+    /// The first surface (a surface table; read by the scene reader, as its `type` picks it).
+    #[serde(skip)]
+    pub a: Option<Box<Spanned<SurfaceDesc>>>,
+    /// The second surface.
+    #[serde(skip)]
+    pub b: Option<Box<Spanned<SurfaceDesc>>>,
 }
 
 /// `type = "dielectric"`: a smooth or rough refracting boundary.
@@ -90,6 +107,7 @@ impl SurfaceDesc {
             SurfaceDesc::DiffuseTransmission(d) => d.coat.as_ref(),
             SurfaceDesc::Lambertian(d) => d.coat.as_ref(),
             SurfaceDesc::Conductor(d) => d.coat.as_ref(),
+            SurfaceDesc::Blend(_) => None,
         }
     }
 
@@ -99,7 +117,9 @@ impl SurfaceDesc {
         match self {
             SurfaceDesc::Dielectric(d) => d.roughness.as_ref(),
             SurfaceDesc::Conductor(d) => d.roughness.as_ref(),
-            SurfaceDesc::DiffuseTransmission(_) | SurfaceDesc::Lambertian(_) => None,
+            SurfaceDesc::DiffuseTransmission(_)
+            | SurfaceDesc::Lambertian(_)
+            | SurfaceDesc::Blend(_) => None,
         }
     }
 }
@@ -110,7 +130,26 @@ impl TypedTable for SurfaceDesc {
         "diffuse_transmission",
         "lambertian",
         "conductor",
+        "blend",
     ];
+
+    fn nested_keys(kind: &str) -> &'static [&'static str] {
+        if kind == "blend" {
+            &["a", "b"]
+        } else {
+            &[]
+        }
+    }
+
+    fn set_nested(&mut self, key: &str, value: Spanned<Self>) {
+        if let SurfaceDesc::Blend(d) = self {
+            match key {
+                "a" => d.a = Some(Box::new(value)),
+                "b" => d.b = Some(Box::new(value)),
+                _ => {}
+            }
+        }
+    }
 
     fn read<'de, D: serde::Deserializer<'de>>(
         kind: &str,
@@ -123,6 +162,7 @@ impl TypedTable for SurfaceDesc {
             }
             "lambertian" => SurfaceDesc::Lambertian(LambertianDesc::deserialize(keys)?),
             "conductor" => SurfaceDesc::Conductor(ConductorDesc::deserialize(keys)?),
+            "blend" => SurfaceDesc::Blend(SurfaceBlendDesc::deserialize(keys)?),
             _ => return Ok(None),
         }))
     }
