@@ -60,13 +60,13 @@ impl RayCone {
         self.spread = self.spread.max(NON_SPECULAR_SPREAD);
     }
 
-    /// The footprint width in texture units at a hit of object `obj` seen at `cos` to the
-    /// normal: width / |cos| (the long axis of the cone's elliptic cross-section, at most 4×
-    /// the width: an isotropic filter cannot follow the ellipse, and would blur silhouettes
-    /// to the texture's mean) × texture units per world unit.
+    /// The footprint width in texture units at a hit seen at `cos` to the normal, where the
+    /// surface has `uv_scale` texture units per world unit: width / |cos| (the long axis of
+    /// the cone's elliptic cross-section, at most 4× the width: an isotropic filter cannot
+    /// follow the ellipse, and would blur silhouettes to the texture's mean) × `uv_scale`.
     #[inline]
-    fn width_uv(&self, obj: &Object, cos: f32) -> f32 {
-        self.width / cos.abs().max(0.25) * obj.uv_scale
+    fn width_uv(&self, uv_scale: f32, cos: f32) -> f32 {
+        self.width / cos.abs().max(0.25) * uv_scale
     }
 }
 
@@ -395,7 +395,9 @@ impl PathState {
     ) -> Step {
         if entering {
             let obj = &scene.objects[oi as usize];
-            let width = self.cone.width_uv(obj, self.ray.d.dot(hit.ng));
+            let width = self
+                .cone
+                .width_uv(obj.uv_scale_at(hit.prim), self.ray.d.dot(hit.ng));
             enter(scene, &mut self.stack, oi, hit.uv, width, || {
                 sampler.next_1d()
             });
@@ -425,7 +427,9 @@ impl PathState {
         let obj = &scene.objects[oi as usize];
         let transmits = obj.surface.transmits();
         let outside_ior = self.stack.ior(&scene.objects, Some(oi));
-        let width_uv = self.cone.width_uv(obj, self.ray.d.dot(hit.ng));
+        let width_uv = self
+            .cone
+            .width_uv(obj.uv_scale_at(hit.prim), self.ray.d.dot(hit.ng));
         let u_mask = if matches!(obj.surface, ObjectSurface::Blend(_)) {
             sampler.next_1d()
         } else {

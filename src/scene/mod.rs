@@ -281,6 +281,21 @@ pub struct Object {
     /// Texture units per world unit on the surface (for texture footprints; 0 when nothing
     /// of the object is textured).
     pub uv_scale: f32,
+    /// The same per triangle of a textured mesh (empty otherwise: `uv_scale` applies).
+    pub uv_scales: Vec<f32>,
+}
+
+impl Object {
+    /// Texture units per world unit at triangle `prim` (the whole object's figure for spheres
+    /// and untextured objects).
+    #[inline]
+    #[must_use]
+    pub fn uv_scale_at(&self, prim: u32) -> f32 {
+        self.uv_scales
+            .get(prim as usize)
+            .copied()
+            .unwrap_or(self.uv_scale)
+    }
 }
 
 /// What a shape of the [`SceneGeometry`] belongs to.

@@ -184,10 +184,10 @@ impl ObjectList {
                 format!("{name}: nee = \"exit_guided\" does not support a textured surface yet (use \"exit\")"),
             ));
         }
-        let uv_scale = if surface.is_textured() || walk.is_some() {
+        let (uv_scale, uv_scales) = if surface.is_textured() || walk.is_some() {
             uv_per_world(&shape)
         } else {
-            0.0
+            (0.0, Vec::new())
         };
         self.objects.push(Object {
             name,
@@ -198,41 +198,71 @@ impl ObjectList {
             nee,
             walk,
             uv_scale,
+            uv_scales,
         });
         Ok(shape)
     }
 }
 
 /// Texture units per world unit of a shape's surface: sqrt(UV area / world area) over the
-/// whole shape (a sphere's (φ/2π, θ/π) parameterisation covers the unit square over 4πr²);
-/// it turns a ray cone's width into a footprint in texture units (docs/textures.md).
-fn uv_per_world(shape: &Shape) -> f32 {
+/// whole shape (a sphere's (φ/2π, θ/π) parameterisation covers the unit square over 4πr²),
+/// and for a mesh the same per triangle (Akenine-Möller et al.'s Δ, docs/references.md §14.2;
+/// degenerate triangles take the whole mesh's figure). They turn a ray cone's width into a
+/// footprint in texture units (docs/textures.md).
+fn uv_per_world(shape: &Shape) -> (f32, Vec<f32>) {
     match shape {
-        Shape::Sphere { radius, .. } => 1.0 / (2.0 * radius * std::f32::consts::PI.sqrt()),
+        Shape::Sphere { radius, .. } => (
+            1.0 / (2.0 * radius * std::f32::consts::PI.sqrt()),
+            Vec::new(),
+        ),
         Shape::Mesh(m) => {
-            let Some(uvs) = &m.uvs else { return 0.0 };
-            let (mut uv_area, mut area) = (0.0f64, 0.0f64);
-            for tri in &m.indices {
-                let [a, b, c] = tri.map(|i| i as usize);
-                if let (Some(pa), Some(pb), Some(pc), Some(ta), Some(tb), Some(tc)) = (
-                    m.positions.get(a),
-                    m.positions.get(b),
-                    m.positions.get(c),
-                    uvs.get(a),
-                    uvs.get(b),
-                    uvs.get(c),
-                ) {
-                    area += f64::from((*pb - *pa).cross(*pc - *pa).length());
-                    uv_area += f64::from(((*tb - *ta).perp_dot(*tc - *ta)).abs());
-                }
-            }
-            if area > 0.0 {
-                (uv_area / area).sqrt() as f32
+            let Some(uvs) = &m.uvs else {
+                return (0.0, Vec::new());
+            };
+            let (mut uv_total, mut total) = (0.0f64, 0.0f64);
+            let per_triangle: Vec<(f64, f64)> = m
+                .indices
+                .iter()
+                .map(|tri| {
+                    let [a, b, c] = tri.map(|i| i as usize);
+                    match (
+                        m.positions.get(a),
+                        m.positions.get(b),
+                        m.positions.get(c),
+                        uvs.get(a),
+                        uvs.get(b),
+                        uvs.get(c),
+                    ) {
+                        (Some(pa), Some(pb), Some(pc), Some(ta), Some(tb), Some(tc)) => {
+                            let area = f64::from((*pb - *pa).cross(*pc - *pa).length());
+                            let uv_area = f64::from(((*tb - *ta).perp_dot(*tc - *ta)).abs());
+                            total += area;
+                            uv_total += uv_area;
+                            (uv_area, area)
+                        }
+                        _ => (0.0, 0.0),
+                    }
+                })
+                .collect();
+            let whole = if total > 0.0 {
+                (uv_total / total).sqrt() as f32
             } else {
                 0.0
-            }
+            };
+            let per = per_triangle
+                .iter()
+                .map(|&(uv, area)| {
+                    let r = (uv / area).sqrt() as f32;
+                    if area > 0.0 && uv > 0.0 && r.is_finite() {
+                        r
+                    } else {
+                        whole
+                    }
+                })
+                .collect();
+            (whole, per)
         }
-        _ => 0.0,
+        _ => (0.0, Vec::new()),
     }
 }
 
