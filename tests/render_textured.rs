@@ -343,3 +343,36 @@ fn a_surface_blend_with_a_constant_mask_is_the_weighted_sum_of_its_surfaces() {
         );
     }
 }
+
+/// A blend's looks can be any interior: a procedural (fBm) look and a homogeneous one, behind
+/// an index-matched boundary (so NEE happens at interior vertices, its shadow rays tracked
+/// through the walk's look). A convex object is entered once per camera path, so the image
+/// is m · A + (1 − m) · B in expectation.
+#[test]
+fn a_blend_of_a_heterogeneous_and_a_homogeneous_look() {
+    let dir = TempDir::new("render-tex-blend-fbm");
+    let a = r#"{ type = "fbm", noise = { frequency = 3.0, offset = 0.4, amplitude = 1.0 }, voxel_size = 0.05, albedo = [0.9, 0.5, 0.3], attenuation = 0.15 }"#;
+    let b = r#"{ type = "homogeneous", albedo = [0.3, 0.6, 0.9], attenuation = [0.5, 0.3, 0.2] }"#;
+    let scene = |interior: &str, spp: u32, seed: u32| {
+        format!(
+            "{}[[object]]\nname = \"ball\"\nshape = \"sphere\"\ninterior = {interior}\n",
+            head(spp, seed, 24.0)
+        )
+    };
+    let m = 0.4;
+    let blend = format!(r#"{{ type = "blend", mask = {m}, a = {a}, b = {b} }}"#);
+    let fb = render(&scene(&blend, 96, 31), dir.path());
+    let fa = render(&scene(a, 48, 32), dir.path());
+    let fbb = render(&scene(b, 48, 33), dir.path());
+    for c in 0..3 {
+        let (ma, sa) = image_mean(&fa, c);
+        let (m2, s2) = image_mean(&fbb, c);
+        let expected = m * ma + (1.0 - m) * m2;
+        let se = (m * m * sa * sa + (1.0 - m) * (1.0 - m) * s2 * s2).sqrt();
+        assert_agree(
+            image_mean(&fb, c),
+            (expected, se),
+            &format!("fbm/homogeneous blend channel {c}"),
+        );
+    }
+}
