@@ -395,9 +395,7 @@ impl PathState {
     ) -> Step {
         if entering {
             let obj = &scene.objects[oi as usize];
-            let width = self
-                .cone
-                .width_uv(obj.uv_scale_at(hit.prim), self.ray.d.dot(hit.ng));
+            let width = self.footprint(obj, hit);
             enter(scene, &mut self.stack, oi, hit.uv, width, || {
                 sampler.next_1d()
             });
@@ -427,9 +425,7 @@ impl PathState {
         let obj = &scene.objects[oi as usize];
         let transmits = obj.surface.transmits();
         let outside_ior = self.stack.ior(&scene.objects, Some(oi));
-        let width_uv = self
-            .cone
-            .width_uv(obj.uv_scale_at(hit.prim), self.ray.d.dot(hit.ng));
+        let width_uv = self.footprint(obj, hit);
         let u_mask = if matches!(obj.surface, ObjectSurface::Blend(_)) {
             sampler.next_1d()
         } else {
@@ -533,6 +529,18 @@ impl PathState {
         }
         self.ray = Ray::new(hit.spawn_origin(wi), wi);
         self.continue_with_roulette(sampler)
+    }
+
+    /// The ray cone's footprint at `hit` on `obj` in texture units (0, unused, for objects
+    /// with nothing textured: their `uv_scale` is 0).
+    #[inline]
+    fn footprint(&self, obj: &Object, hit: &Hit) -> f32 {
+        if obj.uv_scale > 0.0 {
+            self.cone
+                .width_uv(obj.uv_scale_at(hit.prim), self.ray.d.dot(hit.ng))
+        } else {
+            0.0
+        }
     }
 
     /// Russian roulette after a scattering event: [`Step::Trace`] if the path survives.
