@@ -15,10 +15,14 @@ use crate::texture::{
     load_texture, Channel, ColorParam, ColorSpace, ScalarParam, Texture, TextureOptions, Wrap,
 };
 
+/// What makes two texture parameters share one texture: the file, the colour space, the
+/// channel, the scale's bits and the wrap mode.
+type TextureKey = (PathBuf, ColorSpace, Option<Channel>, u32, Wrap);
+
 /// The textures loaded so far, by file and options.
 #[derive(Default)]
 pub(super) struct TextureCache {
-    map: HashMap<(PathBuf, ColorSpace, Option<Channel>, u32, Wrap), Arc<Texture>>,
+    map: HashMap<TextureKey, Arc<Texture>>,
 }
 
 /// Where a texturable parameter is read: the scene, the line of its table, `owner.key` for
