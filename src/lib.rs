@@ -16,6 +16,7 @@ pub mod geometry;
 pub mod grid;
 pub mod image_io;
 pub mod phase;
+pub mod texture;
 pub mod vdb;
 
 pub mod majorant;

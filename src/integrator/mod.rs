@@ -18,7 +18,7 @@ mod interiors;
 pub use interiors::{InteriorStack, MAX_NESTING};
 
 use direct::{emitted, estimate_direct, PrevVertex, ShadowMode};
-use interiors::{boundary_surface, current_medium, is_false_intersection};
+use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
 use crate::geometry::Hit;
@@ -31,6 +31,44 @@ use crate::tracking::TrackingStats;
 
 /// Depth at which Russian roulette starts.
 const RR_START_DEPTH: u32 = 5;
+
+/// The spread angle (radians) a ray cone takes at least after a non-specular event (rough
+/// or diffuse surface scattering, volume scattering): a widening policy for texture
+/// filtering only (docs/textures.md), not from a paper.
+const NON_SPECULAR_SPREAD: f32 = 0.2;
+
+/// A ray cone (Akenine-Möller et al. 2019/2021; docs/references.md §14.2): the footprint
+/// width at the ray's origin (world units) and how fast it grows per unit distance.
+#[derive(Clone, Copy, Debug)]
+struct RayCone {
+    /// Width at the ray's origin, world units.
+    width: f32,
+    /// Spread angle, radians (width grows by `spread · t`).
+    spread: f32,
+}
+
+impl RayCone {
+    /// The cone advanced by `t` (finite) along the ray.
+    #[inline]
+    fn advance(&mut self, t: f32) {
+        self.width += self.spread * t;
+    }
+
+    /// After a non-specular event.
+    #[inline]
+    fn widen(&mut self) {
+        self.spread = self.spread.max(NON_SPECULAR_SPREAD);
+    }
+
+    /// The footprint width in texture units at a hit seen at `cos` to the normal, where the
+    /// surface has `uv_scale` texture units per world unit: width / |cos| (the long axis of
+    /// the cone's elliptic cross-section, at most 4× the width: an isotropic filter cannot
+    /// follow the ellipse, and would blur silhouettes to the texture's mean) × `uv_scale`.
+    #[inline]
+    fn width_uv(&self, uv_scale: f32, cos: f32) -> f32 {
+        self.width / cos.abs().max(0.25) * uv_scale
+    }
+}
 
 /// Counters gathered while tracing (summed over all paths for the render summary).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -142,6 +180,8 @@ struct PathState {
     /// the ray now leaves, with that vertex's phase pdf of the ray direction; cleared by any
     /// boundary.
     guided_from: Option<u32>,
+    /// The ray's cone, for texture footprints.
+    cone: RayCone,
 }
 
 fn radiance(
@@ -150,7 +190,7 @@ fn radiance(
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
 ) -> (Rgb, Aov) {
-    let mut path = PathState::new(ray);
+    let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
     loop {
         stats.rays += 1;
         sampler.start_vertex();
@@ -175,7 +215,7 @@ fn radiance(
 }
 
 impl PathState {
-    fn new(ray: Ray) -> Self {
+    fn new(ray: Ray, spread: f32) -> Self {
         PathState {
             ray,
             beta: Rgb::ONE,
@@ -194,6 +234,7 @@ impl PathState {
             entry_normal: Vec3::ZERO,
             crossings: 0,
             guided_from: None,
+            cone: RayCone { width: 0.0, spread },
         }
     }
 
@@ -208,8 +249,12 @@ impl PathState {
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
     ) -> (Step, Option<Hit>) {
-        let Some((medium, obj)) = current_medium(scene, &self.stack) else {
+        let mut scratch = None;
+        let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
             let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
+            if let Some(h) = &hit {
+                self.cone.advance(h.t);
+            }
             return (Step::Boundary, hit);
         };
         let mut hit = None;
@@ -229,9 +274,20 @@ impl PathState {
         }
         self.beta *= event.weight;
         let step = match event.scatter {
-            Some(vertex) => self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats),
+            Some(vertex) => {
+                // Inside a walk the cone only widens: the width the next boundary sees is the
+                // entry's grown over the walk's last segment (the sum of a random walk's
+                // segments would overstate how far it spread).
+                self.cone.widen();
+                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats)
+            }
             None if self.beta.is_black() => Step::Stop,
-            None => Step::Boundary,
+            None => {
+                if let Some(h) = &hit {
+                    self.cone.advance(h.t);
+                }
+                Step::Boundary
+            }
         };
         (step, hit)
     }
@@ -324,7 +380,7 @@ impl PathState {
             && (is_false_intersection(scene, &self.stack, oi, entering)
                 || matches!(obj.surface, ObjectSurface::Null))
         {
-            return self.cross_boundary(scene, hit, oi, entering);
+            return self.cross_boundary(scene, hit, oi, entering, sampler);
         }
         let guided = guided_from == Some(oi) && !entering;
         self.surface_interaction(scene, hit, oi, entering, guided, sampler, stats)
@@ -343,10 +399,21 @@ impl PathState {
 
     /// 4. False intersections with lower-priority boundaries, and null boundaries, only
     /// update the stack.
-    fn cross_boundary(&mut self, scene: &Scene, hit: &Hit, oi: u32, entering: bool) -> Step {
+    fn cross_boundary(
+        &mut self,
+        scene: &Scene,
+        hit: &Hit,
+        oi: u32,
+        entering: bool,
+        sampler: &mut PixelSampler,
+    ) -> Step {
         if entering {
             self.entry_normal = hit.ns;
-            self.stack.push(oi);
+            let obj = &scene.objects[oi as usize];
+            let width = self.footprint(obj, hit);
+            enter(scene, &mut self.stack, oi, hit.uv, width, || {
+                sampler.next_1d()
+            });
         } else {
             self.stack.remove(oi);
         }
@@ -373,7 +440,13 @@ impl PathState {
         let obj = &scene.objects[oi as usize];
         let transmits = obj.surface.transmits();
         let outside_ior = self.stack.ior(&scene.objects, Some(oi));
-        let Some(surface) = boundary_surface(obj, outside_ior) else {
+        let width_uv = self.footprint(obj, hit);
+        let u_mask = if matches!(obj.surface, ObjectSurface::Blend(_)) {
+            sampler.next_1d()
+        } else {
+            0.0
+        };
+        let Some(surface) = boundary_surface_at(obj, outside_ior, hit.uv, width_uv, u_mask) else {
             return Step::Stop;
         };
         // Opaque surfaces are two-sided: seen from behind, flip the frame.
@@ -411,6 +484,12 @@ impl PathState {
         // replaces exit-point NEE here (BTDF sampling below is MIS-weighted against it).
         let guided = guided && do_nee;
         if do_nee && !guided {
+            // A shadow ray into an interior resolved per walk enters it here.
+            let entry = if obj.walk.is_some() && transmits {
+                shadow_entry(obj, hit, width_uv, sampler)
+            } else {
+                None
+            };
             let at = SurfaceVertex {
                 hit,
                 oi,
@@ -418,6 +497,7 @@ impl PathState {
                 ng,
                 frame,
                 wo,
+                entry,
             };
             self.radiance +=
                 self.beta * at.direct_light(scene, &surface, self.stack, sampler, stats);
@@ -439,10 +519,15 @@ impl PathState {
             return Step::Stop;
         }
         self.beta *= bs.weight;
+        if !bs.is_delta {
+            self.cone.widen();
+        }
         if bs.is_transmission {
             self.eta_scale *= bs.eta * bs.eta;
             if wi.dot(hit.ng) < 0.0 {
-                self.stack.push(oi);
+                enter(scene, &mut self.stack, oi, hit.uv, width_uv, || {
+                    sampler.next_1d()
+                });
             } else {
                 self.stack.remove(oi);
             }
@@ -470,6 +555,18 @@ impl PathState {
         self.continue_with_roulette(sampler)
     }
 
+    /// The ray cone's footprint at `hit` on `obj` in texture units (0, unused, for objects
+    /// with nothing textured: their `uv_scale` is 0).
+    #[inline]
+    fn footprint(&self, obj: &Object, hit: &Hit) -> f32 {
+        if obj.uv_scale > 0.0 {
+            self.cone
+                .width_uv(obj.uv_scale_at(hit.prim), self.ray.d.dot(hit.ng))
+        } else {
+            0.0
+        }
+    }
+
     /// Russian roulette after a scattering event: [`Step::Trace`] if the path survives.
     fn continue_with_roulette(&mut self, sampler: &mut PixelSampler) -> Step {
         if russian_roulette(&mut self.beta, self.eta_scale, self.depth, sampler) {
@@ -478,6 +575,25 @@ impl PathState {
             Step::Stop
         }
     }
+}
+
+/// The medium a shadow ray entering `obj`'s per-walk interior at `hit` uses (out of line:
+/// untextured scenes never get here).
+#[cold]
+#[inline(never)]
+fn shadow_entry(
+    obj: &Object,
+    hit: &Hit,
+    width_uv: f32,
+    sampler: &mut PixelSampler,
+) -> Option<crate::medium::WalkMedium> {
+    let w = obj.walk.as_deref()?;
+    let r = if w.is_random() {
+        sampler.next_1d()
+    } else {
+        0.0
+    };
+    Some(w.resolve(hit.uv, width_uv, r))
 }
 
 /// A surface vertex seen from the path, for next event estimation through its BSDF.
@@ -491,6 +607,8 @@ struct SurfaceVertex<'a> {
     frame: Frame,
     /// Direction towards the previous vertex.
     wo: Vec3,
+    /// The medium a shadow ray entering the object's per-walk interior here uses.
+    entry: Option<crate::medium::WalkMedium>,
 }
 
 impl SurfaceVertex<'_> {
@@ -515,7 +633,10 @@ impl SurfaceVertex<'_> {
                 let crosses = (wi.dot(ng) > 0.0) != (wo.dot(ng) > 0.0);
                 if crosses && transmits {
                     if wi.dot(hit.ng) < 0.0 {
-                        s.push(oi);
+                        match self.entry {
+                            Some(m) => s.push_walk(oi, m),
+                            None => s.push(oi),
+                        }
                     } else {
                         s.remove(oi);
                     }

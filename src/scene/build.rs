@@ -27,6 +27,7 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         path,
         text,
         inputs: Default::default(),
+        textures: Default::default(),
     };
     let file = read::read_scene_file(&ctx)?;
     let mut warnings = Vec::new();

@@ -15,6 +15,8 @@ pub(super) struct Ctx<'a> {
     pub text: &'a str,
     /// Every input path resolved so far (the files the scene loads), in order.
     pub inputs: RefCell<Vec<PathBuf>>,
+    /// Textures loaded so far (shared by every parameter naming the same file and options).
+    pub textures: std::cell::RefCell<super::textures::TextureCache>,
 }
 
 impl Ctx<'_> {
