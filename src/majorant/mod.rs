@@ -13,10 +13,12 @@
 //! tolerate as long as every segment they bound is looked up: see
 //! [`MajorantSegment::is_homogeneous`]).
 
+mod fine;
 mod plan;
 mod segments;
 mod walk;
 
+pub use fine::{LocalBounds, MAX_LOCAL_CELLS};
 pub use segments::{MajorantSegment, Segments};
 
 use glam::{DAffine3, DVec3, IVec3};
@@ -90,7 +92,16 @@ pub enum LookupModel {
     /// Only collisions above the segment's minorant need a lookup (decomposition tracking,
     /// residual ratio tracking with the minorant as control): a segment costs max − min.
     AboveMinorant,
+    /// Tentative collisions at the segment's majorant are first tested against the local
+    /// bounds of the point ([`LocalBounds`]; `tracking::delta_track_local`): each costs
+    /// [`PROBE_COST`] lookups, and the lookups that remain depend only on the local bounds, not
+    /// on the segment. A segment costs `PROBE_COST ·` its majorant.
+    Probed,
 }
+
+/// The cost of testing a tentative collision against the local bounds (one table read and a
+/// comparison), in density lookups.
+pub const PROBE_COST: f64 = 0.3;
 
 /// How segments are produced along a ray.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -140,6 +151,9 @@ pub struct MajorantPyramid {
     exact: bool,
     /// The adaptive walk's plan for the first extinction scale it was asked for.
     plan: std::sync::OnceLock<plan::WalkPlan>,
+    /// Per-point bounds over the grid's dual lattice, when attached
+    /// ([`Self::with_local_bounds`]).
+    local: Option<LocalBounds>,
 }
 
 /// Statistics of one pyramid level (for `velour majorants`).
@@ -236,6 +250,7 @@ impl MajorantPyramid {
             world_to_index,
             exact: true,
             plan: std::sync::OnceLock::new(),
+            local: None,
         }
     }
 
@@ -312,6 +327,7 @@ impl MajorantPyramid {
             match model {
                 LookupModel::Majorant => max,
                 LookupModel::AboveMinorant => (max - min).max(0.0),
+                LookupModel::Probed => (f64::from(max) * PROBE_COST) as f32,
             }
         }
     }
@@ -424,7 +440,25 @@ impl MajorantPyramid {
             world_to_index,
             exact,
             plan: std::sync::OnceLock::new(),
+            local: None,
         })
+    }
+
+    /// Attaches the local bounds of channel `channel` of `grid` (the grid this pyramid was
+    /// built from; [`LocalBounds::from_grid`]).
+    pub fn with_local_bounds(
+        mut self,
+        grid: &SparseGrid,
+        channel: usize,
+    ) -> Result<Self, MajorantError> {
+        self.local = Some(LocalBounds::from_grid(grid, channel)?);
+        Ok(self)
+    }
+
+    /// The attached local bounds, if any.
+    #[must_use]
+    pub fn local_bounds(&self) -> Option<&LocalBounds> {
+        self.local.as_ref()
     }
 
     /// Edge of a level-0 cell in voxels (8 = one brick).

@@ -6,7 +6,7 @@
 use glam::Vec3;
 
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
-use super::lookup::{DensityLookup, GridLookup};
+use super::lookup::{DensityLookup, GridLookup, LocalProbe};
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
 use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments};
@@ -15,8 +15,9 @@ use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
 use crate::spectrum::Rgb;
 use crate::tracking::{
-    decomposition_track, delta_track, ray_march_free_flight, split_flight, transmittance,
-    DensityCoefficients, Flight, FreeFlightMethod, TrackingConfig, TrackingStats,
+    decomposition_track, decomposition_track_local, delta_track, delta_track_local,
+    ray_march_free_flight, split_flight, transmittance, transmittance_local, DensityCoefficients,
+    Flight, FreeFlightMethod, TrackingConfig, TrackingStats,
 };
 
 /// Where a heterogeneous interior's density comes from.
@@ -89,6 +90,56 @@ impl HeterogeneousMedium {
         self.fabric.as_deref().filter(|l| l.projects())
     }
 
+    /// Builds the pyramid's local bounds ([`crate::majorant::LocalBounds`]) when the tracking
+    /// configuration asks for them and the field is a grid (other fields track without them).
+    pub fn attach_local_bounds(&mut self) -> Result<(), crate::majorant::MajorantError> {
+        if !self.tracking.local_bounds || self.pyramid.local_bounds().is_some() {
+            return Ok(());
+        }
+        if let DensityField::Grid { grid, channel } = &self.field {
+            let pyramid = std::mem::replace(
+                &mut self.pyramid,
+                MajorantPyramid::empty(0.0, grid.world_to_index()),
+            );
+            self.pyramid = pyramid.with_local_bounds(grid, *channel)?;
+        }
+        Ok(())
+    }
+
+    /// Point bounds along `ray` when the interior uses them (`tracking.local_bounds` with delta
+    /// or decomposition tracking, and a grid field whose pyramid carries local bounds).
+    fn local_probe(&self, ray: &Ray) -> Option<LocalProbe<'_>> {
+        if !self.tracking.local_bounds
+            || !matches!(
+                self.tracking.free_flight,
+                FreeFlightMethod::DeltaTracking | FreeFlightMethod::Decomposition
+            )
+        {
+            return None;
+        }
+        let table = self.pyramid.local_bounds()?;
+        match &self.field {
+            DensityField::Grid { grid, .. } => Some(LocalProbe::new(
+                table,
+                grid,
+                ray,
+                self.projected_fibres().is_some(),
+            )),
+            _ => None,
+        }
+    }
+
+    /// True when [`Self::local_probe`] gives point bounds.
+    fn uses_local_bounds(&self) -> bool {
+        self.tracking.local_bounds
+            && matches!(
+                self.tracking.free_flight,
+                FreeFlightMethod::DeltaTracking | FreeFlightMethod::Decomposition
+            )
+            && self.pyramid.local_bounds().is_some()
+            && matches!(self.field, DensityField::Grid { .. })
+    }
+
     /// The majorant segments of `[t0, t1]` along `ray`, lazily: the pyramid's adaptive walk
     /// at this medium's extinction, with the fibre-projected and combined-interior
     /// adjustments.
@@ -96,7 +147,10 @@ impl HeterogeneousMedium {
     pub fn segments_along(&self, ray: &Ray, t0: f32, t1: f32) -> MediumSegments<'_> {
         // Decomposition tracking pays lookups only above each segment's minorant: the walk
         // then prefers cells with tight minorants too.
+        // With point bounds a tentative collision costs a probe, and the lookups left depend on
+        // the local bounds only.
         let model = match self.tracking.free_flight {
+            _ if self.uses_local_bounds() => LookupModel::Probed,
             FreeFlightMethod::Decomposition => LookupModel::AboveMinorant,
             _ => LookupModel::Majorant,
         };
@@ -162,8 +216,27 @@ impl HeterogeneousMedium {
         // DDA stack, which a move would copy.
         let segments = || self.segments_along(ray, 0.0, t_max);
         let mut lookup = self.density_along(ray);
-        let flight = match self.tracking.free_flight {
-            FreeFlightMethod::DeltaTracking => delta_track(
+        let probe = self.local_probe(ray);
+        let flight = match (self.tracking.free_flight, probe) {
+            (FreeFlightMethod::DeltaTracking, Some(probe)) => delta_track_local(
+                &mut segments(),
+                &self.coefficients,
+                |t| lookup.at(t),
+                probe,
+                beta,
+                u,
+                stats,
+            ),
+            (FreeFlightMethod::Decomposition, Some(probe)) => decomposition_track_local(
+                &mut segments(),
+                &self.coefficients,
+                |t| lookup.at(t),
+                probe,
+                beta,
+                u,
+                stats,
+            ),
+            (FreeFlightMethod::DeltaTracking, _) => delta_track(
                 &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
@@ -171,7 +244,7 @@ impl HeterogeneousMedium {
                 u,
                 stats,
             ),
-            FreeFlightMethod::Split if t_max.is_finite() => split_flight(
+            (FreeFlightMethod::Split, _) if t_max.is_finite() => split_flight(
                 |a, b| self.segments_along(ray, a, b),
                 &self.coefficients,
                 |t| lookup.at(t),
@@ -181,7 +254,7 @@ impl HeterogeneousMedium {
                 stats,
             ),
             // An open interior (no boundary ahead): delta tracking.
-            FreeFlightMethod::Split => delta_track(
+            (FreeFlightMethod::Split, _) => delta_track(
                 &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
@@ -189,7 +262,7 @@ impl HeterogeneousMedium {
                 u,
                 stats,
             ),
-            FreeFlightMethod::Decomposition => decomposition_track(
+            (FreeFlightMethod::Decomposition, _) => decomposition_track(
                 &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
@@ -197,7 +270,7 @@ impl HeterogeneousMedium {
                 u,
                 stats,
             ),
-            FreeFlightMethod::RayMarch { step } => ray_march_free_flight(
+            (FreeFlightMethod::RayMarch { step }, _) => ray_march_free_flight(
                 &mut segments(),
                 &self.coefficients,
                 |t| lookup.at(t),
@@ -237,14 +310,25 @@ impl HeterogeneousMedium {
     ) -> Rgb {
         let mut segments = self.segments_along(ray, 0.0, t_max);
         let mut lookup = self.density_along(ray);
-        transmittance(
-            &mut segments,
-            &self.coefficients,
-            |t| lookup.at(t),
-            self.tracking.transmittance,
-            u,
-            stats,
-        )
+        match self.local_probe(ray) {
+            Some(probe) => transmittance_local(
+                &mut segments,
+                &self.coefficients,
+                |t| lookup.at(t),
+                probe,
+                self.tracking.transmittance,
+                u,
+                stats,
+            ),
+            None => transmittance(
+                &mut segments,
+                &self.coefficients,
+                |t| lookup.at(t),
+                self.tracking.transmittance,
+                u,
+                stats,
+            ),
+        }
     }
 }
 
