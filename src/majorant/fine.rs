@@ -22,9 +22,15 @@ use rayon::prelude::*;
 use super::MajorantError;
 use crate::grid::{SparseGrid, BRICK_DIM};
 
-/// The largest number of cells of a local-bounds table (4 bytes each): the cell edge doubles
-/// until the grid's region fits.
-pub const MAX_LOCAL_CELLS: usize = 1 << 22;
+/// The largest number of cells of a local-bounds table (4 bytes each, 2 MiB in all): the cell
+/// edge doubles until the grid's region fits. Larger tables are tighter but leave the caches:
+/// on the 128³ peer cloud, 2^22 cells (edge 1 voxel, 1.15 lookups per real collision) rendered
+/// slower than 2^19 (edge 2, 1.31) and 2^16 (edge 4, 1.63), which were on a par
+/// (docs/BENCHMARKS.md, "Local bounds").
+pub const MAX_LOCAL_CELLS: usize = 1 << 19;
+
+/// Edge of a block of cells in the table's layout.
+const BLOCK: i32 = 4;
 
 /// Per-cell bounds of a grid channel over its dual lattice (see the module documentation).
 #[derive(Clone, Debug)]
@@ -37,8 +43,11 @@ pub struct LocalBounds {
     /// Decoded value = `lo + code · scale`.
     lo: f32,
     scale: f32,
-    /// Per cell: (minimum code, maximum code).
+    /// Per cell: (minimum code, maximum code), in blocks of 4³ cells (x fastest within a
+    /// block, blocks x fastest), so that the cells a ray probes in a row share cache lines.
     cells: Vec<[u16; 2]>,
+    /// Blocks per axis.
+    blocks: IVec3,
     /// The value outside the table's box (every voxel there is background).
     background: f32,
 }
@@ -131,19 +140,31 @@ impl LocalBounds {
         while scale > 0.0 && gmin + f32::from(u16::MAX) * scale < gmax {
             scale = f32::from_bits(scale.to_bits() + 1);
         }
+        let blocks = (dims + IVec3::splat(BLOCK - 1)) / BLOCK;
+        let padded = (blocks.x * blocks.y * blocks.z) as usize * (BLOCK * BLOCK * BLOCK) as usize;
         let mut table = LocalBounds {
             origin: first,
             log2,
             dims,
             lo: gmin,
             scale,
-            cells: Vec::with_capacity(count),
+            cells: Vec::new(),
+            blocks,
             background,
         };
-        for &[mn, mx] in &exact {
-            let cell = [table.encode_down(mn), table.encode_up(mx)];
-            table.cells.push(cell);
+        let fill = [table.encode_down(background), table.encode_up(background)];
+        let mut cells = vec![fill; padded];
+        for (i, &[mn, mx]) in exact.iter().enumerate() {
+            let c = IVec3::new(
+                (i % dims.x as usize) as i32,
+                ((i / dims.x as usize) % dims.y as usize) as i32,
+                (i / plane) as i32,
+            );
+            if let Some(slot) = cells.get_mut(table.slot(c)) {
+                *slot = [table.encode_down(mn), table.encode_up(mx)];
+            }
         }
+        table.cells = cells;
         Ok(table)
     }
 
@@ -157,8 +178,21 @@ impl LocalBounds {
             lo: background,
             scale: 0.0,
             cells: Vec::new(),
+            blocks: IVec3::ZERO,
             background,
         }
+    }
+
+    /// Index of cell `c` (inside `dims`) in the blocked layout.
+    #[inline(always)]
+    fn slot(&self, c: IVec3) -> usize {
+        let b = c >> 2i32;
+        let w = c & IVec3::splat(BLOCK - 1);
+        let block = (b.z as usize * self.blocks.y as usize + b.y as usize) * self.blocks.x as usize
+            + b.x as usize;
+        block * (BLOCK * BLOCK * BLOCK) as usize
+            + (w.z as usize * BLOCK as usize + w.y as usize) * BLOCK as usize
+            + w.x as usize
     }
 
     fn decode(&self, code: u16) -> f32 {
@@ -199,7 +233,7 @@ impl LocalBounds {
     /// Cells in the table.
     #[must_use]
     pub fn cell_count(&self) -> usize {
-        self.cells.len()
+        self.dims.x.max(0) as usize * self.dims.y.max(0) as usize * self.dims.z.max(0) as usize
     }
 
     /// Bounds `(min, max)` of every value a trilinear lookup at index-space point `p` can
@@ -223,9 +257,7 @@ impl LocalBounds {
         if c.cmpge(self.dims).any() {
             return (self.background, self.background);
         }
-        let k = (c.z as usize * self.dims.y as usize + c.y as usize) * self.dims.x as usize
-            + c.x as usize;
-        match self.cells.get(k) {
+        match self.cells.get(self.slot(c)) {
             Some(&[a, b]) => (self.decode(a), self.decode(b)),
             None => (self.background, self.background),
         }
@@ -245,6 +277,7 @@ mod tests {
             lo: 0.0,
             scale: 1.0 / 65535.0,
             cells: Vec::new(),
+            blocks: IVec3::ZERO,
             background: 0.0,
         };
         for v in [0.0f32, 1e-7, 0.3, 0.5, 0.7777, 0.999_999, 1.0] {

@@ -99,9 +99,13 @@ pub enum LookupModel {
     Probed,
 }
 
-/// The cost of testing a tentative collision against the local bounds (one table read and a
-/// comparison), in density lookups.
-pub const PROBE_COST: f64 = 0.3;
+/// The cost of a tentative collision decided by the local bounds (two uniform numbers, a
+/// logarithm, a table read and a comparison), in density lookups. Tuned by instruction counts
+/// (docs/BENCHMARKS.md, "Local bounds"): on the dense peer cloud smaller is better (0: 99 M
+/// instructions per spp, 0.2: 114 M, 0.3: 126 M; without local bounds 148 M), on the sparse
+/// puffs (512³, 20 puffs in empty space) the walk must still skip the empty space (0.1: 70 M,
+/// 0.2: 63 M, 0.3: 62 M; without 61 M).
+pub const PROBE_COST: f64 = 0.2;
 
 /// How segments are produced along a ray.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
