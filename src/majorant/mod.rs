@@ -99,6 +99,18 @@ pub enum LookupModel {
     Probed,
 }
 
+impl LookupModel {
+    /// A distinct index per model (for one cached plan each).
+    #[must_use]
+    pub fn index(self) -> usize {
+        match self {
+            LookupModel::Majorant => 0,
+            LookupModel::AboveMinorant => 1,
+            LookupModel::Probed => 2,
+        }
+    }
+}
+
 /// The cost of a tentative collision decided by the local bounds (two uniform numbers, a
 /// logarithm, a table read and a comparison), in density lookups. Tuned by instruction counts
 /// (docs/BENCHMARKS.md, "Local bounds"): on the dense peer cloud smaller is better (0: 99 M
@@ -153,8 +165,9 @@ pub struct MajorantPyramid {
     world_to_index: DAffine3,
     /// True when every bound is proven (see [`MajorantSegment::exact`]).
     exact: bool,
-    /// The adaptive walk's plan for the first extinction scale it was asked for.
-    plan: std::sync::OnceLock<plan::WalkPlan>,
+    /// The adaptive walk's plan per lookup model ([`LookupModel::index`]), for the first
+    /// extinction scale it was asked for.
+    plan: [std::sync::OnceLock<plan::WalkPlan>; 3],
     /// Per-point bounds over the grid's dual lattice, when attached
     /// ([`Self::with_local_bounds`]).
     local: Option<LocalBounds>,
@@ -253,7 +266,7 @@ impl MajorantPyramid {
             background,
             world_to_index,
             exact: true,
-            plan: std::sync::OnceLock::new(),
+            plan: Default::default(),
             local: None,
         }
     }
@@ -300,13 +313,13 @@ impl MajorantPyramid {
         )
     }
 
-    /// The adaptive walk's plan for extinction `sigma` per unit density: made on the first
-    /// request and kept (a medium has one extinction scale); `None` for another `sigma`, which
-    /// then walks by the single-threshold rule.
+    /// The adaptive walk's plan for extinction `sigma` per unit density under `model`: made on
+    /// the first request and kept (a medium has one extinction scale, and one model for free
+    /// flights and one for shadow rays); `None` for another `sigma`, which then walks by the
+    /// single-threshold rule.
     pub(crate) fn plan_for(&self, sigma: f32, model: LookupModel) -> Option<&plan::WalkPlan> {
-        let plan = self
-            .plan
-            .get_or_init(|| plan::WalkPlan::new(self, sigma, model));
+        let plan = self.plan.get(model.index())?;
+        let plan = plan.get_or_init(|| plan::WalkPlan::new(self, sigma, model));
         (plan.sigma == sigma && plan.model == model).then_some(plan)
     }
 
@@ -443,7 +456,7 @@ impl MajorantPyramid {
             background,
             world_to_index,
             exact,
-            plan: std::sync::OnceLock::new(),
+            plan: Default::default(),
             local: None,
         })
     }
