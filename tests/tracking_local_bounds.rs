@@ -5,9 +5,10 @@
 //! - the table is conservative: no trilinear lookup anywhere exceeds its cell's bounds, and
 //!   with one-voxel cells the bounds are exactly the corner voxels' range;
 //! - the trackers stay unbiased: escape and scattering weights of delta and decomposition
-//!   tracking, and ratio / residual ratio transmittance, against closed forms on a chromatic
-//!   ramp (also with violated point bounds), and against the estimators without point bounds
-//!   on a small fBm grid (z-tests of the difference, tolerance from the estimators' variance);
+//!   tracking, and ratio / residual ratio transmittance (`tracking::transmittance_local`, which
+//!   the media do not use), against closed forms on a chromatic ramp (also with violated point
+//!   bounds), and media with local bounds against the same media without (z-tests of the
+//!   difference, tolerance from the estimators' variance);
 //! - on a dense fBm grid (σ_t = 40 per unit density over a unit cube, as the peer cloud) free
 //!   flights need at most 2 lookups per real collision at 32³ and 64³ voxels of the same field.
 
@@ -456,12 +457,10 @@ fn local_bounds_agree_with_the_plain_estimators_on_an_fbm_grid() {
         }
         assert!(sb.probed > 0 && sa.probed == 0);
         assert!(
-            sb.lookups < sa.lookups && sb.transmittance_lookups < sa.transmittance_lookups,
-            "{ff:?}: lookups {} / {} with local bounds, {} / {} without",
+            2 * sb.lookups < sa.lookups,
+            "{ff:?}: free-flight lookups {} with local bounds, {} without",
             sb.lookups,
-            sb.transmittance_lookups,
-            sa.lookups,
-            sa.transmittance_lookups
+            sa.lookups
         );
     }
 }

@@ -54,7 +54,10 @@ where
 /// tracking accept each tentative collision of a segment (rate M, its residual majorant) with
 /// probability m(x)/M, m(x) the residual majorant of the point's local bounds, without a
 /// lookup, and weigh the accepted ones against m(x): ratio tracking with the local majorant,
-/// sampled by thinning. Unbiased; the other modes ignore the point bounds.
+/// sampled by thinning. Unbiased; the other modes ignore the point bounds. Fewer lookups, but a
+/// ratio estimate's variance grows as its majorant tightens (relative second moment
+/// exp(∫σ²/m) for constant σ), so the media do not use it: on the dense peer cloud it took 35 %
+/// of the shadow rays' lookups at 1.5× the image's relative MSE (docs/references.md §4.10).
 pub fn transmittance_local<S, D, P, U>(
     segments: S,
     coeff: &DensityCoefficients,
