@@ -114,7 +114,10 @@ impl LocalBounds {
                                 }
                             }
                         }
-                        layer[y as usize * dims.x as usize + x as usize] = [mn, mx];
+                        if let Some(cell) = layer.get_mut(y as usize * dims.x as usize + x as usize)
+                        {
+                            *cell = [mn, mx];
+                        }
                     }
                 }
             });
