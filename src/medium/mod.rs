@@ -21,7 +21,7 @@ pub use artist::{
 };
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
-pub use lookup::{DensityLookup, GridLookup};
+pub use lookup::{DensityLookup, GridLookup, LocalProbe};
 
 use crate::math::Ray;
 use crate::phase::PhaseFunction;
