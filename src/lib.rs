@@ -33,4 +33,6 @@ pub mod scene;
 pub mod integrator;
 pub mod render;
 
+pub mod farm;
+
 pub mod cli;

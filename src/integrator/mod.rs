@@ -63,11 +63,14 @@ impl TraceStats {
 pub struct PathResult {
     /// Radiance along the camera ray (already checked finite; zero if it was not).
     pub radiance: Rgb,
-    /// Albedo of the first surface hit (AOV).
+    /// Albedo at the first non-specular event (AOV): a surface's albedo; at the boundary of an
+    /// interior with an artist albedo (skin, clouds), that albedo; glass and fabric boundaries
+    /// are looked through to the first event behind or inside them.
     pub albedo: Rgb,
-    /// Shading normal at the first surface hit (AOV).
+    /// World-space shading normal there; for a medium event, the normal of the boundary the
+    /// path entered by (zero when it entered none).
     pub normal: Vec3,
-    /// Distance to the first surface hit, 0 if none (AOV).
+    /// Distance from the camera to that event; +inf when there was none.
     pub depth: f32,
 }
 
@@ -94,7 +97,7 @@ pub fn trace_path(
     }
 }
 
-/// Albedo, shading normal and depth of the first surface hit (AOVs).
+/// Albedo, shading normal and depth of the first non-specular event (AOVs).
 type Aov = (Rgb, Vec3, f32);
 
 /// What the path does after a step.
@@ -126,8 +129,13 @@ struct PathState {
     depth: u32,
     /// The previous scattering vertex, for MIS on light hits.
     prev: PrevVertex,
-    /// AOVs of the first surface hit.
+    /// AOVs of the first non-specular event.
     aov: Option<Aov>,
+    /// The camera ray's origin (AOV depth is measured from it).
+    origin: Vec3,
+    /// Shading normal of the last boundary the path entered an interior by (AOV normal of a
+    /// medium event).
+    entry_normal: Vec3,
     /// Null and false boundary crossings, bounded so that a degenerate scene cannot loop.
     crossings: u32,
     /// The object whose `exit_guided` interior vertex (a guided connection was made there)
@@ -162,7 +170,7 @@ fn radiance(
     }
     (
         path.radiance,
-        path.aov.unwrap_or((Rgb::ZERO, Vec3::ZERO, 0.0)),
+        path.aov.unwrap_or((Rgb::ZERO, Vec3::ZERO, f32::INFINITY)),
     )
 }
 
@@ -182,6 +190,8 @@ impl PathState {
                 guided: None,
             },
             aov: None,
+            origin: ray.o,
+            entry_normal: Vec3::ZERO,
             crossings: 0,
             guided_from: None,
         }
@@ -243,6 +253,10 @@ impl PathState {
             return Step::Stop;
         }
         let p = vertex.p;
+        if self.aov.is_none() {
+            let albedo = obj.aov_albedo.unwrap_or(vertex.albedo);
+            self.aov = Some((albedo, self.entry_normal, (p - self.origin).length()));
+        }
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
         let phase = vertex.phase.prepare(wo);
@@ -323,7 +337,7 @@ impl PathState {
                 self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)));
         }
         if self.aov.is_none() {
-            self.aov = Some((Rgb::ZERO, hit.ns, hit.t));
+            self.aov = Some((Rgb::ZERO, hit.ns, (hit.p - self.origin).length()));
         }
     }
 
@@ -331,6 +345,7 @@ impl PathState {
     /// update the stack.
     fn cross_boundary(&mut self, scene: &Scene, hit: &Hit, oi: u32, entering: bool) -> Step {
         if entering {
+            self.entry_normal = hit.ns;
             self.stack.push(oi);
         } else {
             self.stack.remove(oi);
@@ -370,7 +385,16 @@ impl PathState {
         let frame = Frame::from_normal(ns);
         let wo = -self.ray.d;
         if self.aov.is_none() {
-            self.aov = Some((surface.albedo_hint(), hit.ns, hit.t));
+            let distance = (hit.p - self.origin).length();
+            match (obj.medium.is_some() && transmits, obj.aov_albedo) {
+                // The boundary of an interior with an artist albedo (skin): the interior's
+                // albedo, noise-free, at the boundary.
+                (true, Some(albedo)) => self.aov = Some((albedo, hit.ns, distance)),
+                // Other interiors (glass, fabric): looked through; a scatter inside sets the
+                // AOVs with this boundary's normal.
+                (true, None) => self.entry_normal = hit.ns,
+                (false, _) => self.aov = Some((surface.albedo_hint(), hit.ns, distance)),
+            }
         }
         self.depth += 1;
         stats.vertices += 1;

@@ -28,7 +28,7 @@ use crate::light::{Light, LightSampler};
 use crate::medium::{Medium, NeeStrategy};
 use crate::spectrum::Rgb;
 
-pub use build::{load_scene, load_scene_str, DEFAULT_SCENE_NAME};
+pub use build::{load_scene, load_scene_str, DEFAULT_SCENE_NAME, DEFAULT_SCENE_TEXT};
 
 /// Errors while reading or validating a scene.
 #[derive(Debug, thiserror::Error)]
@@ -135,6 +135,9 @@ pub struct Object {
     pub ior: f32,
     /// NEE strategy inside this object.
     pub nee: NeeStrategy,
+    /// The albedo AOV of an event in this object's interior: the artist albedo of a
+    /// homogeneous, voxel or fBm interior; `None` uses the event's single-scattering albedo.
+    pub aov_albedo: Option<crate::spectrum::Rgb>,
 }
 
 /// What a shape of the [`SceneGeometry`] belongs to.
@@ -208,6 +211,9 @@ pub struct Scene {
     pub notes: Vec<String>,
     /// Where the scene came from.
     pub source: PathBuf,
+    /// The files the scene file names (meshes, grids, images), in the order they were resolved:
+    /// with the scene file, what its content hash covers.
+    pub inputs: Vec<PathBuf>,
 }
 
 impl Scene {

@@ -4,7 +4,7 @@
 use toml::Spanned;
 
 use super::context::Ctx;
-use super::desc::{ObjectDesc, ScaleValue};
+use super::desc::{InteriorDesc, ObjectDesc, ScaleValue};
 use super::interior::{build_medium, fabric_note, Placement};
 use super::surface::build_surface;
 use super::validate::{check_range, reject_unused, vec3};
@@ -13,6 +13,7 @@ use crate::fabric::lod::ViewFootprint;
 use crate::geometry::{load_ply, Shape, TriangleMesh};
 use crate::math::{Aabb, Mat4, Vec3};
 use crate::medium::{DensityField, Medium, NeeStrategy};
+use crate::spectrum::Rgb;
 
 /// The objects built so far and the interiors they own.
 #[derive(Default)]
@@ -164,6 +165,7 @@ impl ObjectList {
             priority: desc.priority.unwrap_or(0),
             ior,
             nee,
+            aov_albedo: desc.interior.as_ref().and_then(|i| aov_albedo(i.get_ref())),
         });
         Ok(shape)
     }
@@ -316,4 +318,16 @@ fn build_rest_shape(
             ),
         )),
     }
+}
+
+/// The albedo an interior shows in the albedo AOV: its artist albedo (default 0.8) when it has
+/// one constant colour.
+fn aov_albedo(desc: &InteriorDesc) -> Option<Rgb> {
+    let value = match desc {
+        InteriorDesc::Homogeneous(d) => d.albedo,
+        InteriorDesc::Voxel(d) => d.albedo,
+        InteriorDesc::Fbm(d) => d.albedo,
+        InteriorDesc::Absorption(_) | InteriorDesc::Fabric(_) => return None,
+    };
+    Some(super::validate::color(value, Rgb::splat(0.8)))
 }
