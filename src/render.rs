@@ -134,6 +134,13 @@ impl std::fmt::Display for RenderSummary {
                 t.transmittance_lookups,
                 t.violations
             )?;
+            if t.probed > 0 {
+                write!(
+                    f,
+                    ", {} tentative collisions rejected by local bounds, {} segments",
+                    t.probed, t.segments
+                )?;
+            }
         }
         Ok(())
     }
