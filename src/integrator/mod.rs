@@ -14,6 +14,7 @@
 mod connect;
 mod direct;
 mod interiors;
+pub mod manifold;
 
 pub use interiors::{InteriorStack, MAX_NESTING};
 
@@ -45,6 +46,8 @@ pub struct TraceStats {
     pub non_finite: u64,
     /// Heterogeneous-medium tracking counters (lookups, collisions, bound violations).
     pub tracking: TrackingStats,
+    /// Manifold-walk counters (`nee = "manifold"`).
+    pub manifold: manifold::ManifoldStats,
 }
 
 impl TraceStats {
@@ -55,6 +58,7 @@ impl TraceStats {
         self.vertices += o.vertices;
         self.non_finite += o.non_finite;
         self.tracking.merge(&o.tracking);
+        self.manifold.merge(&o.manifold);
     }
 }
 
@@ -134,6 +138,25 @@ struct PathState {
     /// the ray now leaves, with that vertex's phase pdf of the ray direction; cleared by any
     /// boundary.
     guided_from: Option<u32>,
+    /// Where the path stands with respect to a manifold connection (no double counting of
+    /// the paths `nee = "manifold"` samples, see [`ManifoldLeg`]).
+    manifold_leg: ManifoldLeg,
+}
+
+/// The unidirectional counterpart of a manifold connection (`src/integrator/manifold`): a
+/// path that scatters at an interior vertex of a `manifold` object, reaches that object's
+/// boundary first, refracts out through its smooth lobe and then reaches a sphere or
+/// distant light with nothing but null or false boundaries (and index-matched pass-through
+/// dielectrics) on the way is the path `x0 → x1 → light` that MNEE samples; its light hit
+/// contributes nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ManifoldLeg {
+    /// Not on such a path.
+    None,
+    /// Left an interior vertex of `manifold` object `.0`, towards its boundary.
+    Inside(u32),
+    /// Refracted out of that object's smooth boundary straight from the vertex.
+    Through,
 }
 
 fn radiance(
@@ -184,6 +207,7 @@ impl PathState {
             aov: None,
             crossings: 0,
             guided_from: None,
+            manifold_leg: ManifoldLeg::None,
         }
     }
 
@@ -269,6 +293,18 @@ impl PathState {
                 self.guided_from = Some(oi);
             }
         }
+        self.manifold_leg = ManifoldLeg::None;
+        if obj.nee == NeeStrategy::Manifold {
+            if let Some(oi) = self.stack.top(&scene.objects, None) {
+                if self.depth + 1 < scene.film.max_depth {
+                    self.radiance += self.beta
+                        * manifold::manifold_connection(
+                            scene, oi, medium, p, &phase, self.stack, sampler, stats,
+                        );
+                }
+                self.manifold_leg = ManifoldLeg::Inside(oi);
+            }
+        }
         let Some(s) = phase.sample(sampler) else {
             return Step::Stop;
         };
@@ -285,7 +321,8 @@ impl PathState {
 
     /// 2. An escaped ray sees the infinite lights.
     fn escape(&mut self, scene: &Scene) {
-        self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, None);
+        let through = self.manifold_leg == ManifoldLeg::Through;
+        self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, None, through);
     }
 
     /// 3–5. What the ray hit: a light, a false or null boundary, or a surface.
@@ -318,9 +355,10 @@ impl PathState {
 
     /// 3. Sphere lights are emitters only.
     fn hit_light(&mut self, scene: &Scene, hit: &Hit, light: usize) {
+        let through = self.manifold_leg == ManifoldLeg::Through;
         if self.ray.d.dot(hit.ng) < 0.0 {
             self.radiance +=
-                self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)));
+                self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)), through);
         }
         if self.aov.is_none() {
             self.aov = Some((Rgb::ZERO, hit.ns, hit.t));
@@ -330,6 +368,11 @@ impl PathState {
     /// 4. False intersections with lower-priority boundaries, and null boundaries, only
     /// update the stack.
     fn cross_boundary(&mut self, scene: &Scene, hit: &Hit, oi: u32, entering: bool) -> Step {
+        // The manifold connection needs the object's boundary as the first hit from the
+        // vertex; after it, the shadow ray passes null and false boundaries too.
+        if let ManifoldLeg::Inside(_) = self.manifold_leg {
+            self.manifold_leg = ManifoldLeg::None;
+        }
         if entering {
             self.stack.push(oi);
         } else {
@@ -414,6 +457,16 @@ impl PathState {
         if geometric_transmit != bs.is_transmission {
             return Step::Stop;
         }
+        self.manifold_leg = match self.manifold_leg {
+            ManifoldLeg::Inside(m) if m == oi && !entering && bs.is_delta && bs.is_transmission => {
+                ManifoldLeg::Through
+            }
+            // An index-matched pass-through, which the connection's shadow ray also crosses.
+            ManifoldLeg::Through if bs.is_delta && bs.is_transmission && bs.eta == 1.0 => {
+                ManifoldLeg::Through
+            }
+            _ => ManifoldLeg::None,
+        };
         self.beta *= bs.weight;
         if bs.is_transmission {
             self.eta_scale *= bs.eta * bs.eta;

@@ -53,6 +53,17 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         }
         lights.push(light);
     }
+    if !lights
+        .iter()
+        .any(|l| matches!(l, Light::Sphere { .. } | Light::Distant { .. }))
+    {
+        if let Some((name, line)) = built.manifold.first() {
+            return Err(ctx.invalid(
+                *line,
+                format!("{name}: interior.nee = \"manifold\" connects to sphere and distant lights, but the scene has none (only environments, or no light)"),
+            ));
+        }
+    }
     if lights.is_empty() {
         warnings.push(format!(
             "{}: the scene has no lights; the image will be black",

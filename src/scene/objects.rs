@@ -9,6 +9,7 @@ use super::interior::{build_medium, fabric_note, Placement};
 use super::surface::build_surface;
 use super::validate::{check_range, reject_unused, vec3};
 use super::{Object, ObjectSurface, SceneError};
+use crate::bsdf::microfacet::SMOOTH_ALPHA;
 use crate::fabric::lod::ViewFootprint;
 use crate::geometry::{load_ply, Shape, TriangleMesh};
 use crate::math::{Aabb, Mat4, Vec3};
@@ -21,6 +22,9 @@ pub(super) struct ObjectList {
     pub objects: Vec<Object>,
     /// Interiors, indexed by [`Object::medium`].
     pub media: Vec<Medium>,
+    /// Objects with `nee = "manifold"`: name and the interior table's line (the scene
+    /// checks that a light they can connect to exists).
+    pub manifold: Vec<(String, usize)>,
 }
 
 impl ObjectList {
@@ -66,6 +70,14 @@ impl ObjectList {
             }
             None => (None, NeeStrategy::ExitPoint),
         };
+        if nee == NeeStrategy::Manifold {
+            let interior_line = desc
+                .interior
+                .as_ref()
+                .map_or(line, |i| ctx.line_of(i.span().start));
+            check_manifold_boundary(ctx, interior_line, &name, &surface)?;
+            self.manifold.push((name.clone(), interior_line));
+        }
         let media = &self.media;
         if let Some(note) = medium.and_then(|m| fabric_note(&media[m as usize])) {
             notes.push(format!("{name}: {note}"));
@@ -167,6 +179,40 @@ impl ObjectList {
         });
         Ok(shape)
     }
+}
+
+/// `nee = "manifold"` needs the object's own boundary to be a smooth refracting dielectric
+/// (the interface the manifold walk solves on): a `dielectric` surface whose roughness the
+/// BSDF treats as smooth (roughness² below [`SMOOTH_ALPHA`], i.e. roughness < 0.0316), an IOR
+/// other than 1 and no coat.
+fn check_manifold_boundary(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    surface: &ObjectSurface,
+) -> Result<(), SceneError> {
+    let why = match surface {
+        ObjectSurface::Dielectric(d) if d.roughness * d.roughness >= SMOOTH_ALPHA => format!(
+            "its surface.roughness = {} is rough (must be 0, below {:.4} at most)",
+            d.roughness,
+            SMOOTH_ALPHA.sqrt()
+        ),
+        ObjectSurface::Dielectric(d) if d.ior == 1.0 => {
+            "its surface.ior = 1 does not refract".to_string()
+        }
+        ObjectSurface::Dielectric(d) if d.coat.is_some() => {
+            "its surface has a coat (not supported by the manifold walk)".to_string()
+        }
+        ObjectSurface::Dielectric(_) => return Ok(()),
+        ObjectSurface::Fixed(_) => "its surface is not a dielectric".to_string(),
+        ObjectSurface::Null => "it has no surface".to_string(),
+    };
+    Err(ctx.invalid(
+        line,
+        format!(
+            "{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0), but {why}"
+        ),
+    ))
 }
 
 /// The object transform `translate · rotate · scale`, and the scale when it is uniform.

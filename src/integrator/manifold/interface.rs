@@ -1,0 +1,169 @@
+//! The scene's boundary of one object as an [`Interface`] for the manifold walk: a ray cast
+//! (`f32`, through the BVH) finds the crossed primitive, then the crossing and its local
+//! geometry are recomputed in `f64` on that primitive, analytically for spheres, on the
+//! triangle's plane with barycentric interpolation of the vertex normals for meshes (their
+//! derivatives along the tangent plane give the curvature the constraint needs), and on the
+//! face's plane for boxes.
+
+use glam::DVec3;
+
+use super::super::interiors::{is_false_intersection, InteriorStack};
+use super::solve::{tangents, Interface, InterfacePoint};
+use crate::geometry::{Hit, Shape};
+use crate::math::{Ray, Vec3};
+use crate::scene::{Scene, ShapeOwner};
+
+/// The boundary of object `oi`, seen from inside it with interior stack `stack`.
+pub(super) struct SceneInterface<'a> {
+    pub scene: &'a Scene,
+    pub oi: u32,
+    /// True when leaving `oi` is a real boundary for a path with this stack (not a false
+    /// intersection): checked once, since the stack does not change during the walk.
+    pub real: bool,
+    /// Rays cast so far.
+    pub rays: u64,
+}
+
+impl<'a> SceneInterface<'a> {
+    pub fn new(scene: &'a Scene, oi: u32, stack: &InteriorStack) -> Self {
+        SceneInterface {
+            scene,
+            oi,
+            real: !is_false_intersection(scene, stack, oi, false),
+            rays: 0,
+        }
+    }
+}
+
+fn v64(v: Vec3) -> DVec3 {
+    DVec3::new(f64::from(v.x), f64::from(v.y), f64::from(v.z))
+}
+
+fn v32(v: DVec3) -> Vec3 {
+    Vec3::new(v.x as f32, v.y as f32, v.z as f32)
+}
+
+impl Interface for SceneInterface<'_> {
+    fn project(&mut self, x0: DVec3, target: DVec3) -> Option<InterfacePoint> {
+        if !self.real {
+            return None;
+        }
+        let d = (target - x0).try_normalize()?;
+        let ray = Ray::new(v32(x0), v32(d));
+        self.rays += 1;
+        let hit = self.scene.geometry.intersect(&ray, f32::INFINITY)?;
+        if self.scene.shape_owner.get(hit.shape as usize) != Some(&ShapeOwner::Object(self.oi))
+            || !(ray.d.dot(hit.ng) > 0.0)
+        {
+            return None;
+        }
+        let point = match self.scene.geometry.shape(hit.shape as usize)? {
+            Shape::Sphere { center, radius } => on_sphere(x0, d, v64(*center), f64::from(*radius)),
+            Shape::Mesh(mesh) => on_triangle(x0, d, mesh, &hit),
+            Shape::Box { .. } => on_plane(x0, d, v64(hit.p), v64(hit.ng)),
+        }?;
+        // The ray left through the crossing: the refined point must agree.
+        (d.dot(point.ng) > 0.0).then_some(point)
+    }
+}
+
+/// The far crossing of the ray `x0 + t d` (from inside) with a sphere.
+fn on_sphere(x0: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<InterfacePoint> {
+    let oc = x0 - c;
+    let b = oc.dot(d);
+    // |oc − b d|² is the squared distance of the line from the centre (stable form).
+    let perp = oc - d * b;
+    let disc = r * r - perp.length_squared();
+    if !(disc >= 0.0) {
+        return None;
+    }
+    let t = -b + disc.sqrt();
+    if !(t > 0.0) {
+        return None;
+    }
+    let n = ((x0 + d * t) - c) / r;
+    let n = n.try_normalize()?;
+    let p = c + n * r;
+    let (s, tt) = tangents(n);
+    Some(InterfacePoint {
+        p,
+        ng: n,
+        ns: n,
+        dpdu: [s, tt],
+        dndu: [s / r, tt / r],
+    })
+}
+
+/// The crossing of the ray with the plane through `p` with unit normal `n` (flat: no normal
+/// derivative).
+fn on_plane(x0: DVec3, d: DVec3, p: DVec3, n: DVec3) -> Option<InterfacePoint> {
+    let n = n.try_normalize()?;
+    let dn = d.dot(n);
+    if dn.abs() < 1e-12 {
+        return None;
+    }
+    let t = (p - x0).dot(n) / dn;
+    let (s, tt) = tangents(n);
+    Some(InterfacePoint {
+        p: x0 + d * t,
+        ng: n,
+        ns: n,
+        dpdu: [s, tt],
+        dndu: [DVec3::ZERO; 2],
+    })
+}
+
+/// The crossing of the ray with the hit triangle's plane, with the interpolated shading normal
+/// and its derivatives along the plane.
+fn on_triangle(
+    x0: DVec3,
+    d: DVec3,
+    mesh: &crate::geometry::TriangleMesh,
+    hit: &Hit,
+) -> Option<InterfacePoint> {
+    let tri = mesh.indices.get(hit.prim as usize)?;
+    let pos =
+        |k: usize| -> Option<DVec3> { mesh.positions.get(*tri.get(k)? as usize).map(|v| v64(*v)) };
+    let (p0, p1, p2) = (pos(0)?, pos(1)?, pos(2)?);
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let ng = e1.cross(e2).try_normalize()?;
+    let flat = on_plane(x0, d, p0, ng)?;
+    let p = flat.p;
+    // Barycentrics (b1, b2) of p from the Gram system of the edges.
+    let (g11, g12, g22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let det = g11 * g22 - g12 * g12;
+    if !(det.abs() > 0.0) {
+        return None;
+    }
+    let coords = |v: DVec3| -> (f64, f64) {
+        let (r1, r2) = (e1.dot(v), e2.dot(v));
+        ((g22 * r1 - g12 * r2) / det, (g11 * r2 - g12 * r1) / det)
+    };
+    let Some(normals) = &mesh.normals else {
+        return Some(flat);
+    };
+    let nrm = |k: usize| -> Option<DVec3> { normals.get(*tri.get(k)? as usize).map(|v| v64(*v)) };
+    let (n0, n1, n2) = (nrm(0)?, nrm(1)?, nrm(2)?);
+    let (b1, b2) = coords(p - p0);
+    let raw = n0 * (1.0 - b1 - b2) + n1 * b1 + n2 * b2;
+    let len = raw.length();
+    if !(len > 1e-12) {
+        return Some(flat);
+    }
+    // Flipped into the geometric hemisphere, as the renderer's hits are.
+    let sign = if raw.dot(ng) < 0.0 { -1.0 } else { 1.0 };
+    let ns = raw * (sign / len);
+    let mut dndu = [DVec3::ZERO; 2];
+    for (k, t) in flat.dpdu.iter().enumerate() {
+        let (a, b) = coords(*t);
+        let draw = (n1 - n0) * a + (n2 - n0) * b;
+        dndu[k] = (draw * sign - ns * ns.dot(draw * sign)) / len;
+    }
+    Some(InterfacePoint {
+        p,
+        ng,
+        ns,
+        dpdu: flat.dpdu,
+        dndu,
+    })
+}
