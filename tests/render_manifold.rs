@@ -411,6 +411,59 @@ fn manifold_agrees_with_unidirectional_sampling_on_a_mesh() {
     assert_agree(&exit, &mnee, "icosphere mesh");
 }
 
+/// A scattering region inside a clear smooth ball (an iris inside an eye): manifold NEE
+/// from the region's vertices passes its index-matched boundary (no surface, or a dielectric
+/// of the ball's IOR) and refracts at the ball's. The unidirectional reference gives the
+/// region a dielectric surface of the ball's IOR (a delta pass-through: no NEE at all).
+fn enclosed(inner_surface: &str, nee: &str, spp: u32, seed: u32) -> String {
+    format!(
+        r#"
+[camera]
+eye = [0, 0, 4]
+look_at = [0, 0, 0]
+fov = 30
+[film]
+width = 16
+height = 16
+spp = {spp}
+seed = {seed}
+max_depth = 1000
+{light}
+[[object]]
+name = "ball"
+shape = "sphere"
+radius = 1.0
+surface = {{ type = "dielectric", ior = 1.4 }}
+interior = {{ type = "absorption", attenuation = [4.0, 8.0, 16.0] }}
+[[object]]
+name = "iris"
+shape = "sphere"
+center = [0.1, 0.2, 0.2]
+radius = 0.6
+priority = 1
+{inner_surface}
+interior = {{ type = "homogeneous", albedo = [0.9, 0.6, 0.3], albedo_mode = "single", density = 3.0, nee = "{nee}" }}
+"#,
+        light = sphere_light(0.5, 20.0)
+    )
+}
+
+#[test]
+fn manifold_agrees_with_unidirectional_sampling_through_an_enclosing_boundary() {
+    let matched = "surface = { type = \"dielectric\", ior = 1.4 }";
+    let (exit, _) = render(&enclosed(matched, "exit", 2048, 51));
+    for (surface, seed) in [(matched, 52), ("", 53)] {
+        let (mnee, summary) = render(&enclosed(surface, "manifold", 256, seed));
+        eprintln!("{}", summary.manifold);
+        assert_agree(
+            &exit,
+            &mnee,
+            &format!("enclosed, inner surface \"{surface}\""),
+        );
+        assert!(summary.manifold.solved > summary.manifold.attempts / 2);
+    }
+}
+
 /// The median over pixels (green channel, pixels with a non-zero mean) of each pixel's
 /// relative variance of one sample, `spp · Var[mean] / mean²`. The median ignores the few
 /// pixels that see the light's specular highlight or its image through the ball, whose

@@ -153,8 +153,8 @@ struct PathState {
 enum ManifoldLeg {
     /// Not on such a path.
     None,
-    /// Left an interior vertex of `manifold` object `.0`, towards its boundary.
-    Inside(u32),
+    /// Left an interior vertex of a `manifold` interior; no real boundary crossed since.
+    Inside,
     /// Refracted out of that object's smooth boundary straight from the vertex.
     Through,
 }
@@ -295,15 +295,11 @@ impl PathState {
         }
         self.manifold_leg = ManifoldLeg::None;
         if obj.nee == NeeStrategy::Manifold {
-            if let Some(oi) = self.stack.top(&scene.objects, None) {
-                if self.depth + 1 < scene.film.max_depth {
-                    self.radiance += self.beta
-                        * manifold::manifold_connection(
-                            scene, oi, medium, p, &phase, self.stack, sampler, stats,
-                        );
-                }
-                self.manifold_leg = ManifoldLeg::Inside(oi);
+            if self.depth + 1 < scene.film.max_depth {
+                self.radiance += self.beta
+                    * manifold::manifold_connection(scene, p, &phase, self.stack, sampler, stats);
             }
+            self.manifold_leg = ManifoldLeg::Inside;
         }
         let Some(s) = phase.sample(sampler) else {
             return Step::Stop;
@@ -368,11 +364,8 @@ impl PathState {
     /// 4. False intersections with lower-priority boundaries, and null boundaries, only
     /// update the stack.
     fn cross_boundary(&mut self, scene: &Scene, hit: &Hit, oi: u32, entering: bool) -> Step {
-        // The manifold connection needs the object's boundary as the first hit from the
-        // vertex; after it, the shadow ray passes null and false boundaries too.
-        if let ManifoldLeg::Inside(_) = self.manifold_leg {
-            self.manifold_leg = ManifoldLeg::None;
-        }
+        // The manifold connection passes null and false boundaries on both sides of the
+        // interface, as its projection and shadow rays do: `manifold_leg` is kept.
         if entering {
             self.stack.push(oi);
         } else {
@@ -458,12 +451,20 @@ impl PathState {
             return Step::Stop;
         }
         self.manifold_leg = match self.manifold_leg {
-            ManifoldLeg::Inside(m) if m == oi && !entering && bs.is_delta && bs.is_transmission => {
+            ManifoldLeg::Inside
+                if !entering
+                    && bs.is_delta
+                    && bs.is_transmission
+                    && manifold::is_manifold_interface(obj, outside_ior) =>
+            {
                 ManifoldLeg::Through
             }
-            // An index-matched pass-through, which the connection's shadow ray also crosses.
-            ManifoldLeg::Through if bs.is_delta && bs.is_transmission && bs.eta == 1.0 => {
-                ManifoldLeg::Through
+            // An index-matched pass-through, which the connection's projection and shadow
+            // rays also cross.
+            leg @ (ManifoldLeg::Inside | ManifoldLeg::Through)
+                if bs.is_delta && bs.is_transmission && bs.eta == 1.0 =>
+            {
+                leg
             }
             _ => ManifoldLeg::None,
         };

@@ -22,9 +22,10 @@ pub(super) struct ObjectList {
     pub objects: Vec<Object>,
     /// Interiors, indexed by [`Object::medium`].
     pub media: Vec<Medium>,
-    /// Objects with `nee = "manifold"`: name and the interior table's line (the scene
-    /// checks that a light they can connect to exists).
-    pub manifold: Vec<(String, usize)>,
+    /// Objects with `nee = "manifold"`: name, the interior table's line, and whether the
+    /// object has no surface (its interface is an enclosing object's): the scene checks that a
+    /// light they can connect to, and such an enclosing interface, exist.
+    pub manifold: Vec<(String, usize, bool)>,
 }
 
 impl ObjectList {
@@ -76,7 +77,8 @@ impl ObjectList {
                 .as_ref()
                 .map_or(line, |i| ctx.line_of(i.span().start));
             check_manifold_boundary(ctx, interior_line, &name, &surface)?;
-            self.manifold.push((name.clone(), interior_line));
+            let enclosed = matches!(surface, ObjectSurface::Null);
+            self.manifold.push((name.clone(), interior_line, enclosed));
         }
         let media = &self.media;
         if let Some(note) = medium.and_then(|m| fabric_note(&media[m as usize])) {
@@ -136,10 +138,14 @@ impl ObjectList {
         };
         // Exit-point NEE needs a scattering boundary: behind an index-matched one (no surface,
         // or a dielectric of IOR 1) it would never happen, so NEE moves to the interior
-        // vertices, where transparent shadows through such a boundary are exact.
+        // vertices, where transparent shadows through such a boundary are exact. (Manifold NEE
+        // behind no surface refracts at the enclosing boundary instead.)
         let index_matched = matches!(&surface, ObjectSurface::Null)
             || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
-        let nee = if medium.is_some() && index_matched && nee != NeeStrategy::Interior {
+        let nee = if medium.is_some()
+            && index_matched
+            && !matches!(nee, NeeStrategy::Interior | NeeStrategy::Manifold)
+        {
             if desc
                 .interior
                 .as_ref()
@@ -184,7 +190,9 @@ impl ObjectList {
 /// `nee = "manifold"` needs the object's own boundary to be a smooth refracting dielectric
 /// (the interface the manifold walk solves on): a `dielectric` surface whose roughness the
 /// BSDF treats as smooth (roughness² below [`SMOOTH_ALPHA`], i.e. roughness < 0.0316), an IOR
-/// other than 1 and no coat.
+/// other than 1 and no coat; or no surface at all (an index-matched region inside such an
+/// object, e.g. an iris inside an eye: the walk then refracts at the enclosing boundary, which
+/// [`super::build`] checks exists).
 fn check_manifold_boundary(
     ctx: &Ctx,
     line: usize,
@@ -203,14 +211,13 @@ fn check_manifold_boundary(
         ObjectSurface::Dielectric(d) if d.coat.is_some() => {
             "its surface has a coat (not supported by the manifold walk)".to_string()
         }
-        ObjectSurface::Dielectric(_) => return Ok(()),
+        ObjectSurface::Dielectric(_) | ObjectSurface::Null => return Ok(()),
         ObjectSurface::Fixed(_) => "its surface is not a dielectric".to_string(),
-        ObjectSurface::Null => "it has no surface".to_string(),
     };
     Err(ctx.invalid(
         line,
         format!(
-            "{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0), but {why}"
+            "{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0, or no surface inside such an object), but {why}"
         ),
     ))
 }

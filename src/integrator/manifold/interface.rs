@@ -7,31 +7,111 @@
 
 use glam::DVec3;
 
-use super::super::interiors::{is_false_intersection, InteriorStack};
+use super::super::interiors::{is_false_intersection, InteriorStack, MAX_NESTING};
 use super::solve::{tangents, Interface, InterfacePoint};
 use crate::geometry::{Hit, Shape};
 use crate::math::{Ray, Vec3};
-use crate::scene::{Scene, ShapeOwner};
+use crate::scene::{DielectricParams, Object, ObjectSurface, Scene, ShapeOwner};
 
-/// The boundary of object `oi`, seen from inside it with interior stack `stack`.
+/// True when `obj`'s boundary can be the manifold walk's interface for a path whose medium on
+/// the far side has IOR `outside_ior`: a smooth dielectric (the BSDF's delta lobe), without a
+/// coat, that refracts (relative IOR ≠ 1). The integrator's no-double-counting rule
+/// (`ManifoldLeg`) uses the same test.
+#[must_use]
+pub(in crate::integrator) fn is_manifold_interface(obj: &Object, outside_ior: f32) -> bool {
+    match &obj.surface {
+        ObjectSurface::Dielectric(d) => {
+            d.coat.is_none()
+                && d.roughness * d.roughness < crate::bsdf::microfacet::SMOOTH_ALPHA
+                && d.ior / outside_ior.max(1e-6) != 1.0
+        }
+        ObjectSurface::Fixed(_) | ObjectSurface::Null => false,
+    }
+}
+
+/// True when a dielectric boundary is a pass-through for the medium outside it (IOR
+/// `outside_ior`): relative IOR exactly 1 (the BSDF's delta pass-through; its tint is part of
+/// the shadow rays' transmittance).
+#[must_use]
+pub(in crate::integrator) fn is_index_matched(d: &DielectricParams, outside_ior: f32) -> bool {
+    d.ior / outside_ior.max(1e-6) == 1.0
+}
+
+/// The first refracting boundary seen from inside: the ray from the vertex passes null, false
+/// and index-matched boundaries (updating a copy of the interior stack, as a unidirectional path does)
+/// and stops at the first real boundary, which must be a smooth refractive dielectric that the
+/// ray leaves ([`is_manifold_interface`]). The first projection (the seed) fixes which object
+/// that is; later ones must reach the same object.
 pub(super) struct SceneInterface<'a> {
     pub scene: &'a Scene,
-    pub oi: u32,
-    /// True when leaving `oi` is a real boundary for a path with this stack (not a false
-    /// intersection): checked once, since the stack does not change during the walk.
-    pub real: bool,
+    /// The vertex's interior stack.
+    pub stack: InteriorStack,
+    /// The interface object, once the seed has found it.
+    pub object: Option<u32>,
+    /// The interior stack just inside the interface at the last successful projection.
+    pub inside: InteriorStack,
     /// Rays cast so far.
     pub rays: u64,
 }
 
 impl<'a> SceneInterface<'a> {
-    pub fn new(scene: &'a Scene, oi: u32, stack: &InteriorStack) -> Self {
+    pub fn new(scene: &'a Scene, stack: &InteriorStack) -> Self {
         SceneInterface {
             scene,
-            oi,
-            real: !is_false_intersection(scene, stack, oi, false),
+            stack: *stack,
+            object: None,
+            inside: *stack,
             rays: 0,
         }
+    }
+
+    /// IORs inside and outside the interface at the last projection: (the interface object's
+    /// IOR, the IOR of the medium around it).
+    pub fn iors(&self) -> Option<(f32, f32)> {
+        let oi = self.object?;
+        let obj = self.scene.objects.get(oi as usize)?;
+        Some((obj.ior, self.inside.ior(&self.scene.objects, Some(oi))))
+    }
+
+    /// The first real boundary along the ray from `x0` (through null and false boundaries),
+    /// if it is a manifold interface the ray leaves: the hit and the stack before it.
+    fn first_interface(&mut self, ray: &Ray) -> Option<(Hit, InteriorStack)> {
+        let scene = self.scene;
+        let mut stack = self.stack;
+        let mut origin = ray.o;
+        for _ in 0..4 * MAX_NESTING {
+            self.rays += 1;
+            let hit = scene
+                .geometry
+                .intersect(&Ray::new(origin, ray.d), f32::INFINITY)?;
+            let ShapeOwner::Object(oi) = *scene.shape_owner.get(hit.shape as usize)? else {
+                return None;
+            };
+            let obj = scene.objects.get(oi as usize)?;
+            let entering = ray.d.dot(hit.ng) < 0.0;
+            let outside = stack.ior(&scene.objects, Some(oi));
+            let passes = obj.surface.transmits()
+                && (is_false_intersection(scene, &stack, oi, entering)
+                    || match &obj.surface {
+                        ObjectSurface::Null => true,
+                        // Index-matched: the smooth lobe passes straight through.
+                        ObjectSurface::Dielectric(d) => is_index_matched(d, outside),
+                        ObjectSurface::Fixed(_) => false,
+                    });
+            if !passes {
+                let ok = !entering
+                    && self.object.is_none_or(|o| o == oi)
+                    && is_manifold_interface(obj, outside);
+                return ok.then_some((hit, stack));
+            }
+            if entering {
+                stack.push(oi);
+            } else {
+                stack.remove(oi);
+            }
+            origin = hit.spawn_origin(ray.d);
+        }
+        None
     }
 }
 
@@ -45,25 +125,23 @@ fn v32(v: DVec3) -> Vec3 {
 
 impl Interface for SceneInterface<'_> {
     fn project(&mut self, x0: DVec3, target: DVec3) -> Option<InterfacePoint> {
-        if !self.real {
-            return None;
-        }
         let d = (target - x0).try_normalize()?;
         let ray = Ray::new(v32(x0), v32(d));
-        self.rays += 1;
-        let hit = self.scene.geometry.intersect(&ray, f32::INFINITY)?;
-        if self.scene.shape_owner.get(hit.shape as usize) != Some(&ShapeOwner::Object(self.oi))
-            || !(ray.d.dot(hit.ng) > 0.0)
-        {
-            return None;
-        }
+        let (hit, stack) = self.first_interface(&ray)?;
         let point = match self.scene.geometry.shape(hit.shape as usize)? {
             Shape::Sphere { center, radius } => on_sphere(x0, d, v64(*center), f64::from(*radius)),
             Shape::Mesh(mesh) => on_triangle(x0, d, mesh, &hit),
             Shape::Box { .. } => on_plane(x0, d, v64(hit.p), v64(hit.ng)),
         }?;
         // The ray left through the crossing: the refined point must agree.
-        (d.dot(point.ng) > 0.0).then_some(point)
+        if !(d.dot(point.ng) > 0.0) {
+            return None;
+        }
+        if let ShapeOwner::Object(oi) = self.scene.shape_owner.get(hit.shape as usize)? {
+            self.object = Some(*oi);
+        }
+        self.inside = stack;
+        Some(point)
     }
 }
 

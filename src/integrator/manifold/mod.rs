@@ -39,6 +39,7 @@
 mod interface;
 pub mod solve;
 
+pub(super) use interface::is_manifold_interface;
 pub use solve::{Failure, Interface, InterfacePoint, LightTarget, Solution, SolverSettings};
 
 use glam::DVec3;
@@ -48,8 +49,8 @@ use super::interiors::InteriorStack;
 use super::TraceStats;
 use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::light::Light;
-use crate::math::{offset_ray_origin, Ray, Vec3};
-use crate::medium::{Medium, PreparedPhase};
+use crate::math::{offset_ray_origin, Vec3};
+use crate::medium::PreparedPhase;
 use crate::sampling::{sample_uniform_sphere, PixelSampler};
 use crate::scene::{ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -204,15 +205,14 @@ fn draw_light(light: &Light, x: Vec3, u: crate::math::Vec2, u_mix: f32) -> Optio
     }
 }
 
-/// The manifold connection from interior vertex `x` of object `oi` (filled with `medium`,
-/// behind a smooth dielectric boundary) to a light: the contribution without the path
-/// throughput. Zero when the chosen light is an environment (reached by unidirectional
-/// paths instead) or the walk fails.
-#[allow(clippy::too_many_arguments)]
+/// The manifold connection from interior vertex `x` (interior stack `stack`) to a light: the
+/// contribution without the path throughput. The interface is the first real boundary the
+/// straight line from `x` to the light meets (through null and false boundaries, whose media's
+/// transmittance is included); it must be a smooth refractive dielectric the line leaves.
+/// Zero when the chosen light is an environment (reached by unidirectional paths instead) or
+/// the walk fails.
 pub(super) fn manifold_connection(
     scene: &Scene,
-    oi: u32,
-    medium: &Medium,
     x: Vec3,
     phase: &PreparedPhase<'_>,
     stack: InteriorStack,
@@ -222,12 +222,6 @@ pub(super) fn manifold_connection(
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
     let u_mix = sampler.next_1d();
-    let Some(obj) = scene.objects.get(oi as usize) else {
-        return Rgb::ZERO;
-    };
-    let ObjectSurface::Dielectric(d) = &obj.surface else {
-        return Rgb::ZERO;
-    };
     let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
@@ -240,16 +234,28 @@ pub(super) fn manifold_connection(
     if draw.radiance.is_black() {
         return Rgb::ZERO;
     }
-    let outside_ior = stack.ior(&scene.objects, Some(oi));
-    let eta = d.ior / outside_ior.max(1e-6);
-    let mut interface = SceneInterface::new(scene, oi, &stack);
     stats.manifold.attempts += 1;
-    let result = solve::solve(
+    let x0 = v64(x);
+    let mut interface = SceneInterface::new(scene, &stack);
+    let seed = interface.project(x0, draw.target.seed_target(x0));
+    let (Some(seed), Some((ior_in, ior_out)), Some(oi)) =
+        (seed, interface.iors(), interface.object)
+    else {
+        stats.rays += interface.rays;
+        stats.manifold.count(Failure::Seed);
+        return Rgb::ZERO;
+    };
+    let Some(ObjectSurface::Dielectric(d)) = scene.objects.get(oi as usize).map(|o| &o.surface)
+    else {
+        return Rgb::ZERO;
+    };
+    let result = solve::solve_from_point(
         &mut interface,
-        v64(x),
+        x0,
+        seed,
         &draw.target,
-        f64::from(d.ior),
-        f64::from(outside_ior),
+        f64::from(ior_in),
+        f64::from(ior_out),
         &SolverSettings::default(),
     );
     stats.rays += interface.rays;
@@ -269,21 +275,28 @@ pub(super) fn manifold_connection(
         return Rgb::ZERO;
     }
     // Fresnel seen from the light's side (outside), relative index n_inside / n_outside.
+    let eta = ior_in / ior_out.max(1e-6);
     let cos_b = sol.wb.dot(sol.x1.ns) as f32;
     let transmit = d.tint * ((1.0 - fresnel_dielectric(cos_b, eta)) * eta * eta);
     if transmit.is_black() {
         return Rgb::ZERO;
     }
-    let tr_inside = medium.transmittance(
-        &Ray::new(x, w01),
-        sol.la as f32,
-        &mut || sampler.next_1d(),
-        &mut stats.tracking,
+    // x0 → x1 through the media (and null boundaries) on the way, stopping just short of x1.
+    let tr_inside = shadow_transmittance(
+        scene,
+        x,
+        w01,
+        (sol.la * (1.0 - 1e-4)) as f32,
+        stack,
+        ShadowMode::Opaque,
+        None,
+        sampler,
+        stats,
     );
     if tr_inside.is_black() {
         return Rgb::ZERO;
     }
-    let mut outside = stack;
+    let mut outside = interface.inside;
     outside.remove(oi);
     let wb = v32(sol.wb).normalize();
     let origin = offset_ray_origin(v32(sol.x1.p), v32(sol.x1.ng), wb);

@@ -54,8 +54,9 @@ pub enum LightTarget {
 }
 
 impl LightTarget {
-    /// A point far along the light (for seeding with the straight line from `x0`).
-    fn seed_target(&self, x0: DVec3) -> DVec3 {
+    /// A point along the straight line from `x0` to the light (for seeding with it).
+    #[must_use]
+    pub fn seed_target(&self, x0: DVec3) -> DVec3 {
         match *self {
             LightTarget::Point { p, .. } => p,
             LightTarget::Direction(d) => x0 + d,
@@ -282,7 +283,21 @@ pub fn solve_from<I: Interface>(
     eta_b: f64,
     settings: &SolverSettings,
 ) -> Result<Solution, Failure> {
-    let mut x1 = interface.project(x0, seed).ok_or(Failure::Seed)?;
+    let x1 = interface.project(x0, seed).ok_or(Failure::Seed)?;
+    solve_from_point(interface, x0, x1, light, eta_a, eta_b, settings)
+}
+
+/// [`solve`] from a seed point already on the interface (as [`Interface::project`] returned it).
+pub fn solve_from_point<I: Interface>(
+    interface: &mut I,
+    x0: DVec3,
+    seed: InterfacePoint,
+    light: &LightTarget,
+    eta_a: f64,
+    eta_b: f64,
+    settings: &SolverSettings,
+) -> Result<Solution, Failure> {
+    let mut x1 = seed;
     let mut cur = constraint(x0, &x1, light, eta_a, eta_b).ok_or(Failure::Seed)?;
     let mut beta = 1.0f64;
     let mut iterations = 0;
