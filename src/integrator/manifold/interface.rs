@@ -52,7 +52,15 @@ pub(super) struct SceneInterface<'a> {
     pub inside: InteriorStack,
     /// Rays cast so far.
     pub rays: u64,
+    /// The seed's straight line from the vertex to the interface, segment by segment: the
+    /// governing medium (index into `Scene::media`) and length of each (for the roulette).
+    pub seed_segments: [(Option<u32>, f32); SEED_SEGMENTS],
+    /// Number of entries of `seed_segments` in use.
+    pub seed_segment_count: usize,
 }
+
+/// The most segments of the seed line recorded (null and false boundaries crossed + 1).
+pub(super) const SEED_SEGMENTS: usize = 4 * MAX_NESTING;
 
 impl<'a> SceneInterface<'a> {
     pub fn new(scene: &'a Scene, stack: &InteriorStack) -> Self {
@@ -62,6 +70,8 @@ impl<'a> SceneInterface<'a> {
             object: None,
             inside: *stack,
             rays: 0,
+            seed_segments: [(None, 0.0); SEED_SEGMENTS],
+            seed_segment_count: 0,
         }
     }
 
@@ -76,14 +86,72 @@ impl<'a> SceneInterface<'a> {
     /// The first real boundary along the ray from `x0` (through null and false boundaries),
     /// if it is a manifold interface the ray leaves: the hit and the stack before it.
     fn first_interface(&mut self, ray: &Ray) -> Option<(Hit, InteriorStack)> {
+        let seed = self.object.is_none();
+        let mut segments = [(None, 0.0f32); SEED_SEGMENTS];
+        let mut count = 0;
+        let found = self.walk(ray, |medium, _, length| {
+            if let Some(s) = segments.get_mut(count) {
+                *s = (medium, length);
+                count += 1;
+            }
+        });
+        if seed {
+            self.seed_segments = segments;
+            self.seed_segment_count = count;
+        }
+        found.map(|(hit, stack, _)| (hit, stack))
+    }
+
+    /// The transmittance from `x0` along `dir` to the interface (the media on the way, and the
+    /// tints of index-matched dielectrics crossed), by the media's transmittance estimators;
+    /// zero if the ray does not reach the interface object through passable boundaries. The
+    /// walk ends on the interface itself, not at a distance, so the ray offsets at the
+    /// boundaries crossed cannot make it stop short or run into the interface.
+    pub fn transmittance(
+        &mut self,
+        x0: Vec3,
+        dir: Vec3,
+        u: &mut impl FnMut() -> f32,
+        tracking: &mut crate::tracking::TrackingStats,
+    ) -> crate::spectrum::Rgb {
+        let scene = self.scene;
+        let mut tr = crate::spectrum::Rgb::ONE;
+        let found = self.walk(&Ray::new(x0, dir), |medium, origin, length| {
+            if let Some(m) = medium.and_then(|m| scene.media.get(m as usize)) {
+                tr *= m.transmittance(&Ray::new(origin, dir), length, u, tracking);
+            }
+        });
+        match found {
+            Some((_, _, tint)) => tr * tint,
+            None => crate::spectrum::Rgb::ZERO,
+        }
+    }
+
+    /// Follows the ray from its origin through null, false and index-matched boundaries
+    /// (updating a copy of the vertex's stack, as a unidirectional path does) to the first
+    /// other boundary, which must be a manifold interface the ray leaves (the object of the
+    /// seed, once known). Calls `segment(medium, origin, length)` for every segment (the
+    /// governing medium, if any). Returns the interface hit, the stack just inside it and the
+    /// product of the index-matched dielectrics' tints.
+    fn walk(
+        &mut self,
+        ray: &Ray,
+        mut segment: impl FnMut(Option<u32>, Vec3, f32),
+    ) -> Option<(Hit, InteriorStack, crate::spectrum::Rgb)> {
         let scene = self.scene;
         let mut stack = self.stack;
         let mut origin = ray.o;
-        for _ in 0..4 * MAX_NESTING {
+        let mut tint = crate::spectrum::Rgb::ONE;
+        for _ in 0..SEED_SEGMENTS {
             self.rays += 1;
             let hit = scene
                 .geometry
                 .intersect(&Ray::new(origin, ray.d), f32::INFINITY)?;
+            let governing = stack
+                .top(&scene.objects, None)
+                .and_then(|g| scene.objects.get(g as usize))
+                .and_then(|o| o.medium);
+            segment(governing, origin, hit.t);
             let ShapeOwner::Object(oi) = *scene.shape_owner.get(hit.shape as usize)? else {
                 return None;
             };
@@ -94,15 +162,18 @@ impl<'a> SceneInterface<'a> {
                 && (is_false_intersection(scene, &stack, oi, entering)
                     || match &obj.surface {
                         ObjectSurface::Null => true,
-                        // Index-matched: the smooth lobe passes straight through.
-                        ObjectSurface::Dielectric(d) => is_index_matched(d, outside),
-                        ObjectSurface::Fixed(_) => false,
+                        // Index-matched: the smooth lobe passes straight through, tinted.
+                        ObjectSurface::Dielectric(d) if is_index_matched(d, outside) => {
+                            tint *= d.tint;
+                            true
+                        }
+                        ObjectSurface::Dielectric(_) | ObjectSurface::Fixed(_) => false,
                     });
             if !passes {
                 let ok = !entering
                     && self.object.is_none_or(|o| o == oi)
                     && is_manifold_interface(obj, outside);
-                return ok.then_some((hit, stack));
+                return ok.then_some((hit, stack, tint));
             }
             if entering {
                 stack.push(oi);

@@ -49,7 +49,7 @@ use super::interiors::InteriorStack;
 use super::TraceStats;
 use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::light::Light;
-use crate::math::{offset_ray_origin, Vec3};
+use crate::math::{offset_ray_origin, Ray, Vec3};
 use crate::medium::PreparedPhase;
 use crate::sampling::{sample_uniform_sphere, PixelSampler};
 use crate::scene::{ObjectSurface, Scene, ShapeOwner};
@@ -59,6 +59,16 @@ use interface::SceneInterface;
 /// Probability of sampling a sphere light's point uniformly over its whole area (the
 /// defensive component of the light-point mixture).
 const UNIFORM_AREA: f32 = 0.1;
+
+/// Russian roulette on the walk (after the seed): it is made with probability
+/// `clamp(T(x0, seed) / ROULETTE_TRANSMITTANCE, ROULETTE_MIN, 1)` (max over channels, the
+/// transmittance of the media along the straight line to the seed point) and weighted
+/// by the inverse; deep vertices of dense media, whose connections carry almost nothing,
+/// then rarely pay for the walk (as for `exit_guided`'s connections).
+const ROULETTE_TRANSMITTANCE: f32 = 0.1;
+
+/// Lowest walk probability of the roulette.
+const ROULETTE_MIN: f32 = 0.05;
 
 /// Counters of the manifold walks (summed over a render, printed in its summary).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -79,6 +89,12 @@ pub struct ManifoldStats {
     pub singular: u64,
     /// Newton iterations over all solved walks.
     pub iterations: u64,
+    /// Walks skipped by the roulette on the transmittance to the seed (not failures).
+    pub roulette: u64,
+    /// Solved connections with no transmittance between the vertex and the refraction point.
+    pub blocked_inside: u64,
+    /// Solved connections whose shadow ray from the refraction point to the light is blocked.
+    pub blocked_outside: u64,
 }
 
 impl ManifoldStats {
@@ -92,6 +108,9 @@ impl ManifoldStats {
         self.wrong_side += o.wrong_side;
         self.singular += o.singular;
         self.iterations += o.iterations;
+        self.roulette += o.roulette;
+        self.blocked_inside += o.blocked_inside;
+        self.blocked_outside += o.blocked_outside;
     }
 
     /// Walks that did not give a connection.
@@ -117,18 +136,23 @@ impl ManifoldStats {
 
 impl std::fmt::Display for ManifoldStats {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let pct = |n: u64| 100.0 * n as f64 / self.attempts.max(1) as f64;
+        // Rates among the walks made (no-seed failures happen before the roulette).
+        let walks = self.attempts.saturating_sub(self.roulette).max(1);
+        let pct = |n: u64| 100.0 * n as f64 / walks as f64;
         write!(
             f,
-            "{} walks, {:.2} % solved ({:.2} iterations each); failed: {:.2} % no seed, {:.2} % no convergence, {:.2} % total internal reflection, {:.2} % wrong side, {:.2} % singular",
+            "{} connections, {:.2} % skipped by roulette; of the walks made, {:.2} % solved ({:.2} iterations each); failed: {:.2} % no seed, {:.2} % no convergence, {:.2} % total internal reflection, {:.2} % wrong side, {:.2} % singular; of the solved, {:.2} % blocked inside, {:.2} % shadowed outside",
             self.attempts,
+            100.0 * self.roulette as f64 / self.attempts.max(1) as f64,
             pct(self.solved),
             self.iterations as f64 / self.solved.max(1) as f64,
             pct(self.seed),
             pct(self.no_convergence),
             pct(self.total_internal_reflection),
             pct(self.wrong_side),
-            pct(self.singular)
+            pct(self.singular),
+            100.0 * self.blocked_inside as f64 / self.solved.max(1) as f64,
+            100.0 * self.blocked_outside as f64 / self.solved.max(1) as f64
         )
     }
 }
@@ -222,6 +246,7 @@ pub(super) fn manifold_connection(
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
     let u_mix = sampler.next_1d();
+    let u_rr = sampler.next_1d();
     let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
@@ -249,6 +274,27 @@ pub(super) fn manifold_connection(
     else {
         return Rgb::ZERO;
     };
+    // The transmittance along the seed line, segment by segment through the media on it.
+    let mut tr_seed = Rgb::ONE;
+    let mut from = x;
+    let dir_seed = (v32(seed.p) - x).normalize_or_zero();
+    for &(m, l) in &interface.seed_segments[..interface.seed_segment_count] {
+        if let Some(medium) = m.and_then(|m| scene.media.get(m as usize)) {
+            tr_seed *= medium.transmittance(
+                &Ray::new(from, dir_seed),
+                l,
+                &mut || sampler.next_1d(),
+                &mut stats.tracking,
+            );
+        }
+        from += dir_seed * l;
+    }
+    let q = (tr_seed.max_component() / ROULETTE_TRANSMITTANCE).clamp(ROULETTE_MIN, 1.0);
+    if !(u_rr < q) {
+        stats.rays += interface.rays;
+        stats.manifold.roulette += 1;
+        return Rgb::ZERO;
+    }
     let result = solve::solve_from_point(
         &mut interface,
         x0,
@@ -259,6 +305,7 @@ pub(super) fn manifold_connection(
         &SolverSettings::default(),
     );
     stats.rays += interface.rays;
+    interface.rays = 0;
     let sol = match result {
         Ok(s) => s,
         Err(f) => {
@@ -281,19 +328,11 @@ pub(super) fn manifold_connection(
     if transmit.is_black() {
         return Rgb::ZERO;
     }
-    // x0 → x1 through the media (and null boundaries) on the way, stopping just short of x1.
-    let tr_inside = shadow_transmittance(
-        scene,
-        x,
-        w01,
-        (sol.la * (1.0 - 1e-4)) as f32,
-        stack,
-        ShadowMode::Opaque,
-        None,
-        sampler,
-        stats,
-    );
+    // x0 → x1 through the media (and passable boundaries) on the way.
+    let tr_inside = interface.transmittance(x, w01, &mut || sampler.next_1d(), &mut stats.tracking);
+    stats.rays += interface.rays;
     if tr_inside.is_black() {
+        stats.manifold.blocked_inside += 1;
         return Rgb::ZERO;
     }
     let mut outside = interface.inside;
@@ -322,8 +361,9 @@ pub(super) fn manifold_connection(
         stats,
     );
     if tr_outside.is_black() {
+        stats.manifold.blocked_outside += 1;
         return Rgb::ZERO;
     }
     let g = sol.geometry as f32;
-    ph * tr_inside * transmit * tr_outside * draw.radiance * (g / (p_sel * draw.pdf))
+    ph * tr_inside * transmit * tr_outside * draw.radiance * (g / (q * p_sel * draw.pdf))
 }
