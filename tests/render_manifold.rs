@@ -32,7 +32,7 @@ struct Plane;
 impl Interface for Plane {
     fn project(&mut self, x0: DVec3, target: DVec3) -> Option<InterfacePoint> {
         let d = (target - x0).normalize();
-        if !(d.z > 0.0) {
+        if d.z <= 0.0 || d.z.is_nan() {
             return None;
         }
         let t = -x0.z / d.z;

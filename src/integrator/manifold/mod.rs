@@ -36,6 +36,9 @@
 //! connections whose walk fails are lost (counted in [`ManifoldStats`]); docs/references.md
 //! §5.6 and docs/choosing-estimators.md give the measured size.
 
+// Comparisons are written `!(x > 0.0)` on purpose: they also reject NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 mod interface;
 pub mod solve;
 
@@ -278,7 +281,11 @@ pub(super) fn manifold_connection(
     let mut tr_seed = Rgb::ONE;
     let mut from = x;
     let dir_seed = (v32(seed.p) - x).normalize_or_zero();
-    for &(m, l) in &interface.seed_segments[..interface.seed_segment_count] {
+    let segments = interface
+        .seed_segments
+        .get(..interface.seed_segment_count)
+        .unwrap_or(&[]);
+    for &(m, l) in segments {
         if let Some(medium) = m.and_then(|m| scene.media.get(m as usize)) {
             tr_seed *= medium.transmittance(
                 &Ray::new(from, dir_seed),

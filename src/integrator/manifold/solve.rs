@@ -13,6 +13,9 @@
 //! projected back along the ray from `x0` (as in the paper), so a mesh is walked across
 //! triangles by the ray casts, and every iterate is a point that `x0` sees.
 
+// Comparisons are written `!(x > 0.0)` on purpose: they also reject NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::DVec3;
 
 /// The surface around a point of the interface, in world units (`f64`).
@@ -203,19 +206,19 @@ fn constraint(
     let hh = h / h_len;
     let (s, t) = tangents(x1.ns);
     let e = [s, t];
-    let mut j = [[0.0; 2]; 2];
-    for k in 0..2 {
-        let dp = x1.dpdu[k];
+    // Column k: ∂C/∂u_k.
+    let column = |dp: DVec3, dn: DVec3| -> [f64; 2] {
         let mut dh = -(dp - wa * wa.dot(dp)) * (eta_a / la);
         if lb.is_finite() {
             dh -= (dp - wb * wb.dot(dp)) * (eta_b / lb);
         }
         let dhh = d_unit(h, h_len, dh);
         let n_dot = hh.dot(x1.ns);
-        for i in 0..2 {
-            j[i][k] = dhh.dot(e[i]) - e[i].dot(x1.dndu[k]) * n_dot;
-        }
-    }
+        e.map(|ei| dhh.dot(ei) - ei.dot(dn) * n_dot)
+    };
+    let c0 = column(x1.dpdu[0], x1.dndu[0]);
+    let c1 = column(x1.dpdu[1], x1.dndu[1]);
+    let j = [[c0[0], c1[0]], [c0[1], c1[1]]];
     Some(Constraint {
         c: [hh.dot(s), hh.dot(t)],
         j,
@@ -368,17 +371,17 @@ fn geometry_term(
         LightTarget::Point { n, .. } => (tangents(n), eta_b / c.lb),
         LightTarget::Direction(d) => (tangents(d), eta_b),
     };
-    let mut b = [[0.0; 2]; 2];
-    for (k, qk) in [q.0, q.1].into_iter().enumerate() {
+    // Column k: ∂C/∂v_k.
+    let column = |qk: DVec3| -> [f64; 2] {
         let dh = match light {
             LightTarget::Point { .. } => (qk - c.wb * c.wb.dot(qk)) * scale,
             LightTarget::Direction(_) => qk * scale,
         };
         let dhh = d_unit(c.h, c.h_len, dh);
-        for i in 0..2 {
-            b[i][k] = dhh.dot(c.e[i]);
-        }
-    }
+        c.e.map(|ei| dhh.dot(ei))
+    };
+    let (b0, b1) = (column(q.0), column(q.1));
+    let b = [[b0[0], b1[0]], [b0[1], b1[1]]];
     let det_j = det2(&c.j);
     if !(det_j.abs() > 0.0) {
         return None;
