@@ -319,3 +319,58 @@ fn on_triangle(
         dndu,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::TriangleMesh;
+    use crate::math::Vec2;
+
+    /// The derivative of the interpolated shading normal along the tangent plane against
+    /// central differences of the normal at points moved along the tangents.
+    #[test]
+    fn triangle_normal_derivative_matches_finite_differences() {
+        let mesh = TriangleMesh {
+            positions: vec![
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.1, 0.9),
+                Vec3::new(0.2, 1.0, 0.8),
+            ],
+            normals: Some(vec![
+                Vec3::new(0.1, -0.2, 1.0).normalize(),
+                Vec3::new(0.5, 0.1, 0.9).normalize(),
+                Vec3::new(-0.2, 0.6, 0.8).normalize(),
+            ]),
+            uvs: None,
+            indices: vec![[0, 1, 2]],
+        };
+        let hit = Hit {
+            t: 1.0,
+            p: Vec3::ZERO,
+            ng: Vec3::Z,
+            ns: Vec3::Z,
+            uv: Vec2::ZERO,
+            shape: 0,
+            prim: 0,
+            p_error: 0.0,
+        };
+        let x0 = DVec3::new(0.3, 0.3, -1.0);
+        let at = |target: DVec3| {
+            let d = (target - x0).normalize();
+            on_triangle(x0, d, &mesh, &hit).expect("crosses the triangle")
+        };
+        let p = at(DVec3::new(0.35, 0.3, 0.9));
+        let h = 1e-6;
+        for k in 0..2 {
+            let t = p.dpdu[k];
+            let fd = (at(p.p + t * h).ns - at(p.p - t * h).ns) / (2.0 * h);
+            assert!(
+                (fd - p.dndu[k]).length() < 1e-6,
+                "tangent {k}: {} vs finite differences {fd}",
+                p.dndu[k]
+            );
+        }
+        // The point is on the triangle's plane and the normals are unit and outward.
+        assert!((p.ns.length() - 1.0).abs() < 1e-12 && p.ns.dot(p.ng) > 0.0);
+    }
+}

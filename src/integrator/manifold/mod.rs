@@ -1,6 +1,9 @@
 //! Manifold next event estimation (`nee = "manifold"`; Hanika, Droske and Fascione 2015,
 //! "Manifold next event estimation"; docs/references.md §5): direct light at interior
-//! vertices behind the object's own **smooth** dielectric boundary.
+//! vertices behind a **smooth** dielectric boundary: the object's own, or, for a region
+//! without a surface inside such an object (an iris in an eye), the enclosing one. The
+//! interface is the first boundary the straight line to the light meets that is not null,
+//! false or index-matched ([`interface`]).
 //!
 //! Behind a smooth boundary neither exit-point NEE (the boundary is a delta lobe) nor
 //! transparent shadows (which ignore refraction) can connect to a light: only phase-function
@@ -21,6 +24,11 @@
 //! of the light seen from `x0` (the cap `x0` sees), with `ε` the whole sphere uniformly by
 //! area; the estimator divides by the mixture's area density, so caps seen from `x1` but not
 //! from `x0` are covered too (Hesterberg 1995).
+//!
+//! **Roulette.** After the seed, the walk is made with probability `min(1, T/0.1)` (at least
+//! 0.05) of the transmittance `T` along the straight line to the seed point, and weighted by
+//! the inverse: deep vertices of dense media rarely pay for a walk whose result they would
+//! almost entirely absorb.
 //!
 //! **No double counting.** MNEE has no tractable pdf for MIS, so the paths it samples are
 //! given to it alone: a unidirectional path that scatters at an interior vertex of a
