@@ -3,7 +3,7 @@
 //! vertices behind a **smooth** dielectric boundary: the object's own, or, for a region
 //! without a surface inside such an object (an iris in an eye), the enclosing one. The
 //! interface is the first boundary the straight line to the light meets that is not null,
-//! false or index-matched ([`interface`]).
+//! false or index-matched (`interface.rs`).
 //!
 //! Behind a smooth boundary neither exit-point NEE (the boundary is a delta lobe) nor
 //! transparent shadows (which ignore refraction) can connect to a light: only phase-function
