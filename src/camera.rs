@@ -165,6 +165,13 @@ impl Camera {
         Ray::new(o, (focus - o).normalize())
     }
 
+    /// The spread angle of a ray cone through one pixel (Akenine-Möller et al. 2019;
+    /// docs/references.md §14.2): atan(2 tan(fov/2) / height), radians.
+    #[must_use]
+    pub fn pixel_spread_angle(&self) -> f32 {
+        (2.0 * self.tan_half_vfov / self.height.max(1) as f32).atan()
+    }
+
     /// The film position a world point projects to through the lens centre, or `None` when
     /// the point is not in front of the camera. (Inverse of the pinhole mapping; the point
     /// may fall outside `[0, width] × [0, height]`.)

@@ -16,6 +16,7 @@ pub mod geometry;
 pub mod grid;
 pub mod image_io;
 pub mod phase;
+pub mod texture;
 pub mod vdb;
 
 pub mod majorant;
@@ -32,5 +33,7 @@ pub mod scene;
 
 pub mod integrator;
 pub mod render;
+
+pub mod farm;
 
 pub mod cli;

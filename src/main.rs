@@ -18,6 +18,10 @@ struct Cli {
 enum Command {
     /// Render a scene file (or the built-in default scene) to EXR + PNG.
     Render(cli::render::RenderArgs),
+    /// SHA-256 of an EXR image's pixels, ignoring its header (render time, command line).
+    Checksum(cli::checksum::ChecksumArgs),
+    /// Merge the part files of a split render (tiles, sample ranges) into one image.
+    Merge(cli::merge::MergeArgs),
     /// Print the grids of an OpenVDB file with their statistics.
     Inspect(cli::inspect::InspectArgs),
     /// Rewrite an OpenVDB file through velour's reader and writer.
@@ -52,6 +56,8 @@ fn main() {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Render(a) => cli::render::run(a),
+        Command::Merge(a) => cli::merge::run(a),
+        Command::Checksum(a) => cli::checksum::run(a),
         Command::Inspect(a) => cli::inspect::run(a),
         Command::Convert(a) => cli::convert::run(a),
         Command::Weave(a) => cli::weave::run(a),

@@ -147,7 +147,9 @@ fn foreign_layouts_f16_u32_and_multiple_parts_are_read() {
     assert_eq!((img.width, img.height), (w as u32, h as u32));
     let rgb = img.rgb("").unwrap();
     assert_eq!(rgb[5], Rgb::new(2.5, -5.0, f16::from_f32(0.333).to_f32()));
-    assert_eq!(img.channel("id").unwrap()[20], 20_000.0);
+    // Integer channels are kept exact, apart from the float ones.
+    assert_eq!(img.uint_channels["id"][20], 20_000);
+    assert!(img.channel("id").is_none());
     assert_eq!(img.channel("extra.Z").unwrap()[3], 3.125);
     assert_eq!(r[6].to_f32(), img.channel("R").unwrap()[6]);
 }
@@ -308,4 +310,29 @@ fn latlong_maps_are_read_and_bad_texels_named() {
         e.to_string().contains("env.exr") && e.to_string().contains("R, G and B"),
         "{e}"
     );
+}
+
+#[test]
+fn a_failed_write_keeps_the_previous_file_whole() {
+    // The write goes to `<path>.tmp` and is renamed only when complete; when the temporary
+    // file cannot be written (here a directory is in its way, as a full disk would stop it),
+    // the previous file is untouched and no temporary file is left behind.
+    let dir = TempDir::new("exr-atomic");
+    let path = dir.join("frame.partial.exr");
+    let old = noisy_film(4, 3, 2);
+    old.write_exr(&path).unwrap();
+    let before = std::fs::read(&path).unwrap();
+    let tmp = velour::image_io::temp_path(&path);
+    std::fs::create_dir(&tmp).unwrap();
+    let new = noisy_film(4, 3, 5);
+    assert!(new.write_exr(&path).is_err());
+    assert_eq!(
+        std::fs::read(&path).unwrap(),
+        before,
+        "the previous file changed"
+    );
+    std::fs::remove_dir(&tmp).unwrap();
+    new.write_exr(&path).unwrap();
+    assert!(!tmp.exists());
+    assert_ne!(std::fs::read(&path).unwrap(), before);
 }

@@ -134,6 +134,10 @@ fn tradeoff_cli_end_to_end() {
             "scene file,delta + ratio,step",
             "--steps",
             "0.05",
+            "--adaptive",
+            "0.2",
+            "--min-spp",
+            "2",
             "--threads",
             "2",
             "--reference",
@@ -146,8 +150,10 @@ fn tradeoff_cli_end_to_end() {
     let stdout = &o.stdout;
     assert!(stdout.contains("most efficient at 2 spp:"), "{stdout}");
     let table = std::fs::read_to_string(out.join("tradeoff.csv")).expect("csv");
-    // 3 configurations (scene file, delta + ratio, one ray-marching step) × 2 budgets.
-    assert_eq!(table.lines().count(), 1 + 3 * 2, "{table}");
+    // 3 configurations (scene file, delta + ratio, one ray-marching step) and the scene file
+    // with adaptive sampling, × 2 budgets.
+    assert_eq!(table.lines().count(), 1 + 4 * 2, "{table}");
+    assert!(table.contains("scene file, adaptive 0.2"), "{table}");
     for line in table.lines().skip(1) {
         let f: Vec<&str> = line.rsplitn(11, ',').collect();
         let rmse: f64 = f[5].parse().expect("rmse");

@@ -8,26 +8,12 @@ mod common;
 
 use std::path::Path;
 
-use common::render::{pixel_means, render_finite, scene_from_text};
+use common::render::{image_mean, render_finite, scene_from_text};
 use common::stats::z_score;
 use velour::film::Film;
 
 fn render(text: &str) -> Film {
     render_finite(&scene_from_text(text, Path::new("test.toml")), 0).0
-}
-
-/// Mean over all pixels of channel `c` and its standard error from the pixels' own variances
-/// (the pixels are independent estimates; the scenes fill the frame with the sphere).
-fn image_mean(film: &Film, c: usize) -> (f64, f64) {
-    let means = pixel_means(film, c);
-    let n = means.len() as f64;
-    let mut var = 0.0;
-    for y in 0..film.height() {
-        for x in 0..film.width() {
-            var += f64::from(film.variance_of_mean(x, y)[c]);
-        }
-    }
-    (means.iter().sum::<f64>() / n, var.sqrt() / n)
 }
 
 /// Relative variance of the image: the pixels' variances of the mean over their squared

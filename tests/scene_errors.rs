@@ -140,7 +140,10 @@ fn unknown_interior_types_name_the_line_and_the_choices() {
         e.starts_with("bad.toml:17: skin: interior.type = \"nebula\""),
         "{e}"
     );
-    assert!(e.contains("\"voxel\", \"fbm\" or \"fabric\""), "{e}");
+    assert!(
+        e.contains("\"voxel\", \"fbm\", \"fabric\" or \"blend\""),
+        "{e}"
+    );
 }
 
 #[test]

@@ -50,7 +50,7 @@ const LIGHTS: [Case; 4] = [
     },
 ];
 
-const SURFACES: [Case; 4] = [
+const SURFACES: [Case; 5] = [
     Case {
         kind: "dielectric",
         good: "roughness",
@@ -79,9 +79,16 @@ const SURFACES: [Case; 4] = [
         foreign: "tint",
         foreign_owner: "dielectric",
     },
+    Case {
+        kind: "blend",
+        good: "mask",
+        misspelt: "msk",
+        foreign: "ior",
+        foreign_owner: "dielectric",
+    },
 ];
 
-const INTERIORS: [Case; 5] = [
+const INTERIORS: [Case; 6] = [
     Case {
         kind: "absorption",
         good: "attenuation",
@@ -114,6 +121,13 @@ const INTERIORS: [Case; 5] = [
         kind: "fabric",
         good: "pattern",
         misspelt: "patern",
+        foreign: "albedo",
+        foreign_owner: "homogeneous",
+    },
+    Case {
+        kind: "blend",
+        good: "mask",
+        misspelt: "msk",
         foreign: "albedo",
         foreign_owner: "homogeneous",
     },

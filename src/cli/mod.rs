@@ -2,10 +2,13 @@
 //! argument struct and its `run` function.
 
 pub mod bench;
+pub mod checksum;
 pub mod convert;
 pub mod diff;
 pub mod inspect;
 pub mod majorants;
+pub mod merge;
+pub mod metadata;
 pub mod reference;
 pub mod render;
 pub mod tradeoff;

@@ -50,6 +50,15 @@ pub fn load_scene_with(
         Some(p) => Scene::load(p)?,
         None => crate::scene::default_scene()?,
     };
+    apply_overrides(&mut s, o)?;
+    Ok(s)
+}
+
+/// Applies the resolution and depth overrides to a loaded scene.
+pub fn apply_overrides(
+    s: &mut Scene,
+    o: &SceneOverrides,
+) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
     if let Some(d) = o.max_depth {
         if d == 0 || d > 1_000_000 {
             return Err(format!("--max-depth {d} is outside [1, 1000000]").into());
@@ -64,7 +73,7 @@ pub fn load_scene_with(
         }
         s.set_resolution(w, h)?;
     }
-    Ok(s)
+    Ok(())
 }
 
 /// Arguments of `velour reference`.
@@ -142,11 +151,11 @@ pub fn run(args: &ReferenceArgs) -> CliResult {
         scene.film.seed
     );
     let options = BudgetOptions {
-        budget,
         threads: args.threads,
         progress: !args.quiet,
-        checkpoint: Some(args.output.clone()),
+        checkpoint: Some(crate::render::partial_path_for(&args.output)),
         checkpoint_interval: Duration::from_secs_f64(args.checkpoint),
+        ..BudgetOptions::new(budget)
     };
     let r = render_budget(&scene, &options)?;
     let mut attributes = BTreeMap::new();
@@ -170,6 +179,9 @@ pub fn run(args: &ReferenceArgs) -> CliResult {
         .collect();
     attributes.insert("velour:scene".to_string(), scene_name);
     write_film(&r.film, &args.output, scene.film.exposure, &attributes)?;
+    if let Some(partial) = &options.checkpoint {
+        crate::render::remove_partial(partial);
+    }
     println!(
         "wrote {} and {} ({} spp)",
         args.output.display(),

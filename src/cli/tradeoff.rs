@@ -265,6 +265,7 @@ pub fn measure(
     budgets: &[Budget],
     reference: &image_io::ExrImage,
     threads: usize,
+    adaptive: Option<crate::render::Adaptive>,
 ) -> Result<Vec<Measurement>, Box<dyn std::error::Error + Send + Sync>> {
     let mut scene = load_scene_str(scene_text, scene_path)?;
     if let Some(d) = overrides.max_depth {
@@ -277,6 +278,7 @@ pub fn measure(
             &scene,
             &BudgetOptions {
                 threads,
+                adaptive,
                 ..BudgetOptions::new(budget)
             },
         )?;
@@ -487,6 +489,13 @@ pub struct TradeoffArgs {
     /// Maximum scattering events per path (overrides film.max_depth).
     #[arg(long)]
     pub max_depth: Option<u32>,
+    /// Also measure the scene file with adaptive sampling at these noise thresholds (see
+    /// `velour render --noise-threshold`); at a sample budget the budget is the maximum spp.
+    #[arg(long, value_delimiter = ',')]
+    pub adaptive: Vec<f64>,
+    /// Adaptive sampling's minimum samples per pixel.
+    #[arg(long, default_value_t = 16)]
+    pub min_spp: u32,
 }
 
 /// Runs `velour tradeoff`.
@@ -527,6 +536,12 @@ pub fn run(args: &TradeoffArgs) -> CliResult {
     if args.steps.iter().any(|s| !(*s > 0.0 && s.is_finite())) {
         return Err("--steps must be positive lengths".into());
     }
+    if args.adaptive.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
+        return Err("--adaptive thresholds must be positive numbers".into());
+    }
+    if args.min_spp < 2 {
+        return Err("--min-spp must be at least 2".into());
+    }
     let overrides = SceneOverrides {
         width: None,
         height: None,
@@ -544,7 +559,25 @@ pub fn run(args: &TradeoffArgs) -> CliResult {
     }
     std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
     let mut rows = Vec::new();
-    for c in &configs {
+    // The adaptive runs use the scene file as written.
+    let adaptive_runs = args.adaptive.iter().map(|&threshold| {
+        (
+            Configuration {
+                name: format!("scene file, adaptive {threshold}"),
+                edits: vec![],
+            },
+            Some(crate::render::Adaptive {
+                threshold,
+                min_spp: args.min_spp,
+            }),
+        )
+    });
+    let runs: Vec<(Configuration, Option<crate::render::Adaptive>)> = configs
+        .into_iter()
+        .map(|c| (c, None))
+        .chain(adaptive_runs)
+        .collect();
+    for (c, adaptive) in &runs {
         let edited = apply(&doc, c)?;
         eprintln!("{}", c.name);
         match measure(
@@ -555,6 +588,7 @@ pub fn run(args: &TradeoffArgs) -> CliResult {
             &budgets,
             &reference,
             args.threads,
+            *adaptive,
         ) {
             Ok(m) => {
                 for r in &m {

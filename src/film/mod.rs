@@ -2,18 +2,17 @@
 //! auxiliary buffers a denoiser or compositor wants (albedo, normal, depth), with EXR and PNG
 //! output.
 //!
-//! Each pixel is a box-filtered estimate: the mean of the radiance samples taken in it. The
-//! mean and the sum of squared deviations are accumulated in `f64` with Welford's update and
-//! merged with Chan et al.'s pairwise formula ("Updating formulae and a pairwise algorithm for
-//! computing sample variances", 1979), so a constant pixel has exactly zero variance and no
-//! cancellation occurs at high sample counts.
+//! Each pixel is a box-filtered estimate: the mean of the radiance samples taken in it. Every
+//! sample is rounded once to a fixed binary grid and the pixel keeps integer sums of the
+//! radiance, of its square and of the auxiliary layers ([`fixed`], [`pixel`]): 192-bit sums with
+//! 96 and 80 fractional bits for the radiance and its square, far below `f32` resolution. The
+//! variance of the mean is (Σx² − (Σx)²/n) / (n (n − 1)), evaluated in `f64` from the exact sums.
 //!
-//! Determinism: a pixel's accumulator depends only on the sequence of samples added to it and on
-//! how they are grouped into [`FilmTile`]s before merging. Tiles cover disjoint pixels in the
-//! usual use, so the order in which tiles are merged cannot change a bit; [`Film::merge_tiles`]
-//! also sorts tiles by position first, so even overlapping tiles merge in one fixed order. A
-//! renderer that adds samples to each pixel in sample-index order, in passes of a fixed sample
-//! count, gets a bit-identical film whatever the thread count, tile shape or tile order.
+//! Determinism: integer addition is exact and associative, so a pixel's accumulator depends only
+//! on the set of samples added to it, not on how they were grouped. Tiles, passes, threads,
+//! sample ranges rendered by different processes ([`Film::merge_film`]) and a checkpoint resumed
+//! later ([`Film::to_state_image`], [`Film::from_exr_image`]) all give the same bits as one
+//! uninterrupted render.
 //!
 //! Output ([`Film::write_exr`]): one EXR part with channels
 //! - `R`, `G`, `B`: the beauty (mean radiance),
@@ -23,11 +22,20 @@
 //! - `samples.N`: the number of samples in the pixel,
 //!
 //! all 32-bit float, written through `<path>.tmp` and renamed so a reader never sees a partial
-//! file.
+//! file. Part files and checkpoints add the exact accumulator state as `UINT` channels
+//! `state.*` ([`state`]).
+
+mod fixed;
+mod pixel;
+mod state;
+
+pub use fixed::MAX_SAMPLE;
+pub use pixel::MAX_DEPTH;
 
 use crate::image_io::{self, ExrImage, ImageError};
 use crate::math::Vec3;
 use crate::spectrum::Rgb;
+use pixel::Pixel;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -98,107 +106,6 @@ pub struct PixelSample {
     pub depth: f32,
 }
 
-/// The accumulator of one pixel.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Pixel {
-    /// Samples accumulated.
-    n: u32,
-    /// Samples with a finite depth.
-    hits: u32,
-    /// Running mean of the radiance.
-    mean: [f64; 3],
-    /// Sum of squared deviations from the mean (Welford's M2).
-    m2: [f64; 3],
-    /// Sums of albedo, normal and hit depth.
-    albedo: [f64; 3],
-    normal: [f64; 3],
-    depth: f64,
-}
-
-impl Pixel {
-    /// Welford's single-sample update. The sample must have finite radiance.
-    #[inline]
-    fn add(&mut self, s: &PixelSample) {
-        self.n += 1;
-        let inv_n = 1.0 / f64::from(self.n);
-        for c in 0..3 {
-            let x = f64::from(s.radiance.0[c]);
-            let d = x - self.mean[c];
-            self.mean[c] += d * inv_n;
-            self.m2[c] += d * (x - self.mean[c]);
-            self.albedo[c] += finite_or_zero(s.albedo.0[c]);
-        }
-        for (sum, v) in self.normal.iter_mut().zip(s.normal.to_array()) {
-            *sum += finite_or_zero(v);
-        }
-        if s.depth.is_finite() && s.depth >= 0.0 {
-            self.hits += 1;
-            self.depth += f64::from(s.depth);
-        }
-    }
-
-    /// Chan et al.'s pairwise merge of another accumulator into this one. When `self` is empty
-    /// the result is `o` exactly.
-    #[inline]
-    fn merge(&mut self, o: &Pixel) {
-        if o.n == 0 {
-            return;
-        }
-        if self.n == 0 {
-            *self = *o;
-            return;
-        }
-        let (na, nb) = (f64::from(self.n), f64::from(o.n));
-        let n = na + nb;
-        for c in 0..3 {
-            let d = o.mean[c] - self.mean[c];
-            self.mean[c] += d * (nb / n);
-            self.m2[c] += o.m2[c] + d * d * (na * nb / n);
-            self.albedo[c] += o.albedo[c];
-            self.normal[c] += o.normal[c];
-        }
-        self.n = self.n.saturating_add(o.n);
-        self.hits = self.hits.saturating_add(o.hits);
-        self.depth += o.depth;
-    }
-
-    fn mean(&self) -> Rgb {
-        Rgb(self.mean.map(|m| m as f32))
-    }
-
-    fn variance_of_mean(&self) -> Rgb {
-        if self.n < 2 {
-            return Rgb::ZERO;
-        }
-        let n = f64::from(self.n);
-        Rgb(self.m2.map(|m2| (m2.max(0.0) / ((n - 1.0) * n)) as f32))
-    }
-
-    fn avg(&self, sums: [f64; 3]) -> [f32; 3] {
-        if self.n == 0 {
-            return [0.0; 3];
-        }
-        sums.map(|s| (s / f64::from(self.n)) as f32)
-    }
-
-    fn depth(&self) -> f32 {
-        if self.hits == 0 {
-            f32::INFINITY
-        } else {
-            (self.depth / f64::from(self.hits)) as f32
-        }
-    }
-}
-
-#[inline]
-fn finite_or_zero(v: f32) -> f64 {
-    if v.is_finite() {
-        f64::from(v)
-    } else {
-        0.0
-    }
-}
-
 fn check_size(width: u32, height: u32) -> Result<(), FilmError> {
     if width == 0
         || height == 0
@@ -263,7 +170,7 @@ impl FilmTile {
     #[inline]
     pub fn add_sample(&mut self, x: u32, y: u32, s: &PixelSample) {
         let (dx, dy) = (x.wrapping_sub(self.x0), y.wrapping_sub(self.y0));
-        if dx >= self.width || dy >= self.height || !s.radiance.is_finite() {
+        if dx >= self.width || dy >= self.height || !pixel::accepts(s) {
             self.dropped += 1;
             return;
         }
@@ -294,7 +201,7 @@ pub struct Film {
 
 impl Film {
     /// An empty film. Refuses a zero side, a side beyond [`MAX_SIDE`], more than [`MAX_PIXELS`]
-    /// pixels, or a size whose buffers cannot be allocated (about 112 bytes a pixel).
+    /// pixels, or a size whose buffers cannot be allocated (216 bytes a pixel).
     pub fn new(width: u32, height: u32) -> Result<Film, FilmError> {
         check_size(width, height)?;
         Ok(Film {
@@ -327,7 +234,7 @@ impl Film {
     #[inline]
     pub fn add_sample(&mut self, x: u32, y: u32, s: &PixelSample) {
         match self.index(x, y) {
-            Some(i) if s.radiance.is_finite() => self.pixels[i].add(s),
+            Some(i) if pixel::accepts(s) => self.pixels[i].add(s),
             _ => self.dropped += 1,
         }
     }
@@ -433,14 +340,14 @@ impl Film {
     #[must_use]
     pub fn albedo(&self, x: u32, y: u32) -> Rgb {
         let p = self.px(x, y);
-        Rgb(p.avg(p.albedo))
+        Rgb(p.aux_mean(p.albedo))
     }
 
     /// Mean normal of the pixel's samples (not renormalised).
     #[must_use]
     pub fn normal(&self, x: u32, y: u32) -> Vec3 {
         let p = self.px(x, y);
-        Vec3::from_array(p.avg(p.normal))
+        Vec3::from_array(p.aux_mean(p.normal))
     }
 
     /// Mean hit distance of the pixel's samples that hit something; +inf when none did.
@@ -479,18 +386,27 @@ impl Film {
     pub fn to_exr_image(&self, attributes: &BTreeMap<String, String>) -> ExrImage {
         let mut img = ExrImage::new(self.width, self.height);
         let n = self.pixels.len();
+        // The mean and variance need the wide sums converted: once per pixel.
+        let means: Vec<Rgb> = self.pixels.iter().map(Pixel::mean).collect();
+        let variances: Vec<Rgb> = self.pixels.iter().map(Pixel::variance_of_mean).collect();
+        for (c, s) in ["R", "G", "B"].iter().enumerate() {
+            img.channels
+                .insert((*s).to_string(), means.iter().map(|m| m.0[c]).collect());
+            img.channels.insert(
+                format!("variance.{s}"),
+                variances.iter().map(|v| v.0[c]).collect(),
+            );
+        }
         let mut put = |name: &str, f: &dyn Fn(&Pixel) -> f32| {
             let mut v = Vec::with_capacity(n);
             v.extend(self.pixels.iter().map(f));
             img.channels.insert(name.to_string(), v);
         };
         for (c, s) in ["R", "G", "B"].iter().enumerate() {
-            put(s, &|p| p.mean[c] as f32);
-            put(&format!("variance.{s}"), &|p| p.variance_of_mean().0[c]);
-            put(&format!("albedo.{s}"), &|p| p.avg(p.albedo)[c]);
+            put(&format!("albedo.{s}"), &|p| p.aux_mean(p.albedo)[c]);
         }
         for (c, s) in ["X", "Y", "Z"].iter().enumerate() {
-            put(&format!("normal.{s}"), &|p| p.avg(p.normal)[c]);
+            put(&format!("normal.{s}"), &|p| p.aux_mean(p.normal)[c]);
         }
         put("depth.Z", &Pixel::depth);
         put(image_io::compare::SAMPLES_CHANNEL, &|p| p.n as f32);
@@ -522,57 +438,47 @@ impl Film {
         Ok(())
     }
 
-    /// Restores a film from an image written by [`Film::write_exr`] (e.g. to resume a render):
-    /// the mean, variance, sample count and auxiliary layers are turned back into accumulators.
-    /// The EXR holds 32-bit values, so a resumed render matches an uninterrupted one only to
-    /// `f32` precision. Errors when `R/G/B`, `variance.R/G/B` or `samples.N` are missing.
+    /// All layers plus the exact accumulator state (see [`state`]) as one [`ExrImage`]: what
+    /// part files and checkpoints hold.
+    #[must_use]
+    pub fn to_state_image(&self, attributes: &BTreeMap<String, String>) -> ExrImage {
+        let mut img = self.to_exr_image(attributes);
+        img.uint_channels = state::encode(&self.pixels);
+        img
+    }
+
+    /// Restores a film exactly from an image made by [`Film::to_state_image`] (a part file or a
+    /// checkpoint): adding the remaining samples, or merging the other parts, then gives the
+    /// same bits as an uninterrupted render. Errors when the state channels are missing,
+    /// truncated or inconsistent.
     pub fn from_exr_image(img: &ExrImage) -> Result<Film, FilmError> {
-        let mut film = Film::new(img.width, img.height)?;
-        let len = img.pixel_count();
-        let need = |name: &str| {
-            img.channel(name).filter(|v| v.len() == len).ok_or_else(|| {
-                FilmError::Restore(format!("channel {name} is missing or of the wrong length"))
-            })
-        };
-        let rgb = [need("R")?, need("G")?, need("B")?];
-        let var = [
-            need("variance.R")?,
-            need("variance.G")?,
-            need("variance.B")?,
-        ];
-        let count = need(image_io::compare::SAMPLES_CHANNEL)?;
-        let opt = |name: &str| img.channel(name).filter(|v| v.len() == len);
-        let albedo = ["albedo.R", "albedo.G", "albedo.B"].map(opt);
-        let normal = ["normal.X", "normal.Y", "normal.Z"].map(opt);
-        let depth = opt("depth.Z");
-        for (i, p) in film.pixels.iter_mut().enumerate() {
-            let n = count[i];
-            if !(n >= 0.0 && n <= u32::MAX as f32 && n.fract() == 0.0) {
-                return Err(FilmError::Restore(format!(
-                    "pixel {i} has a sample count of {n}"
-                )));
-            }
-            p.n = n as u32;
-            if p.n == 0 {
-                continue;
-            }
-            let nf = f64::from(p.n);
-            for c in 0..3 {
-                p.mean[c] = f64::from(rgb[c][i]);
-                p.m2[c] = f64::from(var[c][i]).max(0.0) * nf * (nf - 1.0);
-                p.albedo[c] = albedo[c].map_or(0.0, |v| f64::from(v[i]) * nf);
-                p.normal[c] = normal[c].map_or(0.0, |v| f64::from(v[i]) * nf);
-            }
-            if let Some(d) = depth.map(|d| d[i]).filter(|d| d.is_finite()) {
-                p.hits = p.n;
-                p.depth = f64::from(d) * nf;
-            }
-            if !p.mean.iter().chain(&p.m2).all(|v| v.is_finite()) {
-                return Err(FilmError::Restore(format!(
-                    "pixel {i} has a non-finite mean or variance"
-                )));
-            }
+        if !state::present(&img.uint_channels) {
+            return Err(FilmError::Restore(
+                "the image carries no exact film state (only part files and checkpoints do)"
+                    .to_string(),
+            ));
         }
+        let mut film = Film::new(img.width, img.height)?;
+        state::decode(&img.uint_channels, &mut film.pixels)?;
         Ok(film)
+    }
+
+    /// Adds every pixel of `other`, a band of this film's width whose first row is `row0`
+    /// here, to this film: exact, so merging parts in any order gives the same bits.
+    pub fn merge_rows(&mut self, other: &Film, row0: u32) -> Result<(), FilmError> {
+        if other.width != self.width
+            || u64::from(row0) + u64::from(other.height) > u64::from(self.height)
+        {
+            return Err(FilmError::Restore(format!(
+                "a {}x{} band at row {row0} does not fit in a {}x{} film",
+                other.width, other.height, self.width, self.height
+            )));
+        }
+        let start = row0 as usize * self.width as usize;
+        for (a, b) in self.pixels[start..].iter_mut().zip(&other.pixels) {
+            a.merge(b);
+        }
+        self.dropped += other.dropped;
+        Ok(())
     }
 }

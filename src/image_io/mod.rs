@@ -92,7 +92,8 @@ pub enum ImageError {
     },
 }
 
-/// A decoded EXR image: every channel as `f32`, row-major, top row first.
+/// A decoded EXR image: every float channel as `f32` and every integer channel as `u32`,
+/// row-major, top row first.
 ///
 /// Channel names are the full EXR names (`R`, `variance.G`, `normal.X`, ...). For a multi-part
 /// file, channels of parts other than the first are prefixed with the part's name
@@ -105,6 +106,9 @@ pub struct ExrImage {
     pub height: u32,
     /// Channel name -> `width * height` samples, row-major, top row first.
     pub channels: BTreeMap<String, Vec<f32>>,
+    /// 32-bit unsigned integer channels (EXR `UINT`), kept exact: name -> samples. Integer
+    /// channels read from a file land here, not in [`ExrImage::channels`].
+    pub uint_channels: BTreeMap<String, Vec<u32>>,
     /// Text attributes of the (first) header that are not standard EXR attributes, e.g.
     /// `velour:spp`. Written back as EXR `string` attributes.
     pub attributes: BTreeMap<String, String>,
@@ -121,6 +125,7 @@ impl ExrImage {
             width,
             height,
             channels: BTreeMap::new(),
+            uint_channels: BTreeMap::new(),
             attributes: BTreeMap::new(),
         }
     }
@@ -241,7 +246,8 @@ fn invalid(path: &Path, message: impl Into<String>) -> ImageError {
 }
 
 /// Reads an OpenEXR file: every channel of every part (layer) whose size equals the first
-/// part's, converted to `f32` (`f16`, `f32` and `u32` channels are accepted); for tiled or
+/// part's, `f16` and `f32` channels converted to `f32`, `u32` channels kept exact in
+/// [`ExrImage::uint_channels`]; for tiled or
 /// mip-mapped files the largest level. Deep images, sub-sampled channels and headers declaring
 /// absurd sizes (beyond [`MAX_SIDE`], [`MAX_PIXELS`], [`MAX_CHANNELS`], [`MAX_SAMPLES`]) are
 /// refused. A corrupt or truncated file is an error naming the file, never a panic.
@@ -332,6 +338,22 @@ pub fn read_exr_bytes(path: &Path, bytes: &[u8]) -> Result<ExrImage, ImageError>
             (Some(n), _) => n.to_string(),
         };
         for channel in &layer.channel_data.list {
+            if let FlatSamples::U32(words) = &channel.sample_data {
+                if words.len() != w * h {
+                    return Err(invalid(
+                        path,
+                        format!(
+                            "channel {} holds {} samples, expected {}",
+                            channel.name,
+                            words.len(),
+                            w * h
+                        ),
+                    ));
+                }
+                let name = layer_channel_name(&prefix, &channel.name.to_string());
+                out.uint_channels.insert(name, words.clone());
+                continue;
+            }
             let samples: Vec<f32> = channel.sample_data.values_as_f32().collect();
             if samples.len() != w * h {
                 return Err(invalid(
@@ -390,8 +412,8 @@ pub(crate) fn write_atomically(
     result
 }
 
-/// Writes an EXR file: one scan-line part, ZIP (16 lines) lossless compression, every channel
-/// as 32-bit float, plus the image's text [`ExrImage::attributes`]. Written to `<path>.tmp` and
+/// Writes an EXR file: one scan-line part, ZIP (16 lines) lossless compression, float channels
+/// as 32-bit float and [`ExrImage::uint_channels`] as 32-bit unsigned integers, plus the image's text [`ExrImage::attributes`]. Written to `<path>.tmp` and
 /// renamed. Channels must hold `width * height` samples and the size must be within
 /// [`MAX_SIDE`] / [`MAX_PIXELS`].
 pub fn write_exr(path: &Path, image: &ExrImage) -> Result<(), ImageError> {
@@ -404,15 +426,26 @@ pub fn write_exr_owned(path: &Path, image: ExrImage) -> Result<(), ImageError> {
     if image.channels.is_empty() {
         return Err(invalid(path, "an EXR image needs at least one channel"));
     }
-    if image.channels.len() > MAX_CHANNELS {
+    let channel_count = image.channels.len() + image.uint_channels.len();
+    if channel_count > MAX_CHANNELS {
         return Err(invalid(
             path,
-            format!("too many channels ({})", image.channels.len()),
+            format!("too many channels ({channel_count})"),
         ));
     }
     let n = image.pixel_count();
-    let mut list = Vec::with_capacity(image.channels.len());
-    for (name, samples) in image.channels {
+    let mut list = Vec::with_capacity(channel_count);
+    let typed = image
+        .channels
+        .into_iter()
+        .map(|(name, v)| (name, FlatSamples::F32(v)))
+        .chain(
+            image
+                .uint_channels
+                .into_iter()
+                .map(|(name, v)| (name, FlatSamples::U32(v))),
+        );
+    for (name, samples) in typed {
         if samples.len() != n {
             return Err(invalid(
                 path,
@@ -430,7 +463,7 @@ pub fn write_exr_owned(path: &Path, image: ExrImage) -> Result<(), ImageError> {
                     format!("channel name {name:?} is empty or not Latin-1"),
                 )
             })?;
-        list.push(AnyChannel::new(text, FlatSamples::F32(samples)));
+        list.push(AnyChannel::new(text, samples));
     }
     let mut attributes = LayerAttributes::default();
     for (k, v) in &image.attributes {

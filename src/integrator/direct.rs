@@ -1,7 +1,7 @@
 //! Light transport towards the lights: next event estimation through shadow rays with
 //! transparent or opaque boundaries, and MIS weights for lights hit by sampled directions.
 
-use super::interiors::{current_medium, is_false_intersection, InteriorStack, MAX_NESTING};
+use super::interiors::{current_medium, enter, is_false_intersection, InteriorStack, MAX_NESTING};
 use super::TraceStats;
 use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::math::{Ray, Vec3};
@@ -39,7 +39,8 @@ pub(super) fn shadow_transmittance(
         stats.rays += 1;
         let hit = scene.geometry.intersect(&Ray::new(origin, dir), remaining);
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
-        if let Some((m, _)) = current_medium(scene, &stack) {
+        let mut scratch = None;
+        if let Some((m, _)) = current_medium(scene, &stack, &mut scratch) {
             tr *= m.transmittance(
                 &Ray::new(origin, dir),
                 seg,
@@ -65,9 +66,15 @@ pub(super) fn shadow_transmittance(
         }
         let entering = dir.dot(h.ng) < 0.0;
         if !is_false_intersection(scene, &stack, oi, entering) {
-            match &obj.surface {
+            let surface = match &obj.surface {
+                ObjectSurface::Blend(_) => obj.surface.pick(h.uv, 0.0, sampler.next_1d()),
+                s => s,
+            };
+            match surface {
                 ObjectSurface::Null => {}
-                ObjectSurface::Fixed(_) => return Rgb::ZERO,
+                ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) | ObjectSurface::Blend(_) => {
+                    return Rgb::ZERO
+                }
                 ObjectSurface::Dielectric(d) => {
                     let outside = stack.ior(&scene.objects, Some(oi));
                     if mode == ShadowMode::Opaque && (d.ior - outside).abs() > 1e-6 {
@@ -81,12 +88,12 @@ pub(super) fn shadow_transmittance(
                     } else {
                         fresnel_dielectric(cos, 1.0 / eta)
                     };
-                    tr *= d.tint * (1.0 - f);
+                    tr *= d.tint.eval(h.uv, 0.0) * (1.0 - f);
                 }
             }
         }
         if entering {
-            stack.push(oi);
+            enter(scene, &mut stack, oi, h.uv, 0.0, || sampler.next_1d());
         } else {
             stack.remove(oi);
         }

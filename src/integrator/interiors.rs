@@ -3,17 +3,33 @@
 //! crossings are false intersections that only update the stack.
 
 use crate::bsdf::Surface;
-use crate::medium::Medium;
+use crate::math::Vec2;
+use crate::medium::{Coefficients, Medium, WalkMedium};
 use crate::scene::{Object, ObjectSurface, Scene};
+use crate::spectrum::Rgb;
 
 /// The deepest nesting of interiors tracked; deeper entries are ignored.
 pub const MAX_NESTING: usize = 16;
 
-/// The objects (by index) that a point is inside of, with their priorities.
+/// How many entered objects with per-walk interiors (textured, blended) keep their resolved
+/// medium on the stack at once; a deeper one falls back to its stand-in medium.
+pub const WALK_SLOTS: usize = 2;
+
+/// The objects (by index) that a point is inside of, with their priorities, and the media
+/// resolved at the entry points of the entered objects whose interiors are resolved per walk
+/// (docs/textures.md). Packed to 124 bytes: it is copied for every shadow ray, and stays
+/// within what the compiler copies inline.
 #[derive(Clone, Copy, Debug)]
 pub struct InteriorStack {
     entries: [u32; MAX_NESTING],
-    len: usize,
+    len: u8,
+    walk_len: u8,
+    /// Per walk slot: 0 a scene medium (index in the first value's bits), 1 homogeneous look
+    /// `a` (or an entry interior), 2 homogeneous look `b`, 3 absorbing.
+    walk_kind: [u8; WALK_SLOTS],
+    walk_obj: [u32; WALK_SLOTS],
+    /// σ_a then σ_s (homogeneous), σ_a (absorbing).
+    walk_data: [[f32; 6]; WALK_SLOTS],
 }
 
 impl Default for InteriorStack {
@@ -21,7 +37,41 @@ impl Default for InteriorStack {
         InteriorStack {
             entries: [0; MAX_NESTING],
             len: 0,
+            walk_len: 0,
+            walk_kind: [0; WALK_SLOTS],
+            walk_obj: [u32::MAX; WALK_SLOTS],
+            walk_data: [[0.0; 6]; WALK_SLOTS],
         }
+    }
+}
+
+/// A walk medium as (kind, values) for the stack.
+fn pack(m: WalkMedium) -> (u8, [f32; 6]) {
+    match m {
+        WalkMedium::Scene(i) => (0, [f32::from_bits(i), 0.0, 0.0, 0.0, 0.0, 0.0]),
+        WalkMedium::Homogeneous { coefficients, look } => {
+            let (a, s) = (coefficients.sigma_a.0, coefficients.sigma_s.0);
+            (1 + look.min(1), [a[0], a[1], a[2], s[0], s[1], s[2]])
+        }
+        WalkMedium::Absorbing(sigma_a) => {
+            let a = sigma_a.0;
+            (3, [a[0], a[1], a[2], 0.0, 0.0, 0.0])
+        }
+    }
+}
+
+/// The inverse of [`pack`].
+fn unpack(kind: u8, d: [f32; 6]) -> WalkMedium {
+    match kind {
+        0 => WalkMedium::Scene(d[0].to_bits()),
+        1 | 2 => WalkMedium::Homogeneous {
+            coefficients: Coefficients {
+                sigma_a: Rgb([d[0], d[1], d[2]]),
+                sigma_s: Rgb([d[3], d[4], d[5]]),
+            },
+            look: kind - 1,
+        },
+        _ => WalkMedium::Absorbing(Rgb([d[0], d[1], d[2]])),
     }
 }
 
@@ -35,7 +85,7 @@ impl InteriorStack {
     /// Entered objects, oldest first.
     #[must_use]
     pub fn entries(&self) -> &[u32] {
-        &self.entries[..self.len]
+        &self.entries[..usize::from(self.len)]
     }
 
     /// True if `obj` is on the stack.
@@ -46,17 +96,52 @@ impl InteriorStack {
 
     /// Enters `obj`.
     pub fn push(&mut self, obj: u32) {
-        if self.len < MAX_NESTING && !self.contains(obj) {
-            self.entries[self.len] = obj;
+        let len = usize::from(self.len);
+        if len < MAX_NESTING && !self.contains(obj) {
+            self.entries[len] = obj;
             self.len += 1;
         }
+    }
+
+    /// Enters `obj` with the medium resolved at its entry point for this walk.
+    pub fn push_walk(&mut self, obj: u32, medium: WalkMedium) {
+        if self.contains(obj) {
+            return;
+        }
+        self.push(obj);
+        let slot = usize::from(self.walk_len);
+        if slot < WALK_SLOTS && self.contains(obj) {
+            let (kind, data) = pack(medium);
+            self.walk_kind[slot] = kind;
+            self.walk_obj[slot] = obj;
+            self.walk_data[slot] = data;
+            self.walk_len += 1;
+        }
+    }
+
+    /// The medium resolved for `obj` when it was entered, if any.
+    #[inline]
+    #[must_use]
+    pub fn walk_medium(&self, obj: u32) -> Option<WalkMedium> {
+        let n = usize::from(self.walk_len);
+        let i = self.walk_obj[..n].iter().position(|&o| o == obj)?;
+        Some(unpack(self.walk_kind[i], self.walk_data[i]))
     }
 
     /// Leaves `obj` (no-op if not entered).
     pub fn remove(&mut self, obj: u32) {
         if let Some(i) = self.entries().iter().position(|&o| o == obj) {
-            self.entries.copy_within(i + 1..self.len, i);
+            self.entries.copy_within(i + 1..usize::from(self.len), i);
             self.len -= 1;
+        }
+        if self.walk_len > 0 {
+            let n = usize::from(self.walk_len);
+            if let Some(i) = self.walk_obj[..n].iter().position(|&o| o == obj) {
+                self.walk_obj.copy_within(i + 1..n, i);
+                self.walk_kind.copy_within(i + 1..n, i);
+                self.walk_data.copy_within(i + 1..n, i);
+                self.walk_len -= 1;
+            }
         }
     }
 
@@ -85,26 +170,114 @@ impl InteriorStack {
     }
 }
 
-/// The medium governing a point with the given stack, and the object it belongs to.
+/// The medium governing a point with the given stack, and the object it belongs to: the
+/// object's medium, or for an object whose interior is resolved per walk the medium resolved
+/// when the path entered it (a medium of the scene, or one made for this walk in `scratch`).
+#[inline]
 pub(super) fn current_medium<'a>(
     scene: &'a Scene,
     stack: &InteriorStack,
+    scratch: &'a mut Option<Medium>,
 ) -> Option<(&'a Medium, &'a Object)> {
     let top = stack.top(&scene.objects, None)?;
     let obj = &scene.objects[top as usize];
+    if obj.walk.is_some() {
+        return walk_medium(scene, stack, top, obj, scratch);
+    }
     obj.medium.map(|m| (&scene.media[m as usize], obj))
 }
 
-/// Builds the boundary BSDF of `obj` for the media meeting there.
+/// [`current_medium`] for an object whose interior is resolved per walk (kept out of line:
+/// untextured scenes never get here).
+#[cold]
+#[inline(never)]
+fn walk_medium<'a>(
+    scene: &'a Scene,
+    stack: &InteriorStack,
+    top: u32,
+    obj: &'a Object,
+    scratch: &'a mut Option<Medium>,
+) -> Option<(&'a Medium, &'a Object)> {
+    let (Some(walk), Some(w)) = (obj.walk.as_deref(), stack.walk_medium(top)) else {
+        return obj.medium.map(|m| (&scene.media[m as usize], obj));
+    };
+    let m = match w {
+        WalkMedium::Scene(i) => scene.media.get(i as usize)?,
+        own => &*scratch.insert(walk.medium_of(own)?),
+    };
+    Some((m, obj))
+}
+
+/// Enters object `oi` at texture coordinates `uv` (footprint `width_uv` wide): an object
+/// whose interior is resolved per walk resolves it here (`u()` gives a blend's random number,
+/// drawn only for blends).
+#[inline]
+pub(super) fn enter(
+    scene: &Scene,
+    stack: &mut InteriorStack,
+    oi: u32,
+    uv: Vec2,
+    width_uv: f32,
+    u: impl FnMut() -> f32,
+) {
+    match scene.objects.get(oi as usize) {
+        Some(o) if o.walk.is_some() => enter_walk(o, stack, oi, uv, width_uv, u),
+        _ => stack.push(oi),
+    }
+}
+
+/// [`enter`] for an object whose interior is resolved per walk.
+#[cold]
+#[inline(never)]
+fn enter_walk(
+    obj: &Object,
+    stack: &mut InteriorStack,
+    oi: u32,
+    uv: Vec2,
+    width_uv: f32,
+    mut u: impl FnMut() -> f32,
+) {
+    match obj.walk.as_deref() {
+        Some(w) => {
+            let r = if w.is_random() { u() } else { 0.0 };
+            stack.push_walk(oi, w.resolve(uv, width_uv, r));
+        }
+        None => stack.push(oi),
+    }
+}
+
+/// Builds the boundary BSDF of `obj` for the media meeting there, with textured parameters
+/// at their means (callers that know the hit use [`boundary_surface_at`]).
 pub(super) fn boundary_surface(obj: &Object, outside_ior: f32) -> Option<Surface> {
-    match &obj.surface {
+    boundary_surface_at(obj, outside_ior, Vec2::ZERO, f32::INFINITY, 0.0)
+}
+
+/// Builds the boundary BSDF of `obj` for the media meeting there, its textured parameters
+/// read at texture coordinates `uv` with a footprint `width_uv` wide; `u_mask` picks a
+/// blend's surface ([`ObjectSurface::pick`]).
+pub(super) fn boundary_surface_at(
+    obj: &Object,
+    outside_ior: f32,
+    uv: Vec2,
+    width_uv: f32,
+    u_mask: f32,
+) -> Option<Surface> {
+    match obj.surface.pick(uv, width_uv, u_mask) {
+        ObjectSurface::Blend(_) => None,
         ObjectSurface::Fixed(s) => Some(s.clone()),
         ObjectSurface::Null => None,
+        ObjectSurface::Textured(t) => t.at(uv, width_uv),
         ObjectSurface::Dielectric(d) => {
             let eta = d.ior / outside_ior.max(1e-6);
-            let s = Surface::dielectric(eta, d.roughness, d.distribution, d.tint).ok()?;
-            match d.coat {
-                Some((ior, r, w)) => s.with_coat(ior, r, w).ok(),
+            let s = Surface::dielectric(
+                eta,
+                d.roughness.eval(uv, width_uv),
+                d.distribution,
+                d.tint.eval(uv, width_uv),
+            )
+            .ok()?;
+            match &d.coat {
+                Some((ior, r, w)) => s.with_coat(*ior, *r, w.eval(uv, width_uv)).ok(),
                 None => Some(s),
             }
         }
@@ -129,5 +302,45 @@ pub(super) fn is_false_intersection(
             })
     } else {
         !stack.contains(oi) || governing != Some(oi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_stack_stays_small_enough_to_copy_inline() {
+        assert!(std::mem::size_of::<InteriorStack>() <= 128);
+    }
+
+    #[test]
+    fn walk_media_ride_on_the_stack_until_their_object_is_left() {
+        let h = WalkMedium::Homogeneous {
+            coefficients: Coefficients {
+                sigma_a: Rgb([0.1, 0.2, 0.3]),
+                sigma_s: Rgb([4.0, 5.0, 6.0]),
+            },
+            look: 1,
+        };
+        let mut s = InteriorStack::new();
+        s.push(3);
+        s.push_walk(7, h);
+        s.push_walk(9, WalkMedium::Scene(12));
+        s.push_walk(11, WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])));
+        assert_eq!(s.walk_medium(7), Some(h));
+        assert_eq!(s.walk_medium(9), Some(WalkMedium::Scene(12)));
+        // A third per-walk object finds no slot: it falls back to its stand-in medium.
+        assert_eq!(s.walk_medium(11), None);
+        assert!(s.contains(11));
+        s.remove(7);
+        assert_eq!(s.walk_medium(7), None);
+        assert_eq!(s.walk_medium(9), Some(WalkMedium::Scene(12)));
+        assert_eq!(s.entries(), &[3, 9, 11]);
+        s.push_walk(7, WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])));
+        assert_eq!(
+            s.walk_medium(7),
+            Some(WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])))
+        );
     }
 }

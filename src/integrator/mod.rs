@@ -19,7 +19,7 @@ pub mod manifold;
 pub use interiors::{InteriorStack, MAX_NESTING};
 
 use direct::{emitted, estimate_direct, PrevVertex, ShadowMode};
-use interiors::{boundary_surface, current_medium, is_false_intersection};
+use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
 use crate::geometry::Hit;
@@ -32,6 +32,44 @@ use crate::tracking::TrackingStats;
 
 /// Depth at which Russian roulette starts.
 const RR_START_DEPTH: u32 = 5;
+
+/// The spread angle (radians) a ray cone takes at least after a non-specular event (rough
+/// or diffuse surface scattering, volume scattering): a widening policy for texture
+/// filtering only (docs/textures.md), not from a paper.
+const NON_SPECULAR_SPREAD: f32 = 0.2;
+
+/// A ray cone (Akenine-Möller et al. 2019/2021; docs/references.md §14.2): the footprint
+/// width at the ray's origin (world units) and how fast it grows per unit distance.
+#[derive(Clone, Copy, Debug)]
+struct RayCone {
+    /// Width at the ray's origin, world units.
+    width: f32,
+    /// Spread angle, radians (width grows by `spread · t`).
+    spread: f32,
+}
+
+impl RayCone {
+    /// The cone advanced by `t` (finite) along the ray.
+    #[inline]
+    fn advance(&mut self, t: f32) {
+        self.width += self.spread * t;
+    }
+
+    /// After a non-specular event.
+    #[inline]
+    fn widen(&mut self) {
+        self.spread = self.spread.max(NON_SPECULAR_SPREAD);
+    }
+
+    /// The footprint width in texture units at a hit seen at `cos` to the normal, where the
+    /// surface has `uv_scale` texture units per world unit: width / |cos| (the long axis of
+    /// the cone's elliptic cross-section, at most 4× the width: an isotropic filter cannot
+    /// follow the ellipse, and would blur silhouettes to the texture's mean) × `uv_scale`.
+    #[inline]
+    fn width_uv(&self, uv_scale: f32, cos: f32) -> f32 {
+        self.width / cos.abs().max(0.25) * uv_scale
+    }
+}
 
 /// Counters gathered while tracing (summed over all paths for the render summary).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -67,11 +105,14 @@ impl TraceStats {
 pub struct PathResult {
     /// Radiance along the camera ray (already checked finite; zero if it was not).
     pub radiance: Rgb,
-    /// Albedo of the first surface hit (AOV).
+    /// Albedo at the first non-specular event (AOV): a surface's albedo; at the boundary of an
+    /// interior with an artist albedo (skin, clouds), that albedo; glass and fabric boundaries
+    /// are looked through to the first event behind or inside them.
     pub albedo: Rgb,
-    /// Shading normal at the first surface hit (AOV).
+    /// World-space shading normal there; for a medium event, the normal of the boundary the
+    /// path entered by (zero when it entered none).
     pub normal: Vec3,
-    /// Distance to the first surface hit, 0 if none (AOV).
+    /// Distance from the camera to that event; +inf when there was none.
     pub depth: f32,
 }
 
@@ -98,7 +139,7 @@ pub fn trace_path(
     }
 }
 
-/// Albedo, shading normal and depth of the first surface hit (AOVs).
+/// Albedo, shading normal and depth of the first non-specular event (AOVs).
 type Aov = (Rgb, Vec3, f32);
 
 /// What the path does after a step.
@@ -130,14 +171,21 @@ struct PathState {
     depth: u32,
     /// The previous scattering vertex, for MIS on light hits.
     prev: PrevVertex,
-    /// AOVs of the first surface hit.
+    /// AOVs of the first non-specular event.
     aov: Option<Aov>,
+    /// The camera ray's origin (AOV depth is measured from it).
+    origin: Vec3,
+    /// Shading normal of the last boundary the path entered an interior by (AOV normal of a
+    /// medium event).
+    entry_normal: Vec3,
     /// Null and false boundary crossings, bounded so that a degenerate scene cannot loop.
     crossings: u32,
     /// The object whose `exit_guided` interior vertex (a guided connection was made there)
     /// the ray now leaves, with that vertex's phase pdf of the ray direction; cleared by any
     /// boundary.
     guided_from: Option<u32>,
+    /// The ray's cone, for texture footprints.
+    cone: RayCone,
     /// Where the path stands with respect to a manifold connection (no double counting of
     /// the paths `nee = "manifold"` samples, see [`ManifoldLeg`]).
     manifold_leg: ManifoldLeg,
@@ -165,7 +213,7 @@ fn radiance(
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
 ) -> (Rgb, Aov) {
-    let mut path = PathState::new(ray);
+    let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
     loop {
         stats.rays += 1;
         sampler.start_vertex();
@@ -185,12 +233,12 @@ fn radiance(
     }
     (
         path.radiance,
-        path.aov.unwrap_or((Rgb::ZERO, Vec3::ZERO, 0.0)),
+        path.aov.unwrap_or((Rgb::ZERO, Vec3::ZERO, f32::INFINITY)),
     )
 }
 
 impl PathState {
-    fn new(ray: Ray) -> Self {
+    fn new(ray: Ray, spread: f32) -> Self {
         PathState {
             ray,
             beta: Rgb::ONE,
@@ -205,8 +253,11 @@ impl PathState {
                 guided: None,
             },
             aov: None,
+            origin: ray.o,
+            entry_normal: Vec3::ZERO,
             crossings: 0,
             guided_from: None,
+            cone: RayCone { width: 0.0, spread },
             manifold_leg: ManifoldLeg::None,
         }
     }
@@ -222,8 +273,12 @@ impl PathState {
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
     ) -> (Step, Option<Hit>) {
-        let Some((medium, obj)) = current_medium(scene, &self.stack) else {
+        let mut scratch = None;
+        let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
             let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
+            if let Some(h) = &hit {
+                self.cone.advance(h.t);
+            }
             return (Step::Boundary, hit);
         };
         let mut hit = None;
@@ -243,9 +298,20 @@ impl PathState {
         }
         self.beta *= event.weight;
         let step = match event.scatter {
-            Some(vertex) => self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats),
+            Some(vertex) => {
+                // Inside a walk the cone only widens: the width the next boundary sees is the
+                // entry's grown over the walk's last segment (the sum of a random walk's
+                // segments would overstate how far it spread).
+                self.cone.widen();
+                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats)
+            }
             None if self.beta.is_black() => Step::Stop,
-            None => Step::Boundary,
+            None => {
+                if let Some(h) = &hit {
+                    self.cone.advance(h.t);
+                }
+                Step::Boundary
+            }
         };
         (step, hit)
     }
@@ -267,6 +333,10 @@ impl PathState {
             return Step::Stop;
         }
         let p = vertex.p;
+        if self.aov.is_none() {
+            let albedo = obj.aov_albedo.unwrap_or(vertex.albedo);
+            self.aov = Some((albedo, self.entry_normal, (p - self.origin).length()));
+        }
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
         let phase = vertex.phase.prepare(wo);
@@ -343,7 +413,7 @@ impl PathState {
             && (is_false_intersection(scene, &self.stack, oi, entering)
                 || matches!(obj.surface, ObjectSurface::Null))
         {
-            return self.cross_boundary(scene, hit, oi, entering);
+            return self.cross_boundary(scene, hit, oi, entering, sampler);
         }
         let guided = guided_from == Some(oi) && !entering;
         self.surface_interaction(scene, hit, oi, entering, guided, sampler, stats)
@@ -357,17 +427,29 @@ impl PathState {
                 self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)), through);
         }
         if self.aov.is_none() {
-            self.aov = Some((Rgb::ZERO, hit.ns, hit.t));
+            self.aov = Some((Rgb::ZERO, hit.ns, (hit.p - self.origin).length()));
         }
     }
 
     /// 4. False intersections with lower-priority boundaries, and null boundaries, only
     /// update the stack.
-    fn cross_boundary(&mut self, scene: &Scene, hit: &Hit, oi: u32, entering: bool) -> Step {
+    fn cross_boundary(
+        &mut self,
+        scene: &Scene,
+        hit: &Hit,
+        oi: u32,
+        entering: bool,
+        sampler: &mut PixelSampler,
+    ) -> Step {
         // The manifold connection passes null and false boundaries on both sides of the
         // interface, as its projection and shadow rays do: `manifold_leg` is kept.
         if entering {
-            self.stack.push(oi);
+            self.entry_normal = hit.ns;
+            let obj = &scene.objects[oi as usize];
+            let width = self.footprint(obj, hit);
+            enter(scene, &mut self.stack, oi, hit.uv, width, || {
+                sampler.next_1d()
+            });
         } else {
             self.stack.remove(oi);
         }
@@ -394,7 +476,13 @@ impl PathState {
         let obj = &scene.objects[oi as usize];
         let transmits = obj.surface.transmits();
         let outside_ior = self.stack.ior(&scene.objects, Some(oi));
-        let Some(surface) = boundary_surface(obj, outside_ior) else {
+        let width_uv = self.footprint(obj, hit);
+        let u_mask = if matches!(obj.surface, ObjectSurface::Blend(_)) {
+            sampler.next_1d()
+        } else {
+            0.0
+        };
+        let Some(surface) = boundary_surface_at(obj, outside_ior, hit.uv, width_uv, u_mask) else {
             return Step::Stop;
         };
         // Opaque surfaces are two-sided: seen from behind, flip the frame.
@@ -406,7 +494,16 @@ impl PathState {
         let frame = Frame::from_normal(ns);
         let wo = -self.ray.d;
         if self.aov.is_none() {
-            self.aov = Some((surface.albedo_hint(), hit.ns, hit.t));
+            let distance = (hit.p - self.origin).length();
+            match (obj.medium.is_some() && transmits, obj.aov_albedo) {
+                // The boundary of an interior with an artist albedo (skin): the interior's
+                // albedo, noise-free, at the boundary.
+                (true, Some(albedo)) => self.aov = Some((albedo, hit.ns, distance)),
+                // Other interiors (glass, fabric): looked through; a scatter inside sets the
+                // AOVs with this boundary's normal.
+                (true, None) => self.entry_normal = hit.ns,
+                (false, _) => self.aov = Some((surface.albedo_hint(), hit.ns, distance)),
+            }
         }
         self.depth += 1;
         stats.vertices += 1;
@@ -423,6 +520,12 @@ impl PathState {
         // replaces exit-point NEE here (BTDF sampling below is MIS-weighted against it).
         let guided = guided && do_nee;
         if do_nee && !guided {
+            // A shadow ray into an interior resolved per walk enters it here.
+            let entry = if obj.walk.is_some() && transmits {
+                shadow_entry(obj, hit, width_uv, sampler)
+            } else {
+                None
+            };
             let at = SurfaceVertex {
                 hit,
                 oi,
@@ -430,6 +533,7 @@ impl PathState {
                 ng,
                 frame,
                 wo,
+                entry,
             };
             self.radiance +=
                 self.beta * at.direct_light(scene, &surface, self.stack, sampler, stats);
@@ -459,20 +563,31 @@ impl PathState {
             {
                 ManifoldLeg::Through
             }
-            // An index-matched pass-through, which the connection's projection and shadow
-            // rays also cross.
-            leg @ (ManifoldLeg::Inside | ManifoldLeg::Through)
-                if bs.is_delta && bs.is_transmission && bs.eta == 1.0 =>
+            // An index-matched pass-through, which the connection's walk to the interface
+            // (plain dielectrics only, not blends) and its shadow ray (any) also cross.
+            ManifoldLeg::Inside
+                if bs.is_delta
+                    && bs.is_transmission
+                    && bs.eta == 1.0
+                    && matches!(obj.surface, ObjectSurface::Dielectric(_)) =>
             {
-                leg
+                ManifoldLeg::Inside
+            }
+            ManifoldLeg::Through if bs.is_delta && bs.is_transmission && bs.eta == 1.0 => {
+                ManifoldLeg::Through
             }
             _ => ManifoldLeg::None,
         };
         self.beta *= bs.weight;
+        if !bs.is_delta {
+            self.cone.widen();
+        }
         if bs.is_transmission {
             self.eta_scale *= bs.eta * bs.eta;
             if wi.dot(hit.ng) < 0.0 {
-                self.stack.push(oi);
+                enter(scene, &mut self.stack, oi, hit.uv, width_uv, || {
+                    sampler.next_1d()
+                });
             } else {
                 self.stack.remove(oi);
             }
@@ -500,6 +615,18 @@ impl PathState {
         self.continue_with_roulette(sampler)
     }
 
+    /// The ray cone's footprint at `hit` on `obj` in texture units (0, unused, for objects
+    /// with nothing textured: their `uv_scale` is 0).
+    #[inline]
+    fn footprint(&self, obj: &Object, hit: &Hit) -> f32 {
+        if obj.uv_scale > 0.0 {
+            self.cone
+                .width_uv(obj.uv_scale_at(hit.prim), self.ray.d.dot(hit.ng))
+        } else {
+            0.0
+        }
+    }
+
     /// Russian roulette after a scattering event: [`Step::Trace`] if the path survives.
     fn continue_with_roulette(&mut self, sampler: &mut PixelSampler) -> Step {
         if russian_roulette(&mut self.beta, self.eta_scale, self.depth, sampler) {
@@ -508,6 +635,25 @@ impl PathState {
             Step::Stop
         }
     }
+}
+
+/// The medium a shadow ray entering `obj`'s per-walk interior at `hit` uses (out of line:
+/// untextured scenes never get here).
+#[cold]
+#[inline(never)]
+fn shadow_entry(
+    obj: &Object,
+    hit: &Hit,
+    width_uv: f32,
+    sampler: &mut PixelSampler,
+) -> Option<crate::medium::WalkMedium> {
+    let w = obj.walk.as_deref()?;
+    let r = if w.is_random() {
+        sampler.next_1d()
+    } else {
+        0.0
+    };
+    Some(w.resolve(hit.uv, width_uv, r))
 }
 
 /// A surface vertex seen from the path, for next event estimation through its BSDF.
@@ -521,6 +667,8 @@ struct SurfaceVertex<'a> {
     frame: Frame,
     /// Direction towards the previous vertex.
     wo: Vec3,
+    /// The medium a shadow ray entering the object's per-walk interior here uses.
+    entry: Option<crate::medium::WalkMedium>,
 }
 
 impl SurfaceVertex<'_> {
@@ -545,7 +693,10 @@ impl SurfaceVertex<'_> {
                 let crosses = (wi.dot(ng) > 0.0) != (wo.dot(ng) > 0.0);
                 if crosses && transmits {
                     if wi.dot(hit.ng) < 0.0 {
-                        s.push(oi);
+                        match self.entry {
+                            Some(m) => s.push_walk(oi, m),
+                            None => s.push(oi),
+                        }
                     } else {
                         s.remove(oi);
                     }

@@ -8,12 +8,14 @@
 //! - [`artist`]: the artist's parameters → optical coefficients (van de Hulst inversion);
 //! - [`heterogeneous`]: density fields, their segments and lookups, tracked;
 //! - [`lookup`]: density lookups along a ray, one enum over the density sources;
-//! - [`event`]: the event and the per-vertex phase function.
+//! - [`event`]: the event and the per-vertex phase function;
+//! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends).
 
 pub mod artist;
 pub mod event;
 pub mod heterogeneous;
 pub mod lookup;
+pub mod walk;
 
 pub use artist::{
     multiple_scattering_albedo, single_scattering_albedo_from_multiple, AlbedoMode, Coefficients,
@@ -22,6 +24,7 @@ pub use artist::{
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
 pub use lookup::{DensityLookup, GridLookup};
+pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
 
 use crate::math::Ray;
 use crate::phase::PhaseFunction;
@@ -49,7 +52,7 @@ pub enum NeeStrategy {
 }
 
 /// A homogeneous scattering medium.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug)]
 pub struct HomogeneousMedium {
     /// Optical coefficients.
     pub coefficients: Coefficients,

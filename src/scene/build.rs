@@ -23,7 +23,12 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
 
 /// Builds a scene from TOML text; `path` names it in messages and anchors relative file paths.
 pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
-    let ctx = Ctx { path, text };
+    let ctx = Ctx {
+        path,
+        text,
+        inputs: Default::default(),
+        textures: Default::default(),
+    };
     let file = read::read_scene_file(&ctx)?;
     let mut warnings = Vec::new();
     let mut notes = Vec::new();
@@ -67,7 +72,7 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let any_interface = built.objects.iter().any(|o| {
         matches!(&o.surface, super::ObjectSurface::Dielectric(d)
             if d.coat.is_none() && d.ior != 1.0
-                && d.roughness * d.roughness < crate::bsdf::microfacet::SMOOTH_ALPHA)
+                && d.roughness.max() * d.roughness.max() < crate::bsdf::microfacet::SMOOTH_ALPHA)
     });
     if let Some((name, line, _)) = built.manifold.iter().find(|m| m.2 && !any_interface) {
         return Err(ctx.invalid(
@@ -104,8 +109,12 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         warnings,
         notes,
         source: ctx.path.to_path_buf(),
+        inputs: ctx.inputs.take(),
     })
 }
+
+/// The text of the built-in default scene (`scenes/creature.toml`).
+pub const DEFAULT_SCENE_TEXT: &str = include_str!("../../scenes/creature.toml");
 
 /// The built-in default scene: `scenes/creature.toml` and its meshes, compiled into the binary
 /// and unpacked into a temporary folder so that it renders from anywhere.
@@ -124,7 +133,7 @@ pub(super) fn default_scene() -> Result<Scene, SceneError> {
             include_bytes!("../../scenes/meshes/backdrop.ply"),
         ),
     ];
-    let text = include_str!("../../scenes/creature.toml");
+    let text = DEFAULT_SCENE_TEXT;
     let dir = std::env::temp_dir().join(format!("velour-default-scene-{}", std::process::id()));
     let meshes = dir.join("meshes");
     let io = |path: &Path, source: std::io::Error| SceneError::Io {
@@ -140,6 +149,8 @@ pub(super) fn default_scene() -> Result<Scene, SceneError> {
     let result = load_scene_str(text, &scene_path);
     let _ = std::fs::remove_dir_all(&dir);
     let mut scene = result?;
+    // The unpacked files are gone; they are part of the binary, which the version names.
+    scene.inputs.clear();
     scene.source = PathBuf::from(DEFAULT_SCENE_NAME);
     Ok(scene)
 }

@@ -1,6 +1,7 @@
 //! The scene file being built: its path and text, for line numbers in messages and for
 //! resolving the relative paths of the files it names.
 
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 
 use super::SceneError;
@@ -12,6 +13,10 @@ pub(super) struct Ctx<'a> {
     pub path: &'a Path,
     /// The whole TOML text.
     pub text: &'a str,
+    /// Every input path resolved so far (the files the scene loads), in order.
+    pub inputs: RefCell<Vec<PathBuf>>,
+    /// Textures loaded so far (shared by every parameter naming the same file and options).
+    pub textures: std::cell::RefCell<super::textures::TextureCache>,
 }
 
 impl Ctx<'_> {
@@ -43,12 +48,15 @@ impl Ctx<'_> {
     }
 
     /// An input path named by the scene: absolute as given, relative to the scene's folder.
+    /// The path is recorded in [`Ctx::inputs`] (for the scene's content hash).
     pub fn resolve(&self, file: &str) -> PathBuf {
         let p = Path::new(file);
-        if p.is_absolute() {
+        let resolved = if p.is_absolute() {
             p.to_path_buf()
         } else {
             self.path.parent().unwrap_or(Path::new(".")).join(p)
-        }
+        };
+        self.inputs.borrow_mut().push(resolved.clone());
+        resolved
     }
 }

@@ -17,6 +17,7 @@ mod lights;
 mod objects;
 mod read;
 mod surface;
+mod textures;
 mod validate;
 
 use std::path::{Path, PathBuf};
@@ -25,10 +26,10 @@ use crate::bsdf::{MicrofacetDistribution, Surface};
 use crate::camera::Camera;
 use crate::geometry::SceneGeometry;
 use crate::light::{Light, LightSampler};
-use crate::medium::{Medium, NeeStrategy};
-use crate::spectrum::Rgb;
+use crate::medium::{Medium, NeeStrategy, WalkInterior};
+use crate::texture::{ColorParam, ScalarParam};
 
-pub use build::{load_scene, load_scene_str, DEFAULT_SCENE_NAME};
+pub use build::{load_scene, load_scene_str, DEFAULT_SCENE_NAME, DEFAULT_SCENE_TEXT};
 
 /// Errors while reading or validating a scene.
 #[derive(Debug, thiserror::Error)]
@@ -83,19 +84,124 @@ pub struct FilmSettings {
 }
 
 /// Parameters of a dielectric boundary, turned into a [`Surface`] at each hit once the media
-/// on both sides (and so the relative IOR) are known.
+/// on both sides (and so the relative IOR) are known, and the textured parameters read at
+/// the hit's texture coordinates.
 #[derive(Clone, Debug)]
 pub struct DielectricParams {
     /// IOR of the object's interior.
     pub ior: f32,
     /// Roughness in [0, 1].
-    pub roughness: f32,
+    pub roughness: ScalarParam,
     /// Microfacet distribution.
     pub distribution: MicrofacetDistribution,
     /// Transmission tint.
-    pub tint: Rgb,
+    pub tint: ColorParam,
     /// Optional coat (ior, roughness, weight).
-    pub coat: Option<(f32, f32, f32)>,
+    pub coat: Option<(f32, f32, ScalarParam)>,
+}
+
+impl DielectricParams {
+    /// True when a parameter is a texture.
+    #[must_use]
+    pub fn is_textured(&self) -> bool {
+        self.roughness.is_textured()
+            || self.tint.is_textured()
+            || self.coat.as_ref().is_some_and(|c| c.2.is_textured())
+    }
+}
+
+/// A boundary that does not depend on the neighbouring media but has textured parameters:
+/// its [`Surface`] is built at each hit from the parameters read at the hit's texture
+/// coordinates.
+#[derive(Clone, Debug)]
+pub struct TexturedSurface {
+    /// The scattering model and its parameters.
+    pub kind: TexturedKind,
+    /// Optional coat (ior, roughness, weight).
+    pub coat: Option<(f32, f32, ScalarParam)>,
+}
+
+/// The scattering models of a [`TexturedSurface`].
+#[derive(Clone, Debug)]
+pub enum TexturedKind {
+    /// Diffuse reflection and transmission.
+    DiffuseTransmission {
+        /// Diffuse reflectance.
+        reflectance: ColorParam,
+        /// Diffuse transmittance.
+        transmittance: ColorParam,
+    },
+    /// An opaque diffuse reflector.
+    Lambertian {
+        /// Albedo.
+        reflectance: ColorParam,
+    },
+    /// An opaque metal-like reflector.
+    Conductor {
+        /// Colour at normal incidence.
+        reflectance: ColorParam,
+        /// Roughness in [0, 1].
+        roughness: ScalarParam,
+        /// Microfacet distribution.
+        distribution: MicrofacetDistribution,
+    },
+}
+
+impl TexturedSurface {
+    /// The surface at texture coordinates `uv` for a footprint `width_uv` wide (texture
+    /// units); `None` if the parameters there do not make a valid surface.
+    #[must_use]
+    pub fn at(&self, uv: crate::math::Vec2, width_uv: f32) -> Option<Surface> {
+        let s = match &self.kind {
+            TexturedKind::DiffuseTransmission {
+                reflectance,
+                transmittance,
+            } => Surface::diffuse_transmission(
+                reflectance.eval(uv, width_uv),
+                transmittance.eval(uv, width_uv),
+            )
+            .ok()?,
+            TexturedKind::Lambertian { reflectance } => {
+                Surface::lambertian(reflectance.eval(uv, width_uv)).ok()?
+            }
+            TexturedKind::Conductor {
+                reflectance,
+                roughness,
+                distribution,
+            } => Surface::conductor_from_reflectance_with(
+                reflectance.eval(uv, width_uv),
+                roughness.eval(uv, width_uv),
+                *distribution,
+            )
+            .ok()?,
+        };
+        match &self.coat {
+            Some((ior, r, w)) => s.with_coat(*ior, *r, w.eval(uv, width_uv)).ok(),
+            None => Some(s),
+        }
+    }
+
+    /// True when light can cross the boundary somewhere.
+    #[must_use]
+    pub fn transmits(&self) -> bool {
+        match &self.kind {
+            TexturedKind::DiffuseTransmission { transmittance, .. } => {
+                !transmittance.max().is_black()
+            }
+            TexturedKind::Lambertian { .. } | TexturedKind::Conductor { .. } => false,
+        }
+    }
+}
+
+/// Two boundaries mixed per hit by a mask (`surface = { type = "blend", ... }`).
+#[derive(Clone, Debug)]
+pub struct SurfaceBlend {
+    /// The probability of `a`, in [0, 1].
+    pub mask: ScalarParam,
+    /// The first surface.
+    pub a: ObjectSurface,
+    /// The second surface.
+    pub b: ObjectSurface,
 }
 
 /// The scattering model of an object's boundary.
@@ -105,6 +211,11 @@ pub enum ObjectSurface {
     Dielectric(DielectricParams),
     /// A surface that does not depend on the neighbouring media.
     Fixed(Surface),
+    /// A surface that does not depend on the neighbouring media, with textured parameters.
+    Textured(Box<TexturedSurface>),
+    /// At each hit, surface `a` with probability mask(uv), else `b` (both dielectrics of the
+    /// same IOR, or neither, and both transmitting or neither).
+    Blend(Box<SurfaceBlend>),
     /// An index-matched boundary that only delimits an interior (no scattering).
     Null,
 }
@@ -116,6 +227,35 @@ impl ObjectSurface {
         match self {
             ObjectSurface::Dielectric(_) | ObjectSurface::Null => true,
             ObjectSurface::Fixed(s) => s.has_transmission(),
+            ObjectSurface::Textured(s) => s.transmits(),
+            ObjectSurface::Blend(b) => b.a.transmits() || b.b.transmits(),
+        }
+    }
+
+    /// The surface used at a hit at texture coordinates `uv` with a footprint `width_uv`
+    /// wide: itself, or a blend's `a` when `u < mask(uv)`, else its `b`.
+    #[inline]
+    #[must_use]
+    pub fn pick(&self, uv: crate::math::Vec2, width_uv: f32, u: f32) -> &ObjectSurface {
+        match self {
+            ObjectSurface::Blend(b) => {
+                if u < b.mask.eval(uv, width_uv) {
+                    &b.a
+                } else {
+                    &b.b
+                }
+            }
+            other => other,
+        }
+    }
+
+    /// True when a parameter is read from a texture.
+    #[must_use]
+    pub fn is_textured(&self) -> bool {
+        match self {
+            ObjectSurface::Dielectric(d) => d.is_textured(),
+            ObjectSurface::Textured(_) | ObjectSurface::Blend(_) => true,
+            ObjectSurface::Fixed(_) | ObjectSurface::Null => false,
         }
     }
 }
@@ -135,6 +275,30 @@ pub struct Object {
     pub ior: f32,
     /// NEE strategy inside this object.
     pub nee: NeeStrategy,
+    /// The albedo AOV of an event in this object's interior: the artist albedo of a
+    /// homogeneous, voxel or fBm interior; `None` uses the event's single-scattering albedo.
+    pub aov_albedo: Option<crate::spectrum::Rgb>,
+    /// An interior resolved per walk (entry-projected textures, a blend), `medium` being its
+    /// stand-in where no entry point is known.
+    pub walk: Option<Box<WalkInterior>>,
+    /// Texture units per world unit on the surface (for texture footprints; 0 when nothing
+    /// of the object is textured).
+    pub uv_scale: f32,
+    /// The same per triangle of a textured mesh (empty otherwise: `uv_scale` applies).
+    pub uv_scales: Vec<f32>,
+}
+
+impl Object {
+    /// Texture units per world unit at triangle `prim` (the whole object's figure for spheres
+    /// and untextured objects).
+    #[inline]
+    #[must_use]
+    pub fn uv_scale_at(&self, prim: u32) -> f32 {
+        self.uv_scales
+            .get(prim as usize)
+            .copied()
+            .unwrap_or(self.uv_scale)
+    }
 }
 
 /// What a shape of the [`SceneGeometry`] belongs to.
@@ -208,6 +372,9 @@ pub struct Scene {
     pub notes: Vec<String>,
     /// Where the scene came from.
     pub source: PathBuf,
+    /// The files the scene file names (meshes, grids, images), in the order they were resolved:
+    /// with the scene file, what its content hash covers.
+    pub inputs: Vec<PathBuf>,
 }
 
 impl Scene {

@@ -4,7 +4,7 @@
 use toml::Spanned;
 
 use super::context::Ctx;
-use super::desc::{ObjectDesc, ScaleValue};
+use super::desc::{ColorInput, InteriorDesc, ObjectDesc, ScaleValue};
 use super::interior::{build_medium, fabric_note, Placement};
 use super::surface::build_surface;
 use super::validate::{check_range, reject_unused, vec3};
@@ -14,6 +14,7 @@ use crate::fabric::lod::ViewFootprint;
 use crate::geometry::{load_ply, Shape, TriangleMesh};
 use crate::math::{Aabb, Mat4, Vec3};
 use crate::medium::{DensityField, Medium, NeeStrategy};
+use crate::spectrum::Rgb;
 
 /// The objects built so far and the interiors they own.
 #[derive(Default)]
@@ -48,10 +49,22 @@ impl ObjectList {
             .unwrap_or_else(|| format!("object {}", index + 1));
         let (xf, uniform) = object_transform(ctx, line, &name, desc)?;
         let rest = build_rest_shape(ctx, line, &name, desc, uniform)?;
-        let (surface, ior) = match &desc.surface {
-            Some(s) => build_surface(ctx, ctx.line_of(s.span().start), &name, Some(s.get_ref()))?,
-            None => build_surface(ctx, line, &name, None)?,
+        let has_uvs = match &rest {
+            RestShape::Mesh(m) => m.uvs.is_some(),
+            RestShape::Sphere { .. } => true,
+            RestShape::Bounds => false,
         };
+        let (surface, ior) = match &desc.surface {
+            Some(s) => build_surface(
+                ctx,
+                ctx.line_of(s.span().start),
+                &name,
+                Some(s.get_ref()),
+                has_uvs,
+            )?,
+            None => build_surface(ctx, line, &name, None, has_uvs)?,
+        };
+        let mut walk = None;
         let (medium, nee) = match &desc.interior {
             Some(interior) => {
                 let placement = Placement {
@@ -62,12 +75,21 @@ impl ObjectList {
                         _ => None,
                     },
                     view,
+                    has_uvs,
                 };
                 let interior_line = ctx.line_of(interior.span().start);
-                let (m, nee) =
-                    build_medium(ctx, interior_line, &name, interior.get_ref(), &placement)?;
-                self.media.push(m);
-                (Some((self.media.len() - 1) as u32), nee)
+                let built = build_medium(
+                    ctx,
+                    interior_line,
+                    &name,
+                    format!("{name}: interior"),
+                    interior.get_ref(),
+                    &placement,
+                    &mut self.media,
+                )?;
+                walk = built.walk.map(Box::new);
+                self.media.push(built.medium);
+                (Some((self.media.len() - 1) as u32), built.nee)
             }
             None => (None, NeeStrategy::ExitPoint),
         };
@@ -175,6 +197,17 @@ impl ObjectList {
                 ctx.path.display()
             ));
         }
+        if nee == NeeStrategy::ExitGuided && surface.is_textured() {
+            return Err(ctx.invalid(
+                line,
+                format!("{name}: nee = \"exit_guided\" does not support a textured surface yet (use \"exit\")"),
+            ));
+        }
+        let (uv_scale, uv_scales) = if surface.is_textured() || walk.is_some() {
+            uv_per_world(&shape)
+        } else {
+            (0.0, Vec::new())
+        };
         self.objects.push(Object {
             name,
             surface,
@@ -182,6 +215,10 @@ impl ObjectList {
             priority: desc.priority.unwrap_or(0),
             ior,
             nee,
+            aov_albedo: desc.interior.as_ref().and_then(|i| aov_albedo(i.get_ref())),
+            walk,
+            uv_scale,
+            uv_scales,
         });
         Ok(shape)
     }
@@ -200,11 +237,13 @@ fn check_manifold_boundary(
     surface: &ObjectSurface,
 ) -> Result<(), SceneError> {
     let why = match surface {
-        ObjectSurface::Dielectric(d) if d.roughness * d.roughness >= SMOOTH_ALPHA => format!(
-            "its surface.roughness = {} is rough (must be 0, below {:.4} at most)",
-            d.roughness,
-            SMOOTH_ALPHA.sqrt()
-        ),
+        ObjectSurface::Dielectric(d) if d.roughness.max() * d.roughness.max() >= SMOOTH_ALPHA => {
+            format!(
+                "its surface.roughness = {} is rough (must be 0, below {:.4} at most)",
+                d.roughness.max(),
+                SMOOTH_ALPHA.sqrt()
+            )
+        }
         ObjectSurface::Dielectric(d) if d.ior == 1.0 => {
             "its surface.ior = 1 does not refract".to_string()
         }
@@ -212,7 +251,12 @@ fn check_manifold_boundary(
             "its surface has a coat (not supported by the manifold walk)".to_string()
         }
         ObjectSurface::Dielectric(_) | ObjectSurface::Null => return Ok(()),
-        ObjectSurface::Fixed(_) => "its surface is not a dielectric".to_string(),
+        ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) => {
+            "its surface is not a dielectric".to_string()
+        }
+        ObjectSurface::Blend(_) => {
+            "its surface is a blend (not supported by the manifold walk)".to_string()
+        }
     };
     Err(ctx.invalid(
         line,
@@ -220,6 +264,68 @@ fn check_manifold_boundary(
             "{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0, or no surface inside such an object), but {why}"
         ),
     ))
+}
+
+/// Texture units per world unit of a shape's surface: sqrt(UV area / world area) over the
+/// whole shape (a sphere's (φ/2π, θ/π) parameterisation covers the unit square over 4πr²),
+/// and for a mesh the same per triangle (Akenine-Möller et al.'s Δ, docs/references.md §14.2;
+/// degenerate triangles take the whole mesh's figure). They turn a ray cone's width into a
+/// footprint in texture units (docs/textures.md).
+fn uv_per_world(shape: &Shape) -> (f32, Vec<f32>) {
+    match shape {
+        Shape::Sphere { radius, .. } => (
+            1.0 / (2.0 * radius * std::f32::consts::PI.sqrt()),
+            Vec::new(),
+        ),
+        Shape::Mesh(m) => {
+            let Some(uvs) = &m.uvs else {
+                return (0.0, Vec::new());
+            };
+            let (mut uv_total, mut total) = (0.0f64, 0.0f64);
+            let per_triangle: Vec<(f64, f64)> = m
+                .indices
+                .iter()
+                .map(|tri| {
+                    let [a, b, c] = tri.map(|i| i as usize);
+                    match (
+                        m.positions.get(a),
+                        m.positions.get(b),
+                        m.positions.get(c),
+                        uvs.get(a),
+                        uvs.get(b),
+                        uvs.get(c),
+                    ) {
+                        (Some(pa), Some(pb), Some(pc), Some(ta), Some(tb), Some(tc)) => {
+                            let area = f64::from((*pb - *pa).cross(*pc - *pa).length());
+                            let uv_area = f64::from(((*tb - *ta).perp_dot(*tc - *ta)).abs());
+                            total += area;
+                            uv_total += uv_area;
+                            (uv_area, area)
+                        }
+                        _ => (0.0, 0.0),
+                    }
+                })
+                .collect();
+            let whole = if total > 0.0 {
+                (uv_total / total).sqrt() as f32
+            } else {
+                0.0
+            };
+            let per = per_triangle
+                .iter()
+                .map(|&(uv, area)| {
+                    let r = (uv / area).sqrt() as f32;
+                    if area > 0.0 && uv > 0.0 && r.is_finite() {
+                        r
+                    } else {
+                        whole
+                    }
+                })
+                .collect();
+            (whole, per)
+        }
+        _ => (0.0, Vec::new()),
+    }
 }
 
 /// The object transform `translate · rotate · scale`, and the scale when it is uniform.
@@ -369,4 +475,23 @@ fn build_rest_shape(
             ),
         )),
     }
+}
+
+/// The albedo an interior shows in the albedo AOV: its artist albedo (default 0.8) when it has
+/// one constant colour.
+fn aov_albedo(desc: &InteriorDesc) -> Option<Rgb> {
+    let value = match desc {
+        InteriorDesc::Homogeneous(d) => match &d.albedo {
+            None => None,
+            Some(ColorInput::Value(v)) => Some(*v),
+            // A textured albedo varies per entry: the first event inside shows it.
+            Some(ColorInput::Texture(_)) => return None,
+        },
+        InteriorDesc::Voxel(d) => d.albedo,
+        InteriorDesc::Fbm(d) => d.albedo,
+        InteriorDesc::Absorption(_) | InteriorDesc::Fabric(_) | InteriorDesc::Blend(_) => {
+            return None
+        }
+    };
+    Some(super::validate::color(value, Rgb::splat(0.8)))
 }

@@ -8,7 +8,8 @@
 //! - [`cli`]: running the `velour` binary (or any command) and capturing its output.
 //! - [`external`]: optional external programs (real OpenVDB) that skip, or fail under
 //!   `VELOUR_REQUIRE_EXTERNAL=1`, when missing.
-//! - [`render`]: rendering inline scene text.
+//! - [`render`]: rendering inline scene text, image and region means with standard errors.
+//! - [`textures`]: small PNG/EXR texture files written into temporary directories.
 //! - [`vdb_figures`]: OpenVDB's figures of a grid (JSON) against ours.
 
 // Each test binary compiles every helper but uses only some of them.
@@ -21,4 +22,5 @@ pub mod files;
 pub mod render;
 pub mod sphere;
 pub mod stats;
+pub mod textures;
 pub mod vdb_figures;

@@ -40,3 +40,25 @@ pub fn pixel_means(film: &Film, c: usize) -> Vec<f64> {
     }
     values
 }
+
+/// Mean of channel `c` over the pixels `(x, y)` for which `keep` holds, and its standard
+/// error from the pixels' own variances of the mean (the pixels are independent estimates).
+pub fn region_mean(film: &Film, c: usize, keep: impl Fn(u32, u32) -> bool) -> (f64, f64) {
+    let (mut sum, mut var, mut n) = (0.0, 0.0, 0.0);
+    for y in 0..film.height() {
+        for x in 0..film.width() {
+            if keep(x, y) {
+                sum += f64::from(film.mean(x, y)[c]);
+                var += f64::from(film.variance_of_mean(x, y)[c]);
+                n += 1.0;
+            }
+        }
+    }
+    assert!(n > 0.0, "empty region");
+    (sum / n, var.sqrt() / n)
+}
+
+/// [`region_mean`] over the whole image.
+pub fn image_mean(film: &Film, c: usize) -> (f64, f64) {
+    region_mean(film, c, |_, _| true)
+}

@@ -10,10 +10,13 @@
 
 use glam::DVec3;
 
-use super::super::interiors::{is_false_intersection, InteriorStack, MAX_NESTING};
+use super::super::interiors::{
+    current_medium, enter, is_false_intersection, InteriorStack, MAX_NESTING,
+};
 use super::solve::{tangents, Interface, InterfacePoint};
 use crate::geometry::{Hit, Shape};
 use crate::math::{Ray, Vec3};
+use crate::medium::Medium;
 use crate::scene::{DielectricParams, Object, ObjectSurface, Scene, ShapeOwner};
 
 /// True when `obj`'s boundary can be the manifold walk's interface for a path whose medium on
@@ -25,10 +28,13 @@ pub(in crate::integrator) fn is_manifold_interface(obj: &Object, outside_ior: f3
     match &obj.surface {
         ObjectSurface::Dielectric(d) => {
             d.coat.is_none()
-                && d.roughness * d.roughness < crate::bsdf::microfacet::SMOOTH_ALPHA
+                && d.roughness.max() * d.roughness.max() < crate::bsdf::microfacet::SMOOTH_ALPHA
                 && d.ior / outside_ior.max(1e-6) != 1.0
         }
-        ObjectSurface::Fixed(_) | ObjectSurface::Null => false,
+        ObjectSurface::Fixed(_)
+        | ObjectSurface::Textured(_)
+        | ObjectSurface::Blend(_)
+        | ObjectSurface::Null => false,
     }
 }
 
@@ -55,14 +61,14 @@ pub(super) struct SceneInterface<'a> {
     pub inside: InteriorStack,
     /// Rays cast so far.
     pub rays: u64,
-    /// The seed's straight line from the vertex to the interface, segment by segment: the
-    /// governing medium (index into `Scene::media`) and length of each (for the roulette).
-    pub seed_segments: [(Option<u32>, f32); SEED_SEGMENTS],
-    /// Number of entries of `seed_segments` in use.
-    pub seed_segment_count: usize,
+    /// Length of the seed line's first segment, in the vertex's own medium (for the
+    /// roulette).
+    pub seed_first_segment: f32,
+    /// Texture coordinates of the last interface hit (for a textured tint).
+    pub uv: crate::math::Vec2,
 }
 
-/// The most segments of the seed line recorded (null and false boundaries crossed + 1).
+/// The most boundaries a walk crosses.
 pub(super) const SEED_SEGMENTS: usize = 4 * MAX_NESTING;
 
 impl<'a> SceneInterface<'a> {
@@ -73,8 +79,8 @@ impl<'a> SceneInterface<'a> {
             object: None,
             inside: *stack,
             rays: 0,
-            seed_segments: [(None, 0.0); SEED_SEGMENTS],
-            seed_segment_count: 0,
+            seed_first_segment: 0.0,
+            uv: crate::math::Vec2::ZERO,
         }
     }
 
@@ -90,17 +96,17 @@ impl<'a> SceneInterface<'a> {
     /// if it is a manifold interface the ray leaves: the hit and the stack before it.
     fn first_interface(&mut self, ray: &Ray) -> Option<(Hit, InteriorStack)> {
         let seed = self.object.is_none();
-        let mut segments = [(None, 0.0f32); SEED_SEGMENTS];
-        let mut count = 0;
-        let found = self.walk(ray, |medium, _, length| {
-            if let Some(s) = segments.get_mut(count) {
-                *s = (medium, length);
-                count += 1;
-            }
+        let mut first = None;
+        // Projections only test passability; the interiors picked on entering do not matter.
+        let mut picks = || 0.5;
+        let found = self.walk(ray, &mut picks, |_, _, length| {
+            first.get_or_insert(length);
         });
         if seed {
-            self.seed_segments = segments;
-            self.seed_segment_count = count;
+            self.seed_first_segment = first.unwrap_or(0.0);
+        }
+        if let Some((hit, _, _)) = &found {
+            self.uv = hit.uv;
         }
         found.map(|(hit, stack, _)| (hit, stack))
     }
@@ -117,11 +123,11 @@ impl<'a> SceneInterface<'a> {
         u: &mut impl FnMut() -> f32,
         tracking: &mut crate::tracking::TrackingStats,
     ) -> crate::spectrum::Rgb {
-        let scene = self.scene;
         let mut tr = crate::spectrum::Rgb::ONE;
-        let found = self.walk(&Ray::new(x0, dir), |medium, origin, length| {
-            if let Some(m) = medium.and_then(|m| scene.media.get(m as usize)) {
-                tr *= m.transmittance(&Ray::new(origin, dir), length, u, tracking);
+        let mut picks = || 0.5;
+        let found = self.walk(&Ray::new(x0, dir), &mut picks, |medium, origin, length| {
+            if let Some(m) = medium {
+                tr *= m.transmittance(&Ray::new(origin, dir), length, &mut *u, tracking);
             }
         });
         match found {
@@ -139,7 +145,8 @@ impl<'a> SceneInterface<'a> {
     fn walk(
         &mut self,
         ray: &Ray,
-        mut segment: impl FnMut(Option<u32>, Vec3, f32),
+        u: &mut impl FnMut() -> f32,
+        mut segment: impl FnMut(Option<&Medium>, Vec3, f32),
     ) -> Option<(Hit, InteriorStack, crate::spectrum::Rgb)> {
         let scene = self.scene;
         let mut stack = self.stack;
@@ -150,11 +157,12 @@ impl<'a> SceneInterface<'a> {
             let hit = scene
                 .geometry
                 .intersect(&Ray::new(origin, ray.d), f32::INFINITY)?;
-            let governing = stack
-                .top(&scene.objects, None)
-                .and_then(|g| scene.objects.get(g as usize))
-                .and_then(|o| o.medium);
-            segment(governing, origin, hit.t);
+            let mut scratch = None;
+            segment(
+                current_medium(scene, &stack, &mut scratch).map(|(m, _)| m),
+                origin,
+                hit.t,
+            );
             let ShapeOwner::Object(oi) = *scene.shape_owner.get(hit.shape as usize)? else {
                 return None;
             };
@@ -167,10 +175,15 @@ impl<'a> SceneInterface<'a> {
                         ObjectSurface::Null => true,
                         // Index-matched: the smooth lobe passes straight through, tinted.
                         ObjectSurface::Dielectric(d) if is_index_matched(d, outside) => {
-                            tint *= d.tint;
+                            tint *= d.tint.eval(hit.uv, 0.0);
                             true
                         }
-                        ObjectSurface::Dielectric(_) | ObjectSurface::Fixed(_) => false,
+                        // Blends are not walked through (nor counted as pass-through by the
+                        // integrator's `ManifoldLeg`).
+                        ObjectSurface::Dielectric(_)
+                        | ObjectSurface::Fixed(_)
+                        | ObjectSurface::Textured(_)
+                        | ObjectSurface::Blend(_) => false,
                     });
             if !passes {
                 let ok = !entering
@@ -179,7 +192,7 @@ impl<'a> SceneInterface<'a> {
                 return ok.then_some((hit, stack, tint));
             }
             if entering {
-                stack.push(oi);
+                enter(scene, &mut stack, oi, hit.uv, 0.0, &mut *u);
             } else {
                 stack.remove(oi);
             }

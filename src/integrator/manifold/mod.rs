@@ -26,7 +26,7 @@
 //! from `x0` are covered too (Hesterberg 1995).
 //!
 //! **Roulette.** After the seed, the walk is made with probability `min(1, T/0.1)` (at least
-//! 0.05) of the transmittance `T` along the straight line to the seed point, and weighted by
+//! 0.05) of the transmittance `T` along the straight line to the first boundary, and weighted by
 //! the inverse: deep vertices of dense media rarely pay for a walk whose result they would
 //! almost entirely absorb.
 //!
@@ -56,7 +56,7 @@ pub use solve::{Failure, Interface, InterfacePoint, LightTarget, Solution, Solve
 use glam::DVec3;
 
 use super::direct::{shadow_transmittance, ShadowMode};
-use super::interiors::InteriorStack;
+use super::interiors::{current_medium, InteriorStack};
 use super::TraceStats;
 use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::light::Light;
@@ -72,8 +72,8 @@ use interface::SceneInterface;
 const UNIFORM_AREA: f32 = 0.1;
 
 /// Russian roulette on the walk (after the seed): it is made with probability
-/// `clamp(T(x0, seed) / ROULETTE_TRANSMITTANCE, ROULETTE_MIN, 1)` (max over channels, the
-/// transmittance of the media along the straight line to the seed point) and weighted
+/// `clamp(T / ROULETTE_TRANSMITTANCE, ROULETTE_MIN, 1)` (max over channels, `T` the
+/// vertex's medium's transmittance along the straight line to its first boundary) and weighted
 /// by the inverse; deep vertices of dense media, whose connections carry almost nothing,
 /// then rarely pay for the walk (as for `exit_guided`'s connections).
 const ROULETTE_TRANSMITTANCE: f32 = 0.1;
@@ -285,25 +285,18 @@ pub(super) fn manifold_connection(
     else {
         return Rgb::ZERO;
     };
-    // The transmittance along the seed line, segment by segment through the media on it.
-    let mut tr_seed = Rgb::ONE;
-    let mut from = x;
+    // The transmittance of the vertex's own medium up to the first boundary on the seed line.
     let dir_seed = (v32(seed.p) - x).normalize_or_zero();
-    let segments = interface
-        .seed_segments
-        .get(..interface.seed_segment_count)
-        .unwrap_or(&[]);
-    for &(m, l) in segments {
-        if let Some(medium) = m.and_then(|m| scene.media.get(m as usize)) {
-            tr_seed *= medium.transmittance(
-                &Ray::new(from, dir_seed),
-                l,
-                &mut || sampler.next_1d(),
-                &mut stats.tracking,
-            );
-        }
-        from += dir_seed * l;
-    }
+    let mut scratch = None;
+    let tr_seed = match current_medium(scene, &stack, &mut scratch) {
+        Some((m, _)) => m.transmittance(
+            &Ray::new(x, dir_seed),
+            interface.seed_first_segment,
+            &mut || sampler.next_1d(),
+            &mut stats.tracking,
+        ),
+        None => Rgb::ONE,
+    };
     let q = (tr_seed.max_component() / ROULETTE_TRANSMITTANCE).clamp(ROULETTE_MIN, 1.0);
     if !(u_rr < q) {
         stats.rays += interface.rays;
@@ -339,7 +332,8 @@ pub(super) fn manifold_connection(
     // Fresnel seen from the light's side (outside), relative index n_inside / n_outside.
     let eta = ior_in / ior_out.max(1e-6);
     let cos_b = sol.wb.dot(sol.x1.ns) as f32;
-    let transmit = d.tint * ((1.0 - fresnel_dielectric(cos_b, eta)) * eta * eta);
+    let transmit =
+        d.tint.eval(interface.uv, 0.0) * ((1.0 - fresnel_dielectric(cos_b, eta)) * eta * eta);
     if transmit.is_black() {
         return Rgb::ZERO;
     }

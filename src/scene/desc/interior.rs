@@ -3,7 +3,9 @@
 
 use serde::Deserialize;
 
-use super::{ColorValue, MipValue, TilesValue, TypedTable};
+use toml::Spanned;
+
+use super::{ColorInput, ColorValue, MipValue, ScalarInput, TilesValue, TypedTable};
 
 /// An object's `interior` table, by its `type`.
 #[derive(Clone, Debug)]
@@ -18,36 +20,60 @@ pub enum InteriorDesc {
     Fbm(FbmDesc),
     /// `type = "fabric"`.
     Fabric(FabricDesc),
+    /// `type = "blend"`.
+    Blend(BlendDesc),
 }
 
 /// `type = "absorption"`: absorbing only (coloured glass), σ_a = density / attenuation.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AbsorptionDesc {
-    /// Attenuation distance per channel (world units), > 0 (default 1).
-    pub attenuation: Option<ColorValue>,
-    /// Density multiplier ≥ 0 (default 1).
-    pub density: Option<f32>,
+    /// Attenuation distance per channel (world units), > 0 (default 1); may be a texture.
+    pub attenuation: Option<ColorInput>,
+    /// Density multiplier ≥ 0 (default 1); may be a texture.
+    pub density: Option<ScalarInput>,
     /// "exit" or "interior".
     pub nee: Option<String>,
+    /// How textured parameters are read: "entry" (the default; the only mode so far).
+    pub projection: Option<String>,
 }
 
 /// `type = "homogeneous"`: a scattering medium of constant density.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HomogeneousDesc {
-    /// Artist albedo in [0, 1] (default 0.8).
-    pub albedo: Option<ColorValue>,
+    /// Artist albedo in [0, 1] (default 0.8); may be a texture.
+    pub albedo: Option<ColorInput>,
     /// "multiple" (default) or "single".
     pub albedo_mode: Option<String>,
-    /// Attenuation distance per channel (world units), > 0 (default 1).
-    pub attenuation: Option<ColorValue>,
-    /// Density multiplier ≥ 0 (default 1).
-    pub density: Option<f32>,
+    /// Attenuation distance per channel (world units), > 0 (default 1); may be a texture.
+    pub attenuation: Option<ColorInput>,
+    /// Density multiplier ≥ 0 (default 1); may be a texture.
+    pub density: Option<ScalarInput>,
     /// Phase function (default isotropic).
     pub phase: Option<PhaseDesc>,
     /// "exit" or "interior".
     pub nee: Option<String>,
+    /// How textured parameters are read: "entry" (the default; the only mode so far).
+    pub projection: Option<String>,
+}
+
+/// `type = "blend"`: each path entering the object picks interior `a` with probability
+/// mask(uv) at its entry point, else `b`, and keeps it for its walk.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BlendDesc {
+    /// The probability of `a`: a number in [0, 1] or a texture table with values in [0, 1]
+    /// (required).
+    pub mask: Option<ScalarInput>,
+    /// "exit" or "interior" (for both looks).
+    pub nee: Option<String>,
+    /// The first look (an interior table; read by the scene reader, as its `type` picks it).
+    #[serde(skip)]
+    pub a: Option<Box<Spanned<InteriorDesc>>>,
+    /// The second look.
+    #[serde(skip)]
+    pub b: Option<Box<Spanned<InteriorDesc>>>,
 }
 
 /// `type = "voxel"`: a density grid from an OpenVDB file, optionally added to a homogeneous
@@ -224,6 +250,7 @@ impl InteriorDesc {
             InteriorDesc::Voxel(_) => "voxel",
             InteriorDesc::Fbm(_) => "fbm",
             InteriorDesc::Fabric(_) => "fabric",
+            InteriorDesc::Blend(_) => "blend",
         }
     }
 
@@ -236,12 +263,38 @@ impl InteriorDesc {
             InteriorDesc::Voxel(d) => d.nee.as_deref(),
             InteriorDesc::Fbm(d) => d.nee.as_deref(),
             InteriorDesc::Fabric(d) => d.nee.as_deref(),
+            InteriorDesc::Blend(d) => d.nee.as_deref(),
         }
     }
 }
 
 impl TypedTable for InteriorDesc {
-    const TYPES: &'static [&'static str] = &["absorption", "homogeneous", "voxel", "fbm", "fabric"];
+    const TYPES: &'static [&'static str] = &[
+        "absorption",
+        "homogeneous",
+        "voxel",
+        "fbm",
+        "fabric",
+        "blend",
+    ];
+
+    fn nested_keys(kind: &str) -> &'static [&'static str] {
+        if kind == "blend" {
+            &["a", "b"]
+        } else {
+            &[]
+        }
+    }
+
+    fn set_nested(&mut self, key: &str, value: Spanned<Self>) {
+        if let InteriorDesc::Blend(d) = self {
+            match key {
+                "a" => d.a = Some(Box::new(value)),
+                "b" => d.b = Some(Box::new(value)),
+                _ => {}
+            }
+        }
+    }
 
     fn read<'de, D: serde::Deserializer<'de>>(
         kind: &str,
@@ -253,6 +306,7 @@ impl TypedTable for InteriorDesc {
             "voxel" => InteriorDesc::Voxel(VoxelDesc::deserialize(keys)?),
             "fbm" => InteriorDesc::Fbm(FbmDesc::deserialize(keys)?),
             "fabric" => InteriorDesc::Fabric(FabricDesc::deserialize(keys)?),
+            "blend" => InteriorDesc::Blend(BlendDesc::deserialize(keys)?),
             _ => return Ok(None),
         }))
     }

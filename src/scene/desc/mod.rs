@@ -11,19 +11,23 @@
 mod interior;
 mod light;
 mod surface;
+mod texture;
 
 use serde::Deserialize;
 use toml::Spanned;
 
+pub use texture::{ColorInput, MaskDesc, ScalarInput, TextureDesc};
+
 pub use interior::{
-    AbsorptionDesc, FabricDesc, FbmDesc, HomogeneousDesc, InteriorDesc, NoiseDesc, PhaseDesc,
-    TrackingDesc, VoxelDesc,
+    AbsorptionDesc, BlendDesc, FabricDesc, FbmDesc, HomogeneousDesc, InteriorDesc, NoiseDesc,
+    PhaseDesc, TrackingDesc, VoxelDesc,
 };
 pub use light::{
     DistantLightDesc, EnvironmentLightDesc, EnvmapLightDesc, LightDesc, SphereLightDesc,
 };
 pub use surface::{
-    CoatDesc, ConductorDesc, DielectricDesc, DiffuseTransmissionDesc, LambertianDesc, SurfaceDesc,
+    CoatDesc, ConductorDesc, DielectricDesc, DiffuseTransmissionDesc, LambertianDesc,
+    SurfaceBlendDesc, SurfaceDesc,
 };
 
 /// A colour given either as one number (grey) or as `[r, g, b]`.
@@ -169,4 +173,13 @@ pub(in crate::scene) trait TypedTable: Sized {
         kind: &str,
         keys: D,
     ) -> Result<Option<Self>, D::Error>;
+
+    /// The keys of a table of type `kind` that hold nested tables of the same kind (a
+    /// blend's `a` and `b` interiors), read by the reader like the table itself.
+    fn nested_keys(_kind: &str) -> &'static [&'static str] {
+        &[]
+    }
+
+    /// Stores a nested table read for one of [`Self::nested_keys`].
+    fn set_nested(&mut self, _key: &str, _value: Spanned<Self>) {}
 }

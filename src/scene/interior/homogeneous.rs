@@ -1,43 +1,99 @@
-//! `absorption` and `homogeneous` interiors: constant coefficients everywhere inside.
+//! `absorption` and `homogeneous` interiors: constant coefficients everywhere inside, or,
+//! with textured parameters, constant along each walk and read at its entry point
+//! (`projection = "entry"`, docs/textures.md).
 
 use super::scattering::Scattering;
-use super::{extinction_and_nee, Site};
-use crate::medium::{HomogeneousMedium, Medium, NeeStrategy};
+use super::{textured_extinction_and_nee, BuiltInterior, Site};
+use crate::math::Vec2;
+use crate::medium::{EntryInterior, HomogeneousMedium, Medium, WalkInterior};
+use crate::phase::PhaseFunction;
 use crate::scene::desc::{AbsorptionDesc, HomogeneousDesc};
 use crate::scene::SceneError;
+use crate::spectrum::Rgb;
+use crate::texture::ColorParam;
+
+/// An interior with a textured parameter: resolved at each entry point; its stand-in is the
+/// medium of the textures' means.
+fn entry(e: EntryInterior, nee: crate::medium::NeeStrategy) -> BuiltInterior {
+    let mean = e.at(Vec2::ZERO, f32::INFINITY);
+    let walk = WalkInterior::Entry(e);
+    BuiltInterior {
+        // An entry interior always resolves to a medium of its own.
+        medium: walk
+            .medium_of(mean)
+            .unwrap_or(Medium::Absorbing { sigma_a: Rgb::ZERO }),
+        nee,
+        walk: Some(walk),
+    }
+}
 
 /// Coloured glass: σ_a = density / attenuation per channel (0 for an infinite distance).
-pub(super) fn absorption(
-    at: &Site,
-    d: &AbsorptionDesc,
-) -> Result<(Medium, NeeStrategy), SceneError> {
-    let (density, attenuation, nee) =
-        extinction_and_nee(at, d.density, d.attenuation, d.nee.as_deref())?;
+pub(super) fn absorption(at: &Site, d: &AbsorptionDesc) -> Result<BuiltInterior, SceneError> {
+    let (density, attenuation, nee) = textured_extinction_and_nee(
+        at,
+        d.density.as_ref(),
+        d.attenuation.as_ref(),
+        d.nee.as_deref(),
+    )?;
+    at.projection(d.projection.as_deref())?;
+    if density.is_textured() || attenuation.is_textured() {
+        let e = EntryInterior {
+            albedo: ColorParam::Constant(Rgb::ZERO),
+            attenuation,
+            density,
+            mode: crate::medium::AlbedoMode::SingleScattering,
+            phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| at.failed(&e))?,
+            absorbing: true,
+        };
+        return Ok(entry(e, nee));
+    }
+    let (density, attenuation) = (density.max(), attenuation.max());
     let sigma_a = attenuation.map(|d| if d.is_infinite() { 0.0 } else { density / d });
-    Ok((Medium::Absorbing { sigma_a }, nee))
+    Ok(BuiltInterior {
+        medium: Medium::Absorbing { sigma_a },
+        nee,
+        walk: None,
+    })
 }
 
 /// A scattering medium of constant density: σ_t = density / attenuation, the albedo inverted
 /// into σ_s (course notes eq. 1–3).
-pub(super) fn homogeneous(
-    at: &Site,
-    d: &HomogeneousDesc,
-) -> Result<(Medium, NeeStrategy), SceneError> {
-    let (density, attenuation, nee) =
-        extinction_and_nee(at, d.density, d.attenuation, d.nee.as_deref())?;
-    let scattering = Scattering::read(at, d.albedo, d.albedo_mode.as_deref(), d.phase.as_ref())?;
-    let coefficients = scattering.coefficients(attenuation, density);
+pub(super) fn homogeneous(at: &Site, d: &HomogeneousDesc) -> Result<BuiltInterior, SceneError> {
+    let (density, attenuation, nee) = textured_extinction_and_nee(
+        at,
+        d.density.as_ref(),
+        d.attenuation.as_ref(),
+        d.nee.as_deref(),
+    )?;
+    at.projection(d.projection.as_deref())?;
+    let scattering = Scattering::read(at, None, d.albedo_mode.as_deref(), d.phase.as_ref())?;
+    let albedo = at
+        .params()
+        .colour("albedo", d.albedo.as_ref(), Rgb::splat(0.8), 0.0, 1.0)?;
+    if density.is_textured() || attenuation.is_textured() || albedo.is_textured() {
+        let e = EntryInterior {
+            albedo,
+            attenuation,
+            density,
+            mode: scattering.mode,
+            phase: scattering.phase,
+            absorbing: false,
+        };
+        return Ok(entry(e, nee));
+    }
+    let coefficients = scattering.coefficients_of(albedo.max(), attenuation.max(), density.max());
     if !coefficients.sigma_t().is_finite() {
         return Err(at.invalid(format!(
             "{}: density/attenuation gives a non-finite extinction",
             at.owner
         )));
     }
-    Ok((
-        Medium::Homogeneous(HomogeneousMedium {
+    Ok(BuiltInterior {
+        medium: Medium::Homogeneous(HomogeneousMedium {
             coefficients,
             phase: scattering.phase,
         }),
         nee,
-    ))
+        walk: None,
+    })
 }

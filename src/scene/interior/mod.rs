@@ -10,6 +10,7 @@
 //! estimator choices ([`heterogeneous`], [`tracking`]); `homogeneous`, `voxel` and `fbm` share
 //! the scattering keys ([`scattering`]).
 
+mod blend;
 mod fabric;
 mod fbm;
 mod heterogeneous;
@@ -21,14 +22,16 @@ mod voxel;
 pub(super) use fabric::fabric_note;
 
 use super::context::Ctx;
-use super::desc::{ColorValue, InteriorDesc};
+use super::desc::{ColorInput, ColorValue, InteriorDesc, ScalarInput};
+use super::textures::ParamSite;
 use super::validate::{check_range, color};
 use super::SceneError;
 use crate::fabric::lod::ViewFootprint;
 use crate::geometry::TriangleMesh;
 use crate::math::{Aabb, Mat4};
-use crate::medium::{Medium, NeeStrategy};
+use crate::medium::{Medium, NeeStrategy, WalkInterior};
 use crate::spectrum::Rgb;
+use crate::texture::{ColorParam, ScalarParam};
 
 /// Where an interior sits: the object transform and its rest shape, and the camera's view.
 pub(super) struct Placement<'a> {
@@ -40,30 +43,60 @@ pub(super) struct Placement<'a> {
     pub rest_mesh: Option<&'a TriangleMesh>,
     /// The camera's pixel footprint, for fabric mip selection.
     pub view: ViewFootprint,
+    /// True when the shape has texture coordinates (a mesh with UVs, or a sphere).
+    pub has_uvs: bool,
 }
 
-/// The medium of object `name`'s interior and its NEE strategy. `line` is the line of the
-/// interior table.
+/// An interior as built: its medium (for an interior resolved per walk, the one used where
+/// no entry point is known: the textures' means, or a blend's first look), its NEE strategy,
+/// and how walks resolve it.
+pub(super) struct BuiltInterior {
+    /// The medium.
+    pub medium: Medium,
+    /// Where NEE happens inside.
+    pub nee: NeeStrategy,
+    /// Textured (entry-projected) or blended interiors: resolved per walk.
+    pub walk: Option<WalkInterior>,
+}
+
+impl BuiltInterior {
+    /// A medium resolved once for the whole scene.
+    fn fixed((medium, nee): (Medium, NeeStrategy)) -> Self {
+        BuiltInterior {
+            medium,
+            nee,
+            walk: None,
+        }
+    }
+}
+
+/// The interior of object `name`. `line` is the line of the interior table; `owner` names
+/// it in messages (`"<name>: interior"`, or a blend's `"<name>: interior.a"`). Media a blend
+/// refers to are added to `media`.
 pub(super) fn build_medium(
     ctx: &Ctx,
     line: usize,
     name: &str,
+    owner: String,
     interior: &InteriorDesc,
     placement: &Placement<'_>,
-) -> Result<(Medium, NeeStrategy), SceneError> {
+    media: &mut Vec<Medium>,
+) -> Result<BuiltInterior, SceneError> {
     let at = Site {
         ctx,
         line,
         name,
-        owner: format!("{name}: interior"),
+        owner,
+        has_uvs: placement.has_uvs,
     };
-    match interior {
-        InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d),
-        InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d),
-        InteriorDesc::Voxel(d) => voxel::build(&at, d, placement),
-        InteriorDesc::Fbm(d) => fbm::build(&at, d, placement),
-        InteriorDesc::Fabric(d) => fabric::build(&at, d, placement),
-    }
+    Ok(match interior {
+        InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d)?,
+        InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d)?,
+        InteriorDesc::Voxel(d) => BuiltInterior::fixed(voxel::build(&at, d, placement)?),
+        InteriorDesc::Fbm(d) => BuiltInterior::fixed(fbm::build(&at, d, placement)?),
+        InteriorDesc::Fabric(d) => BuiltInterior::fixed(fabric::build(&at, d, placement)?),
+        InteriorDesc::Blend(d) => blend::build(&at, d, placement, media)?,
+    })
 }
 
 /// What an interior builder reports errors with: the scene, the interior table's line, the
@@ -73,9 +106,29 @@ struct Site<'a> {
     line: usize,
     name: &'a str,
     owner: String,
+    has_uvs: bool,
 }
 
 impl Site<'_> {
+    /// Where the interior's texturable parameters are read.
+    fn params(&self) -> ParamSite<'_> {
+        ParamSite {
+            ctx: self.ctx,
+            line: self.line,
+            owner: &self.owner,
+            name: self.name,
+            has_uvs: self.has_uvs,
+        }
+    }
+
+    /// How textured parameters are read (`projection`): "entry" (the default) or an error.
+    fn projection(&self, p: Option<&str>) -> Result<(), SceneError> {
+        match p.unwrap_or("entry") {
+            "entry" => Ok(()),
+            "surface" => Err(self.invalid(format!("{}.projection = \"surface\" is not implemented yet (use \"entry\": the textures are read at the entry point)", self.owner))),
+            other => Err(self.invalid(format!("{}.projection = \"{other}\" is unknown (expected \"entry\")", self.owner))),
+        }
+    }
     /// An invalid-value error at the interior's line.
     fn invalid(&self, message: impl Into<String>) -> SceneError {
         self.ctx.invalid(self.line, message)
@@ -142,6 +195,37 @@ fn extinction_and_nee(
                 at.name
             )))
         }
+    };
+    Ok((density, attenuation, nee))
+}
+
+/// [`extinction_and_nee`] for interiors whose `density` and `attenuation` may be textures
+/// (textured attenuations must be > 0 everywhere, textured densities finite and ≥ 0).
+fn textured_extinction_and_nee(
+    at: &Site,
+    density: Option<&ScalarInput>,
+    attenuation: Option<&ColorInput>,
+    nee: Option<&str>,
+) -> Result<(ScalarParam, ColorParam, NeeStrategy), SceneError> {
+    let constant_density = match density {
+        Some(ScalarInput::Value(v)) => Some(*v),
+        _ => None,
+    };
+    let constant_attenuation = match attenuation {
+        Some(ColorInput::Value(v)) => Some(*v),
+        _ => None,
+    };
+    let (d, a, nee) = extinction_and_nee(at, constant_density, constant_attenuation, nee)?;
+    let p = at.params();
+    let density = match density {
+        Some(ScalarInput::Texture(_)) => p.scalar("density", density, 1.0, 0.0, 1e12)?,
+        _ => ScalarParam::Constant(d),
+    };
+    let attenuation = match attenuation {
+        Some(ColorInput::Texture(_)) => {
+            p.colour("attenuation", attenuation, Rgb::ONE, 1e-9, f32::INFINITY)?
+        }
+        _ => ColorParam::Constant(a),
     };
     Ok((density, attenuation, nee))
 }

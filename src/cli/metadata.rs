@@ -1,0 +1,87 @@
+//! What the scene was built into, for the image metadata and the render summary: the kind of
+//! each interior, the estimators chosen for it, the grids loaded, the bricks baked and the
+//! memory used.
+
+use std::collections::BTreeMap;
+
+use crate::medium::{DensityField, Medium};
+use crate::scene::Scene;
+
+/// One `velour:interior.<object>` attribute per object with an interior: the interior's kind
+/// and the estimators chosen for it (free flights, shadow-ray transmittance, majorants, NEE).
+#[must_use]
+pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
+    let mut out = BTreeMap::new();
+    for object in &scene.objects {
+        let Some(medium) = object.medium.and_then(|m| scene.media.get(m as usize)) else {
+            continue;
+        };
+        let what = match medium {
+            Medium::Absorbing { .. } => "absorbing".to_string(),
+            Medium::Homogeneous(_) => "homogeneous".to_string(),
+            Medium::Heterogeneous(h) => format!(
+                "heterogeneous; free_flight {:?}; transmittance {:?}; majorant {:?}",
+                h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
+            ),
+        };
+        let name: String = object
+            .name
+            .chars()
+            .map(|c| if c.is_ascii_graphic() { c } else { '_' })
+            .collect();
+        out.insert(
+            format!("velour:interior.{name}"),
+            format!("{what}; nee {:?}", object.nee),
+        );
+    }
+    out
+}
+
+/// One line per object with an interior, saying what velour built for it: the kind
+/// (homogeneous, voxel grid, fBm baked / lazily baked / exact, fabric shell), the grid's bricks
+/// and memory, lazily baked bricks so far, and the estimators. Call it after the render to see
+/// how many lazy bricks the render needed.
+#[must_use]
+pub fn interior_summary(scene: &Scene) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mb = |bytes: usize| bytes as f64 / (1024.0 * 1024.0);
+    for object in &scene.objects {
+        let Some(medium) = object.medium.and_then(|m| scene.media.get(m as usize)) else {
+            continue;
+        };
+        let built = match medium {
+            Medium::Absorbing { .. } => "absorbing only (no grid)".to_string(),
+            Medium::Homogeneous(_) => "homogeneous (no grid)".to_string(),
+            Medium::Heterogeneous(h) => {
+                let field = match &h.field {
+                    DensityField::Grid { grid, .. } => {
+                        let m = grid.memory_report();
+                        format!(
+                            "grid of {} bricks, {:.1} MB",
+                            grid.brick_count(),
+                            mb(m.total_bytes)
+                        )
+                    }
+                    DensityField::Procedural(_) => "fBm evaluated exactly (no grid)".to_string(),
+                    DensityField::LazyBaked(g) => format!(
+                        "fBm baked lazily: {} of {} bricks baked",
+                        g.baked_bricks(),
+                        g.total_bricks()
+                    ),
+                    DensityField::Shell(_) => {
+                        "fabric shell over a voxelised weave patch".to_string()
+                    }
+                };
+                format!(
+                    "{field}; free flights {:?}, transmittance {:?}, majorants {:?}",
+                    h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
+                )
+            }
+        };
+        lines.push(format!(
+            "interior {}: {built}; NEE {:?}",
+            object.name, object.nee
+        ));
+    }
+    lines
+}

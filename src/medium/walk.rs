@@ -1,0 +1,178 @@
+//! Interiors read once per walk (docs/textures.md): an interior whose textured parameters
+//! are read at the point where the path entered the object (`projection = "entry"`), the
+//! medium then being homogeneous along that walk, and a `blend` of two interiors picked per
+//! walk with the probability a mask gives at the entry point. The integrator resolves such
+//! an interior into a [`WalkMedium`] when a path (or a shadow ray) enters the object, and
+//! keeps it on its interior stack until it leaves; a path that re-enters resolves again.
+
+use super::artist::{AlbedoMode, Coefficients};
+use super::HomogeneousMedium;
+use crate::math::Vec2;
+use crate::phase::PhaseFunction;
+use crate::spectrum::Rgb;
+use crate::texture::{ColorParam, ScalarParam};
+
+/// A homogeneous or absorbing interior with textured parameters, read at the entry point.
+#[derive(Clone, Debug)]
+pub struct EntryInterior {
+    /// Artist albedo in [0, 1] (ignored when absorbing).
+    pub albedo: ColorParam,
+    /// Attenuation distance per channel (world units), > 0.
+    pub attenuation: ColorParam,
+    /// Density multiplier ≥ 0.
+    pub density: ScalarParam,
+    /// How the albedo is read.
+    pub mode: AlbedoMode,
+    /// Phase function.
+    pub phase: PhaseFunction,
+    /// True for an `absorption` interior (σ_a = density / attenuation, no scattering).
+    pub absorbing: bool,
+}
+
+impl EntryInterior {
+    /// The medium for a walk entering at texture coordinates `uv` with a footprint
+    /// `width_uv` wide (texture units): the artist parameters read there and inverted as for
+    /// a constant interior (notes eq. 1–3).
+    #[must_use]
+    pub fn at(&self, uv: Vec2, width_uv: f32) -> WalkMedium {
+        let density = self.density.eval(uv, width_uv);
+        let attenuation = self.attenuation.eval(uv, width_uv);
+        if self.absorbing {
+            return WalkMedium::Absorbing(attenuation.map(|d| {
+                if d.is_infinite() {
+                    0.0
+                } else {
+                    density / d
+                }
+            }));
+        }
+        let coefficients = Coefficients::from_artist(
+            self.albedo.eval(uv, width_uv),
+            attenuation,
+            density,
+            self.mode,
+            self.phase.mean_cosine(),
+        );
+        WalkMedium::Homogeneous {
+            coefficients,
+            look: 0,
+        }
+    }
+}
+
+/// One look of a blend: an interior of the scene (any type, by index into the scene's
+/// media) or an entry-projected one.
+#[derive(Clone, Debug)]
+pub enum WalkLook {
+    /// A medium of the scene.
+    Medium(u32),
+    /// Textured parameters read at the entry point.
+    Entry(EntryInterior),
+}
+
+impl WalkLook {
+    /// The medium of a walk entering at `uv`; `look` (0 for `a`, 1 for `b`) is recorded in
+    /// it, to find the phase function again.
+    #[must_use]
+    pub fn at(&self, uv: Vec2, width_uv: f32, look: u8) -> WalkMedium {
+        match self {
+            WalkLook::Medium(i) => WalkMedium::Scene(*i),
+            WalkLook::Entry(e) => match e.at(uv, width_uv) {
+                WalkMedium::Homogeneous { coefficients, .. } => {
+                    WalkMedium::Homogeneous { coefficients, look }
+                }
+                other => other,
+            },
+        }
+    }
+}
+
+/// An interior resolved per walk.
+#[derive(Clone, Debug)]
+pub enum WalkInterior {
+    /// `projection = "entry"`: textured parameters read at the entry point.
+    Entry(EntryInterior),
+    /// `type = "blend"`: look `a` with probability mask(uv) at the entry point, else `b`.
+    Blend {
+        /// The probability of `a`, in [0, 1].
+        mask: ScalarParam,
+        /// The first look.
+        a: WalkLook,
+        /// The second look.
+        b: WalkLook,
+    },
+}
+
+impl WalkInterior {
+    /// True when resolving needs a random number (a blend's choice).
+    #[must_use]
+    pub fn is_random(&self) -> bool {
+        matches!(self, WalkInterior::Blend { .. })
+    }
+
+    /// The medium of a walk entering at texture coordinates `uv` with a footprint
+    /// `width_uv` wide; `u` in [0, 1) picks a blend's look (`a` when `u < mask(uv)`), so the
+    /// expected image is mask · A + (1 − mask) · B.
+    #[must_use]
+    pub fn resolve(&self, uv: Vec2, width_uv: f32, u: f32) -> WalkMedium {
+        match self {
+            WalkInterior::Entry(e) => e.at(uv, width_uv),
+            WalkInterior::Blend { mask, a, b } => {
+                if u < mask.eval(uv, width_uv) {
+                    a.at(uv, width_uv, 0)
+                } else {
+                    b.at(uv, width_uv, 1)
+                }
+            }
+        }
+    }
+
+    /// The phase function of look `look` (0: the entry interior or `a`, 1: `b`) when it is
+    /// an entry-projected scattering interior.
+    #[must_use]
+    pub fn phase(&self, look: u8) -> Option<PhaseFunction> {
+        let entry = match self {
+            WalkInterior::Entry(e) => e,
+            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
+                WalkLook::Entry(e) => e,
+                WalkLook::Medium(_) => return None,
+            },
+        };
+        Some(entry.phase)
+    }
+
+    /// The scene medium of a resolved walk medium: `Medium::Homogeneous` with the look's
+    /// phase function, `Medium::Absorbing`, or `None` for a medium of the scene (by index).
+    #[must_use]
+    pub fn medium_of(&self, m: WalkMedium) -> Option<super::Medium> {
+        match m {
+            WalkMedium::Scene(_) => None,
+            WalkMedium::Homogeneous { coefficients, look } => {
+                Some(super::Medium::Homogeneous(HomogeneousMedium {
+                    coefficients,
+                    phase: self.phase(look)?,
+                }))
+            }
+            WalkMedium::Absorbing(sigma_a) => Some(super::Medium::Absorbing { sigma_a }),
+        }
+    }
+}
+
+/// The medium one walk uses inside an object with a [`WalkInterior`]: small and `Copy`, so
+/// that it rides on the path's interior stack (and on the copies shadow rays take); the
+/// phase function stays with the [`WalkInterior`] ([`WalkInterior::medium_of`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum WalkMedium {
+    /// A medium of the scene, by index.
+    Scene(u32),
+    /// A homogeneous scattering medium with these coefficients; `look` is 0 for an entry
+    /// interior or a blend's `a`, 1 for `b`.
+    Homogeneous {
+        /// σ_a and σ_s.
+        coefficients: Coefficients,
+        /// Which look.
+        look: u8,
+    },
+    /// An absorbing medium with this σ_a (1/length).
+    Absorbing(Rgb),
+}
