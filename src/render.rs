@@ -136,6 +136,13 @@ impl std::fmt::Display for RenderSummary {
                 t.transmittance_lookups,
                 t.violations
             )?;
+            if t.probed > 0 {
+                write!(
+                    f,
+                    ", {} tentative collisions rejected by local bounds, {} segments",
+                    t.probed, t.segments
+                )?;
+            }
         }
         if self.manifold.attempts > 0 {
             write!(f, " | manifold NEE: {}", self.manifold)?;

@@ -30,6 +30,7 @@ fn heterogeneous_scenes_get_every_estimator_and_all_edits_load() {
         for want in [
             "scene file",
             "delta + ratio",
+            "local bounds",
             "global majorant",
             "pyramid L1",
             "ray marching",

@@ -11,6 +11,11 @@
 //! - the `adaptive` row: the walk renders use ([`MajorantPyramid::segments_adaptive`]), which
 //!   descends only where that saves lookups at the medium's extinction (`--sigma`, or the
 //!   interior's largest σ_t⁰ for a scene);
+//! - the `local Nvx` row (grids; N the cell edge in voxels): the per-point bounds of `tracking.local_bounds`
+//!   ([`crate::majorant::LocalBounds`]; docs/references.md §4.10) sampled at 1,024 points per
+//!   ray: tightness ∫ density / ∫ local majorant, and the free-flight lookups per unit optical
+//!   depth they leave (rejected tentative collisions need none); `segments/ray` is the walk the
+//!   free flights then use at `--sigma`;
 //! - `max_violation`: the largest excess of a densely sampled density over its cell's bounds
 //!   (zero for grids, whose bounds are exact; measured for estimated procedural bounds).
 
@@ -176,6 +181,9 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
             segments_per_ray: segment_count as f64 / f64::from(rays.max(1)),
         });
     }
+    if let Some(row) = local_bounds_row(medium, rays, centre, radius, sigma) {
+        levels.push(row);
+    }
     let (max_violation, violation_samples) = violation_search(medium, samples);
     VolumeFigures {
         name: name.to_string(),
@@ -186,6 +194,77 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
         violation_samples,
         sigma,
     }
+}
+
+/// The `local bounds` row: tightness and lookups per unit depth of the per-point bounds along
+/// the same random rays as the level rows, and the segments per ray of the free flights' walk.
+fn local_bounds_row(
+    medium: &HeterogeneousMedium,
+    rays: u32,
+    centre: Vec3,
+    radius: f32,
+    sigma: f32,
+) -> Option<LevelFigures> {
+    use crate::majorant::{LocalBounds, LookupModel};
+    use crate::tracking::PointBounds;
+    let DensityField::Grid { grid, channel } = &medium.field else {
+        return None;
+    };
+    let owned;
+    let table = match medium.pyramid.local_bounds() {
+        Some(t) => t,
+        None => {
+            owned = LocalBounds::from_grid(grid, *channel).ok()?;
+            &owned
+        }
+    };
+    let mut rng = Rng::new(17, 3);
+    let (mut density_integral, mut majorant_integral, mut segments) = (0.0f64, 0.0f64, 0u64);
+    let n = 1024;
+    for _ in 0..rays {
+        let d = sample_uniform_sphere(rng.next_2d());
+        let offset = sample_uniform_sphere(rng.next_2d()) * (rng.next_f32().sqrt() * radius * 0.5);
+        let ray = Ray::new(centre + offset - d * (2.0 * radius), d);
+        let len = 4.0 * radius;
+        segments += medium
+            .pyramid
+            .segments_along(
+                &ray,
+                0.0,
+                len,
+                medium.tracking.majorant,
+                Some(sigma),
+                LookupModel::Probed,
+            )
+            .count() as u64;
+        let mut lookup = medium.density_along(&ray);
+        let mut probe = crate::medium::LocalProbe::new(table, grid, &ray, false);
+        let dt = f64::from(len) / f64::from(n);
+        for k in 0..n {
+            let t = (k as f32 + 0.5) * len / n as f32;
+            density_integral += f64::from(lookup.at(t)) * dt;
+            if let Some((_, hi)) = probe.at(t) {
+                majorant_integral += f64::from(hi) * dt;
+            }
+        }
+    }
+    Some(LevelFigures {
+        level: format!("local {}vx", table.cell_voxels()),
+        cells: table.cell_count(),
+        occupied: 0,
+        homogeneous: 0,
+        tightness: if majorant_integral > 0.0 {
+            density_integral / majorant_integral
+        } else {
+            1.0
+        },
+        lookups_per_unit_depth: if density_integral > 0.0 {
+            majorant_integral / density_integral
+        } else {
+            0.0
+        },
+        segments_per_ray: segments as f64 / f64::from(rays.max(1)),
+    })
 }
 
 /// Samples every occupied level-0 cell densely along random rays and reports the largest excess

@@ -13,10 +13,12 @@
 //! tolerate as long as every segment they bound is looked up: see
 //! [`MajorantSegment::is_homogeneous`]).
 
+mod fine;
 mod plan;
 mod segments;
 mod walk;
 
+pub use fine::{LocalBounds, MAX_LOCAL_CELLS};
 pub use segments::{MajorantSegment, Segments};
 
 use glam::{DAffine3, DVec3, IVec3};
@@ -90,7 +92,32 @@ pub enum LookupModel {
     /// Only collisions above the segment's minorant need a lookup (decomposition tracking,
     /// residual ratio tracking with the minorant as control): a segment costs max − min.
     AboveMinorant,
+    /// Tentative collisions at the segment's majorant are first tested against the local
+    /// bounds of the point ([`LocalBounds`]; `tracking::delta_track_local`): each costs
+    /// [`PROBE_COST`] lookups, and the lookups that remain depend only on the local bounds, not
+    /// on the segment. A segment costs `PROBE_COST ·` its majorant.
+    Probed,
 }
+
+impl LookupModel {
+    /// A distinct index per model (for one cached plan each).
+    #[must_use]
+    pub fn index(self) -> usize {
+        match self {
+            LookupModel::Majorant => 0,
+            LookupModel::AboveMinorant => 1,
+            LookupModel::Probed => 2,
+        }
+    }
+}
+
+/// The cost of a tentative collision decided by the local bounds (two uniform numbers, a
+/// logarithm, a table read and a comparison), in density lookups. Tuned by instruction counts
+/// (docs/BENCHMARKS.md, "Local bounds"): on the dense peer cloud smaller is better (0: 99 M
+/// instructions per spp, 0.2: 114 M, 0.3: 126 M; without local bounds 148 M), on the sparse
+/// puffs (512³, 20 puffs in empty space) the walk must still skip the empty space (0.1: 70 M,
+/// 0.2: 63 M, 0.3: 62 M; without 61 M).
+pub const PROBE_COST: f64 = 0.2;
 
 /// How segments are produced along a ray.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -138,8 +165,12 @@ pub struct MajorantPyramid {
     world_to_index: DAffine3,
     /// True when every bound is proven (see [`MajorantSegment::exact`]).
     exact: bool,
-    /// The adaptive walk's plan for the first extinction scale it was asked for.
-    plan: std::sync::OnceLock<plan::WalkPlan>,
+    /// The adaptive walk's plan per lookup model ([`LookupModel::index`]), for the first
+    /// extinction scale it was asked for.
+    plan: [std::sync::OnceLock<plan::WalkPlan>; 3],
+    /// Per-point bounds over the grid's dual lattice, when attached
+    /// ([`Self::with_local_bounds`]).
+    local: Option<LocalBounds>,
 }
 
 /// Statistics of one pyramid level (for `velour majorants`).
@@ -235,7 +266,8 @@ impl MajorantPyramid {
             background,
             world_to_index,
             exact: true,
-            plan: std::sync::OnceLock::new(),
+            plan: Default::default(),
+            local: None,
         }
     }
 
@@ -281,13 +313,13 @@ impl MajorantPyramid {
         )
     }
 
-    /// The adaptive walk's plan for extinction `sigma` per unit density: made on the first
-    /// request and kept (a medium has one extinction scale); `None` for another `sigma`, which
-    /// then walks by the single-threshold rule.
+    /// The adaptive walk's plan for extinction `sigma` per unit density under `model`: made on
+    /// the first request and kept (a medium has one extinction scale, and one model for free
+    /// flights and one for shadow rays); `None` for another `sigma`, which then walks by the
+    /// single-threshold rule.
     pub(crate) fn plan_for(&self, sigma: f32, model: LookupModel) -> Option<&plan::WalkPlan> {
-        let plan = self
-            .plan
-            .get_or_init(|| plan::WalkPlan::new(self, sigma, model));
+        let plan = self.plan.get(model.index())?;
+        let plan = plan.get_or_init(|| plan::WalkPlan::new(self, sigma, model));
         (plan.sigma == sigma && plan.model == model).then_some(plan)
     }
 
@@ -312,6 +344,7 @@ impl MajorantPyramid {
             match model {
                 LookupModel::Majorant => max,
                 LookupModel::AboveMinorant => (max - min).max(0.0),
+                LookupModel::Probed => (f64::from(max) * PROBE_COST) as f32,
             }
         }
     }
@@ -423,8 +456,26 @@ impl MajorantPyramid {
             background,
             world_to_index,
             exact,
-            plan: std::sync::OnceLock::new(),
+            plan: Default::default(),
+            local: None,
         })
+    }
+
+    /// Attaches the local bounds of channel `channel` of `grid` (the grid this pyramid was
+    /// built from; [`LocalBounds::from_grid`]).
+    pub fn with_local_bounds(
+        mut self,
+        grid: &SparseGrid,
+        channel: usize,
+    ) -> Result<Self, MajorantError> {
+        self.local = Some(LocalBounds::from_grid(grid, channel)?);
+        Ok(self)
+    }
+
+    /// The attached local bounds, if any.
+    #[must_use]
+    pub fn local_bounds(&self) -> Option<&LocalBounds> {
+        self.local.as_ref()
     }
 
     /// Edge of a level-0 cell in voxels (8 = one brick).

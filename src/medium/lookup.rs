@@ -5,8 +5,10 @@ use glam::Vec3;
 
 use crate::fabric::{FibreGridLookup, ShellLookup};
 use crate::grid::{Accessor, SparseGrid};
+use crate::majorant::LocalBounds;
 use crate::math::Ray;
 use crate::procedural::{FbmField, LazyFbmGrid};
+use crate::tracking::PointBounds;
 
 /// Density lookups along one ray, by distance.
 pub enum DensityLookup<'a> {
@@ -73,5 +75,42 @@ impl<'a> GridLookup<'a> {
     #[inline]
     pub fn at(&mut self, t: f32) -> f32 {
         self.accessor.sample_trilinear(self.o + self.d * t)
+    }
+}
+
+/// Point bounds along a ray from a grid's local-bounds table ([`LocalBounds`]), at the
+/// index-space points the grid's lookups along the same ray compute.
+pub struct LocalProbe<'a> {
+    table: &'a LocalBounds,
+    o: Vec3,
+    d: Vec3,
+    /// The density is the grid's scaled by a factor in [0, 1] (fibre-projected extinction):
+    /// the minimum is 0.
+    zero_min: bool,
+}
+
+impl<'a> LocalProbe<'a> {
+    /// Point bounds along `ray` (world space) from `table`, built over `grid`.
+    #[must_use]
+    pub fn new(table: &'a LocalBounds, grid: &SparseGrid, ray: &Ray, zero_min: bool) -> Self {
+        let w2i = grid.world_to_index();
+        LocalProbe {
+            table,
+            o: w2i.transform_point3(ray.o.as_dvec3()).as_vec3(),
+            d: w2i.transform_vector3(ray.d.as_dvec3()).as_vec3(),
+            zero_min,
+        }
+    }
+}
+
+impl PointBounds for LocalProbe<'_> {
+    #[inline]
+    fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+        let (a, b) = self.table.at(self.o + self.d * t);
+        Some(if self.zero_min {
+            (a.min(0.0), b.max(0.0))
+        } else {
+            (a, b)
+        })
     }
 }

@@ -23,7 +23,7 @@ pub use artist::{
 };
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
-pub use lookup::{DensityLookup, GridLookup};
+pub use lookup::{DensityLookup, GridLookup, LocalProbe};
 pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
 
 use crate::math::Ray;

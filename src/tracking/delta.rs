@@ -2,7 +2,7 @@
 //! weighted null-collision tracking, and its decomposition-tracking variant.
 
 use super::channels::hero_probabilities;
-use super::{pick_channel, DensityCoefficients, Flight, TrackingStats};
+use super::{pick_channel, DensityCoefficients, Flight, NoPointBounds, PointBounds, TrackingStats};
 use crate::majorant::MajorantSegment;
 use crate::sampling::ONE_MINUS_EPSILON;
 use crate::spectrum::Rgb;
@@ -49,7 +49,43 @@ where
     D: FnMut(f32) -> f32,
     U: FnMut() -> f32,
 {
-    track(segments, coeff, density, beta, u, stats, false)
+    track(
+        segments,
+        coeff,
+        density,
+        NoPointBounds,
+        beta,
+        u,
+        stats,
+        false,
+    )
+}
+
+/// [`delta_track`] with point bounds (docs/references.md §4.10): a tentative collision of a
+/// segment (rate M, the segment's majorant) is first tested against the local majorant m(x)
+/// of its point. With the same uniform number that decides real against null, `u·M ≥ m(x)`
+/// means a null collision whatever the density (thinning: the accepted points are a Poisson
+/// process of rate m(x)), and needs no lookup; otherwise the density is looked up and the
+/// collision is decided against m(x) with `u·M/m(x)`. The events are those of delta tracking
+/// with the segment's majorant; the weights are those of delta tracking with the local
+/// majorant (identical for grey media). Unbiased for any bounds (weighted tracking where the
+/// local bounds are violated), as long as the local bounds are proven wherever they are zero.
+pub fn delta_track_local<S, D, P, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    density: D,
+    local: P,
+    beta: Rgb,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Flight
+where
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    P: PointBounds,
+    U: FnMut() -> f32,
+{
+    track(segments, coeff, density, local, beta, u, stats, false)
 }
 
 /// Decomposition tracking (Kutz, Habel, Li, Novák 2017; docs/references.md §11.3): delta
@@ -72,14 +108,48 @@ where
     D: FnMut(f32) -> f32,
     U: FnMut() -> f32,
 {
-    track(segments, coeff, density, beta, u, stats, true)
+    track(
+        segments,
+        coeff,
+        density,
+        NoPointBounds,
+        beta,
+        u,
+        stats,
+        true,
+    )
 }
 
-/// The delta tracker, with (`decompose`) or without a control part.
-fn track<S, D, U>(
+/// [`decomposition_track`] with point bounds: the thinning of [`delta_track_local`], and the
+/// control part of each tentative collision is σ_t at the *local* minorant of its point (the
+/// exact minorant of a small cell, not the segment's, which is 0 wherever the segment touches
+/// empty voxels). Control collisions need no lookup. Unbiased for any bounds.
+pub fn decomposition_track_local<S, D, P, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    density: D,
+    local: P,
+    beta: Rgb,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Flight
+where
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    P: PointBounds,
+    U: FnMut() -> f32,
+{
+    track(segments, coeff, density, local, beta, u, stats, true)
+}
+
+/// The delta tracker, with (`decompose`) or without a control part, and with or without point
+/// bounds.
+#[allow(clippy::too_many_arguments)]
+fn track<S, D, P, U>(
     segments: S,
     coeff: &DensityCoefficients,
     mut density: D,
+    mut local_bounds: P,
     beta: Rgb,
     u: &mut U,
     stats: &mut TrackingStats,
@@ -88,6 +158,7 @@ fn track<S, D, U>(
 where
     S: IntoIterator<Item = MajorantSegment>,
     D: FnMut(f32) -> f32,
+    P: PointBounds,
     U: FnMut() -> f32,
 {
     let probs = hero_probabilities(beta, coeff);
@@ -134,13 +205,11 @@ where
         }
         // The control part (decomposition tracking) and each channel's probability, as hero,
         // that a tentative collision belongs to it; zero for plain delta tracking.
-        let (control_t, control_s) = if decompose {
+        let (seg_control_t, seg_control_s) = if decompose {
             (coeff.sigma_t_at(seg.min), coeff.sigma_s_at(seg.min))
         } else {
             (Rgb::ZERO, Rgb::ZERO)
         };
-        let p_control = control_t / majorant;
-        let p_rest = Rgb::ONE - p_control;
         // Distance from the segment start: keeps advancing where a step is below half an ulp
         // of the absolute distance (far from the origin).
         let mut local = 0.0f32;
@@ -151,6 +220,34 @@ where
             }
             let t = seg.t0 + local;
             let mut u_event = u();
+            // The bounds at this point: the segment's, or tighter local ones (thinning).
+            let mut lo = seg.min;
+            let mut hi = seg.max;
+            let mut major = majorant;
+            let (mut control_t, mut control_s) = (seg_control_t, seg_control_s);
+            if let Some((a, b)) = local_bounds.at(t) {
+                let (a, b) = (a.max(seg.min), b.min(seg.max));
+                if a <= b {
+                    let m = coeff.sigma_t_at(b).max_component().max(0.0);
+                    if m < majorant {
+                        if u_event * majorant >= m {
+                            // Above the local majorant: null whatever the density.
+                            stats.probed += 1;
+                            continue;
+                        }
+                        u_event = (u_event * majorant / m).min(ONE_MINUS_EPSILON);
+                        major = m;
+                    }
+                    lo = a;
+                    hi = b;
+                    if decompose {
+                        control_t = coeff.sigma_t_at(a);
+                        control_s = coeff.sigma_s_at(a);
+                    }
+                }
+            }
+            let p_control = control_t / major;
+            let p_rest = Rgb::ONE - p_control;
             if decompose {
                 if u_event < p_control[hero] {
                     // A control collision: real, no lookup.
@@ -160,7 +257,7 @@ where
                     return Flight::Scatter {
                         t,
                         weight: chain.weight(probs),
-                        density: seg.min,
+                        density: lo,
                     };
                 }
                 // The same number decides the residual's event.
@@ -168,11 +265,11 @@ where
             }
             let d = density(t);
             stats.lookups += 1;
-            if d > seg.max || d < seg.min {
+            if d > hi || d < lo {
                 stats.violations += 1;
             }
             let sigma_t = coeff.sigma_t_at(d);
-            let sigma_n = Rgb::splat(majorant) - sigma_t;
+            let sigma_n = Rgb::splat(major) - sigma_t;
             let sigma_r = sigma_t - control_t;
             // Decision probabilities of each channel as hero (weighted tracking: the
             // residual's |σ_r| against |σ_n|).
@@ -187,7 +284,7 @@ where
             }));
             if u_event < p_real[hero] {
                 chain.f *= coeff.sigma_s_at(d) - control_s;
-                chain.p *= p_rest * p_real * majorant;
+                chain.p *= p_rest * p_real * major;
                 stats.real_collisions += 1;
                 return Flight::Scatter {
                     t,
@@ -196,7 +293,7 @@ where
                 };
             }
             chain.f *= sigma_n;
-            chain.p *= p_rest * (Rgb::ONE - p_real) * majorant;
+            chain.p *= p_rest * (Rgb::ONE - p_real) * major;
             chain.renormalise();
             stats.null_collisions += 1;
             if chain.p.is_black() {

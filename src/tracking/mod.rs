@@ -31,13 +31,13 @@ mod ratio;
 mod split;
 
 pub use channels::{channel_probabilities, pick_channel};
-pub use delta::{decomposition_track, delta_track};
+pub use delta::{decomposition_track, decomposition_track_local, delta_track, delta_track_local};
 pub use homogeneous::{sample_homogeneous, HomogeneousFlight};
 pub use march::ray_march_free_flight;
 pub use march_estimators::{
     comb_teeth, jackknife_segment, order_survival, unbiased_ray_march_segment, URM_MAX_ORDER,
 };
-pub use ratio::transmittance;
+pub use ratio::{transmittance, transmittance_local};
 pub use split::{split_flight, SPLIT_MIN_SCATTER};
 
 use crate::majorant::{MajorantMode, MajorantSegment};
@@ -96,6 +96,26 @@ impl DensityCoefficients {
     }
 }
 
+/// Bounds on the density at a point of the ray that are cheaper than a lookup and usually
+/// tighter than the segment's (a table read: `majorant::LocalBounds`). The trackers decide
+/// most tentative collisions from them without a lookup (docs/references.md §4.10).
+pub trait PointBounds {
+    /// `(min, max)` of every density a lookup at distance `t` can return, or `None` when
+    /// unknown (the segment's bounds then apply).
+    fn at(&mut self, t: f32) -> Option<(f32, f32)>;
+}
+
+/// No point bounds: the trackers use the segments' bounds alone.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoPointBounds;
+
+impl PointBounds for NoPointBounds {
+    #[inline(always)]
+    fn at(&mut self, _t: f32) -> Option<(f32, f32)> {
+        None
+    }
+}
+
 /// Counters for the speed/accuracy measurements.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TrackingStats {
@@ -111,6 +131,9 @@ pub struct TrackingStats {
     pub violations: u64,
     /// Segments visited.
     pub segments: u64,
+    /// Tentative collisions (free flights and transmittance) rejected without a density
+    /// lookup because they lie above the local majorant of their point (point bounds).
+    pub probed: u64,
 }
 
 impl TrackingStats {
@@ -122,6 +145,7 @@ impl TrackingStats {
         self.null_collisions += o.null_collisions;
         self.violations += o.violations;
         self.segments += o.segments;
+        self.probed += o.probed;
     }
 }
 
@@ -174,6 +198,10 @@ pub struct TrackingConfig {
     pub transmittance: TransmittanceMode,
     /// Which majorants drive both.
     pub majorant: MajorantMode,
+    /// Test tentative collisions against per-point local bounds before looking the density
+    /// up (where the density field has them: grids and baked procedurals), and let the walk
+    /// stay at coarser segments accordingly (docs/references.md §4.10).
+    pub local_bounds: bool,
 }
 
 impl Default for TrackingConfig {
@@ -184,6 +212,7 @@ impl Default for TrackingConfig {
             free_flight: FreeFlightMethod::DeltaTracking,
             transmittance: TransmittanceMode::ResidualRatio(ControlVariate::Novak),
             majorant: MajorantMode::Hierarchical { finest: 0 },
+            local_bounds: false,
         }
     }
 }

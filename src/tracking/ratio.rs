@@ -1,7 +1,10 @@
 //! Transmittance estimators over majorant segments: ratio tracking, residual ratio tracking
 //! with a per-segment control density, and fixed-step ray marching.
 
-use super::{ControlVariate, DensityCoefficients, TrackingStats, TransmittanceMode};
+use super::{
+    ControlVariate, DensityCoefficients, NoPointBounds, PointBounds, TrackingStats,
+    TransmittanceMode,
+};
 use crate::majorant::MajorantSegment;
 use crate::spectrum::Rgb;
 
@@ -34,7 +37,7 @@ fn control_density(seg: &MajorantSegment, cv: ControlVariate, sigma_scale: f32) 
 pub fn transmittance<S, D, U>(
     segments: S,
     coeff: &DensityCoefficients,
-    mut density: D,
+    density: D,
     mode: TransmittanceMode,
     u: &mut U,
     stats: &mut TrackingStats,
@@ -42,6 +45,32 @@ pub fn transmittance<S, D, U>(
 where
     S: IntoIterator<Item = MajorantSegment>,
     D: FnMut(f32) -> f32,
+    U: FnMut() -> f32,
+{
+    transmittance_local(segments, coeff, density, NoPointBounds, mode, u, stats)
+}
+
+/// [`transmittance`] with point bounds (docs/references.md §4.10): ratio and residual ratio
+/// tracking accept each tentative collision of a segment (rate M, its residual majorant) with
+/// probability m(x)/M, m(x) the residual majorant of the point's local bounds, without a
+/// lookup, and weigh the accepted ones against m(x): ratio tracking with the local majorant,
+/// sampled by thinning. Unbiased; the other modes ignore the point bounds. Fewer lookups, but a
+/// ratio estimate's variance grows as its majorant tightens (relative second moment
+/// exp(∫σ²/m) for constant σ), so the media do not use it: on the dense peer cloud it took 35 %
+/// of the shadow rays' lookups at 1.5× the image's relative MSE (docs/references.md §4.10).
+pub fn transmittance_local<S, D, P, U>(
+    segments: S,
+    coeff: &DensityCoefficients,
+    mut density: D,
+    mut local_bounds: P,
+    mode: TransmittanceMode,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> Rgb
+where
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    P: PointBounds,
     U: FnMut() -> f32,
 {
     let st = coeff.sigma_t;
@@ -96,12 +125,28 @@ where
                                 break;
                             }
                             let t = seg.t0 + local;
+                            let (mut lo, mut hi, mut major) = (seg.min, seg.max, majorant);
+                            if let Some((a, b)) = local_bounds.at(t) {
+                                let (a, b) = (a.max(seg.min), b.min(seg.max));
+                                if a <= b {
+                                    let m = (b - control).max(control - a).max(0.0) * s_max;
+                                    if m < majorant {
+                                        if u() * majorant >= m {
+                                            stats.probed += 1;
+                                            continue;
+                                        }
+                                        major = m;
+                                    }
+                                    lo = a;
+                                    hi = b;
+                                }
+                            }
                             let d = density(t);
                             stats.transmittance_lookups += 1;
-                            if d > seg.max || d < seg.min {
+                            if d > hi || d < lo {
                                 stats.violations += 1;
                             }
-                            tr *= Rgb::ONE - st * ((d - control) / majorant);
+                            tr *= Rgb::ONE - st * ((d - control) / major);
                             if tr.max_component().abs() < 0.05 {
                                 if u() < 0.75 {
                                     return Rgb::ZERO;

@@ -197,6 +197,8 @@ pub struct TrackingDesc {
     pub level: Option<u8>,
     /// Ray-marching step, world units.
     pub step: Option<f32>,
+    /// Decide tentative collisions from per-point local bounds before looking the density up.
+    pub local_bounds: Option<bool>,
 }
 
 /// `noise = { ... }`: procedural fBm density.

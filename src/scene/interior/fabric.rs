@@ -189,7 +189,7 @@ fn build_fabric(
     };
     let scale = extinction.sigma_scale();
     let sigma_t = attenuation.map(|d| density * scale / d);
-    Ok(HeterogeneousMedium {
+    let mut medium = HeterogeneousMedium {
         field,
         pyramid,
         coefficients: DensityCoefficients::new(sigma_t, sigma_t),
@@ -203,5 +203,7 @@ fn build_fabric(
             extinction,
             shading,
         })),
-    })
+    };
+    medium.attach_local_bounds().map_err(|e| bad(&e))?;
+    Ok(medium)
 }

@@ -41,7 +41,7 @@ pub(super) fn build(
         ))
     })?;
     let (field, pyramid) = fbm_field(at, d, xf, rest_bounds)?;
-    Ok((look.into_medium(field, pyramid), nee))
+    Ok((look.into_medium(at, field, pyramid)?, nee))
 }
 
 /// The noise field over the lattice of `voxel_size` spanning `rest_bounds`, baked, baked

@@ -72,15 +72,25 @@ impl DensityLook {
         })
     }
 
-    /// The medium of `field` with its majorant `pyramid`.
-    pub fn into_medium(self, field: DensityField, pyramid: MajorantPyramid) -> Medium {
-        Medium::Heterogeneous(Box::new(HeterogeneousMedium {
+    /// The medium of `field` with its majorant `pyramid` (and the pyramid's local bounds when
+    /// the tracking configuration uses them).
+    pub fn into_medium(
+        self,
+        at: &Site,
+        field: DensityField,
+        pyramid: MajorantPyramid,
+    ) -> Result<Medium, SceneError> {
+        let mut medium = HeterogeneousMedium {
             field,
             pyramid,
             coefficients: self.coefficients,
             phase: self.phase,
             tracking: self.tracking,
             fabric: None,
-        }))
+        };
+        medium
+            .attach_local_bounds()
+            .map_err(|e| at.invalid(format!("{}: local bounds: {e}", at.owner)))?;
+        Ok(Medium::Heterogeneous(Box::new(medium)))
     }
 }

@@ -61,5 +61,6 @@ pub(super) fn build_tracking(
             )))
         }
     };
+    cfg.local_bounds = t.local_bounds.unwrap_or(cfg.local_bounds);
     Ok(cfg)
 }

@@ -29,7 +29,7 @@ pub(super) fn build(
     let look = DensityLook::read(at, &keys, density, attenuation)?;
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let (field, pyramid) = voxel_field(at, d, xf)?;
-    Ok((look.into_medium(field, pyramid), nee))
+    Ok((look.into_medium(at, field, pyramid)?, nee))
 }
 
 /// The grid named by `grid` (default "density") of the file, checked (finite, scalar,
