@@ -105,6 +105,8 @@ pub struct RenderSummary {
     pub threads: usize,
     /// Heterogeneous-medium tracking counters.
     pub tracking: crate::tracking::TrackingStats,
+    /// Manifold-walk counters (`nee = "manifold"`): attempts, solutions, failures by kind.
+    pub manifold: crate::integrator::manifold::ManifoldStats,
 }
 
 impl std::fmt::Display for RenderSummary {
@@ -141,6 +143,9 @@ impl std::fmt::Display for RenderSummary {
                     t.probed, t.segments
                 )?;
             }
+        }
+        if self.manifold.attempts > 0 {
+            write!(f, " | manifold NEE: {}", self.manifold)?;
         }
         Ok(())
     }
@@ -690,6 +695,7 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
         non_finite: stats.non_finite + film.dropped_samples(),
         threads,
         tracking: stats.tracking,
+        manifold: stats.manifold,
     };
     Ok(BudgetResult {
         film,

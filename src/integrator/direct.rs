@@ -198,12 +198,16 @@ pub(super) fn estimate_direct(
 }
 
 /// Radiance arriving from lights hit by a sampled ray (sphere light `shape` or escaped rays),
-/// MIS-weighted against the previous vertex's NEE.
+/// MIS-weighted against the previous vertex's NEE. With `after_manifold` (the ray refracted
+/// out of a `manifold` object straight from an interior vertex), the lights the manifold
+/// connection samples (sphere and distant lights) give nothing: that connection alone
+/// accounts for those paths (`super::manifold`).
 pub(super) fn emitted(
     scene: &Scene,
     dir: Vec3,
     prev: &PrevVertex,
     sphere_light: Option<(usize, Vec3)>,
+    after_manifold: bool,
 ) -> Rgb {
     let weight = |li: usize, light_point: Option<Vec3>| -> f32 {
         if !prev.did_nee {
@@ -231,6 +235,7 @@ pub(super) fn emitted(
         }
     };
     match sphere_light {
+        Some(_) if after_manifold => Rgb::ZERO,
         Some((li, point)) => {
             if let crate::light::Light::Sphere { radiance, .. } = &scene.lights[li] {
                 *radiance * weight(li, Some(point))
@@ -241,7 +246,9 @@ pub(super) fn emitted(
         None => {
             let mut l = Rgb::ZERO;
             for (li, light) in scene.lights.iter().enumerate() {
-                if light.is_infinite() {
+                if light.is_infinite()
+                    && !(after_manifold && super::manifold::is_manifold_light(light))
+                {
                     let le = light.escaped_radiance(dir);
                     if !le.is_black() {
                         l += le * weight(li, None);

@@ -14,6 +14,7 @@
 mod connect;
 mod direct;
 mod interiors;
+pub mod manifold;
 
 pub use interiors::{InteriorStack, MAX_NESTING};
 
@@ -83,6 +84,8 @@ pub struct TraceStats {
     pub non_finite: u64,
     /// Heterogeneous-medium tracking counters (lookups, collisions, bound violations).
     pub tracking: TrackingStats,
+    /// Manifold-walk counters (`nee = "manifold"`).
+    pub manifold: manifold::ManifoldStats,
 }
 
 impl TraceStats {
@@ -93,6 +96,7 @@ impl TraceStats {
         self.vertices += o.vertices;
         self.non_finite += o.non_finite;
         self.tracking.merge(&o.tracking);
+        self.manifold.merge(&o.manifold);
     }
 }
 
@@ -182,6 +186,25 @@ struct PathState {
     guided_from: Option<u32>,
     /// The ray's cone, for texture footprints.
     cone: RayCone,
+    /// Where the path stands with respect to a manifold connection (no double counting of
+    /// the paths `nee = "manifold"` samples, see [`ManifoldLeg`]).
+    manifold_leg: ManifoldLeg,
+}
+
+/// The unidirectional counterpart of a manifold connection (`src/integrator/manifold`): a
+/// path that scatters at an interior vertex of a `manifold` object, reaches that object's
+/// boundary first, refracts out through its smooth lobe and then reaches a sphere or
+/// distant light with nothing but null or false boundaries (and index-matched pass-through
+/// dielectrics) on the way is the path `x0 → x1 → light` that MNEE samples; its light hit
+/// contributes nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ManifoldLeg {
+    /// Not on such a path.
+    None,
+    /// Left an interior vertex of a `manifold` interior; no real boundary crossed since.
+    Inside,
+    /// Refracted out of that object's smooth boundary straight from the vertex.
+    Through,
 }
 
 fn radiance(
@@ -235,6 +258,7 @@ impl PathState {
             crossings: 0,
             guided_from: None,
             cone: RayCone { width: 0.0, spread },
+            manifold_leg: ManifoldLeg::None,
         }
     }
 
@@ -339,6 +363,14 @@ impl PathState {
                 self.guided_from = Some(oi);
             }
         }
+        self.manifold_leg = ManifoldLeg::None;
+        if obj.nee == NeeStrategy::Manifold {
+            if self.depth + 1 < scene.film.max_depth {
+                self.radiance += self.beta
+                    * manifold::manifold_connection(scene, p, &phase, self.stack, sampler, stats);
+            }
+            self.manifold_leg = ManifoldLeg::Inside;
+        }
         let Some(s) = phase.sample(sampler) else {
             return Step::Stop;
         };
@@ -355,7 +387,8 @@ impl PathState {
 
     /// 2. An escaped ray sees the infinite lights.
     fn escape(&mut self, scene: &Scene) {
-        self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, None);
+        let through = self.manifold_leg == ManifoldLeg::Through;
+        self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, None, through);
     }
 
     /// 3–5. What the ray hit: a light, a false or null boundary, or a surface.
@@ -388,9 +421,10 @@ impl PathState {
 
     /// 3. Sphere lights are emitters only.
     fn hit_light(&mut self, scene: &Scene, hit: &Hit, light: usize) {
+        let through = self.manifold_leg == ManifoldLeg::Through;
         if self.ray.d.dot(hit.ng) < 0.0 {
             self.radiance +=
-                self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)));
+                self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)), through);
         }
         if self.aov.is_none() {
             self.aov = Some((Rgb::ZERO, hit.ns, (hit.p - self.origin).length()));
@@ -407,6 +441,8 @@ impl PathState {
         entering: bool,
         sampler: &mut PixelSampler,
     ) -> Step {
+        // The manifold connection passes null and false boundaries on both sides of the
+        // interface, as its projection and shadow rays do: `manifold_leg` is kept.
         if entering {
             self.entry_normal = hit.ns;
             let obj = &scene.objects[oi as usize];
@@ -518,6 +554,30 @@ impl PathState {
         if geometric_transmit != bs.is_transmission {
             return Step::Stop;
         }
+        self.manifold_leg = match self.manifold_leg {
+            ManifoldLeg::Inside
+                if !entering
+                    && bs.is_delta
+                    && bs.is_transmission
+                    && manifold::is_manifold_interface(obj, outside_ior) =>
+            {
+                ManifoldLeg::Through
+            }
+            // An index-matched pass-through, which the connection's walk to the interface
+            // (plain dielectrics only, not blends) and its shadow ray (any) also cross.
+            ManifoldLeg::Inside
+                if bs.is_delta
+                    && bs.is_transmission
+                    && bs.eta == 1.0
+                    && matches!(obj.surface, ObjectSurface::Dielectric(_)) =>
+            {
+                ManifoldLeg::Inside
+            }
+            ManifoldLeg::Through if bs.is_delta && bs.is_transmission && bs.eta == 1.0 => {
+                ManifoldLeg::Through
+            }
+            _ => ManifoldLeg::None,
+        };
         self.beta *= bs.weight;
         if !bs.is_delta {
             self.cone.widen();

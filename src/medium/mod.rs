@@ -44,6 +44,11 @@ pub enum NeeStrategy {
     /// for dense media behind a rough dielectric lit by small lights, where the BTDF lobe
     /// makes exit-point NEE noisy. Unbiased; MIS-combined with BTDF sampling at the exit.
     ExitGuided,
+    /// Manifold next event estimation (Hanika, Droske and Fascione 2015) from every interior
+    /// scattering vertex through the object's smooth dielectric boundary to sphere and
+    /// distant lights (`src/integrator/manifold`): for media behind a smooth refractive
+    /// interface lit by small lights. Biased only by missed extra solutions and failed walks.
+    Manifold,
 }
 
 /// A homogeneous scattering medium.

@@ -58,6 +58,28 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         }
         lights.push(light);
     }
+    if !lights
+        .iter()
+        .any(|l| matches!(l, Light::Sphere { .. } | Light::Distant { .. }))
+    {
+        if let Some((name, line, _)) = built.manifold.first() {
+            return Err(ctx.invalid(
+                *line,
+                format!("{name}: interior.nee = \"manifold\" connects to sphere and distant lights, but the scene has none (only environments, or no light)"),
+            ));
+        }
+    }
+    let any_interface = built.objects.iter().any(|o| {
+        matches!(&o.surface, super::ObjectSurface::Dielectric(d)
+            if d.coat.is_none() && d.ior != 1.0
+                && d.roughness.max() * d.roughness.max() < crate::bsdf::microfacet::SMOOTH_ALPHA)
+    });
+    if let Some((name, line, _)) = built.manifold.iter().find(|m| m.2 && !any_interface) {
+        return Err(ctx.invalid(
+            *line,
+            format!("{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0), but it has no surface and no object of the scene has such a boundary to enclose it"),
+        ));
+    }
     if lights.is_empty() {
         warnings.push(format!(
             "{}: the scene has no lights; the image will be black",

@@ -9,6 +9,7 @@ use super::interior::{build_medium, fabric_note, Placement};
 use super::surface::build_surface;
 use super::validate::{check_range, reject_unused, vec3};
 use super::{Object, ObjectSurface, SceneError};
+use crate::bsdf::microfacet::SMOOTH_ALPHA;
 use crate::fabric::lod::ViewFootprint;
 use crate::geometry::{load_ply, Shape, TriangleMesh};
 use crate::math::{Aabb, Mat4, Vec3};
@@ -22,6 +23,10 @@ pub(super) struct ObjectList {
     pub objects: Vec<Object>,
     /// Interiors, indexed by [`Object::medium`].
     pub media: Vec<Medium>,
+    /// Objects with `nee = "manifold"`: name, the interior table's line, and whether the
+    /// object has no surface (its interface is an enclosing object's): the scene checks that a
+    /// light they can connect to, and such an enclosing interface, exist.
+    pub manifold: Vec<(String, usize, bool)>,
 }
 
 impl ObjectList {
@@ -88,6 +93,15 @@ impl ObjectList {
             }
             None => (None, NeeStrategy::ExitPoint),
         };
+        if nee == NeeStrategy::Manifold {
+            let interior_line = desc
+                .interior
+                .as_ref()
+                .map_or(line, |i| ctx.line_of(i.span().start));
+            check_manifold_boundary(ctx, interior_line, &name, &surface)?;
+            let enclosed = matches!(surface, ObjectSurface::Null);
+            self.manifold.push((name.clone(), interior_line, enclosed));
+        }
         let media = &self.media;
         if let Some(note) = medium.and_then(|m| fabric_note(&media[m as usize])) {
             notes.push(format!("{name}: {note}"));
@@ -146,10 +160,14 @@ impl ObjectList {
         };
         // Exit-point NEE needs a scattering boundary: behind an index-matched one (no surface,
         // or a dielectric of IOR 1) it would never happen, so NEE moves to the interior
-        // vertices, where transparent shadows through such a boundary are exact.
+        // vertices, where transparent shadows through such a boundary are exact. (Manifold NEE
+        // behind no surface refracts at the enclosing boundary instead.)
         let index_matched = matches!(&surface, ObjectSurface::Null)
             || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
-        let nee = if medium.is_some() && index_matched && nee != NeeStrategy::Interior {
+        let nee = if medium.is_some()
+            && index_matched
+            && !matches!(nee, NeeStrategy::Interior | NeeStrategy::Manifold)
+        {
             if desc
                 .interior
                 .as_ref()
@@ -204,6 +222,48 @@ impl ObjectList {
         });
         Ok(shape)
     }
+}
+
+/// `nee = "manifold"` needs the object's own boundary to be a smooth refracting dielectric
+/// (the interface the manifold walk solves on): a `dielectric` surface whose roughness the
+/// BSDF treats as smooth (roughness² below [`SMOOTH_ALPHA`], i.e. roughness < 0.0316), an IOR
+/// other than 1 and no coat; or no surface at all (an index-matched region inside such an
+/// object, e.g. an iris inside an eye: the walk then refracts at the enclosing boundary, which
+/// [`super::build`] checks exists).
+fn check_manifold_boundary(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    surface: &ObjectSurface,
+) -> Result<(), SceneError> {
+    let why = match surface {
+        ObjectSurface::Dielectric(d) if d.roughness.max() * d.roughness.max() >= SMOOTH_ALPHA => {
+            format!(
+                "its surface.roughness = {} is rough (must be 0, below {:.4} at most)",
+                d.roughness.max(),
+                SMOOTH_ALPHA.sqrt()
+            )
+        }
+        ObjectSurface::Dielectric(d) if d.ior == 1.0 => {
+            "its surface.ior = 1 does not refract".to_string()
+        }
+        ObjectSurface::Dielectric(d) if d.coat.is_some() => {
+            "its surface has a coat (not supported by the manifold walk)".to_string()
+        }
+        ObjectSurface::Dielectric(_) | ObjectSurface::Null => return Ok(()),
+        ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) => {
+            "its surface is not a dielectric".to_string()
+        }
+        ObjectSurface::Blend(_) => {
+            "its surface is a blend (not supported by the manifold walk)".to_string()
+        }
+    };
+    Err(ctx.invalid(
+        line,
+        format!(
+            "{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0, or no surface inside such an object), but {why}"
+        ),
+    ))
 }
 
 /// Texture units per world unit of a shape's surface: sqrt(UV area / world area) over the

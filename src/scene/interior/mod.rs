@@ -188,9 +188,10 @@ fn extinction_and_nee(
         "exit" => NeeStrategy::ExitPoint,
         "interior" => NeeStrategy::Interior,
         "exit_guided" => NeeStrategy::ExitGuided,
+        "manifold" => NeeStrategy::Manifold,
         other => {
             return Err(at.invalid(format!(
-                "{}: interior.nee = \"{other}\" is unknown (expected \"exit\", \"exit_guided\" or \"interior\")",
+                "{}: interior.nee = \"{other}\" is unknown (expected \"exit\", \"exit_guided\", \"interior\" or \"manifold\")",
                 at.name
             )))
         }

@@ -1,0 +1,389 @@
+//! The scene's boundary of one object as an [`Interface`] for the manifold walk: a ray cast
+//! (`f32`, through the BVH) finds the crossed primitive, then the crossing and its local
+//! geometry are recomputed in `f64` on that primitive, analytically for spheres, on the
+//! triangle's plane with barycentric interpolation of the vertex normals for meshes (their
+//! derivatives along the tangent plane give the curvature the constraint needs), and on the
+//! face's plane for boxes.
+
+// Comparisons are written `!(x > 0.0)` on purpose: they also reject NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use glam::DVec3;
+
+use super::super::interiors::{
+    current_medium, enter, is_false_intersection, InteriorStack, MAX_NESTING,
+};
+use super::solve::{tangents, Interface, InterfacePoint};
+use crate::geometry::{Hit, Shape};
+use crate::math::{Ray, Vec3};
+use crate::medium::Medium;
+use crate::scene::{DielectricParams, Object, ObjectSurface, Scene, ShapeOwner};
+
+/// True when `obj`'s boundary can be the manifold walk's interface for a path whose medium on
+/// the far side has IOR `outside_ior`: a smooth dielectric (the BSDF's delta lobe), without a
+/// coat, that refracts (relative IOR ≠ 1). The integrator's no-double-counting rule
+/// (`ManifoldLeg`) uses the same test.
+#[must_use]
+pub(in crate::integrator) fn is_manifold_interface(obj: &Object, outside_ior: f32) -> bool {
+    match &obj.surface {
+        ObjectSurface::Dielectric(d) => {
+            d.coat.is_none()
+                && d.roughness.max() * d.roughness.max() < crate::bsdf::microfacet::SMOOTH_ALPHA
+                && d.ior / outside_ior.max(1e-6) != 1.0
+        }
+        ObjectSurface::Fixed(_)
+        | ObjectSurface::Textured(_)
+        | ObjectSurface::Blend(_)
+        | ObjectSurface::Null => false,
+    }
+}
+
+/// True when a dielectric boundary is a pass-through for the medium outside it (IOR
+/// `outside_ior`): relative IOR exactly 1 (the BSDF's delta pass-through; its tint is part of
+/// the shadow rays' transmittance).
+#[must_use]
+pub(in crate::integrator) fn is_index_matched(d: &DielectricParams, outside_ior: f32) -> bool {
+    d.ior / outside_ior.max(1e-6) == 1.0
+}
+
+/// The first refracting boundary seen from inside: the ray from the vertex passes null, false
+/// and index-matched boundaries (updating a copy of the interior stack, as a unidirectional path does)
+/// and stops at the first real boundary, which must be a smooth refractive dielectric that the
+/// ray leaves ([`is_manifold_interface`]). The first projection (the seed) fixes which object
+/// that is; later ones must reach the same object.
+pub(super) struct SceneInterface<'a> {
+    pub scene: &'a Scene,
+    /// The vertex's interior stack.
+    pub stack: InteriorStack,
+    /// The interface object, once the seed has found it.
+    pub object: Option<u32>,
+    /// The interior stack just inside the interface at the last successful projection.
+    pub inside: InteriorStack,
+    /// Rays cast so far.
+    pub rays: u64,
+    /// Length of the seed line's first segment, in the vertex's own medium (for the
+    /// roulette).
+    pub seed_first_segment: f32,
+    /// Texture coordinates of the last interface hit (for a textured tint).
+    pub uv: crate::math::Vec2,
+}
+
+/// The most boundaries a walk crosses.
+pub(super) const SEED_SEGMENTS: usize = 4 * MAX_NESTING;
+
+impl<'a> SceneInterface<'a> {
+    pub fn new(scene: &'a Scene, stack: &InteriorStack) -> Self {
+        SceneInterface {
+            scene,
+            stack: *stack,
+            object: None,
+            inside: *stack,
+            rays: 0,
+            seed_first_segment: 0.0,
+            uv: crate::math::Vec2::ZERO,
+        }
+    }
+
+    /// IORs inside and outside the interface at the last projection: (the interface object's
+    /// IOR, the IOR of the medium around it).
+    pub fn iors(&self) -> Option<(f32, f32)> {
+        let oi = self.object?;
+        let obj = self.scene.objects.get(oi as usize)?;
+        Some((obj.ior, self.inside.ior(&self.scene.objects, Some(oi))))
+    }
+
+    /// The first real boundary along the ray from `x0` (through null and false boundaries),
+    /// if it is a manifold interface the ray leaves: the hit and the stack before it.
+    fn first_interface(&mut self, ray: &Ray) -> Option<(Hit, InteriorStack)> {
+        let seed = self.object.is_none();
+        let mut first = None;
+        // Projections only test passability; the interiors picked on entering do not matter.
+        let mut picks = || 0.5;
+        let found = self.walk(ray, &mut picks, |_, _, length| {
+            first.get_or_insert(length);
+        });
+        if seed {
+            self.seed_first_segment = first.unwrap_or(0.0);
+        }
+        if let Some((hit, _, _)) = &found {
+            self.uv = hit.uv;
+        }
+        found.map(|(hit, stack, _)| (hit, stack))
+    }
+
+    /// The transmittance from `x0` along `dir` to the interface (the media on the way, and the
+    /// tints of index-matched dielectrics crossed), by the media's transmittance estimators;
+    /// zero if the ray does not reach the interface object through passable boundaries. The
+    /// walk ends on the interface itself, not at a distance, so the ray offsets at the
+    /// boundaries crossed cannot make it stop short or run into the interface.
+    pub fn transmittance(
+        &mut self,
+        x0: Vec3,
+        dir: Vec3,
+        u: &mut impl FnMut() -> f32,
+        tracking: &mut crate::tracking::TrackingStats,
+    ) -> crate::spectrum::Rgb {
+        let mut tr = crate::spectrum::Rgb::ONE;
+        let mut picks = || 0.5;
+        let found = self.walk(&Ray::new(x0, dir), &mut picks, |medium, origin, length| {
+            if let Some(m) = medium {
+                tr *= m.transmittance(&Ray::new(origin, dir), length, &mut *u, tracking);
+            }
+        });
+        match found {
+            Some((_, _, tint)) => tr * tint,
+            None => crate::spectrum::Rgb::ZERO,
+        }
+    }
+
+    /// Follows the ray from its origin through null, false and index-matched boundaries
+    /// (updating a copy of the vertex's stack, as a unidirectional path does) to the first
+    /// other boundary, which must be a manifold interface the ray leaves (the object of the
+    /// seed, once known). Calls `segment(medium, origin, length)` for every segment (the
+    /// governing medium, if any). Returns the interface hit, the stack just inside it and the
+    /// product of the index-matched dielectrics' tints.
+    fn walk(
+        &mut self,
+        ray: &Ray,
+        u: &mut impl FnMut() -> f32,
+        mut segment: impl FnMut(Option<&Medium>, Vec3, f32),
+    ) -> Option<(Hit, InteriorStack, crate::spectrum::Rgb)> {
+        let scene = self.scene;
+        let mut stack = self.stack;
+        let mut origin = ray.o;
+        let mut tint = crate::spectrum::Rgb::ONE;
+        for _ in 0..SEED_SEGMENTS {
+            self.rays += 1;
+            let hit = scene
+                .geometry
+                .intersect(&Ray::new(origin, ray.d), f32::INFINITY)?;
+            let mut scratch = None;
+            segment(
+                current_medium(scene, &stack, &mut scratch).map(|(m, _)| m),
+                origin,
+                hit.t,
+            );
+            let ShapeOwner::Object(oi) = *scene.shape_owner.get(hit.shape as usize)? else {
+                return None;
+            };
+            let obj = scene.objects.get(oi as usize)?;
+            let entering = ray.d.dot(hit.ng) < 0.0;
+            let outside = stack.ior(&scene.objects, Some(oi));
+            let passes = obj.surface.transmits()
+                && (is_false_intersection(scene, &stack, oi, entering)
+                    || match &obj.surface {
+                        ObjectSurface::Null => true,
+                        // Index-matched: the smooth lobe passes straight through, tinted.
+                        ObjectSurface::Dielectric(d) if is_index_matched(d, outside) => {
+                            tint *= d.tint.eval(hit.uv, 0.0);
+                            true
+                        }
+                        // Blends are not walked through (nor counted as pass-through by the
+                        // integrator's `ManifoldLeg`).
+                        ObjectSurface::Dielectric(_)
+                        | ObjectSurface::Fixed(_)
+                        | ObjectSurface::Textured(_)
+                        | ObjectSurface::Blend(_) => false,
+                    });
+            if !passes {
+                let ok = !entering
+                    && self.object.is_none_or(|o| o == oi)
+                    && is_manifold_interface(obj, outside);
+                return ok.then_some((hit, stack, tint));
+            }
+            if entering {
+                enter(scene, &mut stack, oi, hit.uv, 0.0, &mut *u);
+            } else {
+                stack.remove(oi);
+            }
+            origin = hit.spawn_origin(ray.d);
+        }
+        None
+    }
+}
+
+fn v64(v: Vec3) -> DVec3 {
+    DVec3::new(f64::from(v.x), f64::from(v.y), f64::from(v.z))
+}
+
+fn v32(v: DVec3) -> Vec3 {
+    Vec3::new(v.x as f32, v.y as f32, v.z as f32)
+}
+
+impl Interface for SceneInterface<'_> {
+    fn project(&mut self, x0: DVec3, target: DVec3) -> Option<InterfacePoint> {
+        let d = (target - x0).try_normalize()?;
+        let ray = Ray::new(v32(x0), v32(d));
+        let (hit, stack) = self.first_interface(&ray)?;
+        let point = match self.scene.geometry.shape(hit.shape as usize)? {
+            Shape::Sphere { center, radius } => on_sphere(x0, d, v64(*center), f64::from(*radius)),
+            Shape::Mesh(mesh) => on_triangle(x0, d, mesh, &hit),
+            Shape::Box { .. } => on_plane(x0, d, v64(hit.p), v64(hit.ng)),
+        }?;
+        // The ray left through the crossing: the refined point must agree.
+        if !(d.dot(point.ng) > 0.0) {
+            return None;
+        }
+        if let ShapeOwner::Object(oi) = self.scene.shape_owner.get(hit.shape as usize)? {
+            self.object = Some(*oi);
+        }
+        self.inside = stack;
+        Some(point)
+    }
+}
+
+/// The far crossing of the ray `x0 + t d` (from inside) with a sphere.
+fn on_sphere(x0: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<InterfacePoint> {
+    let oc = x0 - c;
+    let b = oc.dot(d);
+    // |oc − b d|² is the squared distance of the line from the centre (stable form).
+    let perp = oc - d * b;
+    let disc = r * r - perp.length_squared();
+    if !(disc >= 0.0) {
+        return None;
+    }
+    let t = -b + disc.sqrt();
+    if !(t > 0.0) {
+        return None;
+    }
+    let n = ((x0 + d * t) - c) / r;
+    let n = n.try_normalize()?;
+    let p = c + n * r;
+    let (s, tt) = tangents(n);
+    Some(InterfacePoint {
+        p,
+        ng: n,
+        ns: n,
+        dpdu: [s, tt],
+        dndu: [s / r, tt / r],
+    })
+}
+
+/// The crossing of the ray with the plane through `p` with unit normal `n` (flat: no normal
+/// derivative).
+fn on_plane(x0: DVec3, d: DVec3, p: DVec3, n: DVec3) -> Option<InterfacePoint> {
+    let n = n.try_normalize()?;
+    let dn = d.dot(n);
+    if dn.abs() < 1e-12 {
+        return None;
+    }
+    let t = (p - x0).dot(n) / dn;
+    let (s, tt) = tangents(n);
+    Some(InterfacePoint {
+        p: x0 + d * t,
+        ng: n,
+        ns: n,
+        dpdu: [s, tt],
+        dndu: [DVec3::ZERO; 2],
+    })
+}
+
+/// The crossing of the ray with the hit triangle's plane, with the interpolated shading normal
+/// and its derivatives along the plane.
+fn on_triangle(
+    x0: DVec3,
+    d: DVec3,
+    mesh: &crate::geometry::TriangleMesh,
+    hit: &Hit,
+) -> Option<InterfacePoint> {
+    let tri = mesh.indices.get(hit.prim as usize)?;
+    let pos =
+        |k: usize| -> Option<DVec3> { mesh.positions.get(*tri.get(k)? as usize).map(|v| v64(*v)) };
+    let (p0, p1, p2) = (pos(0)?, pos(1)?, pos(2)?);
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let ng = e1.cross(e2).try_normalize()?;
+    let flat = on_plane(x0, d, p0, ng)?;
+    let p = flat.p;
+    // Barycentrics (b1, b2) of p from the Gram system of the edges.
+    let (g11, g12, g22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let det = g11 * g22 - g12 * g12;
+    if !(det.abs() > 0.0) {
+        return None;
+    }
+    let coords = |v: DVec3| -> (f64, f64) {
+        let (r1, r2) = (e1.dot(v), e2.dot(v));
+        ((g22 * r1 - g12 * r2) / det, (g11 * r2 - g12 * r1) / det)
+    };
+    let Some(normals) = &mesh.normals else {
+        return Some(flat);
+    };
+    let nrm = |k: usize| -> Option<DVec3> { normals.get(*tri.get(k)? as usize).map(|v| v64(*v)) };
+    let (n0, n1, n2) = (nrm(0)?, nrm(1)?, nrm(2)?);
+    let (b1, b2) = coords(p - p0);
+    let raw = n0 * (1.0 - b1 - b2) + n1 * b1 + n2 * b2;
+    let len = raw.length();
+    if !(len > 1e-12) {
+        return Some(flat);
+    }
+    // Flipped into the geometric hemisphere, as the renderer's hits are.
+    let sign = if raw.dot(ng) < 0.0 { -1.0 } else { 1.0 };
+    let ns = raw * (sign / len);
+    let mut dndu = [DVec3::ZERO; 2];
+    for (k, t) in flat.dpdu.iter().enumerate() {
+        let (a, b) = coords(*t);
+        let draw = (n1 - n0) * a + (n2 - n0) * b;
+        dndu[k] = (draw * sign - ns * ns.dot(draw * sign)) / len;
+    }
+    Some(InterfacePoint {
+        p,
+        ng,
+        ns,
+        dpdu: flat.dpdu,
+        dndu,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::TriangleMesh;
+    use crate::math::Vec2;
+
+    /// The derivative of the interpolated shading normal along the tangent plane against
+    /// central differences of the normal at points moved along the tangents.
+    #[test]
+    fn triangle_normal_derivative_matches_finite_differences() {
+        let mesh = TriangleMesh {
+            positions: vec![
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.1, 0.9),
+                Vec3::new(0.2, 1.0, 0.8),
+            ],
+            normals: Some(vec![
+                Vec3::new(0.1, -0.2, 1.0).normalize(),
+                Vec3::new(0.5, 0.1, 0.9).normalize(),
+                Vec3::new(-0.2, 0.6, 0.8).normalize(),
+            ]),
+            uvs: None,
+            indices: vec![[0, 1, 2]],
+        };
+        let hit = Hit {
+            t: 1.0,
+            p: Vec3::ZERO,
+            ng: Vec3::Z,
+            ns: Vec3::Z,
+            uv: Vec2::ZERO,
+            shape: 0,
+            prim: 0,
+            p_error: 0.0,
+        };
+        let x0 = DVec3::new(0.3, 0.3, -1.0);
+        let at = |target: DVec3| {
+            let d = (target - x0).normalize();
+            on_triangle(x0, d, &mesh, &hit).expect("crosses the triangle")
+        };
+        let p = at(DVec3::new(0.35, 0.3, 0.9));
+        let h = 1e-6;
+        for k in 0..2 {
+            let t = p.dpdu[k];
+            let fd = (at(p.p + t * h).ns - at(p.p - t * h).ns) / (2.0 * h);
+            assert!(
+                (fd - p.dndu[k]).length() < 1e-6,
+                "tangent {k}: {} vs finite differences {fd}",
+                p.dndu[k]
+            );
+        }
+        // The point is on the triangle's plane and the normals are unit and outward.
+        assert!((p.ns.length() - 1.0).abs() < 1e-12 && p.ns.dot(p.ng) > 0.0);
+    }
+}
