@@ -37,7 +37,10 @@ fn every_shipped_scene_renders() {
         assert!(!r.stderr.contains("warning:"), "{name}: {}", r.stderr);
         let img = read_exr(&out).unwrap();
         for c in ["R", "G", "B"] {
-            assert!(img.channels[c].iter().all(|v| v.is_finite() && *v >= 0.0), "{name}: {c}");
+            assert!(
+                img.channels[c].iter().all(|v| v.is_finite() && *v >= 0.0),
+                "{name}: {c}"
+            );
         }
     }
 }
