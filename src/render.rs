@@ -391,6 +391,7 @@ fn render_tile_pass(
                         albedo: r.albedo,
                         normal: r.normal,
                         depth: r.depth,
+                        lights: r.lights,
                     },
                 );
             }
@@ -500,7 +501,9 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
     let band_height = rows.end - rows.start;
     let (mut film, mut done) = match &options.resume {
         Some(Resume { film, done, .. }) => {
-            if (film.width(), film.height()) != (scene.film.width, band_height) {
+            if (film.width(), film.height()) != (scene.film.width, band_height)
+                || film.light_layer_names() != scene.light_layer_names.as_slice()
+            {
                 return Err(RenderError::BadRegion(format!(
                     "the film to resume is {}x{}, the region is {}x{}",
                     film.width(),
@@ -511,7 +514,10 @@ pub fn render_budget(scene: &Scene, options: &BudgetOptions) -> Result<BudgetRes
             }
             (film.clone(), *done)
         }
-        None => (Film::new(scene.film.width, band_height)?, 0),
+        None => (
+            Film::with_light_layers(scene.film.width, band_height, &scene.light_layer_names)?,
+            0,
+        ),
     };
     let mut tiles = film.tiles(TILE_SIZE)?;
     let seed = scene.film.seed;

@@ -24,6 +24,7 @@ fn render(path: &std::path::Path, w: u32, h: u32, seed: u64, scale: f32) {
                         albedo: Rgb::splat(0.5),
                         normal: Vec3::Y,
                         depth: 3.0,
+                        lights: [Rgb::ZERO; velour::film::MAX_LIGHT_LAYERS],
                     },
                 );
             }

@@ -174,6 +174,7 @@ fn exponential_film(truth: &[Rgb], w: u32, h: u32, spp: u32, seed: u64, scale: f
                         albedo: Rgb::ONE,
                         normal: Vec3::Z,
                         depth: 1.0,
+                        lights: [Rgb::ZERO; velour::film::MAX_LIGHT_LAYERS],
                     },
                 );
             }

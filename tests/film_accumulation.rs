@@ -32,6 +32,7 @@ fn sample(x: u32, y: u32, s: u32) -> PixelSample {
         } else {
             1.0 + rng.next_f32()
         },
+        lights: [Rgb::ZERO; velour::film::MAX_LIGHT_LAYERS],
     }
 }
 
@@ -89,6 +90,7 @@ fn constant_pixel_has_exactly_zero_variance_and_few_samples_give_zero() {
         albedo: Rgb::ZERO,
         normal: Vec3::ZERO,
         depth: f32::INFINITY,
+        lights: [Rgb::ZERO; velour::film::MAX_LIGHT_LAYERS],
     };
     for _ in 0..10_000 {
         film.add_sample(0, 0, &s);

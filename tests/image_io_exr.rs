@@ -33,6 +33,7 @@ fn noisy_film(w: u32, h: u32, spp: u32) -> Film {
                         } else {
                             2.0 + rng.next_f32()
                         },
+                        lights: [Rgb::ZERO; velour::film::MAX_LIGHT_LAYERS],
                     },
                 );
             }
@@ -254,6 +255,7 @@ fn png_preview_has_the_right_size_and_srgb_values() {
                     albedo: Rgb::ZERO,
                     normal: Vec3::ZERO,
                     depth: 1.0,
+                    lights: [Rgb::ZERO; velour::film::MAX_LIGHT_LAYERS],
                 },
             );
         }

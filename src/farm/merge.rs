@@ -183,10 +183,11 @@ pub fn merge_parts(parts: Vec<(PathBuf, ExrImage)>) -> Result<(Film, PartInfo), 
             )));
         }
     }
-    let mut film = Film::new(f.width, f.height).map_err(|e| MergeError::NotAPart {
-        path: first.path.clone(),
-        reason: e.to_string(),
-    })?;
+    let mut film = Film::with_light_layers(f.width, f.height, first.film.light_layer_names())
+        .map_err(|e| MergeError::NotAPart {
+            path: first.path.clone(),
+            reason: e.to_string(),
+        })?;
     for p in &read {
         film.merge_rows(&p.film, p.info.rows.start)
             .map_err(|e| MergeError::NotAPart {

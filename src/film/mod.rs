@@ -26,6 +26,7 @@
 //! `state.*` ([`state`]).
 
 mod fixed;
+mod layers;
 mod pixel;
 mod state;
 
@@ -35,7 +36,14 @@ pub use pixel::MAX_DEPTH;
 use crate::image_io::{self, ExrImage, ImageError};
 use crate::math::Vec3;
 use crate::spectrum::Rgb;
+use layers::LayerSums;
 use pixel::Pixel;
+
+/// The attribute naming a state image's light layers in slot order (comma-separated).
+pub const LIGHT_LAYERS_ATTRIBUTE: &str = "velour:light_layers";
+
+/// Most lights that can have their own beauty layer (`name = "…"` on a light).
+pub const MAX_LIGHT_LAYERS: usize = 8;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -104,6 +112,9 @@ pub struct PixelSample {
     /// Distance along the camera ray to the first hit, in scene units; any non-finite or
     /// negative value means the ray hit nothing.
     pub depth: f32,
+    /// The radiance of each named light (by layer slot; the film keeps as many as it was made
+    /// with, [`Film::with_light_layers`]): parts of `radiance`.
+    pub lights: [Rgb; MAX_LIGHT_LAYERS],
 }
 
 fn check_size(width: u32, height: u32) -> Result<(), FilmError> {
@@ -140,6 +151,7 @@ pub struct FilmTile {
     width: u32,
     height: u32,
     pixels: Vec<Pixel>,
+    layers: LayerSums,
     dropped: u64,
 }
 
@@ -170,11 +182,15 @@ impl FilmTile {
     #[inline]
     pub fn add_sample(&mut self, x: u32, y: u32, s: &PixelSample) {
         let (dx, dy) = (x.wrapping_sub(self.x0), y.wrapping_sub(self.y0));
-        if dx >= self.width || dy >= self.height || !pixel::accepts(s) {
+        if dx >= self.width || dy >= self.height || !pixel::accepts(s, self.layers.count()) {
             self.dropped += 1;
             return;
         }
-        self.pixels[dy as usize * self.width as usize + dx as usize].add(s);
+        let i = dy as usize * self.width as usize + dx as usize;
+        self.pixels[i].add(s);
+        if self.layers.count() > 0 {
+            self.layers.add(i, s);
+        }
     }
 
     /// Samples dropped by this tile since it was made.
@@ -186,6 +202,7 @@ impl FilmTile {
     /// Clears the accumulators (keeps the rectangle), so a worker can reuse the tile.
     pub fn clear(&mut self) {
         self.pixels.fill(Pixel::default());
+        self.layers.clear();
         self.dropped = 0;
     }
 }
@@ -196,6 +213,8 @@ pub struct Film {
     width: u32,
     height: u32,
     pixels: Vec<Pixel>,
+    layer_names: Vec<String>,
+    layers: LayerSums,
     dropped: u64,
 }
 
@@ -203,13 +222,34 @@ impl Film {
     /// An empty film. Refuses a zero side, a side beyond [`MAX_SIDE`], more than [`MAX_PIXELS`]
     /// pixels, or a size whose buffers cannot be allocated (216 bytes a pixel).
     pub fn new(width: u32, height: u32) -> Result<Film, FilmError> {
+        Film::with_light_layers(width, height, &[])
+    }
+
+    /// An empty film that also keeps a beauty layer per named light (`names` by slot, at most
+    /// [`MAX_LIGHT_LAYERS`]), written as `light.<name>.R/G/B`.
+    pub fn with_light_layers(width: u32, height: u32, names: &[String]) -> Result<Film, FilmError> {
         check_size(width, height)?;
+        if names.len() > MAX_LIGHT_LAYERS {
+            return Err(FilmError::Restore(format!(
+                "{} light layers, at most {MAX_LIGHT_LAYERS}",
+                names.len()
+            )));
+        }
+        let pixels = alloc_pixels(width, height)?;
         Ok(Film {
             width,
             height,
-            pixels: alloc_pixels(width, height)?,
+            layers: LayerSums::new(pixels.len(), names.len())?,
+            pixels,
+            layer_names: names.to_vec(),
             dropped: 0,
         })
+    }
+
+    /// The names of the per-light layers, by slot.
+    #[must_use]
+    pub fn light_layer_names(&self) -> &[String] {
+        &self.layer_names
     }
 
     /// Width in pixels.
@@ -234,7 +274,12 @@ impl Film {
     #[inline]
     pub fn add_sample(&mut self, x: u32, y: u32, s: &PixelSample) {
         match self.index(x, y) {
-            Some(i) if pixel::accepts(s) => self.pixels[i].add(s),
+            Some(i) if pixel::accepts(s, self.layers.count()) => {
+                self.pixels[i].add(s);
+                if self.layers.count() > 0 {
+                    self.layers.add(i, s);
+                }
+            }
             _ => self.dropped += 1,
         }
     }
@@ -260,6 +305,7 @@ impl Film {
             width: w,
             height: h,
             pixels: alloc_pixels(w, h)?,
+            layers: LayerSums::new(w as usize * h as usize, self.layers.count())?,
             dropped: 0,
         })
     }
@@ -299,6 +345,12 @@ impl Film {
             let start = (tile.y0 as usize + ty) * fw + tile.x0 as usize;
             for (dst, src) in self.pixels[start..start + tw].iter_mut().zip(row) {
                 dst.merge(src);
+            }
+            if self.layers.count() > 0 {
+                for x in 0..tw {
+                    self.layers
+                        .merge_pixel(start + x, &tile.layers, ty * tw + x);
+                }
             }
         }
         self.dropped += tile.dropped;
@@ -410,6 +462,24 @@ impl Film {
         }
         put("depth.Z", &Pixel::depth);
         put(image_io::compare::SAMPLES_CHANNEL, &|p| p.n as f32);
+        for (k, name) in self.layer_names.iter().enumerate() {
+            for (c, ch) in ["R", "G", "B"].iter().enumerate() {
+                let v: Vec<f32> = self
+                    .pixels
+                    .iter()
+                    .enumerate()
+                    .map(|(i, p)| {
+                        if p.n == 0 {
+                            0.0
+                        } else {
+                            (self.layers.get(i, k)[c].to_f64(pixel::SUM_BITS) / f64::from(p.n))
+                                as f32
+                        }
+                    })
+                    .collect();
+                img.channels.insert(format!("light.{name}.{ch}"), v);
+            }
+        }
         img.attributes = attributes.clone();
         img
     }
@@ -444,6 +514,25 @@ impl Film {
     pub fn to_state_image(&self, attributes: &BTreeMap<String, String>) -> ExrImage {
         let mut img = self.to_exr_image(attributes);
         img.uint_channels = state::encode(&self.pixels);
+        if !self.layer_names.is_empty() {
+            img.attributes.insert(
+                LIGHT_LAYERS_ATTRIBUTE.to_string(),
+                self.layer_names.join(","),
+            );
+            for (k, name) in self.layer_names.iter().enumerate() {
+                for (c, ch) in ["R", "G", "B"].iter().enumerate() {
+                    for w in 0..6 {
+                        let words: Vec<u32> = (0..self.pixels.len())
+                            .map(|i| self.layers.get(i, k)[c].to_words()[w])
+                            .collect();
+                        img.uint_channels.insert(
+                            format!("{}light.{name}.{ch}.w{w}", state::STATE_PREFIX),
+                            words,
+                        );
+                    }
+                }
+            }
+        }
         img
     }
 
@@ -458,8 +547,36 @@ impl Film {
                     .to_string(),
             ));
         }
-        let mut film = Film::new(img.width, img.height)?;
+        let names: Vec<String> = match img.attributes.get(LIGHT_LAYERS_ATTRIBUTE) {
+            Some(list) if !list.is_empty() => list.split(',').map(str::to_string).collect(),
+            _ => Vec::new(),
+        };
+        let mut film = Film::with_light_layers(img.width, img.height, &names)?;
         state::decode(&img.uint_channels, &mut film.pixels)?;
+        for (k, name) in names.iter().enumerate() {
+            let mut channels = Vec::with_capacity(18);
+            for ch in ["R", "G", "B"] {
+                for w in 0..6 {
+                    let key = format!("{}light.{name}.{ch}.w{w}", state::STATE_PREFIX);
+                    let words = img
+                        .uint_channels
+                        .get(&key)
+                        .filter(|v| v.len() == film.pixels.len())
+                        .ok_or_else(|| {
+                            FilmError::Restore(format!(
+                                "state channel {key} is missing or of the wrong length"
+                            ))
+                        })?;
+                    channels.push(words);
+                }
+            }
+            for i in 0..film.pixels.len() {
+                let v = std::array::from_fn(|c| {
+                    fixed::Fixed192::from_words(std::array::from_fn(|w| channels[c * 6 + w][i]))
+                });
+                film.layers.set(i, k, v);
+            }
+        }
         Ok(film)
     }
 
@@ -468,15 +585,21 @@ impl Film {
     pub fn merge_rows(&mut self, other: &Film, row0: u32) -> Result<(), FilmError> {
         if other.width != self.width
             || u64::from(row0) + u64::from(other.height) > u64::from(self.height)
+            || other.layer_names != self.layer_names
         {
             return Err(FilmError::Restore(format!(
-                "a {}x{} band at row {row0} does not fit in a {}x{} film",
-                other.width, other.height, self.width, self.height
+                "a {}x{} band at row {row0} with light layers {:?} does not fit in a {}x{} film with {:?}",
+                other.width, other.height, other.layer_names, self.width, self.height, self.layer_names
             )));
         }
         let start = row0 as usize * self.width as usize;
         for (a, b) in self.pixels[start..].iter_mut().zip(&other.pixels) {
             a.merge(b);
+        }
+        if self.layers.count() > 0 {
+            for i in 0..other.pixels.len() {
+                self.layers.merge_pixel(start + i, &other.layers, i);
+            }
         }
         self.dropped += other.dropped;
         Ok(())

@@ -35,13 +35,12 @@ pub(super) struct Pixel {
     pub depth: i128,
 }
 
-/// Whether a sample's radiance can be accumulated (finite and within ±[`MAX_SAMPLE`]).
+/// Whether a sample can be accumulated: its radiance and its first `layers` per-light parts
+/// finite and within ±[`MAX_SAMPLE`].
 #[inline]
-pub(super) fn accepts(s: &PixelSample) -> bool {
-    s.radiance
-        .0
-        .iter()
-        .all(|&v| v.is_finite() && f64::from(v).abs() <= MAX_SAMPLE)
+pub(super) fn accepts(s: &PixelSample, layers: usize) -> bool {
+    let ok = |v: &f32| v.is_finite() && f64::from(*v).abs() <= MAX_SAMPLE;
+    s.radiance.0.iter().all(ok) && s.lights.iter().take(layers).all(|l| l.0.iter().all(ok))
 }
 
 #[inline]

@@ -78,6 +78,7 @@ pub(super) fn guided_connection(
     stack: InteriorStack,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
+    chosen: &mut Option<usize>,
 ) -> Rgb {
     let obj = &scene.objects[oi as usize];
     let outside_ior = stack.ior(&scene.objects, Some(oi));
@@ -96,6 +97,7 @@ pub(super) fn guided_connection(
     let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
+    *chosen = Some(li);
     let light = &scene.lights[li];
     let Some(ls) = light.sample_li(x, u_dir) else {
         return Rgb::ZERO;

@@ -4,6 +4,7 @@
 use super::interiors::{current_medium, enter, is_false_intersection, InteriorStack, MAX_NESTING};
 use super::TraceStats;
 use crate::bsdf::fresnel::fresnel_dielectric;
+use crate::film::MAX_LIGHT_LAYERS;
 use crate::math::{Ray, Vec3};
 use crate::sampling::{power_heuristic, PixelSampler};
 use crate::scene::{ObjectSurface, Scene, ShapeOwner};
@@ -146,12 +147,14 @@ pub(super) fn estimate_direct(
     mode: ShadowMode,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
+    chosen: &mut Option<usize>,
 ) -> Rgb {
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
     let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
+    *chosen = Some(li);
     let light = &scene.lights[li];
     let Some(ls) = light.sample_li(p, u) else {
         return Rgb::ZERO;
@@ -208,7 +211,16 @@ pub(super) fn emitted(
     prev: &PrevVertex,
     sphere_light: Option<(usize, Vec3)>,
     after_manifold: bool,
+    per_layer: &mut [Rgb; MAX_LIGHT_LAYERS],
 ) -> Rgb {
+    let mut to_layer = |li: usize, value: Rgb| {
+        if let Some(Some(slot)) = scene.light_layers.get(li) {
+            if let Some(l) = per_layer.get_mut(*slot as usize) {
+                *l += value;
+            }
+        }
+        value
+    };
     let weight = |li: usize, light_point: Option<Vec3>| -> f32 {
         if !prev.did_nee {
             return 1.0;
@@ -238,7 +250,7 @@ pub(super) fn emitted(
         Some(_) if after_manifold => Rgb::ZERO,
         Some((li, point)) => {
             if let crate::light::Light::Sphere { radiance, .. } = &scene.lights[li] {
-                *radiance * weight(li, Some(point))
+                to_layer(li, *radiance * weight(li, Some(point)))
             } else {
                 Rgb::ZERO
             }
@@ -251,7 +263,7 @@ pub(super) fn emitted(
                 {
                     let le = light.escaped_radiance(dir);
                     if !le.is_black() {
-                        l += le * weight(li, None);
+                        l += to_layer(li, le * weight(li, None));
                     }
                 }
             }

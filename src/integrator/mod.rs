@@ -22,6 +22,7 @@ use direct::{emitted, estimate_direct, PrevVertex, ShadowMode};
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
+use crate::film::MAX_LIGHT_LAYERS;
 use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
 use crate::medium::{Medium, NeeStrategy, ScatterVertex};
@@ -114,6 +115,8 @@ pub struct PathResult {
     pub normal: Vec3,
     /// Distance from the camera to that event; +inf when there was none.
     pub depth: f32,
+    /// The part of `radiance` from each named light, by layer slot (zero for unused slots).
+    pub lights: [Rgb; MAX_LIGHT_LAYERS],
 }
 
 /// Traces one camera path and returns its radiance estimate and AOVs.
@@ -123,19 +126,22 @@ pub fn trace_path(
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
 ) -> PathResult {
-    let (radiance, aov) = radiance(scene, camera_ray, sampler, stats);
+    let (radiance, aov, lights) = radiance(scene, camera_ray, sampler, stats);
     stats.paths += 1;
-    let radiance = if radiance.is_finite() {
-        radiance
+    let named = scene.light_layer_names.len();
+    let finite = radiance.is_finite() && lights.iter().take(named).all(|l| l.is_finite());
+    let (radiance, lights) = if finite {
+        (radiance, lights)
     } else {
         stats.non_finite += 1;
-        Rgb::ZERO
+        (Rgb::ZERO, [Rgb::ZERO; MAX_LIGHT_LAYERS])
     };
     PathResult {
         radiance,
         albedo: aov.0,
         normal: aov.1,
         depth: aov.2,
+        lights,
     }
 }
 
@@ -189,6 +195,8 @@ struct PathState {
     /// Where the path stands with respect to a manifold connection (no double counting of
     /// the paths `nee = "manifold"` samples, see [`ManifoldLeg`]).
     manifold_leg: ManifoldLeg,
+    /// The part of `radiance` from each named light, by layer slot.
+    lights: [Rgb; MAX_LIGHT_LAYERS],
 }
 
 /// The unidirectional counterpart of a manifold connection (`src/integrator/manifold`): a
@@ -212,7 +220,7 @@ fn radiance(
     ray: Ray,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
-) -> (Rgb, Aov) {
+) -> (Rgb, Aov, [Rgb; MAX_LIGHT_LAYERS]) {
     let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
     loop {
         stats.rays += 1;
@@ -234,10 +242,34 @@ fn radiance(
     (
         path.radiance,
         path.aov.unwrap_or((Rgb::ZERO, Vec3::ZERO, f32::INFINITY)),
+        path.lights,
     )
 }
 
 impl PathState {
+    /// Adds a contribution `c` (throughput included) from light `li`: to the radiance, and to
+    /// the light's own layer when it is named.
+    #[inline]
+    fn add_light(&mut self, scene: &Scene, li: Option<usize>, c: Rgb) {
+        self.radiance += c;
+        if let Some(Some(slot)) = li.and_then(|l| scene.light_layers.get(l)) {
+            if let Some(layer) = self.lights.get_mut(*slot as usize) {
+                *layer += c;
+            }
+        }
+    }
+
+    /// Adds emitted radiance `e` seen along the path (before the throughput), with its named
+    /// lights' parts `layers`.
+    #[inline]
+    fn add_emitted(&mut self, scene: &Scene, e: Rgb, layers: &[Rgb; MAX_LIGHT_LAYERS]) {
+        self.radiance += self.beta * e;
+        let named = scene.light_layer_names.len();
+        for (l, v) in self.lights.iter_mut().zip(layers).take(named) {
+            *l += self.beta * *v;
+        }
+    }
+
     fn new(ray: Ray, spread: f32) -> Self {
         PathState {
             ray,
@@ -259,6 +291,7 @@ impl PathState {
             guided_from: None,
             cone: RayCone { width: 0.0, spread },
             manifold_leg: ManifoldLeg::None,
+            lights: [Rgb::ZERO; MAX_LIGHT_LAYERS],
         }
     }
 
@@ -342,32 +375,38 @@ impl PathState {
         let phase = vertex.phase.prepare(wo);
         if interior_nee {
             let st = self.stack;
-            self.radiance += self.beta
-                * estimate_direct(
-                    scene,
-                    p,
-                    |_| (p, st),
-                    |wi| phase.eval(wi),
-                    ShadowMode::Transparent,
-                    sampler,
-                    stats,
-                );
+            let mut li = None;
+            let c = estimate_direct(
+                scene,
+                p,
+                |_| (p, st),
+                |wi| phase.eval(wi),
+                ShadowMode::Transparent,
+                sampler,
+                stats,
+                &mut li,
+            );
+            self.add_light(scene, li, self.beta * c);
         }
         self.guided_from = None;
         if obj.nee == NeeStrategy::ExitGuided && self.depth + 1 < scene.film.max_depth {
             if let Some(oi) = self.stack.top(&scene.objects, None) {
-                self.radiance += self.beta
-                    * connect::guided_connection(
-                        scene, oi, medium, p, &phase, self.stack, sampler, stats,
-                    );
+                let mut li = None;
+                let c = connect::guided_connection(
+                    scene, oi, medium, p, &phase, self.stack, sampler, stats, &mut li,
+                );
+                self.add_light(scene, li, self.beta * c);
                 self.guided_from = Some(oi);
             }
         }
         self.manifold_leg = ManifoldLeg::None;
         if obj.nee == NeeStrategy::Manifold {
             if self.depth + 1 < scene.film.max_depth {
-                self.radiance += self.beta
-                    * manifold::manifold_connection(scene, p, &phase, self.stack, sampler, stats);
+                let mut li = None;
+                let c = manifold::manifold_connection(
+                    scene, p, &phase, self.stack, sampler, stats, &mut li,
+                );
+                self.add_light(scene, li, self.beta * c);
             }
             self.manifold_leg = ManifoldLeg::Inside;
         }
@@ -388,7 +427,9 @@ impl PathState {
     /// 2. An escaped ray sees the infinite lights.
     fn escape(&mut self, scene: &Scene) {
         let through = self.manifold_leg == ManifoldLeg::Through;
-        self.radiance += self.beta * emitted(scene, self.ray.d, &self.prev, None, through);
+        let mut layers = [Rgb::ZERO; MAX_LIGHT_LAYERS];
+        let e = emitted(scene, self.ray.d, &self.prev, None, through, &mut layers);
+        self.add_emitted(scene, e, &layers);
     }
 
     /// 3–5. What the ray hit: a light, a false or null boundary, or a surface.
@@ -423,8 +464,16 @@ impl PathState {
     fn hit_light(&mut self, scene: &Scene, hit: &Hit, light: usize) {
         let through = self.manifold_leg == ManifoldLeg::Through;
         if self.ray.d.dot(hit.ng) < 0.0 {
-            self.radiance +=
-                self.beta * emitted(scene, self.ray.d, &self.prev, Some((light, hit.p)), through);
+            let mut layers = [Rgb::ZERO; MAX_LIGHT_LAYERS];
+            let e = emitted(
+                scene,
+                self.ray.d,
+                &self.prev,
+                Some((light, hit.p)),
+                through,
+                &mut layers,
+            );
+            self.add_emitted(scene, e, &layers);
         }
         if self.aov.is_none() {
             self.aov = Some((Rgb::ZERO, hit.ns, (hit.p - self.origin).length()));
@@ -535,8 +584,9 @@ impl PathState {
                 wo,
                 entry,
             };
-            self.radiance +=
-                self.beta * at.direct_light(scene, &surface, self.stack, sampler, stats);
+            let mut li = None;
+            let c = at.direct_light(scene, &surface, self.stack, sampler, stats, &mut li);
+            self.add_light(scene, li, self.beta * c);
         }
 
         let uc = sampler.next_1d();
@@ -681,6 +731,7 @@ impl SurfaceVertex<'_> {
         stack: InteriorStack,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        chosen: &mut Option<usize>,
     ) -> Rgb {
         let (hit, oi, ng, frame, wo) = (self.hit, self.oi, self.ng, self.frame, self.wo);
         let transmits = self.transmits;
@@ -717,6 +768,7 @@ impl SurfaceVertex<'_> {
             ShadowMode::Opaque,
             sampler,
             stats,
+            chosen,
         )
     }
 }

@@ -46,9 +46,15 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
     }
 
     let mut lights = Vec::new();
+    let mut light_layers = Vec::new();
+    let mut layer_names: Vec<String> = Vec::new();
     for spanned in &file.light {
         let line = ctx.line_of(spanned.span().start);
         let light = lights::build_light(&ctx, line, spanned.get_ref())?;
+        light_layers.push(match spanned.get_ref().name() {
+            None => None,
+            Some(name) => Some(lights::layer_slot(&ctx, line, name, &mut layer_names)?),
+        });
         if let Light::Sphere { center, radius, .. } = &light {
             shapes.push(Shape::Sphere {
                 center: *center,
@@ -110,6 +116,8 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         notes,
         source: ctx.path.to_path_buf(),
         inputs: ctx.inputs.take(),
+        light_layers,
+        light_layer_names: layer_names,
     })
 }
 

@@ -96,3 +96,41 @@ pub(super) fn build_light(ctx: &Ctx, line: usize, l: &LightDesc) -> Result<Light
         }
     }
 }
+
+/// The beauty-layer slot of a light named `name` (appended to `names`). A name must be
+/// non-empty, made of ASCII letters, digits, `_` and `-` (it becomes an EXR channel name), unique,
+/// and at most [`crate::film::MAX_LIGHT_LAYERS`] lights may be named.
+pub(super) fn layer_slot(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    names: &mut Vec<String>,
+) -> Result<u8, SceneError> {
+    if name.is_empty()
+        || !name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    {
+        return Err(ctx.invalid(
+            line,
+            format!("light.name = {name:?}: use ASCII letters, digits, '_' and '-' only"),
+        ));
+    }
+    if names.iter().any(|n| n == name) {
+        return Err(ctx.invalid(
+            line,
+            format!("light.name = {name:?} is used by another light"),
+        ));
+    }
+    if names.len() >= crate::film::MAX_LIGHT_LAYERS {
+        return Err(ctx.invalid(
+            line,
+            format!(
+                "light.name = {name:?}: at most {} lights can have their own layer",
+                crate::film::MAX_LIGHT_LAYERS
+            ),
+        ));
+    }
+    names.push(name.to_string());
+    Ok((names.len() - 1) as u8)
+}

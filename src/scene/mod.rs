@@ -375,6 +375,10 @@ pub struct Scene {
     /// The files the scene file names (meshes, grids, images), in the order they were resolved:
     /// with the scene file, what its content hash covers.
     pub inputs: Vec<PathBuf>,
+    /// Per light of [`Scene::lights`]: its beauty layer's slot, for named lights.
+    pub light_layers: Vec<Option<u8>>,
+    /// The names of the light layers, by slot.
+    pub light_layer_names: Vec<String>,
 }
 
 impl Scene {

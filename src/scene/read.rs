@@ -434,7 +434,7 @@ mod tests {
         use super::super::desc::{InteriorDesc, LightDesc, SurfaceDesc};
         assert_eq!(
             keys_of(|d| LightDesc::read("envmap", d)),
-            ["file", "scale", "rotation"]
+            ["name", "file", "scale", "rotation"]
         );
         for kind in SurfaceDesc::TYPES.iter().filter(|k| **k != "blend") {
             assert!(

@@ -253,6 +253,7 @@ pub(super) fn manifold_connection(
     stack: InteriorStack,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
+    chosen: &mut Option<usize>,
 ) -> Rgb {
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
@@ -261,6 +262,7 @@ pub(super) fn manifold_connection(
     let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
+    *chosen = Some(li);
     let Some(light) = scene.lights.get(li) else {
         return Rgb::ZERO;
     };

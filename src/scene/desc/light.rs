@@ -21,6 +21,8 @@ pub enum LightDesc {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnvironmentLightDesc {
+    /// Name of the light's own beauty layer (`light.<name>.R/G/B`); unnamed lights have none.
+    pub name: Option<String>,
     /// Radiance, W/(m² sr) (default 1).
     pub radiance: Option<ColorValue>,
 }
@@ -29,6 +31,8 @@ pub struct EnvironmentLightDesc {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnvmapLightDesc {
+    /// Name of the light's own beauty layer (`light.<name>.R/G/B`); unnamed lights have none.
+    pub name: Option<String>,
     /// Lat-long EXR file, relative to the scene file's folder (required).
     pub file: Option<String>,
     /// Multiplier (default 1).
@@ -41,6 +45,8 @@ pub struct EnvmapLightDesc {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DistantLightDesc {
+    /// Name of the light's own beauty layer (`light.<name>.R/G/B`); unnamed lights have none.
+    pub name: Option<String>,
     /// Direction towards the light (required).
     pub direction: Option<[f32; 3]>,
     /// Irradiance at normal incidence, W/m² (default 3).
@@ -53,12 +59,27 @@ pub struct DistantLightDesc {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SphereLightDesc {
+    /// Name of the light's own beauty layer (`light.<name>.R/G/B`); unnamed lights have none.
+    pub name: Option<String>,
     /// Centre, world units (default the origin).
     pub center: Option<[f32; 3]>,
     /// Radius, world units (default 0.1).
     pub radius: Option<f32>,
     /// Radiance, W/(m² sr) (default 10).
     pub radiance: Option<ColorValue>,
+}
+
+impl LightDesc {
+    /// The light's `name`, if it has one.
+    #[must_use]
+    pub fn name(&self) -> Option<&str> {
+        match self {
+            LightDesc::Environment(d) => d.name.as_deref(),
+            LightDesc::Envmap(d) => d.name.as_deref(),
+            LightDesc::Distant(d) => d.name.as_deref(),
+            LightDesc::Sphere(d) => d.name.as_deref(),
+        }
+    }
 }
 
 impl TypedTable for LightDesc {
