@@ -506,10 +506,12 @@ fn the_render_summary_says_what_was_built() {
     };
     let skin = run("scenes/skin_sphere.toml");
     assert!(
-        skin.contains("interior skin: homogeneous (no grid)"),
+        skin.contains("interior skin: homogeneous, no grid"),
         "{skin}"
     );
     let cloud = run("scenes/cloud.toml");
-    assert!(cloud.contains("interior cloud: grid of"), "{cloud}");
+    assert!(cloud.contains("interior cloud: voxel, grid of"), "{cloud}");
     assert!(cloud.contains("free flights DeltaTracking"), "{cloud}");
+    let fbm = run("scenes/fbm_creature.toml");
+    assert!(fbm.contains(": fbm (baked), grid of"), "{fbm}");
 }

@@ -51,7 +51,7 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
         };
         let built = match medium {
             Medium::Absorbing { .. } => "absorbing only (no grid)".to_string(),
-            Medium::Homogeneous(_) => "homogeneous (no grid)".to_string(),
+            Medium::Homogeneous(_) => "no grid".to_string(),
             Medium::Heterogeneous(h) => {
                 let field = match &h.field {
                     DensityField::Grid { grid, .. } => {
@@ -79,8 +79,8 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
             }
         };
         lines.push(format!(
-            "interior {}: {built}; NEE {:?}",
-            object.name, object.nee
+            "interior {}: {}, {built}; NEE {:?}",
+            object.name, object.interior_kind, object.nee
         ));
     }
     lines

@@ -278,6 +278,9 @@ pub struct Object {
     /// The albedo AOV of an event in this object's interior: the artist albedo of a
     /// homogeneous, voxel or fBm interior; `None` uses the event's single-scattering albedo.
     pub aov_albedo: Option<crate::spectrum::Rgb>,
+    /// The interior as the scene file describes it (`fbm (baked)`, `voxel`, …), for the render
+    /// summary; empty without an interior.
+    pub interior_kind: String,
     /// An interior resolved per walk (entry-projected textures, a blend), `medium` being its
     /// stand-in where no entry point is known.
     pub walk: Option<Box<WalkInterior>>,

@@ -216,6 +216,10 @@ impl ObjectList {
             ior,
             nee,
             aov_albedo: desc.interior.as_ref().and_then(|i| aov_albedo(i.get_ref())),
+            interior_kind: desc
+                .interior
+                .as_ref()
+                .map_or_else(String::new, |i| interior_kind(i.get_ref())),
             walk,
             uv_scale,
             uv_scales,
@@ -494,4 +498,12 @@ fn aov_albedo(desc: &InteriorDesc) -> Option<Rgb> {
         }
     };
     Some(super::validate::color(value, Rgb::splat(0.8)))
+}
+
+/// How the render summary names an interior: its `type`, and for fBm its evaluation.
+fn interior_kind(desc: &InteriorDesc) -> String {
+    match desc {
+        InteriorDesc::Fbm(d) => format!("fbm ({})", d.evaluation.as_deref().unwrap_or("baked")),
+        other => other.kind().to_string(),
+    }
 }
