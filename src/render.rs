@@ -400,13 +400,8 @@ fn render_tile_pass(
     Some(stats)
 }
 
-/// Writes `film` to `exr` (every layer, with `attributes`) and its PNG preview next to it.
-pub fn write_film(
-    film: &Film,
-    exr: &Path,
-    exposure: f32,
-    attributes: &BTreeMap<String, String>,
-) -> Result<(), RenderError> {
+/// Creates the folder an output file goes into.
+fn create_parent(exr: &Path) -> Result<(), RenderError> {
     if let Some(dir) = exr.parent() {
         if !dir.as_os_str().is_empty() {
             std::fs::create_dir_all(dir).map_err(|source| RenderError::Io {
@@ -415,6 +410,17 @@ pub fn write_film(
             })?;
         }
     }
+    Ok(())
+}
+
+/// Writes `film` to `exr` (every layer, with `attributes`) and its PNG preview next to it.
+pub fn write_film(
+    film: &Film,
+    exr: &Path,
+    exposure: f32,
+    attributes: &BTreeMap<String, String>,
+) -> Result<(), RenderError> {
+    create_parent(exr)?;
     film.write_exr_with_attributes(exr, attributes)?;
     film.write_png(&png_path_for(exr), exposure)?;
     Ok(())
@@ -429,14 +435,6 @@ pub fn write_state(
     exposure: f32,
     attributes: &BTreeMap<String, String>,
 ) -> Result<(), RenderError> {
-    if let Some(dir) = exr.parent() {
-        if !dir.as_os_str().is_empty() {
-            std::fs::create_dir_all(dir).map_err(|source| RenderError::Io {
-                path: dir.to_path_buf(),
-                source,
-            })?;
-        }
-    }
     write_state_image(film.to_state_image(attributes), film, exr, exposure)
 }
 
@@ -448,14 +446,7 @@ fn write_state_image(
     exr: &Path,
     exposure: f32,
 ) -> Result<(), RenderError> {
-    if let Some(dir) = exr.parent() {
-        if !dir.as_os_str().is_empty() {
-            std::fs::create_dir_all(dir).map_err(|source| RenderError::Io {
-                path: dir.to_path_buf(),
-                source,
-            })?;
-        }
-    }
+    create_parent(exr)?;
     crate::image_io::write_exr_owned(exr, img).map_err(crate::film::FilmError::from)?;
     film.write_png(&png_path_for(exr), exposure)?;
     Ok(())
