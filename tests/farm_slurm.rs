@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use common::cli::{run_velour, VELOUR};
 use common::external::{external_required, require_tool};
 use common::files::{repo_path, TempDir};
-use velour::image_io::read_exr;
+use common::render::pixel_bits;
 
 /// The cluster, stopped when dropped (also when the test fails).
 struct Cluster {
@@ -109,14 +109,6 @@ impl Drop for Cluster {
             .arg(&self.dir)
             .output();
     }
-}
-
-fn pixel_bits(path: &Path) -> BTreeMap<String, Vec<u32>> {
-    let img = read_exr(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    img.channels
-        .into_iter()
-        .map(|(k, v)| (k, v.into_iter().map(f32::to_bits).collect()))
-        .collect()
 }
 
 fn slurm_usable() -> bool {

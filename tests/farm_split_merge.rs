@@ -4,12 +4,12 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use common::cli::{run_velour, velour};
 use common::files::{repo_path, TempDir};
+use common::render::pixel_bits;
 use velour::image_io::read_exr;
 
 const SIZE: [&str; 4] = ["--width", "40", "--height", "30"];
@@ -25,15 +25,6 @@ fn render(extra: &[&str]) {
     args.extend(["-q", "--threads", "2"].iter().map(|s| s.to_string()));
     args.extend(extra.iter().map(|s| s.to_string()));
     run_velour(&args).assert_success();
-}
-
-/// Every float channel of an EXR as bit patterns.
-fn pixel_bits(path: &Path) -> BTreeMap<String, Vec<u32>> {
-    let img = read_exr(path).unwrap();
-    img.channels
-        .into_iter()
-        .map(|(k, v)| (k, v.into_iter().map(f32::to_bits).collect()))
-        .collect()
 }
 
 fn merge(out: &Path, parts: &[PathBuf]) -> common::cli::Captured {

@@ -5,17 +5,23 @@
 use std::collections::BTreeMap;
 
 use crate::medium::{DensityField, Medium};
-use crate::scene::Scene;
+use crate::scene::{Object, Scene};
+
+/// The objects that have an interior, with it.
+fn interiors(scene: &Scene) -> impl Iterator<Item = (&Object, &Medium)> {
+    scene.objects.iter().filter_map(|o| {
+        o.medium
+            .and_then(|m| scene.media.get(m as usize))
+            .map(|m| (o, m))
+    })
+}
 
 /// One `velour:interior.<object>` attribute per object with an interior: the interior's kind
 /// and the estimators chosen for it (free flights, shadow-ray transmittance, majorants, NEE).
 #[must_use]
 pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
     let mut out = BTreeMap::new();
-    for object in &scene.objects {
-        let Some(medium) = object.medium.and_then(|m| scene.media.get(m as usize)) else {
-            continue;
-        };
+    for (object, medium) in interiors(scene) {
         let what = match medium {
             Medium::Absorbing { .. } => "absorbing".to_string(),
             Medium::Homogeneous(_) => "homogeneous".to_string(),
@@ -45,10 +51,7 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
 pub fn interior_summary(scene: &Scene) -> Vec<String> {
     let mut lines = Vec::new();
     let mb = |bytes: usize| bytes as f64 / (1024.0 * 1024.0);
-    for object in &scene.objects {
-        let Some(medium) = object.medium.and_then(|m| scene.media.get(m as usize)) else {
-            continue;
-        };
+    for (object, medium) in interiors(scene) {
         let built = match medium {
             Medium::Absorbing { .. } => "absorbing only (no grid)".to_string(),
             Medium::Homogeneous(_) => "no grid".to_string(),

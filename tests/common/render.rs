@@ -62,3 +62,14 @@ pub fn region_mean(film: &Film, c: usize, keep: impl Fn(u32, u32) -> bool) -> (f
 pub fn image_mean(film: &Film, c: usize) -> (f64, f64) {
     region_mean(film, c, |_, _| true)
 }
+
+/// Every float channel of an EXR file as bit patterns, by channel name: two images are
+/// bit-identical when these are equal.
+pub fn pixel_bits(path: &Path) -> std::collections::BTreeMap<String, Vec<u32>> {
+    let img =
+        velour::image_io::read_exr(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    img.channels
+        .into_iter()
+        .map(|(k, v)| (k, v.into_iter().map(f32::to_bits).collect()))
+        .collect()
+}
