@@ -25,68 +25,73 @@ pub struct VoxelizeArgs {
     /// negative inside, background = half width × voxel size).
     #[arg(long)]
     pub levelset: bool,
-    /// Half width of the level set's band, in voxels (1..=64).
-    #[arg(long, default_value_t = DEFAULT_WIDTH, allow_hyphen_values = true, requires = "levelset")]
-    pub half_width: f64,
+    /// Half width of the level set's band, in voxels (1..=64) [default: 3].
+    #[arg(long, allow_hyphen_values = true)]
+    pub half_width: Option<f64>,
     /// Write a fog volume (grid `density`, class `fog volume`): 0 outside, a ramp from 0 at the
     /// surface to 1 across --band voxels inside, 1 deeper (OpenVDB's sdfToFogVolume).
     #[arg(long)]
     pub fog: bool,
-    /// Width of the fog's ramp inside the surface, in voxels (0 < B ≤ 64).
-    #[arg(long, default_value_t = DEFAULT_WIDTH, allow_hyphen_values = true, requires = "fog")]
-    pub band: f64,
-    /// Noise base frequency in 1 / world unit (fog only).
-    #[arg(
-        long,
-        default_value_t = 1.0,
-        allow_hyphen_values = true,
-        requires = "fog"
-    )]
-    pub noise_frequency: f64,
-    /// Noise amplitude: the density is multiplied by max(0, 1 + A·fbm(F·p)), fbm ∈ [−1, 1] at
-    /// the voxel's rest-space (mesh) position p; 0 = no noise (fog only).
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        allow_hyphen_values = true,
-        requires = "fog"
-    )]
-    pub noise_amplitude: f64,
-    /// Noise octaves (1..=16; lacunarity 2, gain 0.5) (fog only).
-    #[arg(
-        long,
-        default_value_t = 4,
-        allow_hyphen_values = true,
-        requires = "fog"
-    )]
-    pub noise_octaves: i64,
-    /// Noise seed (fog only).
-    #[arg(long, default_value_t = 1, requires = "fog")]
-    pub noise_seed: u32,
+    /// Width of the fog's ramp inside the surface, in voxels (0 < B ≤ 64) [default: 3].
+    #[arg(long, allow_hyphen_values = true)]
+    pub band: Option<f64>,
+    /// Noise base frequency in 1 / world unit (> 0; fog only) [default: 1].
+    #[arg(long, allow_hyphen_values = true)]
+    pub noise_frequency: Option<f64>,
+    /// Noise amplitude A ≥ 0: the density is multiplied by max(0, 1 + A·fbm(F·p)), fbm ∈ [−1, 1]
+    /// at the voxel's rest-space (mesh) position p; 0 = no noise (fog only) [default: 0].
+    #[arg(long, allow_hyphen_values = true)]
+    pub noise_amplitude: Option<f64>,
+    /// Noise octaves (1..=16; lacunarity 2, gain 0.5; fog only) [default: 4].
+    #[arg(long, allow_hyphen_values = true)]
+    pub noise_octaves: Option<i64>,
+    /// Noise seed (fog only) [default: 1].
+    #[arg(long)]
+    pub noise_seed: Option<u32>,
     /// Print nothing but warnings.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
 fn options(args: &VoxelizeArgs) -> Result<VoxelizeOptions, String> {
+    let only = |flag: &str, given: bool, mode: &str| {
+        if given {
+            Err(format!("{flag} applies to {mode} only"))
+        } else {
+            Ok(())
+        }
+    };
+    let noise_given = args.noise_frequency.is_some()
+        || args.noise_amplitude.is_some()
+        || args.noise_octaves.is_some()
+        || args.noise_seed.is_some();
     let kind = if args.levelset {
+        only("--band", args.band.is_some(), "--fog")?;
+        only(
+            "--noise-amplitude, --noise-frequency, --noise-octaves and --noise-seed",
+            noise_given,
+            "--fog (noise multiplies a fog density; a level set holds distances)",
+        )?;
         VolumeKind::LevelSet {
-            half_width: args.half_width,
+            half_width: args.half_width.unwrap_or(DEFAULT_WIDTH),
         }
     } else {
-        VolumeKind::Fog { band: args.band }
+        only("--half-width", args.half_width.is_some(), "--levelset")?;
+        VolumeKind::Fog {
+            band: args.band.unwrap_or(DEFAULT_WIDTH),
+        }
     };
-    if !(1..=16).contains(&args.noise_octaves) {
+    let octaves = args.noise_octaves.unwrap_or(4);
+    if !(1..=16).contains(&octaves) {
         return Err(format!(
-            "--noise-octaves {} is invalid: allowed 1..=16",
-            args.noise_octaves
+            "--noise-octaves {octaves} is invalid: allowed 1..=16"
         ));
     }
     let noise = args.fog.then_some(NoiseOptions {
-        frequency: args.noise_frequency,
-        amplitude: args.noise_amplitude,
-        octaves: args.noise_octaves as u32,
-        seed: args.noise_seed,
+        frequency: args.noise_frequency.unwrap_or(1.0),
+        amplitude: args.noise_amplitude.unwrap_or(0.0),
+        octaves: octaves as u32,
+        seed: args.noise_seed.unwrap_or(1),
     });
     let o = VoxelizeOptions {
         voxel_size: args.voxel_size,
