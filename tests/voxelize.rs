@@ -200,6 +200,93 @@ fn grid_aligned_box_has_exact_signs() {
     }
 }
 
+/// An octahedron with its vertices on voxel centres: lattice lines run through its vertices,
+/// along its edges' projections and through points where four faces meet, the cases the exact
+/// parity's tie-breaking exists for. Every voxel off the surface gets the right sign, and
+/// voxels whose closest feature is a face get the face distance (|x| + |y| + |z| − r) / √3.
+#[test]
+fn octahedron_on_the_lattice_has_exact_signs() {
+    let v = 0.25;
+    let r = 2.0f32;
+    let positions = vec![
+        Vec3::new(r, 0.0, 0.0),
+        Vec3::new(-r, 0.0, 0.0),
+        Vec3::new(0.0, r, 0.0),
+        Vec3::new(0.0, -r, 0.0),
+        Vec3::new(0.0, 0.0, r),
+        Vec3::new(0.0, 0.0, -r),
+    ];
+    let mut indices = Vec::new();
+    for (x, y, z) in [
+        (0u32, 2u32, 4u32),
+        (2, 1, 4),
+        (1, 3, 4),
+        (3, 0, 4),
+        (2, 0, 5),
+        (1, 2, 5),
+        (3, 1, 5),
+        (0, 3, 5),
+    ] {
+        indices.push([x, y, z]);
+    }
+    let mesh = TriangleMesh {
+        positions,
+        indices,
+        ..TriangleMesh::default()
+    };
+    assert!(mesh.is_closed());
+    let vol = level_set(&mesh, v, 3.0);
+    let mut checked = 0;
+    let mut on_surface = 0;
+    for ijk in domain_voxels(&vol) {
+        let p = ijk.as_dvec3() * v;
+        let l1 = p.x.abs() + p.y.abs() + p.z.abs() - f64::from(r);
+        on_surface += u64::from(l1.abs() <= 1e-9);
+        let value = f64::from(vol.grid.value_at(ijk));
+        if l1.abs() > 1e-9 {
+            assert_eq!(value < 0.0, l1 < 0.0, "{ijk}: {value} vs {l1}");
+            checked += 1;
+        } else {
+            assert!(value.abs() < 1e-6 * v, "{ijk} lies on the surface: {value}");
+        }
+        // Inside, the closest feature is always a face.
+        if l1 < 0.0 && -l1 / 3f64.sqrt() < 3.0 * v {
+            assert!(
+                (value - l1 / 3f64.sqrt()).abs() < 1e-5 * v,
+                "{ijk}: {value} vs {l1}"
+            );
+        }
+    }
+    assert!(checked > 1000);
+    // Only voxels on the surface can see their six half-rays disagree.
+    assert!(vol.report.split_votes <= on_surface, "{:?}", vol.report);
+}
+
+/// `--help` gives every flag's unit and default.
+#[test]
+fn help_names_units_and_defaults() {
+    let r = run_velour(["voxelize", "--help"]);
+    r.assert_success();
+    for needle in [
+        "world units",
+        "--half-width",
+        "in voxels",
+        "[default: 3]",
+        "--band",
+        "1 / world unit",
+        "[default: 4]",
+        "rest-space",
+        "surface",
+        "density",
+    ] {
+        assert!(
+            r.stdout.contains(needle),
+            "`{needle}` not in --help: {}",
+            r.stdout
+        );
+    }
+}
+
 /// Largest distance between a sphere mesh (vertices on the sphere) and the sphere: the deepest
 /// face, R − min distance from the centre to a triangle.
 fn tessellation_error(mesh: &TriangleMesh, radius: f64) -> f64 {
