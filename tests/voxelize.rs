@@ -504,6 +504,48 @@ fn open_mesh_warns_and_keeps_its_inside() {
     assert_eq!(grid.value_at(IVec3::ZERO), -0.15f32);
 }
 
+/// Two boxes welded along one edge (four triangles on that edge: non-manifold) convert with a
+/// warning, and parity gives their union: both insides negative, the gap between them outside.
+#[test]
+fn non_manifold_mesh_warns_and_gives_the_union() {
+    let dir = TempDir::new("voxelize-nonmanifold");
+    let a = box_mesh(Vec3::new(-1.0, -1.0, -0.5), Vec3::new(0.0, 0.0, 0.5), false);
+    let b = box_mesh(Vec3::new(0.0, 0.0, -0.5), Vec3::new(1.0, 1.0, 0.5), false);
+    let mut mesh = a.clone();
+    let offset = a.positions.len() as u32;
+    mesh.positions.extend(b.positions.iter().copied());
+    mesh.indices
+        .extend(b.indices.iter().map(|t| t.map(|i| i + offset)));
+    let topo = mesh.topology();
+    assert!(topo.non_manifold_edges > 0, "{topo}");
+    let path = dir.join("two_boxes.ply");
+    write_ply(&path, &mesh, false).unwrap();
+    let out = dir.join("two_boxes.vdb");
+    let r = run_velour([
+        "voxelize",
+        path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--voxel-size",
+        "0.1",
+        "--levelset",
+    ]);
+    r.assert_success();
+    assert!(
+        r.stderr.contains("warning:")
+            && r.stderr.contains("two_boxes.ply")
+            && r.stderr
+                .contains(&format!("{} non-manifold edges", topo.non_manifold_edges)),
+        "{}",
+        r.stderr
+    );
+    let g = &read_vdb(&out).unwrap()[0].grid;
+    assert!(g.value_at(IVec3::new(-5, -5, 0)) < 0.0);
+    assert!(g.value_at(IVec3::new(5, 5, 0)) < 0.0);
+    assert!(g.value_at(IVec3::new(-5, 5, 0)) > 0.0);
+    assert!(g.value_at(IVec3::new(5, -5, 0)) > 0.0);
+}
+
 /// A PLY with vertices and no faces, and every bad flag, give a clear error and write nothing.
 #[test]
 fn bad_input_is_refused_and_nothing_is_written() {

@@ -196,7 +196,7 @@ impl VoxelizeOptions {
     /// [`VoxelizeError::Parameter`].
     pub fn validate(&self) -> Result<(), VoxelizeError> {
         let v = self.voxel_size;
-        if !(v.is_finite() && v > 0.0 && v >= 1e-30) {
+        if !(v.is_finite() && v > 0.0) {
             return Err(param(
                 "--voxel-size",
                 v,
