@@ -29,6 +29,10 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
                 "heterogeneous; free_flight {:?}; transmittance {:?}; majorant {:?}",
                 h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
             ),
+            Medium::Mixture(m) => format!(
+                "mixture of {}; free_flight delta (mixture); transmittance ratio (mixture)",
+                m.components.len()
+            ),
         };
         let name: String = object
             .name
@@ -78,6 +82,36 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
                 format!(
                     "{field}; free flights {:?}, transmittance {:?}, majorants {:?}",
                     h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
+                )
+            }
+            Medium::Mixture(m) => {
+                let parts: Vec<String> = m
+                    .components
+                    .iter()
+                    .map(|c| {
+                        let mut s = match &c.density {
+                            crate::medium::ComponentDensity::Constant(_) => {
+                                "homogeneous".to_string()
+                            }
+                            crate::medium::ComponentDensity::Field(h) => match &h.field {
+                                DensityField::Grid { grid, .. } => {
+                                    format!("grid of {} bricks", grid.brick_count())
+                                }
+                                _ => "fBm".to_string(),
+                            },
+                        };
+                        if c.albedo.is_some() {
+                            s.push_str(" with an albedo grid");
+                        }
+                        if c.emission.is_some() {
+                            s.push_str(" with emission");
+                        }
+                        s
+                    })
+                    .collect();
+                format!(
+                    "mixture of {}; free flights by delta tracking of the sum, transmittance by ratio tracking",
+                    parts.join(" + ")
                 )
             }
         };

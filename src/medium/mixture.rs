@@ -1,0 +1,526 @@
+//! Mixture interiors: up to [`MAX_COMPONENTS`] media in one object, each with its own
+//! extinction, albedo (constant or a colour grid), emission (a colour, scalar or temperature
+//! grid) and phase function (docs/references.md §15). The extinction of the mixture is the sum
+//! of its components'; a free flight is tracked against the sum of their majorants (the
+//! components' majorant walks merged along the ray), a real collision belongs to a component
+//! with probability ∝ its σ_t there, and the event carries that component's albedo and phase
+//! function. Emission is gathered along the flight by the collision estimator.
+//!
+//! A one-component "mixture" is how a `voxel` interior with an albedo or emission grid is
+//! built: the grids need the per-vertex albedo and the emission of these trackers.
+
+use glam::Vec3;
+
+use super::artist::{single_scattering_albedo_from_multiple, AlbedoMode, Coefficients};
+use super::event::{MediumEvent, ScatterVertex, VertexPhase};
+use super::heterogeneous::{HeterogeneousMedium, MediumSegments};
+use super::lookup::DensityLookup;
+use super::MAX_SINGLE_SCATTERING_ALBEDO;
+use crate::grid::{Accessor, SparseGrid};
+use crate::majorant::MajorantSegment;
+use crate::math::Ray;
+use crate::phase::PhaseFunction;
+use crate::spectrum::blackbody::BlackbodyTable;
+use crate::spectrum::Rgb;
+use crate::tracking::{
+    channel_probabilities, mixture_track, mixture_transmittance, MixPoint, RateSegment,
+    TrackingStats, MAX_COMPONENTS,
+};
+
+/// Where a component's extinction comes from.
+#[derive(Clone, Debug)]
+pub enum ComponentDensity {
+    /// Constant coefficients (a homogeneous component).
+    Constant(Coefficients),
+    /// A density field with its majorant pyramid and coefficients per unit density (no
+    /// constant part, no fabric look); its `tracking.majorant` is the mixture's.
+    Field(Box<HeterogeneousMedium>),
+}
+
+/// A per-vertex artist albedo read from a grid.
+#[derive(Clone, Debug)]
+pub struct AlbedoGrid {
+    /// The grid, placed in the scene (same index-to-world map as the component's density).
+    pub grid: SparseGrid,
+    /// How the grid's values become a colour.
+    pub source: AlbedoSource,
+    /// How the artist albedo maps to the single-scattering albedo.
+    pub mode: AlbedoMode,
+    /// Mean cosine of the component's phase function (for the van de Hulst inversion).
+    pub g: f32,
+}
+
+/// How an albedo grid's values become a colour.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AlbedoSource {
+    /// A Vec3 grid of colours.
+    Colour,
+    /// A scalar grid through a ramp of `(value, colour)` stops, sorted by value (linear
+    /// between stops, clamped outside them).
+    Ramp(Vec<(f32, Rgb)>),
+}
+
+impl AlbedoSource {
+    /// The ramp's colour at `v` (linear between stops, the end colours outside).
+    #[must_use]
+    pub fn ramp(stops: &[(f32, Rgb)], v: f32) -> Rgb {
+        let Some(&(v0, c0)) = stops.first() else {
+            return Rgb::ZERO;
+        };
+        if !(v > v0) {
+            return c0;
+        }
+        let mut prev = (v0, c0);
+        for &(x, c) in stops.iter().skip(1) {
+            if v <= x {
+                let span = x - prev.0;
+                let f = if span > 0.0 { (v - prev.0) / span } else { 1.0 };
+                return prev.1 * (1.0 - f) + c * f;
+            }
+            prev = (x, c);
+        }
+        prev.1
+    }
+}
+
+impl AlbedoGrid {
+    /// The single-scattering albedo at world point `p`: the grid interpolated trilinearly at
+    /// `p` (a colour, or a scalar through the ramp), clamped to [0, 1], then inverted as the
+    /// interior's `albedo_mode` says (docs/references.md §15.4).
+    #[must_use]
+    pub fn single_scattering_at(&self, p: Vec3) -> Rgb {
+        let ip = self.grid.world_to_index_point(p);
+        let mut acc = Accessor::new(&self.grid, 0);
+        let artist = match &self.source {
+            AlbedoSource::Colour => {
+                let v = acc.sample_trilinear_vec3(ip);
+                Rgb::new(v.x, v.y, v.z)
+            }
+            AlbedoSource::Ramp(stops) => AlbedoSource::ramp(stops, acc.sample_trilinear(ip)),
+        };
+        let artist = artist.map(|a| if a.is_nan() { 0.0 } else { a.clamp(0.0, 1.0) });
+        match self.mode {
+            AlbedoMode::MultipleScattering => {
+                artist.map(|a| single_scattering_albedo_from_multiple(a, self.g))
+            }
+            AlbedoMode::SingleScattering => artist.map(|a| a.min(MAX_SINGLE_SCATTERING_ALBEDO)),
+        }
+    }
+}
+
+/// Emitted radiance L_e read from a grid (docs/references.md §15.2–15.3).
+#[derive(Clone, Debug)]
+pub struct EmissionGrid {
+    /// The grid, placed in the scene (same index-to-world map as the component's density).
+    pub grid: SparseGrid,
+    /// How the grid's values become radiance.
+    pub kind: EmissionKind,
+    /// Radiance multiplier per channel (`emission_scale` × `emission_color`).
+    pub scale: Rgb,
+}
+
+/// How an emission grid's values become radiance.
+#[derive(Clone, Debug)]
+pub enum EmissionKind {
+    /// A Vec3 grid of radiance.
+    Colour,
+    /// A scalar grid (times the colour in [`EmissionGrid::scale`]).
+    Scalar,
+    /// A scalar temperature grid (value × `scale` kelvin) through blackbody radiance.
+    Temperature {
+        /// Kelvin per grid unit (`temperature_scale`).
+        scale: f32,
+        /// Blackbody radiance over the grid's temperature range.
+        table: BlackbodyTable,
+    },
+}
+
+/// One component of a mixture.
+#[derive(Clone, Debug)]
+pub struct MixtureComponent {
+    /// Its extinction and scattering (per unit density for a field).
+    pub density: ComponentDensity,
+    /// Its phase function.
+    pub phase: PhaseFunction,
+    /// Its per-vertex albedo, if read from a grid.
+    pub albedo: Option<Box<AlbedoGrid>>,
+    /// Its emission, if any.
+    pub emission: Option<Box<EmissionGrid>>,
+}
+
+impl MixtureComponent {
+    /// The component's constant single-scattering albedo σ_s/σ_t (ignoring an albedo grid).
+    fn constant_albedo(&self) -> Rgb {
+        match &self.density {
+            ComponentDensity::Constant(c) => c.sigma_s.safe_div(c.sigma_t()),
+            ComponentDensity::Field(h) => h.coefficients.sigma_s.safe_div(h.coefficients.sigma_t),
+        }
+    }
+
+    /// The single-scattering albedo at world point `p`.
+    fn albedo_at(&self, p: Vec3) -> Rgb {
+        match &self.albedo {
+            Some(a) => a.single_scattering_at(p),
+            None => self.constant_albedo(),
+        }
+    }
+
+    /// The largest extinction the component can have (RGB, 1/length).
+    fn max_sigma_t(&self) -> Rgb {
+        match &self.density {
+            ComponentDensity::Constant(c) => c.sigma_t(),
+            ComponentDensity::Field(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
+        }
+    }
+}
+
+/// A mixture interior.
+#[derive(Clone, Debug)]
+pub struct MixtureMedium {
+    /// The components (1 to [`MAX_COMPONENTS`]).
+    pub components: Vec<MixtureComponent>,
+}
+
+/// An index-space ray through a grid, for lookups by distance.
+struct GridRay<'a> {
+    accessor: Accessor<'a>,
+    o: Vec3,
+    d: Vec3,
+}
+
+impl<'a> GridRay<'a> {
+    fn new(grid: &'a SparseGrid, ray: &Ray) -> Self {
+        let w2i = grid.world_to_index();
+        GridRay {
+            accessor: Accessor::new(grid, 0),
+            o: w2i.transform_point3(ray.o.as_dvec3()).as_vec3(),
+            d: w2i.transform_vector3(ray.d.as_dvec3()).as_vec3(),
+        }
+    }
+}
+
+impl EmissionGrid {
+    /// L_e at distance `t` of the ray `r` was prepared for.
+    fn at(&self, r: &mut GridRay<'_>, t: f32) -> Rgb {
+        let p = r.o + r.d * t;
+        let le = match &self.kind {
+            EmissionKind::Colour => {
+                let v = r.accessor.sample_trilinear_vec3(p);
+                Rgb::new(v.x, v.y, v.z)
+            }
+            EmissionKind::Scalar => Rgb::splat(r.accessor.sample_trilinear(p)),
+            EmissionKind::Temperature { scale, table } => {
+                table.at(r.accessor.sample_trilinear(p) * scale)
+            }
+        };
+        (le * self.scale).clamp_zero()
+    }
+}
+
+/// The per-ray state of a mixture: density lookups and emission lookups per component.
+struct MixRay<'a> {
+    medium: &'a MixtureMedium,
+    ray: Ray,
+    density: [Option<DensityLookup<'a>>; MAX_COMPONENTS],
+    emission: [Option<GridRay<'a>>; MAX_COMPONENTS],
+}
+
+impl<'a> MixRay<'a> {
+    fn new(medium: &'a MixtureMedium, ray: &Ray, emission: bool) -> Self {
+        let mut density: [Option<DensityLookup<'a>>; MAX_COMPONENTS] = [None, None, None, None];
+        let mut em: [Option<GridRay<'a>>; MAX_COMPONENTS] = [None, None, None, None];
+        for (i, c) in medium.components.iter().take(MAX_COMPONENTS).enumerate() {
+            if let (ComponentDensity::Field(h), Some(slot)) = (&c.density, density.get_mut(i)) {
+                *slot = Some(h.density_along(ray));
+            }
+            if emission {
+                if let (Some(e), Some(slot)) = (&c.emission, em.get_mut(i)) {
+                    *slot = Some(GridRay::new(&e.grid, ray));
+                }
+            }
+        }
+        MixRay {
+            medium,
+            ray: *ray,
+            density,
+            emission: em,
+        }
+    }
+
+    /// The mixture at distance `t` (with its emission when `emission`).
+    fn at(&mut self, t: f32, emission: bool) -> MixPoint {
+        let mut point = MixPoint {
+            sigma_t: [Rgb::ZERO; MAX_COMPONENTS],
+            count: self.medium.components.len().min(MAX_COMPONENTS),
+            emission: Rgb::ZERO,
+        };
+        let comps = self.medium.components.iter().take(MAX_COMPONENTS);
+        for (((c, slot), lookup), sigma) in comps
+            .zip(self.emission.iter_mut())
+            .zip(self.density.iter_mut())
+            .zip(point.sigma_t.iter_mut())
+        {
+            *sigma = match (&c.density, lookup) {
+                (ComponentDensity::Constant(k), _) => k.sigma_t(),
+                (ComponentDensity::Field(h), Some(l)) => h.coefficients.sigma_t_at(l.at(t)),
+                (ComponentDensity::Field(_), None) => Rgb::ZERO,
+            };
+            if emission {
+                if let (Some(e), Some(r)) = (&c.emission, slot.as_mut()) {
+                    let le = e.at(r, t);
+                    if !le.is_black() {
+                        let alpha = c.albedo_at(self.ray.at(t));
+                        point.emission += *sigma * (Rgb::ONE - alpha) * le;
+                    }
+                }
+            }
+        }
+        point
+    }
+}
+
+/// The merged majorant segments of a mixture along a ray: the components' walks joined at
+/// every boundary of any of them, each piece's majorant the sum of the components'
+/// (constant components everywhere, field components where their walk has a segment).
+struct MixSegments<'a> {
+    streams: [Option<MediumSegments<'a>>; MAX_COMPONENTS],
+    current: [Option<MajorantSegment>; MAX_COMPONENTS],
+    scale: [Rgb; MAX_COMPONENTS],
+    constant: Rgb,
+    t: f32,
+    end: f32,
+}
+
+impl<'a> MixSegments<'a> {
+    fn new(medium: &'a MixtureMedium, ray: &Ray, t0: f32, t1: f32) -> Self {
+        let mut streams: [Option<MediumSegments<'a>>; MAX_COMPONENTS] = [None, None, None, None];
+        let mut scale = [Rgb::ZERO; MAX_COMPONENTS];
+        let mut constant = Rgb::ZERO;
+        for (i, c) in medium.components.iter().take(MAX_COMPONENTS).enumerate() {
+            match &c.density {
+                ComponentDensity::Constant(k) => constant += k.sigma_t(),
+                ComponentDensity::Field(h) => {
+                    if let (Some(s), Some(k)) = (streams.get_mut(i), scale.get_mut(i)) {
+                        *s = Some(h.segments_along(ray, t0, t1));
+                        *k = h.coefficients.sigma_t;
+                    }
+                }
+            }
+        }
+        let mut current = [None; MAX_COMPONENTS];
+        for (c, s) in current.iter_mut().zip(streams.iter_mut()) {
+            *c = s.as_mut().and_then(Iterator::next);
+        }
+        MixSegments {
+            streams,
+            current,
+            scale,
+            constant,
+            t: t0,
+            end: t1,
+        }
+    }
+}
+
+impl Iterator for MixSegments<'_> {
+    type Item = RateSegment;
+
+    fn next(&mut self) -> Option<RateSegment> {
+        if !(self.t < self.end) {
+            return None;
+        }
+        let mut next = self.end;
+        let mut rate = self.constant;
+        for ((cur, stream), scale) in self
+            .current
+            .iter_mut()
+            .zip(self.streams.iter_mut())
+            .zip(self.scale.iter())
+        {
+            // Drop the segments that end before the current position.
+            while let Some(s) = *cur {
+                if s.t1 <= self.t {
+                    *cur = stream.as_mut().and_then(Iterator::next);
+                } else {
+                    break;
+                }
+            }
+            if let Some(s) = cur {
+                if s.t0 > self.t {
+                    next = next.min(s.t0);
+                } else {
+                    rate += *scale * s.max.max(0.0);
+                    next = next.min(s.t1);
+                }
+            }
+        }
+        if next.is_infinite() && rate.is_black() {
+            // An open interior with nothing left ahead.
+            self.t = next;
+            return None;
+        }
+        let seg = RateSegment {
+            t0: self.t,
+            t1: next,
+            majorant: rate.max_component(),
+        };
+        self.t = next;
+        Some(seg)
+    }
+}
+
+impl MixtureMedium {
+    /// True when some component emits.
+    #[must_use]
+    pub fn emits(&self) -> bool {
+        self.components.iter().any(|c| c.emission.is_some())
+    }
+
+    /// True when some component scatters.
+    #[must_use]
+    pub fn scatters(&self) -> bool {
+        self.components.iter().any(|c| match &c.density {
+            ComponentDensity::Constant(k) => !k.sigma_s.is_black(),
+            ComponentDensity::Field(h) => !h.coefficients.sigma_s.is_black(),
+        })
+    }
+
+    /// The sum of the components' largest extinctions (RGB, 1/length).
+    #[must_use]
+    pub fn max_sigma_t(&self) -> Rgb {
+        self.components
+            .iter()
+            .fold(Rgb::ZERO, |a, c| a + c.max_sigma_t())
+    }
+
+    /// The union of the world boxes of the field components' majorant pyramids (`None` when
+    /// no component is a non-empty field): what `shape = "bounds"` encloses.
+    #[must_use]
+    pub fn world_bounds(&self) -> Option<crate::math::Aabb> {
+        self.components
+            .iter()
+            .filter_map(|c| match &c.density {
+                ComponentDensity::Field(h) => h.pyramid.world_bounds(),
+                ComponentDensity::Constant(_) => None,
+            })
+            .reduce(crate::math::Aabb::union)
+    }
+
+    /// Samples a free flight along `ray` over `[0, t_max]` (delta tracking through the mixture;
+    /// the hero channel ∝ the throughput `beta`).
+    pub(super) fn sample_flight<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> MediumEvent<'_> {
+        let emits = self.emits();
+        let segments = MixSegments::new(self, ray, 0.0, t_max);
+        let mut state = MixRay::new(self, ray, emits);
+        let probs = channel_probabilities(beta, Rgb::ONE);
+        let flight = mixture_track(
+            segments,
+            |t, e| state.at(t, e),
+            |i, t, point| match (self.components.get(i), point.sigma_t.get(i)) {
+                (Some(c), Some(&sigma_t)) => c.albedo_at(ray.at(t)) * sigma_t,
+                _ => Rgb::ZERO,
+            },
+            emits,
+            probs,
+            u,
+            stats,
+        );
+        let scatter = flight.scatter.and_then(|(t, i)| {
+            let c = self.components.get(i)?;
+            let p = ray.at(t);
+            Some(ScatterVertex {
+                t,
+                p,
+                albedo: c.albedo_at(p),
+                phase: VertexPhase::Hg(&c.phase),
+            })
+        });
+        MediumEvent {
+            weight: flight.weight,
+            emitted: flight.emitted,
+            scatter,
+        }
+    }
+
+    /// Estimates the transmittance along `ray` over `[0, t_max]` (ratio tracking with the sum of
+    /// the components' extinctions).
+    pub(super) fn transmittance<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Rgb {
+        let segments = MixSegments::new(self, ray, 0.0, t_max);
+        let mut state = MixRay::new(self, ray, false);
+        mixture_transmittance(segments, |t, e| state.at(t, e), u, stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ramp_interpolates_between_sorted_stops() {
+        let stops = [
+            (0.0, Rgb::new(0.0, 0.0, 1.0)),
+            (0.5, Rgb::new(1.0, 0.0, 0.0)),
+            (1.0, Rgb::new(1.0, 1.0, 1.0)),
+        ];
+        assert_eq!(AlbedoSource::ramp(&stops, -1.0), Rgb::new(0.0, 0.0, 1.0));
+        assert_eq!(AlbedoSource::ramp(&stops, 0.25), Rgb::new(0.5, 0.0, 0.5));
+        assert_eq!(AlbedoSource::ramp(&stops, 0.75), Rgb::new(1.0, 0.5, 0.5));
+        assert_eq!(AlbedoSource::ramp(&stops, 9.0), Rgb::ONE);
+        assert_eq!(AlbedoSource::ramp(&[], 0.3), Rgb::ZERO);
+    }
+
+    #[test]
+    fn two_homogeneous_components_merge_into_one_constant_segment() {
+        let a = Coefficients {
+            sigma_a: Rgb::new(0.1, 0.2, 0.3),
+            sigma_s: Rgb::ONE,
+        };
+        let b = Coefficients {
+            sigma_a: Rgb::ZERO,
+            sigma_s: Rgb::splat(2.0),
+        };
+        let phase = PhaseFunction::HenyeyGreenstein { g: 0.0 };
+        let m = MixtureMedium {
+            components: vec![
+                MixtureComponent {
+                    density: ComponentDensity::Constant(a),
+                    phase,
+                    albedo: None,
+                    emission: None,
+                },
+                MixtureComponent {
+                    density: ComponentDensity::Constant(b),
+                    phase,
+                    albedo: None,
+                    emission: None,
+                },
+            ],
+        };
+        let ray = Ray::new(Vec3::ZERO, Vec3::X);
+        let segs: Vec<RateSegment> = MixSegments::new(&m, &ray, 0.0, 2.0).collect();
+        assert_eq!(
+            segs,
+            vec![RateSegment {
+                t0: 0.0,
+                t1: 2.0,
+                majorant: 3.3
+            }]
+        );
+        // Open interiors: one infinite segment.
+        let open: Vec<RateSegment> = MixSegments::new(&m, &ray, 0.0, f32::INFINITY).collect();
+        assert_eq!(open.len(), 1);
+    }
+}
