@@ -340,7 +340,10 @@ fn a_mixture_of_two_phase_functions_matches_the_weighted_double_hg_medium() {
         .unwrap_or_else(|e| panic!("{e}"))
         .z_test
         .unwrap_or_else(|| panic!("no variance"));
-    assert!(!z.consistent, "swapped lobe weights must be detected: {z:?}");
+    assert!(
+        !z.consistent,
+        "swapped lobe weights must be detected: {z:?}"
+    );
 }
 
 #[test]
@@ -440,9 +443,7 @@ fn bad_grids_ramps_and_mixtures_are_errors_naming_them() {
     // Ramps: unsorted, NaN, on a colour grid, missing for a scalar grid.
     let e = error(
         &dir,
-        &format!(
-            "{{ {voxel}, albedo_grid = \"shade\", albedo_ramp = [[0.5, 0.2], [0.1, 0.9]] }}"
-        ),
+        &format!("{{ {voxel}, albedo_grid = \"shade\", albedo_ramp = [[0.5, 0.2], [0.1, 0.9]] }}"),
     );
     assert_mentions(&e, &["albedo_ramp[1]", "sorted"]);
     let e = error(
@@ -501,12 +502,18 @@ fn bad_grids_ramps_and_mixtures_are_errors_naming_them() {
         &dir,
         r#"{ type = "mixture", media = [{ type = "homogeneous" }, { type = "absorption" }] }"#,
     );
-    assert_mentions(&e, &["media[1]", "absorption", "cannot be a mixture component"]);
+    assert_mentions(
+        &e,
+        &["media[1]", "absorption", "cannot be a mixture component"],
+    );
     let e = error(
         &dir,
         r#"{ type = "mixture", media = [{ type = "homogeneous" }, { type = "homogeneous", albdo = 0.3 }] }"#,
     );
-    assert_mentions(&e, &["scene.toml:", "media[1]", "albdo", "did you mean `albedo`"]);
+    assert_mentions(
+        &e,
+        &["scene.toml:", "media[1]", "albdo", "did you mean `albedo`"],
+    );
     let e = error(
         &dir,
         r#"{ type = "mixture", tracking = { free_flight = "ray_march", step = 0.1 }, media = [{ type = "homogeneous" }, { type = "homogeneous" }] }"#,

@@ -246,9 +246,11 @@ pub(super) fn emission_grid(
         )));
     }
     let temperature_scale = match d.temperature_scale {
-        Some(s) if !(s >= 0.0) || !s.is_finite() => return Err(at.invalid(format!(
+        Some(s) if !(s >= 0.0) || !s.is_finite() => {
+            return Err(at.invalid(format!(
             "{owner}.temperature_scale = {s}: must be a finite number ≥ 0 (kelvin per grid unit)"
-        ))),
+        )))
+        }
         Some(s) => s,
         None => 1.0,
     };
@@ -264,10 +266,12 @@ pub(super) fn emission_grid(
     let kind = vg.grid.channel_kind(0);
     let background = vg.grid.background(0);
     let kind = match (kind, temperature) {
-        (Some(ChannelKind::Vec3), true) => return Err(at.invalid(format!(
+        (Some(ChannelKind::Vec3), true) => {
+            return Err(at.invalid(format!(
             "{owner}.temperature_grid: grid `{name}` of {} is a Vec3 grid; temperatures are scalar",
             path.display()
-        ))),
+        )))
+        }
         (Some(ChannelKind::Vec3), false) => EmissionKind::Colour,
         (_, false) => EmissionKind::Scalar,
         (_, true) => EmissionKind::Temperature {
