@@ -333,6 +333,17 @@ fn a_mixture_of_two_phase_functions_matches_the_weighted_double_hg_medium() {
     let a = render(&dir, &mixture, 11);
     let b = render(&dir, &single, 12);
     assert_consistent(&a, &b, "mixture vs weighted double HG");
+    // The second medium as a grid of constant density 1: tracked with lookups (null
+    // collisions, component chosen ∝ σ_t at each real one) instead of in closed form.
+    volumes(&dir);
+    let tracked = lit_scene(
+        r#"{ type = "mixture", nee = "interior", media = [
+            { type = "homogeneous", albedo = 0.95, albedo_mode = "single", attenuation = 0.5, phase = { g = 0.8 } },
+            { type = "voxel", file = "grids.vdb", albedo = 0.6, albedo_mode = "single", attenuation = 1.0, phase = { g = -0.5 } },
+        ] }"#,
+    );
+    let t = render(&dir, &tracked, 14);
+    assert_consistent(&t, &b, "tracked mixture vs weighted double HG");
     // The phase functions matter here: swapping the lobes' weights is detected.
     let swapped = single.replace("w = 0.76", "w = 0.24");
     let c = render(&dir, &swapped, 13);

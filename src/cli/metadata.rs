@@ -30,8 +30,9 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
                 h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
             ),
             Medium::Mixture(m) => format!(
-                "mixture of {}; free_flight delta (mixture); transmittance ratio (mixture)",
-                m.components.len()
+                "mixture of {}; free_flight delta (mixture); transmittance {:?} per component",
+                m.components.len(),
+                mixture_transmittance(m)
             ),
         };
         let name: String = object
@@ -110,8 +111,9 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
                     })
                     .collect();
                 format!(
-                    "mixture of {}; free flights by delta tracking of the sum, transmittance by ratio tracking",
-                    parts.join(" + ")
+                    "mixture of {}; free flights by delta tracking of the sum, transmittance {:?} per field",
+                    parts.join(" + "),
+                    mixture_transmittance(m)
                 )
             }
         };
@@ -121,4 +123,14 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
         ));
     }
     lines
+}
+
+/// The shadow-ray estimator of a mixture's fields (the homogeneous parts are closed form).
+fn mixture_transmittance(
+    m: &crate::medium::MixtureMedium,
+) -> Option<crate::tracking::TransmittanceMode> {
+    m.components.iter().find_map(|c| match &c.density {
+        crate::medium::ComponentDensity::Field(h) => Some(h.tracking.transmittance),
+        crate::medium::ComponentDensity::Constant(_) => None,
+    })
 }

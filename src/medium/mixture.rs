@@ -4,7 +4,8 @@
 //! of its components'; a free flight is tracked against the sum of their majorants (the
 //! components' majorant walks merged along the ray), a real collision belongs to a component
 //! with probability ∝ its σ_t there, and the event carries that component's albedo and phase
-//! function. Emission is gathered along the flight by the collision estimator.
+//! function. Emission is gathered along the flight by the collision estimator. Shadow rays
+//! multiply the components' transmittances.
 //!
 //! A one-component "mixture" is how a `voxel` interior with an albedo or emission grid is
 //! built: the grids need the per-vertex albedo and the emission of these trackers.
@@ -23,8 +24,7 @@ use crate::phase::PhaseFunction;
 use crate::spectrum::blackbody::BlackbodyTable;
 use crate::spectrum::Rgb;
 use crate::tracking::{
-    channel_probabilities, mixture_track, mixture_transmittance, MixPoint, RateSegment,
-    TrackingStats, MAX_COMPONENTS,
+    channel_probabilities, mixture_track, MixPoint, RateSegment, TrackingStats, MAX_COMPONENTS,
 };
 
 /// Where a component's extinction comes from.
@@ -330,7 +330,10 @@ impl Iterator for MixSegments<'_> {
             return None;
         }
         let mut next = self.end;
-        let mut rate = self.constant;
+        let mut rate = Rgb::ZERO;
+        // Estimated (unproven) bounds may be violated: such pieces are tracked with lookups
+        // even where their majorant is zero.
+        let mut unproven = false;
         for ((cur, stream), scale) in self
             .current
             .iter_mut()
@@ -350,11 +353,12 @@ impl Iterator for MixSegments<'_> {
                     next = next.min(s.t0);
                 } else {
                     rate += *scale * s.max.max(0.0);
+                    unproven |= !s.exact;
                     next = next.min(s.t1);
                 }
             }
         }
-        if next.is_infinite() && rate.is_black() {
+        if next.is_infinite() && rate.is_black() && self.constant.is_black() {
             // An open interior with nothing left ahead.
             self.t = next;
             return None;
@@ -362,7 +366,8 @@ impl Iterator for MixSegments<'_> {
         let seg = RateSegment {
             t0: self.t,
             t1: next,
-            majorant: rate.max_component(),
+            majorant: (self.constant + rate).max_component(),
+            varying: !rate.is_black() || unproven,
         };
         self.t = next;
         Some(seg)
@@ -370,6 +375,21 @@ impl Iterator for MixSegments<'_> {
 }
 
 impl MixtureMedium {
+    /// The constant components' extinctions (zero for the fields), as a [`MixPoint`].
+    fn constant_point(&self) -> MixPoint {
+        let mut point = MixPoint {
+            sigma_t: [Rgb::ZERO; MAX_COMPONENTS],
+            count: self.components.len().min(MAX_COMPONENTS),
+            emission: Rgb::ZERO,
+        };
+        for (c, s) in self.components.iter().zip(point.sigma_t.iter_mut()) {
+            if let ComponentDensity::Constant(k) = &c.density {
+                *s = k.sigma_t();
+            }
+        }
+        point
+    }
+
     /// True when some component emits.
     #[must_use]
     pub fn emits(&self) -> bool {
@@ -422,6 +442,7 @@ impl MixtureMedium {
         let probs = channel_probabilities(beta, Rgb::ONE);
         let flight = mixture_track(
             segments,
+            &self.constant_point(),
             |t, e| state.at(t, e),
             |i, t, point| match (self.components.get(i), point.sigma_t.get(i)) {
                 (Some(c), Some(&sigma_t)) => c.albedo_at(ray.at(t)) * sigma_t,
@@ -449,8 +470,11 @@ impl MixtureMedium {
         }
     }
 
-    /// Estimates the transmittance along `ray` over `[0, t_max]` (ratio tracking with the sum of
-    /// the components' extinctions).
+    /// Estimates the transmittance along `ray` over `[0, t_max]`: the product of the
+    /// components' transmittances (T = Π_i T_i for a sum of extinctions), the homogeneous ones
+    /// in closed form, each field with its own estimator over its own majorant walk
+    /// (the mixture's `tracking.transmittance`; independent unbiased estimates multiply into an
+    /// unbiased one).
     pub(super) fn transmittance<U: FnMut() -> f32>(
         &self,
         ray: &Ray,
@@ -458,9 +482,22 @@ impl MixtureMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
-        let segments = MixSegments::new(self, ray, 0.0, t_max);
-        let mut state = MixRay::new(self, ray, false);
-        mixture_transmittance(segments, |t, e| state.at(t, e), u, stats)
+        let mut tr = Rgb::ONE;
+        for c in &self.components {
+            match &c.density {
+                ComponentDensity::Constant(k) => {
+                    // Guard 0·∞ (σ_t = 0 over an open interior): docs/references.md §8.
+                    tr *= k
+                        .sigma_t()
+                        .map(|s| if s == 0.0 { 1.0 } else { (-s * t_max).exp() });
+                }
+                ComponentDensity::Field(h) => tr *= h.transmittance(ray, t_max, u, stats),
+            }
+            if tr.is_black() {
+                break;
+            }
+        }
+        tr
     }
 }
 
@@ -516,7 +553,8 @@ mod tests {
             vec![RateSegment {
                 t0: 0.0,
                 t1: 2.0,
-                majorant: 3.3
+                majorant: 3.3,
+                varying: false,
             }]
         );
         // Open interiors: one infinite segment.

@@ -1,11 +1,12 @@
-//! Free flights and transmittance through a *mixture*: up to [`MAX_COMPONENTS`] media sharing
+//! Free flights through a *mixture*: up to [`MAX_COMPONENTS`] media sharing
 //! one region of space, each with its own extinction, albedo and phase function
 //! (docs/references.md §15.1). The extinction of the mixture is the sum of the components'
 //! (σ_t = Σ_i σ_t,i), so one scalar majorant per segment bounds the sum, tentative collisions
 //! are decided against the total, and a real collision is given to component i with
 //! probability σ_t,i(x)/σ_t(x) in the hero channel. The estimators also accumulate emission
 //! with the collision estimator (docs/references.md §15.2): σ_a·L_e/M̄ at every tentative
-//! collision.
+//! collision. (Shadow rays need no mixture estimator: the transmittance of a sum of extinctions is
+//! the product of the components' transmittances.)
 //!
 //! Nothing here knows where the coefficients come from: the caller gives a stream of
 //! [`RateSegment`]s and a lookup of the components' extinction (and emission) at a distance.
@@ -27,6 +28,9 @@ pub struct RateSegment {
     pub t1: f32,
     /// Majorant of σ_t over the channels (1/length).
     pub majorant: f32,
+    /// False when only the constant components (the `constant` argument of [`mixture_track`])
+    /// attenuate on the segment: it is then sampled in closed form, without lookups.
+    pub varying: bool,
 }
 
 /// The mixture at one point of a ray.
@@ -101,10 +105,12 @@ impl Chain {
 /// decides real against null with probability |σ_t,h|/(|σ_t,h| + |M̄ − σ_t,h|); a real
 /// collision picks component i with probability σ_t,i,h/σ_t,h by the same uniform number, and
 /// the path probabilities of every channel carry both factors so that the MIS weight stays
-/// exact.
+/// exact. Segments that are not `varying` hold only the constant extinctions `constant` (which
+/// do not emit): their distance is sampled in closed form from σ_t,h, without lookups.
 #[allow(clippy::too_many_arguments)]
 pub fn mixture_track<S, L, A, U>(
     segments: S,
+    constant: &MixPoint,
     mut lookup: L,
     mut scattering: A,
     emits: bool,
@@ -124,11 +130,39 @@ where
         p: Rgb::ONE,
     };
     let mut emitted = Rgb::ZERO;
+    let constant_t = constant.total();
     for seg in segments {
         stats.segments += 1;
         let len = seg.t1 - seg.t0;
         let major = seg.majorant;
         if !(len > 0.0) || !(major > 0.0) || !major.is_finite() {
+            continue;
+        }
+        if !seg.varying {
+            // Closed form through the constant components (as in a homogeneous medium).
+            let sigma_hero = constant_t[hero];
+            let t_local = if sigma_hero > 0.0 {
+                -(-u()).ln_1p() / sigma_hero
+            } else {
+                f32::INFINITY
+            };
+            if t_local < len {
+                let tr = (constant_t * (-t_local)).exp();
+                let t = seg.t0 + t_local;
+                let chosen = pick_component(constant, constant_t, hero, u());
+                chain.f *= scattering(chosen, t, constant) * tr;
+                chain.p *= constant.sigma_t[chosen] * tr;
+                stats.real_collisions += 1;
+                return MixFlight {
+                    weight: chain.weight(probs),
+                    scatter: Some((t, chosen)),
+                    emitted,
+                };
+            }
+            let tr = (constant_t * (-len)).exp();
+            chain.f *= tr;
+            chain.p *= tr;
+            chain.renormalise();
             continue;
         }
         let mut local = 0.0f32;
@@ -162,20 +196,7 @@ where
             let u_event = u();
             if u_event < p_real[hero] {
                 // Which component: ∝ its extinction in the hero channel, by the same number.
-                let mut x = (u_event / p_real[hero]) * sigma_t[hero];
-                let mut chosen = 0;
-                for i in 0..point.count {
-                    chosen = i;
-                    let s = point.sigma_t[i][hero];
-                    if x < s {
-                        break;
-                    }
-                    x -= s;
-                }
-                // Skip components the hero channel cannot pick (zero extinction there).
-                while chosen > 0 && !(point.sigma_t[chosen][hero] > 0.0) {
-                    chosen -= 1;
-                }
+                let chosen = pick_component(&point, sigma_t, hero, u_event / p_real[hero]);
                 let share = point.sigma_t[chosen].safe_div(sigma_t);
                 let sigma_s = scattering(chosen, t, &point);
                 chain.f *= sigma_s;
@@ -207,50 +228,22 @@ where
     }
 }
 
-/// Ratio tracking through a mixture (Cramer 1978; docs/references.md §4.3): the product of
-/// (1 − σ_t(x_j)/M̄) over tentative collisions, with the total extinction of the mixture.
-/// Unbiased; values outside [0, 1] occur only where a majorant is violated.
-pub fn mixture_transmittance<S, L, U>(
-    segments: S,
-    mut lookup: L,
-    u: &mut U,
-    stats: &mut TrackingStats,
-) -> Rgb
-where
-    S: IntoIterator<Item = RateSegment>,
-    L: FnMut(f32, bool) -> MixPoint,
-    U: FnMut() -> f32,
-{
-    let mut tr = Rgb::ONE;
-    for seg in segments {
-        stats.segments += 1;
-        let len = seg.t1 - seg.t0;
-        let major = seg.majorant;
-        if !(len > 0.0) || !(major > 0.0) || !major.is_finite() {
-            continue;
+/// The component of `point` whose share of `total` in channel `hero` contains uniform `u`
+/// (components with zero extinction there are never picked unless all are zero).
+fn pick_component(point: &MixPoint, total: Rgb, hero: usize, u: f32) -> usize {
+    let mut x = u * total[hero];
+    let mut chosen = 0;
+    for (i, s) in point.sigma_t.iter().take(point.count).enumerate() {
+        chosen = i;
+        if x < s[hero] {
+            break;
         }
-        if !len.is_finite() {
-            // An open interior: nothing behind it to see.
-            return Rgb::ZERO;
-        }
-        let mut local = 0.0f32;
-        loop {
-            local += -(-u()).ln_1p() / major;
-            if !(local < len) {
-                break;
-            }
-            let sigma_t = lookup(seg.t0 + local, false).total();
-            stats.transmittance_lookups += 1;
-            if sigma_t.max_component() > major {
-                stats.violations += 1;
-            }
-            tr *= Rgb::ONE - sigma_t / major;
-            if tr.is_black() {
-                return tr;
-            }
-        }
+        x -= s[hero];
     }
-    tr
+    while chosen > 0 && point.sigma_t.get(chosen).is_some_and(|s| !(s[hero] > 0.0)) {
+        chosen -= 1;
+    }
+    chosen
 }
 
 #[cfg(test)]
@@ -283,6 +276,7 @@ mod tests {
             t0: 0.0,
             t1: 1e6,
             majorant: 5.0,
+            varying: true,
         };
         let mut u = rng(7);
         let mut stats = TrackingStats::default();
@@ -291,6 +285,7 @@ mod tests {
         for _ in 0..n {
             let f = mixture_track(
                 [seg],
+                &two(Rgb::ZERO, Rgb::ZERO),
                 |_, _| two(Rgb::ONE, Rgb::splat(3.0)),
                 |i, _, p| p.sigma_t[i] * 0.5,
                 false,
@@ -308,35 +303,5 @@ mod tests {
         let p = first as f64 / n as f64;
         let se = (0.25 * 0.75 / n as f64).sqrt();
         assert!((p - 0.25).abs() < 4.0 * se, "share {p}");
-    }
-
-    #[test]
-    fn ratio_tracking_of_a_sum_is_the_product_of_transmittances() {
-        let seg = RateSegment {
-            t0: 0.0,
-            t1: 0.7,
-            majorant: 4.0,
-        };
-        let a = Rgb::new(0.5, 1.0, 1.5);
-        let b = Rgb::new(1.0, 0.2, 2.0);
-        let mut u = rng(3);
-        let mut stats = TrackingStats::default();
-        let n = 20_000;
-        let mut sum = Rgb::ZERO;
-        for _ in 0..n {
-            sum += mixture_transmittance([seg], |_, _| two(a, b), &mut u, &mut stats);
-        }
-        let mean = sum / n as f32;
-        // M̄ ≥ σ_t: every estimate lies in [0, 1], so its variance is at most 1/4 and the
-        // standard error at most 0.5/√n = 0.0035; 4 standard errors.
-        let tolerance = 4.0 * 0.5 / (n as f32).sqrt();
-        for k in 0..3 {
-            let expected = (-(a[k] + b[k]) * 0.7).exp();
-            assert!(
-                (mean[k] - expected).abs() < tolerance,
-                "channel {k}: {} vs {expected}",
-                mean[k]
-            );
-        }
     }
 }

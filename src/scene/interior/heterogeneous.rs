@@ -111,7 +111,7 @@ impl DensityLook {
     /// and emission grids as one component, and the homogeneous base medium of
     /// `base_albedo`/`base_attenuation` (sharing the phase function) as a second. Used when
     /// the interior has albedo or emission grids; the mixture's free flights are delta
-    /// tracked and its shadow rays ratio tracked (`tracking` may only choose the majorants).
+    /// tracked (`tracking` chooses the majorants and the shadow-ray estimator).
     pub fn into_mixture(
         self,
         at: &Site,
@@ -121,7 +121,7 @@ impl DensityLook {
         emission: Option<EmissionGrid>,
         tracking_desc: Option<&TrackingDesc>,
     ) -> Result<Medium, SceneError> {
-        super::mixture::check_mixture_tracking(at, tracking_desc)?;
+        let tracking = super::mixture::check_mixture_tracking(at, tracking_desc)?;
         let c = self.coefficients;
         let mut components = vec![MixtureComponent {
             density: ComponentDensity::Field(Box::new(HeterogeneousMedium {
@@ -129,7 +129,7 @@ impl DensityLook {
                 pyramid,
                 coefficients: DensityCoefficients::new(c.sigma_t, c.sigma_s),
                 phase: self.phase,
-                tracking: super::mixture::component_tracking(self.tracking),
+                tracking: super::mixture::component_tracking(tracking),
                 fabric: None,
             })),
             phase: self.phase,

@@ -10,8 +10,9 @@ use crate::scene::desc::{InteriorDesc, MixtureDesc, TrackingDesc};
 use crate::scene::SceneError;
 use crate::tracking::{FreeFlightMethod, TrackingConfig, MAX_COMPONENTS};
 
-/// Refuses estimator choices a mixture does not have: its free flights are delta tracked and
-/// its shadow rays ratio tracked; `tracking` chooses only the majorants (`majorant`, `level`).
+/// Refuses estimator choices a mixture does not have: its free flights are delta tracked (the
+/// summed majorants, §15.1); shadow rays multiply the components' transmittances, each
+/// estimated with `tracking.transmittance` (and `control`, `step`) over the `majorant` walk.
 pub(super) fn check_mixture_tracking(
     at: &Site,
     t: Option<&TrackingDesc>,
@@ -25,30 +26,21 @@ pub(super) fn check_mixture_tracking(
                 t.free_flight.as_deref().unwrap_or("delta")
             )));
         }
-        if let Some(m) = t.transmittance.as_deref().filter(|m| *m != "ratio") {
+        if t.local_bounds == Some(true) {
             return Err(at.invalid(format!(
-                "{owner}.transmittance = \"{m}\": media with several components or with albedo or emission grids use ratio tracking for shadow rays (expected \"ratio\")"
+                "{owner}.local_bounds does not apply to media with several components or with albedo or emission grids"
             )));
-        }
-        for (key, set) in [
-            ("control", t.control.is_some()),
-            ("step", t.step.is_some()),
-            ("local_bounds", t.local_bounds == Some(true)),
-        ] {
-            if set {
-                return Err(at.invalid(format!(
-                    "{owner}.{key} does not apply to media with several components or with albedo or emission grids (only `majorant` and `level` do)"
-                )));
-            }
         }
     }
     Ok(cfg)
 }
 
-/// A component's own tracking configuration: the mixture's majorants, no point bounds.
+/// A component's own tracking configuration: the mixture's majorants and shadow-ray
+/// estimator, no point bounds.
 pub(super) fn component_tracking(mixture: TrackingConfig) -> TrackingConfig {
     TrackingConfig {
         majorant: mixture.majorant,
+        transmittance: mixture.transmittance,
         local_bounds: false,
         ..TrackingConfig::default()
     }
