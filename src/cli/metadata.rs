@@ -30,7 +30,7 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
                 h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
             ),
             Medium::Mixture(m) => format!(
-                "mixture of {}; free_flight delta (mixture); transmittance {:?} per component",
+                "mixture of {}; free_flight delta (mixture); transmittance {} per component",
                 m.components.len(),
                 mixture_transmittance(m)
             ),
@@ -111,7 +111,7 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
                     })
                     .collect();
                 format!(
-                    "mixture of {}; free flights by delta tracking of the sum, transmittance {:?} per field",
+                    "{}; free flights by delta tracking of the sum, transmittance {} per field",
                     parts.join(" + "),
                     mixture_transmittance(m)
                 )
@@ -126,11 +126,14 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
 }
 
 /// The shadow-ray estimator of a mixture's fields (the homogeneous parts are closed form).
-fn mixture_transmittance(
-    m: &crate::medium::MixtureMedium,
-) -> Option<crate::tracking::TransmittanceMode> {
-    m.components.iter().find_map(|c| match &c.density {
-        crate::medium::ComponentDensity::Field(h) => Some(h.tracking.transmittance),
-        crate::medium::ComponentDensity::Constant(_) => None,
-    })
+fn mixture_transmittance(m: &crate::medium::MixtureMedium) -> String {
+    m.components
+        .iter()
+        .find_map(|c| match &c.density {
+            crate::medium::ComponentDensity::Field(h) => {
+                Some(format!("{:?}", h.tracking.transmittance))
+            }
+            crate::medium::ComponentDensity::Constant(_) => None,
+        })
+        .unwrap_or_else(|| "closed form".to_string())
 }
