@@ -532,4 +532,15 @@ fn bad_grids_ramps_and_mixtures_are_errors_naming_them() {
     assert_mentions(&e, &["tracking.free_flight", "delta"]);
     let e = error(&dir, r#"{ type = "mixture", media = 3 }"#);
     assert_mentions(&e, &["media", "array of tables"]);
+    // Every allowed entry type builds: homogeneous, voxel (with its grids) and fbm.
+    let text = lit_scene(
+        r#"{ type = "mixture", media = [
+            { type = "homogeneous", albedo = 0.5 },
+            { type = "voxel", file = "grids.vdb", albedo_grid = "color", emission_grid = "glow" },
+            { type = "fbm", voxel_size = 0.1, noise = { frequency = 2.0, octaves = 2 } },
+        ] }"#,
+    );
+    let scene = load_scene_str(&text, &dir.join("scene.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let (film, _) = render_finite(&scene, 0);
+    assert!(film.mean(6, 6).is_finite());
 }
