@@ -9,11 +9,13 @@
 //! - [`heterogeneous`]: density fields, their segments and lookups, tracked;
 //! - [`lookup`]: density lookups along a ray, one enum over the density sources;
 //! - [`event`]: the event and the per-vertex phase function;
-//! - [`mixture`]: several media in one object, per-vertex albedo and emission grids;
+//! - [`mixture`]: several media in one object;
+//! - [`grids`]: per-vertex albedo and emission grids;
 //! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends).
 
 pub mod artist;
 pub mod event;
+pub mod grids;
 pub mod heterogeneous;
 pub mod lookup;
 pub mod mixture;
@@ -24,12 +26,10 @@ pub use artist::{
     MAX_SINGLE_SCATTERING_ALBEDO,
 };
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
+pub use grids::{AlbedoGrid, AlbedoSource, EmissionGrid, EmissionKind};
 pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
-pub use mixture::{
-    AlbedoGrid, AlbedoSource, ComponentDensity, EmissionGrid, EmissionKind, MixtureComponent,
-    MixtureMedium,
-};
+pub use mixture::{ComponentDensity, MixtureComponent, MixtureMedium};
 pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
 
 use crate::math::Ray;
