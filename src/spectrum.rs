@@ -3,6 +3,8 @@
 //! velour renders in linear RGB (Rec.709 primaries). Every optical coefficient
 //! (σ_a, σ_s, σ_t, albedo, throughput, radiance) is an [`Rgb`].
 
+pub mod blackbody;
+
 use std::ops::{Add, AddAssign, Div, DivAssign, Index, IndexMut, Mul, MulAssign, Neg, Sub};
 
 /// A linear RGB triple of `f32`.

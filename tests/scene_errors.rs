@@ -141,7 +141,7 @@ fn unknown_interior_types_name_the_line_and_the_choices() {
         "{e}"
     );
     assert!(
-        e.contains("\"voxel\", \"fbm\", \"fabric\" or \"blend\""),
+        e.contains("\"voxel\", \"fbm\", \"fabric\", \"blend\" or \"mixture\""),
         "{e}"
     );
 }

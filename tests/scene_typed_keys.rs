@@ -88,7 +88,7 @@ const SURFACES: [Case; 5] = [
     },
 ];
 
-const INTERIORS: [Case; 6] = [
+const INTERIORS: [Case; 8] = [
     Case {
         kind: "absorption",
         good: "attenuation",
@@ -130,6 +130,20 @@ const INTERIORS: [Case; 6] = [
         misspelt: "msk",
         foreign: "albedo",
         foreign_owner: "homogeneous",
+    },
+    Case {
+        kind: "mixture",
+        good: "tracking",
+        misspelt: "trackng",
+        foreign: "albedo",
+        foreign_owner: "homogeneous",
+    },
+    Case {
+        kind: "voxel",
+        good: "albedo_grid",
+        misspelt: "albedo_gird",
+        foreign: "noise",
+        foreign_owner: "fbm",
     },
 ];
 

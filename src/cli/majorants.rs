@@ -361,8 +361,16 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
         let mut v = Vec::new();
         for obj in &scene.objects {
             if let Some(m) = obj.medium {
-                if let Medium::Heterogeneous(h) = &scene.media[m as usize] {
-                    v.push((obj.name.clone(), (**h).clone()));
+                match &scene.media[m as usize] {
+                    Medium::Heterogeneous(h) => v.push((obj.name.clone(), (**h).clone())),
+                    Medium::Mixture(mix) => {
+                        for (i, c) in mix.components.iter().enumerate() {
+                            if let crate::medium::ComponentDensity::Field(h) = &c.density {
+                                v.push((format!("{} (media[{i}])", obj.name), (**h).clone()));
+                            }
+                        }
+                    }
+                    _ => {}
                 }
             }
         }

@@ -29,6 +29,11 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
                 "heterogeneous; free_flight {:?}; transmittance {:?}; majorant {:?}",
                 h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
             ),
+            Medium::Mixture(m) => format!(
+                "mixture of {}; free_flight delta (mixture); transmittance {} per component",
+                m.components.len(),
+                mixture_transmittance(m)
+            ),
         };
         let name: String = object
             .name
@@ -80,6 +85,37 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
                     h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
                 )
             }
+            Medium::Mixture(m) => {
+                let parts: Vec<String> = m
+                    .components
+                    .iter()
+                    .map(|c| {
+                        let mut s = match &c.density {
+                            crate::medium::ComponentDensity::Constant(_) => {
+                                "homogeneous".to_string()
+                            }
+                            crate::medium::ComponentDensity::Field(h) => match &h.field {
+                                DensityField::Grid { grid, .. } => {
+                                    format!("grid of {} bricks", grid.brick_count())
+                                }
+                                _ => "fBm".to_string(),
+                            },
+                        };
+                        if c.albedo.is_some() {
+                            s.push_str(" with an albedo grid");
+                        }
+                        if c.emission.is_some() {
+                            s.push_str(" with emission");
+                        }
+                        s
+                    })
+                    .collect();
+                format!(
+                    "{}; free flights by delta tracking of the sum, transmittance {} per field",
+                    parts.join(" + "),
+                    mixture_transmittance(m)
+                )
+            }
         };
         lines.push(format!(
             "interior {}: {}, {built}; NEE {:?}",
@@ -87,4 +123,17 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
         ));
     }
     lines
+}
+
+/// The shadow-ray estimator of a mixture's fields (the homogeneous parts are closed form).
+fn mixture_transmittance(m: &crate::medium::MixtureMedium) -> String {
+    m.components
+        .iter()
+        .find_map(|c| match &c.density {
+            crate::medium::ComponentDensity::Field(h) => {
+                Some(format!("{:?}", h.tracking.transmittance))
+            }
+            crate::medium::ComponentDensity::Constant(_) => None,
+        })
+        .unwrap_or_else(|| "closed form".to_string())
 }

@@ -113,14 +113,7 @@ fn tracking(entries: &[(&str, toml::Value)]) -> Edit {
 /// largest heterogeneous medium's bounding-box diagonal.
 #[must_use]
 pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Configuration> {
-    let kinds: Vec<String> = interiors(doc)
-        .map(|(_, t)| {
-            t.get("type")
-                .and_then(|v| v.as_str())
-                .unwrap_or("")
-                .to_string()
-        })
-        .collect();
+    let kinds: Vec<String> = interiors(doc).map(|(_, t)| estimator_kind(t)).collect();
     let heterogeneous = kinds.iter().any(|k| k == "voxel" || k == "fbm");
     let procedural = kinds.iter().any(|k| k == "fbm");
     let scattering = kinds.iter().any(|k| k != "absorption");
@@ -238,6 +231,21 @@ fn interiors(doc: &toml::Table) -> impl Iterator<Item = (usize, &toml::Table)> {
         .filter_map(|(i, o)| o.get("interior").and_then(|t| t.as_table()).map(|t| (i, t)))
 }
 
+/// An interior table's `type`, except that a `voxel` interior with albedo or emission grids
+/// is a one-component mixture (`"mixture"`): it has none of the free-flight estimators the
+/// heterogeneous configurations switch between.
+fn estimator_kind(t: &toml::Table) -> String {
+    let kind = t.get("type").and_then(|v| v.as_str()).unwrap_or("");
+    let grids = ["albedo_grid", "emission_grid", "temperature_grid"]
+        .iter()
+        .any(|k| t.contains_key(*k));
+    if kind == "voxel" && grids {
+        "mixture".to_string()
+    } else {
+        kind.to_string()
+    }
+}
+
 /// The scene file text with `config`'s edits applied.
 pub fn apply(doc: &toml::Table, config: &Configuration) -> Result<String, String> {
     let mut doc = doc.clone();
@@ -246,11 +254,7 @@ pub fn apply(doc: &toml::Table, config: &Configuration) -> Result<String, String
             let Some(interior) = o.get_mut("interior").and_then(|t| t.as_table_mut()) else {
                 continue;
             };
-            let kind = interior
-                .get("type")
-                .and_then(|v| v.as_str())
-                .unwrap_or("")
-                .to_string();
+            let kind = estimator_kind(interior);
             for e in &config.edits {
                 let applies = match e.target {
                     Target::Heterogeneous => kind == "voxel" || kind == "fbm",

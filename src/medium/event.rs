@@ -17,7 +17,7 @@ pub struct MediumEvent<'a> {
     pub weight: Rgb,
     /// Radiance the medium emitted towards the ray origin along the flight, already divided
     /// by the flight's sampling probabilities: add `throughput before the flight × emitted`.
-    /// Zero for media that do not emit (every medium velour has today).
+    /// Zero for media that do not emit (all but those with emission or temperature grids).
     pub emitted: Rgb,
     /// The real collision the flight ended at, or `None` when it passed `t_max`.
     pub scatter: Option<ScatterVertex<'a>>,

@@ -9,12 +9,16 @@
 //! - [`heterogeneous`]: density fields, their segments and lookups, tracked;
 //! - [`lookup`]: density lookups along a ray, one enum over the density sources;
 //! - [`event`]: the event and the per-vertex phase function;
+//! - [`mixture`]: several media in one object;
+//! - [`grids`]: per-vertex albedo and emission grids;
 //! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends).
 
 pub mod artist;
 pub mod event;
+pub mod grids;
 pub mod heterogeneous;
 pub mod lookup;
+pub mod mixture;
 pub mod walk;
 
 pub use artist::{
@@ -22,8 +26,10 @@ pub use artist::{
     MAX_SINGLE_SCATTERING_ALBEDO,
 };
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
+pub use grids::{AlbedoGrid, AlbedoSource, EmissionGrid, EmissionKind};
 pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
+pub use mixture::{ComponentDensity, MixtureComponent, MixtureMedium};
 pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
 
 use crate::math::Ray;
@@ -72,6 +78,8 @@ pub enum Medium {
     Homogeneous(HomogeneousMedium),
     /// Spatially varying density (voxel data, procedural noise, fabric).
     Heterogeneous(Box<HeterogeneousMedium>),
+    /// Several media in one object, or a medium with albedo or emission grids.
+    Mixture(Box<MixtureMedium>),
 }
 
 impl Medium {
@@ -83,6 +91,7 @@ impl Medium {
             Medium::Absorbing { sigma_a } => *sigma_a,
             Medium::Homogeneous(h) => h.coefficients.sigma_t(),
             Medium::Heterogeneous(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
+            Medium::Mixture(m) => m.max_sigma_t(),
         }
     }
 
@@ -93,6 +102,7 @@ impl Medium {
             Medium::Absorbing { .. } => false,
             Medium::Homogeneous(h) => !h.coefficients.sigma_s.is_black(),
             Medium::Heterogeneous(h) => !h.coefficients.sigma_s.is_black(),
+            Medium::Mixture(m) => m.scatters(),
         }
     }
 
@@ -156,6 +166,7 @@ impl Medium {
             Medium::Heterogeneous(h) => {
                 h.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
             }
+            Medium::Mixture(m) => m.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
         }
     }
 
@@ -173,6 +184,7 @@ impl Medium {
                 self.closed_form_transmittance(t_max)
             }
             Medium::Heterogeneous(h) => h.transmittance(ray, t_max, u, stats),
+            Medium::Mixture(m) => m.transmittance(ray, t_max, u, stats),
         }
     }
 

@@ -138,15 +138,17 @@ impl ObjectList {
                 )
             }
             (RestShape::Bounds, _) => {
-                let Some(Medium::Heterogeneous(h)) = medium.map(|m| &media[m as usize]) else {
-                    return Err(ctx.invalid(
+                let bounds = match medium.map(|m| &media[m as usize]) {
+                    Some(Medium::Heterogeneous(h)) => Ok(h.pyramid.world_bounds()),
+                    Some(Medium::Mixture(m)) => Ok(m.world_bounds()),
+                    _ => Err(ctx.invalid(
                         line,
                         format!(
-                            "{name}: shape \"bounds\" needs a \"voxel\" or \"fabric\" interior"
+                            "{name}: shape \"bounds\" needs a \"voxel\", \"fabric\" or \"mixture\" interior"
                         ),
-                    ));
-                };
-                let b = h.pyramid.world_bounds().ok_or_else(|| {
+                    )),
+                }?;
+                let b = bounds.ok_or_else(|| {
                     ctx.invalid(line, format!("{name}: the interior's grid is empty"))
                 })?;
                 (
@@ -491,11 +493,14 @@ fn aov_albedo(desc: &InteriorDesc) -> Option<Rgb> {
             // A textured albedo varies per entry: the first event inside shows it.
             Some(ColorInput::Texture(_)) => return None,
         },
+        // An albedo grid varies per vertex: the first event inside shows it.
+        InteriorDesc::Voxel(d) if d.albedo_grid.is_some() => return None,
         InteriorDesc::Voxel(d) => d.albedo,
         InteriorDesc::Fbm(d) => d.albedo,
-        InteriorDesc::Absorption(_) | InteriorDesc::Fabric(_) | InteriorDesc::Blend(_) => {
-            return None
-        }
+        InteriorDesc::Absorption(_)
+        | InteriorDesc::Fabric(_)
+        | InteriorDesc::Blend(_)
+        | InteriorDesc::Mixture(_) => return None,
     };
     Some(super::validate::color(value, Rgb::splat(0.8)))
 }

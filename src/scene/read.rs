@@ -162,6 +162,20 @@ fn read_typed<T: TypedTable>(
     match T::read(&kind, keys) {
         Ok(Some(mut desc)) => {
             for (key, value) in nested {
+                if T::nested_list_keys(&kind).contains(&key) {
+                    let list_line = ctx.line_of(value.span().start);
+                    let DeValue::Array(items) = value.into_inner() else {
+                        return Err(ctx.parse(
+                            list_line,
+                            format!("{owner}.{key} must be an array of tables"),
+                        ));
+                    };
+                    for (i, item) in items.into_iter().enumerate() {
+                        let inner = read_typed::<T>(ctx, item, &format!("{owner}.{key}[{i}]"))?;
+                        desc.set_nested(key, inner);
+                    }
+                    continue;
+                }
                 let inner = read_typed::<T>(ctx, value, &format!("{owner}.{key}"))?;
                 desc.set_nested(key, inner);
             }

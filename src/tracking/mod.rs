@@ -27,6 +27,7 @@ mod delta;
 mod homogeneous;
 mod march;
 mod march_estimators;
+mod mixture;
 mod ratio;
 mod split;
 
@@ -37,6 +38,7 @@ pub use march::ray_march_free_flight;
 pub use march_estimators::{
     comb_teeth, jackknife_segment, order_survival, unbiased_ray_march_segment, URM_MAX_ORDER,
 };
+pub use mixture::{mixture_track, MixFlight, MixPoint, RateSegment, MAX_COMPONENTS};
 pub use ratio::{transmittance, transmittance_local};
 pub use split::{split_flight, SPLIT_MIN_SCATTER};
 

@@ -22,6 +22,8 @@ pub enum InteriorDesc {
     Fabric(FabricDesc),
     /// `type = "blend"`.
     Blend(BlendDesc),
+    /// `type = "mixture"`.
+    Mixture(MixtureDesc),
 }
 
 /// `type = "absorption"`: absorbing only (coloured glass), σ_a = density / attenuation.
@@ -103,6 +105,40 @@ pub struct VoxelDesc {
     pub base_attenuation: Option<ColorValue>,
     /// Estimator choices.
     pub tracking: Option<TrackingDesc>,
+    /// Name of a grid giving the artist albedo per voxel: a Vec3 grid, or a scalar grid
+    /// through `albedo_ramp` (same transform as the density grid).
+    pub albedo_grid: Option<String>,
+    /// `[[value, colour], ...]` stops (sorted by value) mapping a scalar albedo grid to colours.
+    pub albedo_ramp: Option<Vec<(f32, ColorValue)>>,
+    /// OpenVDB file of the albedo grid, relative to the scene file (default: `file`).
+    pub albedo_file: Option<String>,
+    /// Name of a grid of emitted radiance: Vec3, or scalar times `emission_color`.
+    pub emission_grid: Option<String>,
+    /// Colour a scalar emission grid is multiplied by (default 1).
+    pub emission_color: Option<ColorValue>,
+    /// OpenVDB file of the emission or temperature grid (default: `file`).
+    pub emission_file: Option<String>,
+    /// Name of a scalar temperature grid emitting blackbody radiance.
+    pub temperature_grid: Option<String>,
+    /// Kelvin per unit of the temperature grid (default 1), ≥ 0.
+    pub temperature_scale: Option<f32>,
+    /// Multiplier of the emitted radiance (default 1), ≥ 0.
+    pub emission_scale: Option<f32>,
+}
+
+/// `type = "mixture"`: two to four media filling the same object, each with its own albedo,
+/// attenuation, density source and phase function.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MixtureDesc {
+    /// Estimator choices of the mixture.
+    pub tracking: Option<TrackingDesc>,
+    /// "exit", "interior", "exit_guided" or "manifold".
+    pub nee: Option<String>,
+    /// The components (`homogeneous`, `voxel` or `fbm` interior tables; read by the scene
+    /// reader, as their `type` picks them).
+    #[serde(skip)]
+    pub media: Vec<Spanned<InteriorDesc>>,
 }
 
 /// `type = "fbm"`: procedural fBm noise density in the object's rest space, optionally added
@@ -253,6 +289,7 @@ impl InteriorDesc {
             InteriorDesc::Fbm(_) => "fbm",
             InteriorDesc::Fabric(_) => "fabric",
             InteriorDesc::Blend(_) => "blend",
+            InteriorDesc::Mixture(_) => "mixture",
         }
     }
 
@@ -266,6 +303,7 @@ impl InteriorDesc {
             InteriorDesc::Fbm(d) => d.nee.as_deref(),
             InteriorDesc::Fabric(d) => d.nee.as_deref(),
             InteriorDesc::Blend(d) => d.nee.as_deref(),
+            InteriorDesc::Mixture(d) => d.nee.as_deref(),
         }
     }
 }
@@ -278,23 +316,34 @@ impl TypedTable for InteriorDesc {
         "fbm",
         "fabric",
         "blend",
+        "mixture",
     ];
 
     fn nested_keys(kind: &str) -> &'static [&'static str] {
-        if kind == "blend" {
-            &["a", "b"]
+        match kind {
+            "blend" => &["a", "b"],
+            "mixture" => &["media"],
+            _ => &[],
+        }
+    }
+
+    fn nested_list_keys(kind: &str) -> &'static [&'static str] {
+        if kind == "mixture" {
+            &["media"]
         } else {
             &[]
         }
     }
 
     fn set_nested(&mut self, key: &str, value: Spanned<Self>) {
-        if let InteriorDesc::Blend(d) = self {
-            match key {
+        match self {
+            InteriorDesc::Blend(d) => match key {
                 "a" => d.a = Some(Box::new(value)),
                 "b" => d.b = Some(Box::new(value)),
                 _ => {}
-            }
+            },
+            InteriorDesc::Mixture(d) if key == "media" => d.media.push(value),
+            _ => {}
         }
     }
 
@@ -309,6 +358,7 @@ impl TypedTable for InteriorDesc {
             "fbm" => InteriorDesc::Fbm(FbmDesc::deserialize(keys)?),
             "fabric" => InteriorDesc::Fabric(FabricDesc::deserialize(keys)?),
             "blend" => InteriorDesc::Blend(BlendDesc::deserialize(keys)?),
+            "mixture" => InteriorDesc::Mixture(MixtureDesc::deserialize(keys)?),
             _ => return Ok(None),
         }))
     }

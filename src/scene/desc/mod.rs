@@ -19,8 +19,8 @@ use toml::Spanned;
 pub use texture::{ColorInput, MaskDesc, ScalarInput, TextureDesc};
 
 pub use interior::{
-    AbsorptionDesc, BlendDesc, FabricDesc, FbmDesc, HomogeneousDesc, InteriorDesc, NoiseDesc,
-    PhaseDesc, TrackingDesc, VoxelDesc,
+    AbsorptionDesc, BlendDesc, FabricDesc, FbmDesc, HomogeneousDesc, InteriorDesc, MixtureDesc,
+    NoiseDesc, PhaseDesc, TrackingDesc, VoxelDesc,
 };
 pub use light::{
     DistantLightDesc, EnvironmentLightDesc, EnvmapLightDesc, LightDesc, SphereLightDesc,
@@ -177,6 +177,12 @@ pub(in crate::scene) trait TypedTable: Sized {
     /// The keys of a table of type `kind` that hold nested tables of the same kind (a
     /// blend's `a` and `b` interiors), read by the reader like the table itself.
     fn nested_keys(_kind: &str) -> &'static [&'static str] {
+        &[]
+    }
+
+    /// The keys of [`Self::nested_keys`] that hold an *array* of nested tables (a mixture's
+    /// `media`): each element is read and stored with [`Self::set_nested`], in order.
+    fn nested_list_keys(_kind: &str) -> &'static [&'static str] {
         &[]
     }
 

@@ -6,7 +6,10 @@ use super::scattering::Scattering;
 use super::tracking::build_tracking;
 use super::Site;
 use crate::majorant::MajorantPyramid;
-use crate::medium::{DensityField, HeterogeneousMedium, Medium};
+use crate::medium::{
+    AlbedoGrid, AlbedoMode, Coefficients, ComponentDensity, DensityField, EmissionGrid,
+    HeterogeneousMedium, Medium, MixtureComponent, MixtureMedium,
+};
 use crate::phase::PhaseFunction;
 use crate::scene::desc::{ColorValue, PhaseDesc, TrackingDesc};
 use crate::scene::SceneError;
@@ -35,6 +38,8 @@ pub(super) struct DensityLook {
     coefficients: DensityCoefficients,
     phase: PhaseFunction,
     tracking: TrackingConfig,
+    /// How the artist albedo was read (for albedo grids, inverted per vertex the same way).
+    pub mode: AlbedoMode,
 }
 
 impl DensityLook {
@@ -69,6 +74,7 @@ impl DensityLook {
             coefficients,
             phase: scattering.phase,
             tracking,
+            mode: scattering.mode,
         })
     }
 
@@ -92,5 +98,55 @@ impl DensityLook {
             .attach_local_bounds()
             .map_err(|e| at.invalid(format!("{}: local bounds: {e}", at.owner)))?;
         Ok(Medium::Heterogeneous(Box::new(medium)))
+    }
+}
+
+impl DensityLook {
+    /// The phase function's mean cosine (for albedo-grid inversions).
+    pub fn mean_cosine(&self) -> f32 {
+        self.phase.mean_cosine()
+    }
+
+    /// The medium of `field` as a mixture (docs/references.md §15): the field with its albedo
+    /// and emission grids as one component, and the homogeneous base medium of
+    /// `base_albedo`/`base_attenuation` (sharing the phase function) as a second. Used when
+    /// the interior has albedo or emission grids; the mixture's free flights are delta
+    /// tracked (`tracking` chooses the majorants and the shadow-ray estimator).
+    pub fn into_mixture(
+        self,
+        at: &Site,
+        field: DensityField,
+        pyramid: MajorantPyramid,
+        albedo: Option<AlbedoGrid>,
+        emission: Option<EmissionGrid>,
+        tracking_desc: Option<&TrackingDesc>,
+    ) -> Result<Medium, SceneError> {
+        let tracking = super::mixture::check_mixture_tracking(at, tracking_desc)?;
+        let c = self.coefficients;
+        let mut components = vec![MixtureComponent {
+            density: ComponentDensity::Field(Box::new(HeterogeneousMedium {
+                field,
+                pyramid,
+                coefficients: DensityCoefficients::new(c.sigma_t, c.sigma_s),
+                phase: self.phase,
+                tracking: super::mixture::component_tracking(tracking),
+                fabric: None,
+            })),
+            phase: self.phase,
+            albedo: albedo.map(Box::new),
+            emission: emission.map(Box::new),
+        }];
+        if !c.base_t.is_black() {
+            components.push(MixtureComponent {
+                density: ComponentDensity::Constant(Coefficients {
+                    sigma_a: (c.base_t - c.base_s).clamp_zero(),
+                    sigma_s: c.base_s,
+                }),
+                phase: self.phase,
+                albedo: None,
+                emission: None,
+            });
+        }
+        Ok(Medium::Mixture(Box::new(MixtureMedium { components })))
     }
 }

@@ -5,6 +5,9 @@
 //! * `fbm` ([`fbm`]): procedural fBm noise, baked, baked lazily or evaluated exactly.
 //! * `fabric` ([`fabric`]): a woven patch voxelised at load time, free-standing or as a shell
 //!   over a mesh.
+//! * `mixture` ([`mixture`]): two to four of `homogeneous`, `voxel` and `fbm` in one object;
+//!   `voxel` interiors with albedo or emission grids ([`grids`]) are built as one-component
+//!   mixtures.
 //!
 //! `voxel` and `fbm` share their coefficients, combined homogeneous base medium and
 //! estimator choices ([`heterogeneous`], [`tracking`]); `homogeneous`, `voxel` and `fbm` share
@@ -13,8 +16,10 @@
 mod blend;
 mod fabric;
 mod fbm;
+mod grids;
 mod heterogeneous;
 mod homogeneous;
+mod mixture;
 mod scattering;
 mod tracking;
 mod voxel;
@@ -96,6 +101,7 @@ pub(super) fn build_medium(
         InteriorDesc::Fbm(d) => BuiltInterior::fixed(fbm::build(&at, d, placement)?),
         InteriorDesc::Fabric(d) => BuiltInterior::fixed(fabric::build(&at, d, placement)?),
         InteriorDesc::Blend(d) => blend::build(&at, d, placement, media)?,
+        InteriorDesc::Mixture(d) => mixture::build(&at, d, placement, media)?,
     })
 }
 

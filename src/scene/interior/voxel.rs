@@ -3,6 +3,7 @@
 
 use glam::DAffine3;
 
+use super::grids::{self, DensityGridRef};
 use super::heterogeneous::{DensityKeys, DensityLook};
 use super::{extinction_and_nee, Placement, Site};
 use crate::majorant::MajorantPyramid;
@@ -28,17 +29,24 @@ pub(super) fn build(
     };
     let look = DensityLook::read(at, &keys, density, attenuation)?;
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
-    let (field, pyramid) = voxel_field(at, d, xf)?;
-    Ok((look.into_medium(at, field, pyramid)?, nee))
+    let (field, pyramid, density_ref) = voxel_field(at, d, xf)?;
+    if !grids::wanted(d) {
+        return Ok((look.into_medium(at, field, pyramid)?, nee));
+    }
+    let albedo = grids::albedo_grid(at, d, &density_ref, xf, look.mode, look.mean_cosine())?;
+    let emission = grids::emission_grid(at, d, &density_ref, xf)?;
+    let medium = look.into_mixture(at, field, pyramid, albedo, emission, d.tracking.as_ref())?;
+    Ok((medium, nee))
 }
 
 /// The grid named by `grid` (default "density") of the file, checked (finite, scalar,
-/// non-negative), placed by `xf`, with its majorant pyramid.
+/// non-negative, not a level set), placed by `xf`, with its majorant pyramid and what the
+/// extra grids are checked against.
 fn voxel_field(
     at: &Site,
     d: &VoxelDesc,
     xf: DAffine3,
-) -> Result<(DensityField, MajorantPyramid), SceneError> {
+) -> Result<(DensityField, MajorantPyramid, DensityGridRef), SceneError> {
     let owner = &at.owner;
     let file = d.file.as_ref().ok_or_else(|| {
         at.invalid(format!(
@@ -47,12 +55,7 @@ fn voxel_field(
     })?;
     let path = at.ctx.resolve(file);
     let name = d.grid.as_deref().unwrap_or("density");
-    let mut grids = crate::vdb::read_vdb_grids(&path, &[name]).map_err(|e| at.failed(&e))?;
-    let vg = grids
-        .pop()
-        .ok_or_else(|| at.invalid(format!("{owner}: {}: no grid {name}", path.display())))?;
-    vg.check_finite()
-        .map_err(|e| at.invalid(format!("{owner}: {}: {e}", path.display())))?;
+    let vg = grids::read_grid(at, &path, name)?;
     if vg.grid.channel_kind(0) != Some(crate::grid::ChannelKind::Scalar) {
         return Err(at.invalid(format!(
             "{owner}: {}: grid `{name}` is not a scalar grid ({})",
@@ -68,11 +71,20 @@ fn voxel_field(
             stats.min[0]
         )));
     }
+    let density_ref = DensityGridRef {
+        path: path.clone(),
+        name: name.to_string(),
+        map: vg.grid.index_to_world(),
+    };
     let mut grid = vg.grid;
     let placed = xf * grid.index_to_world();
     grid.set_index_to_world(placed)
         .map_err(|e| at.invalid(format!("{owner}: placing grid `{name}`: {e}")))?;
     let pyramid = MajorantPyramid::from_grid(&grid, 0)
         .map_err(|e| at.invalid(format!("{owner}: grid `{name}`: {e}")))?;
-    Ok((DensityField::Grid { grid, channel: 0 }, pyramid))
+    Ok((
+        DensityField::Grid { grid, channel: 0 },
+        pyramid,
+        density_ref,
+    ))
 }

@@ -1,0 +1,160 @@
+//! `mixture` interiors: two to four `homogeneous`, `voxel` or `fbm` media in one object
+//! (clear water plus foam), each with its own albedo, attenuation, density source and phase
+//! function; `tracking` and `nee` belong to the mixture (docs/references.md §15.1).
+
+use super::tracking::build_tracking;
+use super::{build_medium, BuiltInterior, Placement, Site};
+use crate::medium::{Coefficients, ComponentDensity, Medium, MixtureComponent, MixtureMedium};
+use crate::phase::PhaseFunction;
+use crate::scene::desc::{InteriorDesc, MixtureDesc, TrackingDesc};
+use crate::scene::SceneError;
+use crate::tracking::{FreeFlightMethod, TrackingConfig, MAX_COMPONENTS};
+
+/// Refuses estimator choices a mixture does not have: its free flights are delta tracked (the
+/// summed majorants, §15.1); shadow rays multiply the components' transmittances, each
+/// estimated with `tracking.transmittance` (and `control`, `step`) over the `majorant` walk.
+pub(super) fn check_mixture_tracking(
+    at: &Site,
+    t: Option<&TrackingDesc>,
+) -> Result<TrackingConfig, SceneError> {
+    let cfg = build_tracking(at, t)?;
+    let owner = format!("{}.tracking", at.owner);
+    if let Some(t) = t {
+        if cfg.free_flight != FreeFlightMethod::DeltaTracking {
+            return Err(at.invalid(format!(
+                "{owner}.free_flight = \"{}\": media with several components or with albedo or emission grids are delta tracked only (expected \"delta\")",
+                t.free_flight.as_deref().unwrap_or("delta")
+            )));
+        }
+        if t.local_bounds == Some(true) {
+            return Err(at.invalid(format!(
+                "{owner}.local_bounds does not apply to media with several components or with albedo or emission grids"
+            )));
+        }
+    }
+    Ok(cfg)
+}
+
+/// A component's own tracking configuration: the mixture's majorants and shadow-ray
+/// estimator, no point bounds.
+pub(super) fn component_tracking(mixture: TrackingConfig) -> TrackingConfig {
+    TrackingConfig {
+        majorant: mixture.majorant,
+        transmittance: mixture.transmittance,
+        local_bounds: false,
+        ..TrackingConfig::default()
+    }
+}
+
+/// The medium of a `mixture` interior.
+pub(super) fn build(
+    at: &Site,
+    d: &MixtureDesc,
+    placement: &Placement<'_>,
+    media: &mut Vec<Medium>,
+) -> Result<BuiltInterior, SceneError> {
+    let owner = &at.owner;
+    let n = d.media.len();
+    if !(2..=MAX_COMPONENTS).contains(&n) {
+        return Err(at.invalid(format!(
+            "{owner}: a mixture needs 2 to {MAX_COMPONENTS} media (`media = [{{ type = \"homogeneous\", ... }}, {{ type = \"voxel\", ... }}]`); it has {n}"
+        )));
+    }
+    let (_, _, nee) = super::extinction_and_nee(at, None, None, d.nee.as_deref())?;
+    let cfg = check_mixture_tracking(at, d.tracking.as_ref())?;
+    let mut components = Vec::with_capacity(n);
+    for (i, entry) in d.media.iter().enumerate() {
+        let line = at.ctx.line_of(entry.span().start);
+        let inner = entry.get_ref();
+        let inner_owner = format!("{owner}.media[{i}]");
+        let bad = |m: String| at.ctx.invalid(line, format!("{inner_owner}: {m}"));
+        let (tracking, base) = match inner {
+            InteriorDesc::Homogeneous(_) => (false, false),
+            InteriorDesc::Voxel(v) => (
+                v.tracking.is_some(),
+                v.base_albedo.is_some() || v.base_attenuation.is_some(),
+            ),
+            InteriorDesc::Fbm(f) => (
+                f.tracking.is_some(),
+                f.base_albedo.is_some() || f.base_attenuation.is_some(),
+            ),
+            other => {
+                return Err(bad(format!(
+                    "type \"{}\" cannot be a mixture component (expected \"homogeneous\", \"voxel\" or \"fbm\")",
+                    other.kind()
+                )))
+            }
+        };
+        if inner.nee().is_some() {
+            return Err(bad(
+                "`nee` goes on the mixture itself (its media share it)".into()
+            ));
+        }
+        if tracking {
+            return Err(bad(
+                "`tracking` goes on the mixture itself (its media are tracked together)".into(),
+            ));
+        }
+        if base {
+            return Err(bad("`base_albedo`/`base_attenuation` inside a mixture: write the homogeneous medium as another entry of `media`".into()));
+        }
+        let built = build_medium(
+            at.ctx,
+            line,
+            at.name,
+            inner_owner.clone(),
+            inner,
+            placement,
+            media,
+        )?;
+        if built.walk.is_some() {
+            return Err(bad("textured parameters are read per walk and cannot be a mixture component; use constant values".into()));
+        }
+        match built.medium {
+            Medium::Homogeneous(h) => components.push(MixtureComponent {
+                density: ComponentDensity::Constant(h.coefficients),
+                phase: h.phase,
+                albedo: None,
+                emission: None,
+            }),
+            Medium::Absorbing { sigma_a } => components.push(MixtureComponent {
+                density: ComponentDensity::Constant(Coefficients {
+                    sigma_a,
+                    sigma_s: crate::spectrum::Rgb::ZERO,
+                }),
+                phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(e.to_string()))?,
+                albedo: None,
+                emission: None,
+            }),
+            Medium::Heterogeneous(mut h) => {
+                h.tracking = component_tracking(cfg);
+                let phase = h.phase;
+                components.push(MixtureComponent {
+                    density: ComponentDensity::Field(h),
+                    phase,
+                    albedo: None,
+                    emission: None,
+                });
+            }
+            Medium::Mixture(m) => {
+                for mut c in m.components {
+                    if let ComponentDensity::Field(h) = &mut c.density {
+                        h.tracking = component_tracking(cfg);
+                    }
+                    components.push(c);
+                }
+            }
+        }
+    }
+    if components.len() > MAX_COMPONENTS {
+        return Err(at.invalid(format!(
+            "{owner}: the mixture has {} media in all; at most {MAX_COMPONENTS}",
+            components.len()
+        )));
+    }
+    Ok(BuiltInterior {
+        medium: Medium::Mixture(Box::new(MixtureMedium { components })),
+        nee,
+        walk: None,
+    })
+}
