@@ -16,7 +16,7 @@ repository root, or --out DIR):
   volumes/ocean_foam.vdb        grid `density` (fog volume, values in [0, 1]): foam at the
         breaking crests near the camera, densest at the surface and thinning with depth.
 
-The surface (docs/references.md §13): a Phillips spectrum (Tessendorf 2001) on an N x N grid of
+The surface (docs/references.md §13.1–§13.3): a Phillips spectrum (Tessendorf 2001) on an N x N grid of
 a PATCH x PATCH metre periodic patch, synthesised by inverse FFT at time 0 with horizontal
 ("choppy") displacement x + chop * D(x), D = sum of +i (k/|k|) h~ e^{ik.x} (the sign that
 sharpens crests; with -i they spread). The mesh is a clipmap: a core of 2n x 2n cells of
@@ -30,9 +30,12 @@ displacement fades to zero at the outer edge, where the skirt goes straight down
 Whitecaps: where the Jacobian J of the choppy map falls below J_TH, coverage
 f = clamp((J_TH - J) / (J_TH - J_MIN)). The foam grid holds rho = f * exp(-s / DELTA) at depth s
 below the surface (cut at 4 DELTA), with a one-voxel ramp above it, over the inner part of the
-core; it fades to zero towards the grid's edge.
+core; it fades to zero towards the grid's edge. The clipmap's centre is put over the part of the
+patch with the most whitecaps within the foam box, so that the camera sees foam. The choppiness
+is lowered until J >= J_FLOOR everywhere: folded (inverted) triangles would make the body
+intersect itself.
 
---check runs the script's own tests (docs/references.md §13.8) and exits non-zero on a failure:
+--check runs the script's own tests (docs/references.md §13.6) and exits non-zero on a failure:
 the inverse FFT is real, the seed-averaged height variance equals the spectrum's sum, a single
 mode moves as A cos(k.x - sqrt(g k) t), positive chop sharpens crests (crest spacing < trough
 spacing, J(crest) = 1 - chop k A), the spectral Jacobian and normals match finite differences,
@@ -131,7 +134,7 @@ def synth(ht):
 def fields(ht, kx, kz, chop, lowpass=None):
     """Height, displacement and their derivatives on the grid, as a dict of real arrays.
 
-    D = sum +i (k/|k|) h~ e^{ik.x}; with chop > 0 crests sharpen (docs/references.md §13.4).
+    D = sum +i (k/|k|) h~ e^{ik.x}; with chop > 0 crests sharpen (docs/references.md §13.2).
     lowpass: a cut-off wavenumber; the spectrum is weighted by exp(-(k/kc)^4).
     """
     k = np.hypot(kx, kz)
@@ -455,7 +458,7 @@ def write_vdb(path, dens, ijk0):
 
 
 # ---------------------------------------------------------------------------------------------
-# Self-checks (docs/references.md §13.8)
+# Self-checks (docs/references.md §13.6)
 
 
 def run_checks():
