@@ -44,7 +44,7 @@ fn anchor() -> PathBuf {
 
 /// Shipped scenes that build in a few milliseconds, then the seeds of `tests/data/fuzz/scene`.
 fn seed_files() -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = ["skin_sphere.toml", "cloud.toml", "ocean_foam.toml"]
+    let mut files: Vec<PathBuf> = ["skin_sphere.toml", "cloud.toml"]
         .iter()
         .map(|f| root().join("scenes").join(f))
         .collect();

@@ -8,8 +8,11 @@ Run with Debian's interpreter, which has the `pyopenvdb` module (package python3
 Writes
   cloud.vdb  a free-standing cumulus-like cloud: a union of soft spheres eroded by value noise,
              64 x 44 x 44 voxels of 0.03 units (about 1.9 x 1.3 x 1.3 units), grid `density`
-  foam.vdb   a thin sheet of foam for the ocean scene: 96 x 10 x 96 voxels of 0.033 units
-             just under the water surface (y in [-0.3, 0]), grid `density`
+  foam.vdb   a thin sheet of foam: 96 x 10 x 96 voxels of 0.033 units just under a water
+             surface (y in [-0.3, 0]), grid `density`, densest at depth. It was the old ocean
+             scene's foam and is kept as a small asset for the fuzz seed
+             tests/data/fuzz/scene/ocean_box_combined.toml; scenes/ocean_foam.toml uses
+             volumes/ocean_foam.vdb from tools/make_ocean.py
 
 Deterministic (fixed seeds). Values are densities in [0, 1]; the scenes scale them with
 `attenuation` and `density`.

@@ -61,6 +61,19 @@ pub fn require_python_openvdb() -> bool {
         )
 }
 
+/// Whether [`PYTHON`] can import numpy (Debian package python3-numpy), for the tool scripts'
+/// own checks; when it cannot, reports the skip (or fails, see the module docs).
+pub fn require_python_numpy() -> bool {
+    static AVAILABLE: OnceLock<bool> = OnceLock::new();
+    let available = *AVAILABLE.get_or_init(|| {
+        Command::new(PYTHON)
+            .args(["-c", "import numpy"])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    });
+    available || missing(&format!("{PYTHON} with module numpy"), "python3-numpy")
+}
+
 /// Whether `program` is an executable on `PATH`; when it is not, reports the skip (or fails,
 /// see the module docs), suggesting Debian's `package`.
 pub fn require_tool(program: &str, package: &str) -> bool {
