@@ -51,6 +51,12 @@ fn voxel_field(
     let vg = grids
         .pop()
         .ok_or_else(|| at.invalid(format!("{owner}: {}: no grid {name}", path.display())))?;
+    if vg.class == "level set" {
+        return Err(at.invalid(format!(
+            "{owner}: {}: grid `{name}` is a level set (class `level set`: signed distances, negative inside), not a density; use it as the object's boundary (shape = \"levelset\", grid = \"{name}\") and give the interior a fog volume (`velour voxelize --fog`)",
+            path.display()
+        )));
+    }
     vg.check_finite()
         .map_err(|e| at.invalid(format!("{owner}: {}: {e}", path.display())))?;
     if vg.grid.channel_kind(0) != Some(crate::grid::ChannelKind::Scalar) {
