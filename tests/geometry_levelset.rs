@@ -16,6 +16,9 @@
 //! trilinearly) errs by O(1/R²) radians: the central difference of φ by (1/6)|∂³φ| ≤ 1/(2R²)
 //! per axis, the blend of the unit normal field by (1/8)|∂²n| ≤ 3/(8R²) per axis; summed over
 //! the axes and doubled for slack, θ ≤ 6/R² = 0.0104 rad at R = 24.
+//! The geometric normal (the trilinear interpolant's own gradient, which decides entering and
+//! leaving) is only first-order: the derivative of a linear interpolant errs by (h/2)·|∂²φ|, so
+//! θ_g ≤ √3/(2(R − 1)) = 0.038 rad.
 
 mod common;
 
@@ -129,7 +132,13 @@ fn hit_points_lie_within_a_tenth_of_a_voxel_of_the_sphere() {
                     "ray {i}: entering hit with an outward-facing ng"
                 );
                 let n = (h.p - c).normalize();
-                worst_ng = worst_ng.max(angle(h.ng, n));
+                let ag = angle(h.ng, n);
+                worst_ng = worst_ng.max(ag);
+                let theta_g = 3.0f64.sqrt() / (2.0 * (R_VOXELS - 1.0));
+                assert!(
+                    ag < theta_g,
+                    "ray {i}: geometric normal off by {ag} rad (bound {theta_g})"
+                );
                 if bv < -1.0 {
                     let (t0, t1) = cut.unwrap_or((0.0, 0.0));
                     assert!(
@@ -185,8 +194,9 @@ fn hit_points_lie_within_a_tenth_of_a_voxel_of_the_sphere() {
         worst_p = worst_p.max(e);
     }
     eprintln!(
-        "{hits} hits, {misses} misses, {inside_rays} exits: worst hit {worst_p:.5} voxel (bound 0.1; interpolant δ = {:.4}), worst shading normal {worst_n:.5} rad (bound {theta_max:.4}), worst geometric normal {worst_ng:.5} rad",
-        delta_voxels()
+        "{hits} hits, {misses} misses, {inside_rays} exits: worst hit {worst_p:.5} voxel (bound 0.1; interpolant δ = {:.4}), worst shading normal {worst_n:.5} rad (bound {theta_max:.4}), worst geometric normal {worst_ng:.5} rad (bound {:.4})",
+        delta_voxels(),
+        3.0f64.sqrt() / (2.0 * (R_VOXELS - 1.0))
     );
     assert!(hits > 5_000 && misses > 2_000);
 }
@@ -265,8 +275,10 @@ surface = {{ type = "lambertian", reflectance = 0.8 }}
 
 /// The render against the analytic sphere, with the same camera rays (same seed): pixels
 /// whose samples all hit or all miss both differ by the shading normal's error, at most
-/// ρ/π · E · sin θ; the terminator adds at most ρ/π · E · √(2δ/R) (a shadow ray can graze the
-/// level set where n·l is below that). The pixels within the silhouette band differ by the
+/// ρ/π · E · sin θ; near the terminator, light below the geometric normal's horizon (or a
+/// shadow ray grazing the level set) is lost where n·l is below the geometric normal's error
+/// θ_g or √(2δ/R): the trilinear gradient errs by (h/2)·|∂²φ| ≤ 1/(2(R − 1)) per axis, so
+/// θ_g ≤ √3/(2(R − 1)) = 0.038 rad, and √(2δ/R) = 0.037 at R = 24: at most ρ/π · E · sin θ_g more. The pixels within the silhouette band differ by the
 /// share of their samples in the band |b − r| < 2δ: summed over the image, at most the number
 /// of samples that fall in that annulus (Poisson, with 5σ) / spp, times the brightest value.
 #[test]
@@ -285,7 +297,8 @@ fn render_agrees_with_the_analytic_sphere() {
     let l_max = 0.8 / std::f64::consts::PI * 3.0;
     let theta = 6.0 / (R_VOXELS * R_VOXELS);
     let delta = delta_voxels();
-    let interior_bound = l_max * (theta.sin() + (2.0 * delta / R_VOXELS).sqrt());
+    let theta_g = 3.0f64.sqrt() / (2.0 * (R_VOXELS - 1.0));
+    let interior_bound = l_max * (theta.sin() + theta_g.max((2.0 * delta / R_VOXELS).sqrt()).sin());
     // Pixel size at the sphere's distance, and the silhouette's radius and band in pixels.
     let px = 2.0 * 4.0 * (20.0f64).to_radians().tan() / 48.0;
     let r_px = RADIUS / (16.0f64 - RADIUS * RADIUS).sqrt() * 4.0 / px;
@@ -397,7 +410,7 @@ fn load_error(dir: &TempDir, object: &str) -> String {
     let text = format!(
         "[camera]\neye = [0, 0, 4]\nlook_at = [0, 0, 0]\n[film]\nwidth = 8\nheight = 8\n[[light]]\ntype = \"environment\"\nradiance = 1\n[[object]]\nname = \"thing\"\n{object}\n"
     );
-    match velour::scene::load_scene_str(&text, dir.join("scene.toml")) {
+    match velour::scene::load_scene_str(&text, &dir.join("scene.toml")) {
         Ok(_) => panic!("scene loaded:\n{text}"),
         Err(e) => e.to_string(),
     }
@@ -464,5 +477,5 @@ fn fog_grids_as_level_sets_and_level_sets_as_density_are_errors() {
     assert!(e.contains("needs `file`"), "{e}");
     // And the good one loads.
     let text = "[camera]\neye = [0, 0, 4]\nlook_at = [0, 0, 0]\n[film]\nwidth = 8\nheight = 8\n[[light]]\ntype = \"environment\"\nradiance = 1\n[[object]]\nshape = \"levelset\"\nfile = \"ls.vdb\"\nsurface = { type = \"lambertian\" }\n";
-    velour::scene::load_scene_str(text, dir.join("scene.toml")).expect("level set scene");
+    velour::scene::load_scene_str(text, &dir.join("scene.toml")).expect("level set scene");
 }

@@ -146,7 +146,7 @@ pub struct LevelSet {
 
 impl LevelSet {
     /// A level set from channel 0 of `grid` (its index-to-world map places it). Checks: a
-    /// scalar channel, a positive background, at least one negative value, finite values in
+    /// scalar channel, at least one negative value, a positive background, finite values in
     /// every brick; computes the ranges of the walk (O(bricks)).
     ///
     /// # Errors
@@ -154,10 +154,6 @@ impl LevelSet {
     pub fn new(grid: SparseGrid) -> Result<LevelSet, LevelSetError> {
         if grid.channel_kind(0) != Some(ChannelKind::Scalar) {
             return Err(LevelSetError::NotScalar);
-        }
-        let bg = grid.background(0);
-        if !(bg > 0.0) || !bg.is_finite() {
-            return Err(LevelSetError::Background(bg));
         }
         if grid.brick_count() == 0 {
             return Err(LevelSetError::Empty);
@@ -183,6 +179,10 @@ impl LevelSet {
             .fold(f32::INFINITY, |m, r| m.min(r.min));
         if !(min < 0.0) {
             return Err(LevelSetError::NoInside(min));
+        }
+        let bg = grid.background(0);
+        if !(bg > 0.0) || !bg.is_finite() {
+            return Err(LevelSetError::Background(bg));
         }
         let coarse = coarse_ranges(&bricks);
         let mut ls = LevelSet {
