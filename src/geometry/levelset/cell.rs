@@ -253,9 +253,9 @@ mod tests {
     /// ends): the first is found though both ends are positive.
     #[test]
     fn two_crossings_in_one_cell() {
-        // φ = 0.1 − 4 (x − 0.5)² along y = z = 0 roughly: corners chosen so that
-        // f(s) along the diagonal has a negative middle.
-        let c = [0.2, -1.0, -1.0, 0.2, -1.0, 0.2, 0.2, -1.0];
+        // Positive at the diagonal's two ends, negative at the six other corners: along the
+        // diagonal the interpolant is 0.2 at both ends and (0.4 − 6)/8 in the middle.
+        let c = [0.2, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0, 0.2];
         let k = cubic(&c, Vec3::ZERO, Vec3::ONE);
         assert!(horner(&k, 0.0) > 0.0 && horner(&k, 1.0) > 0.0);
         let mid = horner(&k, 0.5);

@@ -272,8 +272,12 @@ impl LevelSet {
         let iray = Ray { o, d };
         let lo = (self.bricks.lo << BRICK_LOG2).as_vec3();
         let hi = ((self.bricks.hi() + IVec3::ONE) << BRICK_LOG2).as_vec3();
-        let (t0, t1) = Aabb { min: lo, max: hi }.intersect(&iray, 0.0, t_max)?;
-        let t1 = t1.min(t_max);
+        // The walk is not cut at t_max (cells past it are not visited): a crossing's refined
+        // position does not depend on t_max, so closest-hit searches agree bit for bit.
+        let (t0, t1) = Aabb { min: lo, max: hi }.intersect(&iray, 0.0, f32::INFINITY)?;
+        if t0 >= t_max {
+            return None;
+        }
         let mut acc = self.grid.accessor(0);
         // Whether the ray is inside where the last cell visited ended (skipped cells have
         // one sign throughout).
@@ -289,6 +293,9 @@ impl LevelSet {
             self.coarse.hi(),
         );
         while let Some((ck, ca, cb)) = coarse.next() {
+            if ca >= t_max {
+                return None;
+            }
             let cr = self.coarse.get(ck);
             if !cr.straddles_zero() {
                 inside = side(cr);
@@ -299,6 +306,9 @@ impl LevelSet {
                 ((ck << COARSE_LOG2) + IVec3::splat((1 << COARSE_LOG2) - 1)).min(self.bricks.hi());
             let mut bdda = Dda::new(o, d, ca, cb, BRICK_LOG2, blo, bhi);
             while let Some((bk, ba, bb)) = bdda.next() {
+                if ba >= t_max {
+                    return None;
+                }
                 let br = self.bricks.get(bk);
                 if !br.straddles_zero() {
                     inside = side(br);
@@ -308,6 +318,9 @@ impl LevelSet {
                 let vhi = vlo + IVec3::splat(BRICK_DIM - 1);
                 let mut vdda = Dda::new(o, d, ba, bb, 0, vlo, vhi);
                 while let Some((ijk, ta, tb)) = vdda.next() {
+                    if ta >= t_max {
+                        return None;
+                    }
                     let c = corner_values(&mut acc, ijk);
                     let r = c
                         .iter()
