@@ -11,12 +11,7 @@ use crate::grid::Accessor;
 /// The values at the cell's corners, `c[(dx << 2) | (dy << 1) | dz]` at voxel `ijk + (dx, dy, dz)`.
 #[inline]
 pub(super) fn corner_values(acc: &mut Accessor<'_>, ijk: IVec3) -> [f32; 8] {
-    let mut c = [0.0f32; 8];
-    for (k, v) in c.iter_mut().enumerate() {
-        let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
-        *v = acc.value(ijk + d);
-    }
-    c
+    acc.corners(ijk)
 }
 
 /// The trilinear interpolant at local point `u` (`[0, 1]³` inside the cell; extrapolates
@@ -48,19 +43,29 @@ pub(super) fn trilinear_gradient(c: &[f32; 8], u: Vec3) -> Vec3 {
 }
 
 /// A continuous gradient: central differences at the 8 corners, blended trilinearly at `u`.
+/// The 4³ voxels around the cell are read as eight 2³ blocks.
 pub(super) fn smooth_gradient(acc: &mut Accessor<'_>, ijk: IVec3, u: Vec3) -> Vec3 {
+    let mut v = [[[0.0f32; 4]; 4]; 4];
+    for block in 0..8usize {
+        let (bx, by, bz) = (block >> 2, (block >> 1) & 1, block & 1);
+        let base = ijk - IVec3::ONE + 2 * IVec3::new(bx as i32, by as i32, bz as i32);
+        let c = acc.corners(base);
+        for (k, value) in c.iter().enumerate() {
+            let (dx, dy, dz) = (k >> 2, (k >> 1) & 1, k & 1);
+            v[2 * bx + dx][2 * by + dy][2 * bz + dz] = *value;
+        }
+    }
     let mut g = Vec3::ZERO;
     for k in 0..8usize {
-        let (dx, dy, dz) = (k >> 2, (k >> 1) & 1, k & 1);
-        let v = ijk + IVec3::new(dx as i32, dy as i32, dz as i32);
+        let (x, y, z) = (1 + (k >> 2), 1 + ((k >> 1) & 1), 1 + (k & 1));
         let central = Vec3::new(
-            acc.value(v + IVec3::X) - acc.value(v - IVec3::X),
-            acc.value(v + IVec3::Y) - acc.value(v - IVec3::Y),
-            acc.value(v + IVec3::Z) - acc.value(v - IVec3::Z),
+            v[x + 1][y][z] - v[x - 1][y][z],
+            v[x][y + 1][z] - v[x][y - 1][z],
+            v[x][y][z + 1] - v[x][y][z - 1],
         ) * 0.5;
-        let wx = if dx == 1 { u.x } else { 1.0 - u.x };
-        let wy = if dy == 1 { u.y } else { 1.0 - u.y };
-        let wz = if dz == 1 { u.z } else { 1.0 - u.z };
+        let wx = if x == 2 { u.x } else { 1.0 - u.x };
+        let wy = if y == 2 { u.y } else { 1.0 - u.y };
+        let wz = if z == 2 { u.z } else { 1.0 - u.z };
         g += central * (wx * wy * wz);
     }
     g
