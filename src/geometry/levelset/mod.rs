@@ -5,11 +5,11 @@
 //! The surface is the zero set of the trilinear interpolant of the grid's values (voxel
 //! centres at integer index coordinates). A ray is carried into index space (any invertible
 //! affine map: a line stays a line and `t` stays the world distance) and walked by a
-//! three-level DDA: cells of 64³ voxels, then bricks of 8³ voxels, then single trilinear
-//! cells. Each 64³ cell and brick has the minimum and maximum of every voxel value any
-//! trilinear cell in it interpolates (the brick plus a one-voxel apron), so cells whose range
-//! excludes 0 are skipped whole with no lookups: the bounds are conservative, no crossing is
-//! missed. In a trilinear cell the interpolant along the ray is a cubic in `t`; the cubic is
+//! four-level DDA: cells of 64³ voxels, bricks of 8³ voxels, quarters of 4³ voxels (kept
+//! only for bricks the surface may cross), then single trilinear cells. Each 64³ cell, brick
+//! and quarter has the minimum and maximum of every voxel value any trilinear cell in it
+//! interpolates (its voxels plus a one-voxel apron), so cells whose range excludes 0 are
+//! skipped whole with no lookups: the bounds are conservative, no crossing is missed. In a trilinear cell the interpolant along the ray is a cubic in `t`; the cubic is
 //! split at its extrema and the first sign change is refined (Marmitt et al. 2004), so two
 //! crossings inside one cell (thin features, grazing rays) are found too.
 //!
@@ -96,15 +96,23 @@ struct RangeTable {
 }
 
 impl RangeTable {
+    /// The flat index of key `k`, if inside the table.
     #[inline]
-    fn get(&self, k: IVec3) -> Range {
+    fn index(&self, k: IVec3) -> Option<usize> {
         let r = k - self.lo;
         if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
-            return Range::EMPTY;
+            return None;
         }
-        let i = ((r.x as usize * self.dims.y as usize) + r.y as usize) * self.dims.z as usize
-            + r.z as usize;
-        self.ranges.get(i).copied().unwrap_or(Range::EMPTY)
+        Some(
+            ((r.x as usize * self.dims.y as usize) + r.y as usize) * self.dims.z as usize
+                + r.z as usize,
+        )
+    }
+    #[inline]
+    fn get(&self, k: IVec3) -> Range {
+        self.index(k)
+            .and_then(|i| self.ranges.get(i).copied())
+            .unwrap_or(Range::EMPTY)
     }
     fn hi(&self) -> IVec3 {
         self.lo + self.dims - IVec3::ONE
@@ -134,6 +142,12 @@ pub struct LevelSet {
     grid: SparseGrid,
     bricks: RangeTable,
     coarse: RangeTable,
+    /// Per brick of `bricks` (same order): index into `subs`, or `u32::MAX` when the brick's
+    /// range excludes zero.
+    sub_of: Vec<u32>,
+    /// Ranges of the eight 4³-cell quarters of each brick whose range straddles zero,
+    /// `[(x << 2) | (y << 1) | z]`.
+    subs: Vec<[Range; 8]>,
     /// World to index (f32, for rays).
     to_index_m: Mat3,
     to_index_t: Vec3,
@@ -172,7 +186,7 @@ impl LevelSet {
         if count > MAX_TABLE_BRICKS {
             return Err(LevelSetError::TooLarge(count));
         }
-        let bricks = brick_ranges(&grid, klo, dims)?;
+        let (bricks, sub_of, subs) = brick_ranges(&grid, klo, dims)?;
         let min = bricks
             .ranges
             .iter()
@@ -189,6 +203,8 @@ impl LevelSet {
             grid,
             bricks,
             coarse,
+            sub_of,
+            subs,
             to_index_m: Mat3::IDENTITY,
             to_index_t: Vec3::ZERO,
             normal_m: Mat3::IDENTITY,
@@ -314,26 +330,53 @@ impl LevelSet {
                     inside = side(br);
                     continue;
                 }
-                let vlo = bk << BRICK_LOG2;
-                let vhi = vlo + IVec3::splat(BRICK_DIM - 1);
-                let mut vdda = Dda::new(o, d, ba, bb, 0, vlo, vhi);
-                while let Some((ijk, ta, tb)) = vdda.next() {
-                    if ta >= t_max {
+                let quarters = self
+                    .bricks
+                    .index(bk)
+                    .and_then(|i| self.sub_of.get(i))
+                    .and_then(|&q| self.subs.get(q as usize));
+                let Some(quarters) = quarters else {
+                    // A constant brick of value 0: no crossing inside it.
+                    inside = side(br);
+                    continue;
+                };
+                let qlo = bk << 1;
+                let mut qdda = Dda::new(o, d, ba, bb, 2, qlo, qlo + IVec3::ONE);
+                while let Some((qk, qa, qb)) = qdda.next() {
+                    if qa >= t_max {
                         return None;
                     }
-                    let c = corner_values(&mut acc, ijk);
-                    let r = c
-                        .iter()
-                        .fold(Range::EMPTY, |r, &v| r.add(Range { min: v, max: v }));
-                    if !r.straddles_zero() {
-                        inside = side(r);
+                    let q = qk - qlo;
+                    let qr = quarters
+                        .get(((q.x << 2) | (q.y << 1) | q.z) as usize)
+                        .copied()
+                        .unwrap_or(Range::EMPTY);
+                    if !qr.straddles_zero() {
+                        inside = side(qr);
                         continue;
                     }
-                    let local = o - ijk.as_vec3();
-                    if let Some(t) = first_root(&c, local, d, ta, tb, &mut inside) {
-                        if t > 0.0 && t < t_max {
-                            let leaving = inside == Some(false);
-                            return Some(self.make_hit(ray, &mut acc, o, d, ijk, &c, t, leaving));
+                    let vlo = qk << 2;
+                    let mut vdda = Dda::new(o, d, qa, qb, 0, vlo, vlo + IVec3::splat(3));
+                    while let Some((ijk, ta, tb)) = vdda.next() {
+                        if ta >= t_max {
+                            return None;
+                        }
+                        let c = corner_values(&mut acc, ijk);
+                        let r = c
+                            .iter()
+                            .fold(Range::EMPTY, |r, &v| r.add(Range { min: v, max: v }));
+                        if !r.straddles_zero() {
+                            inside = side(r);
+                            continue;
+                        }
+                        let local = o - ijk.as_vec3();
+                        if let Some(t) = first_root(&c, local, d, ta, tb, &mut inside) {
+                            if t > 0.0 && t < t_max {
+                                let leaving = inside == Some(false);
+                                return Some(
+                                    self.make_hit(ray, &mut acc, o, d, ijk, &c, t, leaving),
+                                );
+                            }
                         }
                     }
                 }
@@ -390,32 +433,48 @@ impl LevelSet {
     }
 }
 
+/// Brick ranges and quarter ranges.
+type BrickTables = (RangeTable, Vec<u32>, Vec<[Range; 8]>);
+
 /// Per-brick ranges over the brick box `[klo, klo + dims)`: the values at voxels
-/// `[8k, 8k + 8]` (the brick and its apron on the + sides).
-fn brick_ranges(grid: &SparseGrid, klo: IVec3, dims: IVec3) -> Result<RangeTable, LevelSetError> {
+/// `[8k, 8k + 8]` (the brick and its apron on the + sides); for bricks straddling zero also the
+/// ranges of their eight quarters (voxels `[8k + 4q, 8k + 4q + 4]`).
+fn brick_ranges(grid: &SparseGrid, klo: IVec3, dims: IVec3) -> Result<BrickTables, LevelSetError> {
     let n = (dims.x as usize) * (dims.y as usize) * (dims.z as usize);
     let mut ranges = Vec::with_capacity(n);
+    let mut sub_of = Vec::with_capacity(n);
+    let mut subs = Vec::new();
     let mut acc = grid.accessor(0);
     for x in 0..dims.x {
         for y in 0..dims.y {
             for z in 0..dims.z {
                 let k = klo + IVec3::new(x, y, z);
-                ranges.push(brick_range(grid, &mut acc, k)?);
+                let (r, quarters) = brick_range(grid, &mut acc, k)?;
+                ranges.push(r);
+                match quarters {
+                    Some(q) if r.straddles_zero() => {
+                        sub_of.push(subs.len() as u32);
+                        subs.push(q);
+                    }
+                    _ => sub_of.push(u32::MAX),
+                }
             }
         }
     }
-    Ok(RangeTable {
+    let table = RangeTable {
         lo: klo,
         dims,
         ranges,
-    })
+    };
+    Ok((table, sub_of, subs))
 }
 
+/// One brick's range and, unless it is constant, its quarters' ranges.
 fn brick_range(
     grid: &SparseGrid,
     acc: &mut crate::grid::Accessor<'_>,
     k: IVec3,
-) -> Result<Range, LevelSetError> {
+) -> Result<(Range, Option<[Range; 8]>), LevelSetError> {
     // A brick cell under one constant tile whose + neighbours are the same tile: constant.
     if let Node::Tile { tile, .. } = grid.node_at_brick(k) {
         let v = grid.tile_value(0, tile);
@@ -427,11 +486,12 @@ fn brick_range(
             if !v.is_finite() {
                 return Err(LevelSetError::NonFinite(k << BRICK_LOG2));
             }
-            return Ok(Range { min: v, max: v });
+            return Ok((Range { min: v, max: v }, None));
         }
     }
     let base = k << BRICK_LOG2;
     let mut r = Range::EMPTY;
+    let mut quarters = [Range::EMPTY; 8];
     for x in 0..=BRICK_DIM {
         for y in 0..=BRICK_DIM {
             for z in 0..=BRICK_DIM {
@@ -440,11 +500,20 @@ fn brick_range(
                 if !v.is_finite() {
                     return Err(LevelSetError::NonFinite(ijk));
                 }
-                r = r.add(Range { min: v, max: v });
+                let one = Range { min: v, max: v };
+                r = r.add(one);
+                // Voxel 4 of an axis is in both quarters' aprons.
+                for (q, slot) in quarters.iter_mut().enumerate() {
+                    let (qx, qy, qz) = ((q >> 2) as i32, ((q >> 1) & 1) as i32, (q & 1) as i32);
+                    let within = |c: i32, h: i32| (4 * h..=4 * h + 4).contains(&c);
+                    if within(x, qx) && within(y, qy) && within(z, qz) {
+                        *slot = slot.add(one);
+                    }
+                }
             }
         }
     }
-    Ok(r)
+    Ok((r, Some(quarters)))
 }
 
 /// Ranges of 8³-brick cells, merged from the brick table.
