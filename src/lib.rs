@@ -26,6 +26,7 @@ pub mod fabric;
 pub mod procedural;
 
 pub mod medium;
+pub mod voxelize;
 
 pub mod light;
 

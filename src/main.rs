@@ -28,6 +28,8 @@ enum Command {
     Convert(cli::convert::ConvertArgs),
     /// Generate a woven fabric patch and write it as OpenVDB grids.
     Weave(cli::weave::WeaveArgs),
+    /// Convert a PLY mesh into an OpenVDB level set or fog volume (with optional noise).
+    Voxelize(cli::voxelize::VoxelizeArgs),
     /// Report majorant-bound tightness and violations per pyramid level (VDB file or scene).
     Majorants(cli::majorants::MajorantsArgs),
     /// Print paths/s and rays/s rendering a scene (default: the built-in creature).
@@ -61,6 +63,7 @@ fn main() {
         Command::Inspect(a) => cli::inspect::run(a),
         Command::Convert(a) => cli::convert::run(a),
         Command::Weave(a) => cli::weave::run(a),
+        Command::Voxelize(a) => cli::voxelize::run(a),
         Command::Diff(a) => cli::diff::run(a),
         Command::Bench(a) => cli::bench::run(a),
         Command::Reference(a) => cli::reference::run(a),

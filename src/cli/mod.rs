@@ -12,6 +12,7 @@ pub mod metadata;
 pub mod reference;
 pub mod render;
 pub mod tradeoff;
+pub mod voxelize;
 pub mod weave;
 
 /// The result of a subcommand: any error is printed by `main` and the process exits non-zero.
