@@ -271,6 +271,16 @@ fn bvh_matches_brute_force() {
             min: Vec3::new(-0.9, -0.2, 0.1),
             max: Vec3::new(-0.5, 0.3, 0.4),
         },
+        // A level-set ball of radius 0.2 (10 voxels), overlapping the skin.
+        Shape::LevelSet(std::sync::Arc::new(
+            velour::geometry::LevelSet::new(common::levelset::sphere_grid(
+                glam::DVec3::new(0.1, 0.45, 0.2),
+                0.2,
+                0.02,
+                3.0,
+            ))
+            .unwrap(),
+        )),
     ];
     let geo = SceneGeometry::build(shapes.clone()).unwrap();
     assert_eq!(
@@ -279,7 +289,7 @@ fn bvh_matches_brute_force() {
             .iter()
             .map(|s| match s {
                 Shape::Mesh(m) => m.indices.len(),
-                Shape::Sphere { .. } | Shape::Box { .. } => 1,
+                Shape::Sphere { .. } | Shape::Box { .. } | Shape::LevelSet(_) => 1,
             })
             .sum::<usize>()
     );
@@ -328,6 +338,11 @@ fn bvh_matches_brute_force() {
                 }
                 Shape::Box { min, max } => {
                     if let Some(h) = intersect_box(&ray, *min, *max, best.map_or(t_max, |x| x.0)) {
+                        best = Some((h.t, si as u32, 0));
+                    }
+                }
+                Shape::LevelSet(ls) => {
+                    if let Some(h) = ls.intersect(&ray, best.map_or(t_max, |x| x.0)) {
                         best = Some((h.t, si as u32, 0));
                     }
                 }

@@ -1,10 +1,11 @@
 //! The scene's surfaces: one wide BVH over every triangle ([`super::wide_bvh`], conservative
-//! node test, our watertight triangle test), and the analytic shapes (spheres, boxes) tested
-//! directly, outside the triangle hierarchy.
+//! node test, our watertight triangle test), and the analytic shapes (spheres, boxes) and
+//! level sets tested directly, outside the triangle hierarchy.
 
 use crate::math::{Aabb, Ray, Vec2, Vec3};
 
 use super::aabox::{intersect_box, BoxHit};
+use super::levelset::LevelSetHit;
 use super::sphere::{intersect_sphere, SphereHit};
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
@@ -48,12 +49,17 @@ enum Analytic {
         max: Vec3,
         shape: u32,
     },
+    /// A level set: `shapes[shape]` holds it.
+    LevelSet {
+        shape: u32,
+    },
 }
 
 enum Best {
     Tri(usize, TriangleHit),
     Sphere(u32, SphereHit),
     Box(u32, BoxHit),
+    LevelSet(u32, LevelSetHit),
 }
 
 impl SceneGeometry {
@@ -98,6 +104,23 @@ impl SceneGeometry {
                     }
                     topologies.push(None);
                 }
+                Shape::LevelSet(ls) => {
+                    let b = ls.bounds();
+                    let far =
+                        b.min.abs().max(b.max.abs()).max_element() > super::mesh::MAX_COORDINATE;
+                    if far || !b.is_valid() {
+                        return Err(GeometryError::InvalidShape {
+                            shape: i,
+                            message: format!(
+                                "level set lies beyond ±{:e} (bounds {:?} to {:?})",
+                                super::mesh::MAX_COORDINATE,
+                                b.min,
+                                b.max
+                            ),
+                        });
+                    }
+                    topologies.push(None);
+                }
             }
         }
         let mut prims = Vec::new();
@@ -128,6 +151,7 @@ impl SceneGeometry {
                     max: *max,
                     shape: si as u32,
                 }),
+                Shape::LevelSet(_) => analytic.push(Analytic::LevelSet { shape: si as u32 }),
             }
         }
         if prims.len() > (u32::MAX / 2) as usize {
@@ -197,6 +221,14 @@ impl SceneGeometry {
                         best = Some(Best::Box(shape, h));
                     }
                 }
+                Analytic::LevelSet { shape } => {
+                    if let Some(Shape::LevelSet(ls)) = self.shapes.get(shape as usize) {
+                        if let Some(h) = ls.intersect(ray, closest) {
+                            closest = h.t;
+                            best = Some(Best::LevelSet(shape, h));
+                        }
+                    }
+                }
             }
         }
         if !self.prims.is_empty() {
@@ -230,6 +262,10 @@ impl SceneGeometry {
                 intersect_sphere(ray, center, radius, t_max).is_some()
             }
             Analytic::Box { min, max, .. } => intersect_box(ray, min, max, t_max).is_some(),
+            Analytic::LevelSet { shape } => matches!(
+                self.shapes.get(shape as usize),
+                Some(Shape::LevelSet(ls)) if ls.occluded(ray, t_max)
+            ),
         }) {
             return true;
         }
@@ -286,6 +322,16 @@ impl SceneGeometry {
                     p_error,
                 }
             }
+            Best::LevelSet(shape, h) => Hit {
+                t: h.t,
+                p: h.p,
+                ng: h.n,
+                ns: h.ns,
+                uv: Vec2::ZERO,
+                shape,
+                prim: 0,
+                p_error: h.p_error,
+            },
             Best::Tri(slot, h) => {
                 let p = &self.prims[slot];
                 let pos = p.a * h.b0 + p.b * h.b1 + p.c * h.b2;

@@ -1,5 +1,5 @@
 //! Surface geometry: triangle meshes (PLY reading of our own, writing through `ply-rs-bw`),
-//! analytic spheres, and one BVH over every triangle of a scene (PLOC build from `obvhs`,
+//! analytic spheres, level-set boundaries (zero crossings of a grid, [`LevelSet`]), and one BVH over every triangle of a scene (PLOC build from `obvhs`,
 //! collapsed into our own 8-wide BVH and traversal) with our own robust primitive tests.
 //!
 //! Robustness contract (what the integrator relies on):
@@ -20,6 +20,7 @@
 mod aabox;
 mod bvh;
 mod icosphere;
+mod levelset;
 mod mesh;
 mod ply;
 mod sphere;
@@ -27,12 +28,14 @@ mod triangle;
 mod wide_bvh;
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use crate::math::{Mat3, Mat4, Vec2, Vec3};
 
 pub use aabox::{intersect_box, BoxHit};
 pub use bvh::SceneGeometry;
 pub use icosphere::icosphere;
+pub use levelset::{LevelSet, LevelSetError, LevelSetHit};
 pub use mesh::{MeshTopology, TriangleMesh};
 pub use ply::{load_ply, parse_ply, write_ply};
 pub use sphere::{intersect_sphere, SphereHit};
@@ -161,11 +164,15 @@ pub enum Shape {
         /// Largest corner (every component > `min`'s).
         max: Vec3,
     },
+    /// The zero crossing of a level-set grid (negative inside), placed by its grid's
+    /// index-to-world map; shared, as the grid can be large.
+    LevelSet(Arc<LevelSet>),
 }
 
 impl Shape {
     /// Applies the affine transform `m` (object to world). Meshes accept any invertible
-    /// transform (see [`TriangleMesh::transform`]); spheres accept only similarity transforms
+    /// transform (see [`TriangleMesh::transform`]), and so do level sets (their grid's map is
+    /// composed with `m`); spheres accept only similarity transforms
     /// (rotation, uniform scale, translation, reflection) and return
     /// [`GeometryError::InvalidTransform`] otherwise.
     pub fn transform(&mut self, m: Mat4) -> Result<(), GeometryError> {
@@ -211,6 +218,13 @@ impl Shape {
                 *max = a.max(b);
                 Ok(())
             }
+            Shape::LevelSet(ls) => {
+                Arc::make_mut(ls)
+                    .transform(m)
+                    .map_err(|e| GeometryError::InvalidTransform {
+                        message: format!("level set: {e}"),
+                    })
+            }
         }
     }
 
@@ -227,6 +241,7 @@ impl Shape {
                 min: *min,
                 max: *max,
             },
+            Shape::LevelSet(ls) => ls.bounds(),
         }
     }
 }

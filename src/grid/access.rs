@@ -159,12 +159,33 @@ impl<'a> Accessor<'a> {
     #[inline]
     pub fn sample_trilinear(&mut self, p: Vec3) -> f32 {
         let (i, t) = floor_frac(p);
+        match self.gather(i) {
+            Ok(c) => trilerp(&c, t),
+            Err(v) => v,
+        }
+    }
+
+    /// The first component at the 8 voxels `i + (dx, dy, dz)`, `dx, dy, dz ∈ {0, 1}`, as
+    /// `c[(dx << 2) | (dy << 1) | dz]` (the corners of one trilinear cell), read with one
+    /// brick resolution when they share a brick.
+    #[inline]
+    pub fn corners(&mut self, i: IVec3) -> [f32; 8] {
+        match self.gather(i) {
+            Ok(c) => c,
+            Err(v) => [v; 8],
+        }
+    }
+
+    /// The 8 corner values from voxel `i`, or `Err(value)` when one constant tile (or the
+    /// background) lies under all of them.
+    #[inline(always)]
+    fn gather(&mut self, i: IVec3) -> Result<[f32; 8], f32> {
         let l = i & 7;
         let mut c = [0.0f32; 8];
         if l.x < 7 && l.y < 7 && l.z < 7 {
             let e = self.resolve(i >> BRICK_LOG2);
             if e & TILE_BIT != 0 {
-                return self.fetch(e, 0, 0);
+                return Err(self.fetch(e, 0, 0));
             }
             let base = e as usize * BRICK_VOXELS + voxel_offset(l);
             const OFF: [usize; 8] = [0, 1, 8, 9, 64, 65, 72, 73];
@@ -210,7 +231,7 @@ impl<'a> Accessor<'a> {
             }
             if e0 & TILE_BIT != 0 && e.iter().all(|&x| x == e0) {
                 // One constant tile (or the background) under all 8 corners.
-                return self.fetch(e0, 0, 0);
+                return Err(self.fetch(e0, 0, 0));
             }
             for (k, ck) in c.iter_mut().enumerate() {
                 let (dx, dy, dz) = (k >> 2, (k >> 1) & 1, k & 1);
@@ -221,7 +242,7 @@ impl<'a> Accessor<'a> {
                 *ck = self.fetch(ent, off as usize, 0);
             }
         }
-        trilerp(&c, t)
+        Ok(c)
     }
 
     /// Trilinear interpolation of a vector channel at index-space point `p`.

@@ -11,7 +11,7 @@ use super::validate::{check_range, reject_unused, vec3};
 use super::{Object, ObjectSurface, SceneError};
 use crate::bsdf::microfacet::SMOOTH_ALPHA;
 use crate::fabric::lod::ViewFootprint;
-use crate::geometry::{load_ply, Shape, TriangleMesh};
+use crate::geometry::{load_ply, LevelSet, Shape, TriangleMesh};
 use crate::math::{Aabb, Mat4, Vec3};
 use crate::medium::{DensityField, Medium, NeeStrategy};
 use crate::spectrum::Rgb;
@@ -52,7 +52,7 @@ impl ObjectList {
         let has_uvs = match &rest {
             RestShape::Mesh(m) => m.uvs.is_some(),
             RestShape::Sphere { .. } => true,
-            RestShape::Bounds => false,
+            RestShape::Bounds | RestShape::LevelSet(_) => false,
         };
         let (surface, ior) = match &desc.surface {
             Some(s) => build_surface(
@@ -136,6 +136,12 @@ impl ObjectList {
                     },
                     false,
                 )
+            }
+            (RestShape::LevelSet(mut ls), _) => {
+                ls.transform(xf).map_err(|e| {
+                    ctx.invalid(line, format!("{name}: placing the level set: {e}"))
+                })?;
+                (Shape::LevelSet(std::sync::Arc::new(ls)), false)
             }
             (RestShape::Bounds, _) => {
                 let bounds = match medium.map(|m| &media[m as usize]) {
@@ -399,6 +405,8 @@ enum RestShape {
     },
     /// The world box of the interior's grid.
     Bounds,
+    /// A level set (placed by its file's transform; the object transform comes on top).
+    LevelSet(LevelSet),
 }
 
 impl RestShape {
@@ -410,6 +418,7 @@ impl RestShape {
                 min: *center - Vec3::splat(*radius),
                 max: *center + Vec3::splat(*radius),
             }),
+            RestShape::LevelSet(ls) => Some(ls.bounds()),
             RestShape::Bounds => None,
         }
     }
@@ -430,7 +439,11 @@ fn build_rest_shape(
                 line,
                 name,
                 "mesh",
-                &[("center", d.center.is_some()), ("radius", d.radius.is_some())],
+                &[
+                    ("center", d.center.is_some()),
+                    ("radius", d.radius.is_some()),
+                    ("grid", d.grid.is_some()),
+                ],
             )?;
             let file = d.file.as_ref().ok_or_else(|| {
                 ctx.invalid(line, format!("{name}: shape \"mesh\" needs `file`"))
@@ -440,7 +453,13 @@ fn build_rest_shape(
             Ok(RestShape::Mesh(mesh))
         }
         "sphere" => {
-            reject_unused(ctx, line, name, "sphere", &[("file", d.file.is_some())])?;
+            reject_unused(
+                ctx,
+                line,
+                name,
+                "sphere",
+                &[("file", d.file.is_some()), ("grid", d.grid.is_some())],
+            )?;
             let center = vec3(
                 ctx,
                 line,
@@ -470,17 +489,74 @@ fn build_rest_shape(
                     ("file", d.file.is_some()),
                     ("center", d.center.is_some()),
                     ("radius", d.radius.is_some()),
+                    ("grid", d.grid.is_some()),
                 ],
             )?;
             Ok(RestShape::Bounds)
         }
+        "levelset" => {
+            reject_unused(
+                ctx,
+                line,
+                name,
+                "levelset",
+                &[("center", d.center.is_some()), ("radius", d.radius.is_some())],
+            )?;
+            let file = d.file.as_ref().ok_or_else(|| {
+                ctx.invalid(
+                    line,
+                    format!("{name}: shape \"levelset\" needs `file` (an OpenVDB level set)"),
+                )
+            })?;
+            let path = ctx.resolve(file);
+            let grid = d.grid.as_deref().unwrap_or("surface");
+            Ok(RestShape::LevelSet(load_level_set(ctx, line, name, &path, grid)?))
+        }
         other => Err(ctx.invalid(
             line,
             format!(
-                "{name}: shape = \"{other}\" is unknown (expected \"mesh\", \"sphere\" or \"bounds\")"
+                "{name}: shape = \"{other}\" is unknown (expected \"mesh\", \"sphere\", \"bounds\" or \"levelset\")"
             ),
         )),
     }
+}
+
+/// Reads grid `grid` of the VDB file at `path` as a level-set boundary. Refused, naming the
+/// file and grid: a missing grid (the message lists the file's grids), a grid of class
+/// `fog volume` or `staggered`, and any grid that [`LevelSet::new`] refuses (vectors, no
+/// negative values, a background that is not positive, non-finite values). Class `unknown`
+/// is accepted when the values are those of a level set.
+fn load_level_set(
+    ctx: &Ctx,
+    line: usize,
+    name: &str,
+    path: &std::path::Path,
+    grid: &str,
+) -> Result<LevelSet, SceneError> {
+    let file =
+        crate::vdb::VdbFile::open(path).map_err(|e| ctx.invalid(line, format!("{name}: {e}")))?;
+    let vg = file
+        .read_grid(grid)
+        .map_err(|e| ctx.invalid(line, format!("{name}: {e}")))?;
+    let where_ = format!("{name}: {}: grid `{grid}`", path.display());
+    if vg.class == "fog volume" || vg.class == "staggered" {
+        return Err(ctx.invalid(
+            line,
+            format!(
+                "{where_} has class `{}`, not a level set: shape = \"levelset\" needs a signed distance grid (class `level set`, negative inside; `velour voxelize --levelset`); a fog volume belongs in `interior = {{ type = \"voxel\" }}`",
+                vg.class
+            ),
+        ));
+    }
+    LevelSet::new(vg.grid).map_err(|e| {
+        ctx.invalid(
+            line,
+            format!(
+                "{where_} (class `{}`) is not a usable level set: {e}",
+                vg.class
+            ),
+        )
+    })
 }
 
 /// The albedo an interior shows in the albedo AOV: its artist albedo (default 0.8) when it has

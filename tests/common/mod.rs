@@ -8,6 +8,7 @@
 //! - [`cli`]: running the `velour` binary (or any command) and capturing its output.
 //! - [`external`]: optional external programs (real OpenVDB) that skip, or fail under
 //!   `VELOUR_REQUIRE_EXTERNAL=1`, when missing.
+//! - [`levelset`]: level-set spheres written as OpenVDB files.
 //! - [`render`]: rendering inline scene text, image and region means with standard errors.
 //! - [`textures`]: small PNG/EXR texture files written into temporary directories.
 //! - [`vdb_figures`]: OpenVDB's figures of a grid (JSON) against ours.
@@ -19,6 +20,7 @@ pub mod chi2;
 pub mod cli;
 pub mod external;
 pub mod files;
+pub mod levelset;
 pub mod render;
 pub mod sphere;
 pub mod stats;

@@ -218,7 +218,8 @@ impl Interface for SceneInterface<'_> {
         let point = match self.scene.geometry.shape(hit.shape as usize)? {
             Shape::Sphere { center, radius } => on_sphere(x0, d, v64(*center), f64::from(*radius)),
             Shape::Mesh(mesh) => on_triangle(x0, d, mesh, &hit),
-            Shape::Box { .. } => on_plane(x0, d, v64(hit.p), v64(hit.ng)),
+            // A level set: its tangent plane at the hit (curvature left out of the walk).
+            Shape::Box { .. } | Shape::LevelSet(_) => on_plane(x0, d, v64(hit.p), v64(hit.ng)),
         }?;
         // The ray left through the crossing: the refined point must agree.
         if !(d.dot(point.ng) > 0.0) {

@@ -130,10 +130,13 @@ pub struct FilmDesc {
 pub struct ObjectDesc {
     /// A name used in messages.
     pub name: Option<String>,
-    /// "mesh", "sphere" or "bounds" (the box around a voxel or fabric interior's grid).
+    /// "mesh", "sphere", "bounds" (the box around a voxel or fabric interior's grid) or
+    /// "levelset" (the zero crossing of a VDB level set).
     pub shape: String,
-    /// PLY file (mesh), relative to the scene file's folder.
+    /// PLY file (mesh) or OpenVDB file (levelset), relative to the scene file's folder.
     pub file: Option<String>,
+    /// The level-set grid's name in `file` (levelset; default "surface").
+    pub grid: Option<String>,
     /// Centre (sphere), object space.
     pub center: Option<[f32; 3]>,
     /// Radius (sphere), object space.

@@ -42,7 +42,7 @@ use crate::texture::{ColorParam, ScalarParam};
 pub(super) struct Placement<'a> {
     /// Object to world.
     pub xf: Mat4,
-    /// The rest-space box of a mesh or sphere shape (none for `shape = "bounds"`).
+    /// The rest-space box of a mesh, sphere or level-set shape (none for `shape = "bounds"`).
     pub rest_bounds: Option<Aabb>,
     /// The rest-space mesh of a mesh shape.
     pub rest_mesh: Option<&'a TriangleMesh>,
