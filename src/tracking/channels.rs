@@ -17,9 +17,7 @@ pub fn channel_probabilities(beta: Rgb, alpha: Rgb) -> [f32; 3] {
     if !(sum > 0.0) || !sum.is_finite() {
         return [1.0 / 3.0; 3];
     }
-    // One 4-wide division: the same IEEE operation per channel as three scalar ones.
-    let p = glam::Vec3A::from_array(w) / sum;
-    p.to_array()
+    w.map(|x| x / sum)
 }
 
 /// The channel whose cumulative probability interval contains uniform `u`.
