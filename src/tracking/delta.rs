@@ -273,7 +273,15 @@ where
             let sigma_r = sigma_t - control_t;
             // Decision probabilities of each channel as hero (weighted tracking: the
             // residual's |σ_r| against |σ_n|).
-            let p_real = real_probabilities(sigma_r, sigma_n);
+            let p_real = Rgb([0, 1, 2].map(|k| {
+                let a = sigma_r[k].abs();
+                let b = sigma_n[k].abs();
+                if a + b > 0.0 {
+                    a / (a + b)
+                } else {
+                    0.0
+                }
+            }));
             if u_event < p_real[hero] {
                 chain.f *= coeff.sigma_s_at(d) - control_s;
                 chain.p *= p_rest * p_real * major;
@@ -298,24 +306,13 @@ where
     }
 }
 
-/// Per channel, |σ_r| / (|σ_r| + |σ_n|), or 0 where both are 0: the probability that a
-/// tentative collision is real.
-#[inline]
-fn real_probabilities(sigma_r: Rgb, sigma_n: Rgb) -> Rgb {
-    Rgb([0, 1, 2].map(|k| {
-        let a = sigma_r[k].abs();
-        let b = sigma_n[k].abs();
-        if a + b > 0.0 {
-            a / (a + b)
-        } else {
-            0.0
-        }
-    }))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn close(a: Rgb, b: Rgb, rel: f32) -> bool {
+        (0..3).all(|k| (a[k] - b[k]).abs() <= rel * b[k].abs().max(1e-30))
+    }
 
     #[test]
     fn weight_is_the_contribution_over_the_mixture_of_hero_probabilities() {
