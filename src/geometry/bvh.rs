@@ -5,6 +5,7 @@
 use crate::math::{Aabb, Ray, Vec2, Vec3};
 
 use super::aabox::{intersect_box, BoxHit};
+use super::empty_cells::EmptyCells;
 use super::levelset::LevelSetHit;
 use super::sphere::{intersect_sphere, SphereHit};
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
@@ -29,6 +30,8 @@ pub struct SceneGeometry {
     prims: Vec<Prim>,
     /// The same triangles transposed for the traversal's triangle test (BVH order).
     tris: Vec<TriangleSoa>,
+    /// The cells no triangle touches: short segments inside them skip the traversal.
+    empty: Option<EmptyCells>,
     /// Analytic shapes, tested directly.
     analytic: Vec<Analytic>,
     shapes: Vec<Shape>,
@@ -173,6 +176,7 @@ impl SceneGeometry {
             .map(|p| (p.a.min(p.b).min(p.c) - pad, p.a.max(p.b).max(p.c) + pad))
             .collect();
         let bvh = WideBvh::build(&boxes);
+        let empty = EmptyCells::build(&boxes, pad.x);
         let ordered: Vec<Prim> = bvh.order().iter().map(|&i| prims[i as usize]).collect();
         let tris = ordered
             .iter()
@@ -182,6 +186,7 @@ impl SceneGeometry {
             bvh,
             prims: ordered,
             tris,
+            empty,
             analytic,
             shapes,
             topologies,
@@ -231,7 +236,7 @@ impl SceneGeometry {
                 }
             }
         }
-        if !self.prims.is_empty() {
+        if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, closest, |slot, t_max| {
                 match sr.intersect(&self.tris[slot as usize], t_max) {
@@ -270,7 +275,7 @@ impl SceneGeometry {
             return true;
         }
         let mut found = false;
-        if !self.prims.is_empty() {
+        if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, t_max, |slot, t| {
                 if sr.intersect(&self.tris[slot as usize], t).is_some() {
@@ -282,6 +287,24 @@ impl SceneGeometry {
             });
         }
         found
+    }
+
+    /// True when the segment `(0, t_max)` of `ray` provably hits no triangle: it is short
+    /// and lies in cells no triangle touches ([`EmptyCells`]; the traversal would find nothing).
+    #[inline]
+    fn segment_misses_triangles(&self, ray: &Ray, t_max: f32) -> bool {
+        t_max.is_finite()
+            && self
+                .empty
+                .as_ref()
+                .is_some_and(|e| e.clear(ray.o, ray.at(t_max)))
+    }
+
+    /// Drops the empty-cell grid (tests compare with and without it).
+    #[cfg(test)]
+    fn without_empty_cells(mut self) -> Self {
+        self.empty = None;
+        self
     }
 
     fn make_hit(&self, ray: &Ray, best: Best) -> Hit {
@@ -413,5 +436,75 @@ impl SceneGeometry {
     #[must_use]
     pub fn topology(&self, i: usize) -> Option<MeshTopology> {
         self.topologies.get(i).copied().flatten()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::icosphere;
+    use crate::sampling::{sample_uniform_sphere, Rng};
+
+    fn hit_bits(h: Option<Hit>) -> Option<[u32; 6]> {
+        h.map(|h| {
+            [
+                h.t.to_bits(),
+                h.p.x.to_bits(),
+                h.p.y.to_bits(),
+                h.p.z.to_bits(),
+                h.shape,
+                h.prim,
+            ]
+        })
+    }
+
+    #[test]
+    fn skipping_empty_cells_changes_no_hit() {
+        // The skin icosphere (20,480 triangles) scaled and moved off the origin, and a box.
+        let mut mesh = icosphere(5);
+        for p in &mut mesh.positions {
+            *p = *p * 3.0 + Vec3::new(10.0, -2.0, 5.0);
+        }
+        let geometry = SceneGeometry::build(vec![
+            Shape::Mesh(mesh),
+            Shape::Box {
+                min: Vec3::new(9.0, -3.0, 4.0),
+                max: Vec3::new(9.5, -2.5, 4.5),
+            },
+        ])
+        .expect("geometry");
+        let plain = geometry.clone().without_empty_cells();
+        let centre = Vec3::new(10.0, -2.0, 5.0);
+        let mut rng = Rng::new(21, 4);
+        let (mut skipped, mut hits) = (0, 0);
+        for i in 0..200_000 {
+            // Points inside and around the sphere, short and long segments, some grazing the
+            // surface from just inside (the free flights of a dense medium).
+            let r = 3.0 * (0.9 + 0.12 * rng.next_f32()).min(1.0) * rng.next_f32().cbrt().max(0.3);
+            let o = centre + sample_uniform_sphere(rng.next_2d()) * r;
+            let d = sample_uniform_sphere(rng.next_2d());
+            let t_max = match i % 4 {
+                0 => 0.02 * rng.next_f32(),
+                1 => 0.2 * rng.next_f32(),
+                2 => 2.0 * rng.next_f32(),
+                _ => f32::INFINITY,
+            };
+            let ray = Ray::new(o, d);
+            let (a, b) = (
+                geometry.intersect(&ray, t_max),
+                plain.intersect(&ray, t_max),
+            );
+            assert_eq!(hit_bits(a), hit_bits(b), "ray {i}: {ray:?} to {t_max}");
+            assert_eq!(
+                geometry.occluded(&ray, t_max),
+                plain.occluded(&ray, t_max),
+                "ray {i}"
+            );
+            skipped += usize::from(geometry.segment_misses_triangles(&ray, t_max));
+            hits += usize::from(b.is_some());
+        }
+        // The grid must actually be used, and the set must contain hits.
+        assert!(skipped > 40_000, "{skipped} segments skipped");
+        assert!(hits > 50_000, "{hits} hits");
     }
 }

@@ -19,6 +19,7 @@
 
 mod aabox;
 mod bvh;
+mod empty_cells;
 mod icosphere;
 mod levelset;
 mod mesh;

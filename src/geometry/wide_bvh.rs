@@ -1,5 +1,8 @@
 //! An 8-wide BVH with full-precision boxes in structure-of-arrays layout, traversed nearest
-//! child first with SIMD slab tests (two 4-wide halves, glam's `Vec4`: SSE on x86-64).
+//! child first with SIMD slab tests: one 8-wide AVX2 test per node where the CPU has AVX2
+//! (detected at run time), else two 4-wide halves (glam's `Vec4`: SSE on x86-64). Both do
+//! the same IEEE operations per child in the same order (no FMA), so they cull the same
+//! children and report the same entry distances: hits are bit-identical either way.
 //!
 //! The binary hierarchy comes from `obvhs` (PLOC build with SAH reinsertion); it is collapsed
 //! into nodes of up to eight children by repeatedly opening the child with the largest surface
@@ -70,6 +73,8 @@ pub struct WideBvh {
     /// Original primitive index of each position.
     order: Vec<u32>,
     depth: usize,
+    /// The CPU runs AVX2 (detected when the hierarchy is built): the 8-wide node test.
+    avx2: bool,
 }
 
 struct BoxPrim(OAabb);
@@ -125,23 +130,8 @@ impl SlabRay {
         }
     }
 
-    /// Entry distances of the four children and the mask of those the ray enters in
-    /// `[0, t_max]`.
-    #[inline(always)]
-    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
-        let (a, ma) = self.test_half(node, 0, t_max);
-        let (b, mb) = self.test_half(node, 1, t_max);
-        let mut near = [0.0; WIDTH];
-        near[..4].copy_from_slice(&a.to_array());
-        near[4..].copy_from_slice(&b.to_array());
-        (near, ma | (mb << 4))
-    }
-
     #[inline(always)]
     fn test_half(&self, node: &Node8, h: usize, t_max: f32) -> (Vec4, u32) {
-        /// 1 + 2γ₃: the relative rounding bound of a slab distance.
-        const FAR_SCALE: f32 =
-            1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
         for k in 0..3 {
@@ -151,6 +141,94 @@ impl SlabRay {
             far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
         }
         (near, near.cmple(far).bitmask())
+    }
+}
+
+/// 1 + 2γ₃: the relative rounding bound of a slab distance.
+const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// The slab test of one node: the entry distances of its eight children and the mask of those
+/// the ray enters within `[0, t_max]` (bit `i` for child `i`).
+trait NodeTest {
+    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32);
+}
+
+impl NodeTest for SlabRay {
+    #[inline(always)]
+    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+        let (a, ma) = self.test_half(node, 0, t_max);
+        let (b, mb) = self.test_half(node, 1, t_max);
+        let mut near = [0.0; WIDTH];
+        near[..4].copy_from_slice(&a.to_array());
+        near[4..].copy_from_slice(&b.to_array());
+        (near, ma | (mb << 4))
+    }
+}
+
+/// The 8-wide AVX2 node test: [`SlabRay`]'s operations on all eight children at once.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::{
+        __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
+        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        _CMP_LE_OS,
+    };
+
+    use super::{Node8, NodeTest, SlabRay, FAR_SCALE, WIDTH};
+
+    /// The ray of a [`SlabRay`] splatted to 8 lanes. Made only by [`AvxSlab::new`], which
+    /// needs AVX.
+    pub(super) struct AvxSlab {
+        o: [__m256; 3],
+        inv: [__m256; 3],
+        near: [usize; 3],
+        far: [usize; 3],
+    }
+
+    impl AvxSlab {
+        /// # Safety
+        /// The CPU must support AVX2.
+        #[target_feature(enable = "avx2")]
+        pub(super) unsafe fn new(s: &SlabRay) -> Self {
+            AvxSlab {
+                o: s.o.map(|v| _mm256_set1_ps(v.x)),
+                inv: s.inv.map(|v| _mm256_set1_ps(v.x)),
+                near: s.near,
+                far: s.far,
+            }
+        }
+    }
+
+    impl NodeTest for AvxSlab {
+        #[inline(always)]
+        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+            // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
+            // it); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
+            // writes the 8 floats of `out`.
+            unsafe {
+                let mut near = _mm256_setzero_ps();
+                let mut far = _mm256_set1_ps(t_max);
+                for k in 0..3 {
+                    let n = _mm256_loadu_ps(node.planes[self.near[k]].as_ptr().cast::<f32>());
+                    let f = _mm256_loadu_ps(node.planes[self.far[k]].as_ptr().cast::<f32>());
+                    near = _mm256_max_ps(
+                        near,
+                        _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
+                    );
+                    far = _mm256_min_ps(
+                        far,
+                        _mm256_mul_ps(
+                            _mm256_mul_ps(_mm256_sub_ps(f, self.o[k]), self.inv[k]),
+                            _mm256_set1_ps(FAR_SCALE),
+                        ),
+                    );
+                }
+                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)) as u32;
+                let mut out = [0.0f32; WIDTH];
+                _mm256_storeu_ps(out.as_mut_ptr(), near);
+                (out, mask)
+            }
+        }
     }
 }
 
@@ -221,7 +299,10 @@ impl WideBvh {
         );
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         let counts = subtree_counts(&bvh2);
-        let mut out = WideBvh::default();
+        let mut out = WideBvh {
+            avx2: has_avx2(),
+            ..WideBvh::default()
+        };
         if counts[0] <= MAX_LEAF_PRIMITIVES {
             let first = out.order.len() as u32;
             collect_primitives(&bvh2, 0, &mut out.order);
@@ -283,11 +364,52 @@ impl WideBvh {
     /// `t_max` (the distance of a closer hit, or the same value). Returns early when
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
     #[inline]
-    pub fn traverse(&self, ray: &Ray, mut t_max: f32, mut primitive: impl FnMut(u32, f32) -> f32) {
+    pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         if self.nodes.is_empty() {
             return;
         }
         let slab = SlabRay::new(ray);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only when the CPU reported AVX2.
+            unsafe { self.traverse_avx2(&slab, t_max, primitive) };
+            return;
+        }
+        self.traverse_with(&slab, t_max, primitive);
+    }
+
+    /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn traverse_avx2(
+        &self,
+        slab: &SlabRay,
+        t_max: f32,
+        primitive: impl FnMut(u32, f32) -> f32,
+    ) {
+        // SAFETY: this function runs only with AVX2.
+        let wide = unsafe { avx2::AvxSlab::new(slab) };
+        self.traverse_with(&wide, t_max, primitive);
+    }
+
+    /// Forces the 4-wide node test (tests compare it with the 8-wide one).
+    #[cfg(test)]
+    fn without_avx2(mut self) -> Self {
+        self.avx2 = false;
+        self
+    }
+
+    /// The traversal with node test `slab`.
+    #[inline(always)]
+    fn traverse_with<T: NodeTest>(
+        &self,
+        slab: &T,
+        mut t_max: f32,
+        mut primitive: impl FnMut(u32, f32) -> f32,
+    ) {
         let mut stack = Stack::new();
         let mut current = 0u32;
         // Scratch for the children of the node visited (only entries below the counts are
@@ -357,6 +479,20 @@ impl WideBvh {
                 }
             }
         }
+    }
+}
+
+/// True when the CPU runs AVX2 (the 8-wide node test) and the environment variable
+/// `VELOUR_NO_AVX2` is not set (it forces the 4-wide test, for A/B measurements in one
+/// binary; the hits are the same either way).
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::env::var_os("VELOUR_NO_AVX2").is_none()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -457,6 +593,62 @@ mod tests {
             t1 = t1.min(a.max(b));
         }
         (t0 <= t1).then_some((t0, t1))
+    }
+
+    #[test]
+    fn the_8_wide_and_4_wide_node_tests_visit_the_same_leaves_in_the_same_order() {
+        if !has_avx2() {
+            eprintln!("no AVX2 on this CPU: only the 4-wide test runs");
+            return;
+        }
+        let mut rng = Lcg(17);
+        let boxes: Vec<(Vec3, Vec3)> = (0..3000)
+            .map(|_| {
+                let c = rng.vec();
+                let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.1;
+                (c - e, c + e)
+            })
+            .collect();
+        let wide = WideBvh::build(&boxes);
+        assert!(wide.avx2);
+        let narrow = wide.clone().without_avx2();
+        // Direct node tests too: entry distances and masks bit for bit.
+        for i in 0..20_000 {
+            let mut d = rng.vec().normalize_or(Vec3::X);
+            if i % 5 == 0 {
+                d[i % 3] = 0.0;
+            }
+            let ray = Ray::new(rng.vec() * 1.5, d);
+            let t_max = if i % 3 == 0 {
+                rng.next() * 2.0
+            } else {
+                f32::INFINITY
+            };
+            let slab = SlabRay::new(&ray);
+            // SAFETY: AVX2 was detected above.
+            let avx = unsafe { avx2::AvxSlab::new(&slab) };
+            let node = &wide.nodes[i % wide.nodes.len()];
+            let (a, ma) = slab.test(node, t_max);
+            let (b, mb) = avx.test(node, t_max);
+            assert_eq!(ma, mb, "ray {i}");
+            for k in 0..WIDTH {
+                if ma & (1 << k) != 0 {
+                    assert_eq!(a[k].to_bits(), b[k].to_bits(), "ray {i} child {k}");
+                }
+            }
+            let mut seen = (Vec::new(), Vec::new());
+            // A closest-hit-like query: every third leaf primitive shortens the ray.
+            let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
+            wide.traverse(&ray, t_max, |pos, t| {
+                seen.0.push((pos, t.to_bits()));
+                shorten(pos, t)
+            });
+            narrow.traverse(&ray, t_max, |pos, t| {
+                seen.1.push((pos, t.to_bits()));
+                shorten(pos, t)
+            });
+            assert_eq!(seen.0, seen.1, "ray {i}");
+        }
     }
 
     #[test]

@@ -226,6 +226,7 @@ impl MajorantPyramid {
     ///
     /// Segments of zero density are skipped; the others tile their part of the interval.
     #[must_use]
+    #[inline]
     pub fn segments_along(
         &self,
         ray: &Ray,
@@ -337,6 +338,7 @@ impl MajorantPyramid {
     }
 
     /// [`Self::clip`] for a ray already in index space.
+    #[inline]
     fn clip_index(&self, o: DVec3, d: DVec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
         let l0 = self.levels.first()?;
         let lo = self.origin.as_dvec3() - DVec3::splat(0.5);

@@ -209,6 +209,7 @@ impl<'a> Walk<'a> {
     /// is the medium's extinction per unit density for the adaptive walk (`None`:
     /// exhaustive), `plan` its cells to open (else a single threshold per ray decides).
     #[allow(clippy::too_many_arguments)]
+    #[inline]
     pub(super) fn new(
         pyramid: &'a MajorantPyramid,
         t0: f64,
@@ -226,7 +227,11 @@ impl<'a> Walk<'a> {
             pyramid,
             ray: RaySetup::new(o, d, base, cell0),
             finest,
-            threshold: descent_threshold(d, cell0, sigma),
+            // Only consulted without a plan.
+            threshold: match plan {
+                Some(_) => f32::NEG_INFINITY,
+                None => descent_threshold(d, cell0, sigma),
+            },
             plan,
             model,
             stack: [Frame::default(); MAX_LEVELS],
