@@ -951,11 +951,22 @@ impl FabricShading {
         base: &super::FibrePhaseParams,
         patch: &FabricPatch,
     ) -> Result<FabricShading, FabricError> {
+        Self::from_albedos(
+            base,
+            [patch.warp_albedo, patch.weft_albedo, patch.pile_albedo],
+        )
+    }
+
+    /// [`FabricShading::from_patch`] from the warp, weft and pile albedos.
+    pub fn from_albedos(
+        base: &super::FibrePhaseParams,
+        albedos: [Rgb; 3],
+    ) -> Result<FabricShading, FabricError> {
         let make = |c: Rgb| super::FibrePhase::new(base.clone().with_colour(c));
         Ok(FabricShading {
-            warp: make(patch.warp_albedo)?,
-            weft: make(patch.weft_albedo)?,
-            pile: make(patch.pile_albedo)?,
+            warp: make(albedos[0])?,
+            weft: make(albedos[1])?,
+            pile: make(albedos[2])?,
         })
     }
 

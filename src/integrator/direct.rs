@@ -22,6 +22,9 @@ pub(super) enum ShadowMode {
 
 /// Transmittance from `origin` along unit `dir` over `distance` (∞ for distant lights), through
 /// media and boundaries. `ignore_shape` is the light's own shape (never an occluder).
+/// `footprint` is the width of the path's ray cone at the shadow ray's origin (world units):
+/// the media it crosses pick a per-ray fabric mip level with it (the path's own level at an
+/// interior vertex; 0 = the finest).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn shadow_transmittance(
     scene: &Scene,
@@ -30,6 +33,7 @@ pub(super) fn shadow_transmittance(
     distance: f32,
     mut stack: InteriorStack,
     mode: ShadowMode,
+    footprint: f32,
     ignore_shape: Option<u32>,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
@@ -42,9 +46,10 @@ pub(super) fn shadow_transmittance(
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
         let mut scratch = None;
         if let Some((m, _)) = current_medium(scene, &stack, &mut scratch) {
-            tr *= m.transmittance(
+            tr *= m.transmittance_in_cone(
                 &Ray::new(origin, dir),
                 seg,
+                footprint,
                 &mut || sampler.next_1d(),
                 &mut stats.tracking,
             );
@@ -137,7 +142,8 @@ pub(super) struct GuidedPrev {
 
 /// Next event estimation from a point: picks a light, traces a shadow ray, returns the
 /// MIS-weighted contribution (without the path throughput). `eval` gives (f·|cos| or phase
-/// value, pdf of the scattering strategy) for a world direction.
+/// value, pdf of the scattering strategy) for a world direction. `footprint`: the path's
+/// ray-cone width at `p` (see [`shadow_transmittance`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn estimate_direct(
     scene: &Scene,
@@ -145,6 +151,7 @@ pub(super) fn estimate_direct(
     shadow_origin: impl Fn(Vec3) -> (Vec3, InteriorStack),
     eval: impl Fn(Vec3) -> (Rgb, f32),
     mode: ShadowMode,
+    footprint: f32,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
     chosen: &mut Option<usize>,
@@ -184,6 +191,7 @@ pub(super) fn estimate_direct(
         distance,
         stack,
         mode,
+        footprint,
         light_shape,
         sampler,
         stats,

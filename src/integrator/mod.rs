@@ -316,8 +316,9 @@ impl PathState {
         };
         let mut hit = None;
         let ray = self.ray;
-        let event = medium.sample_flight_to_boundary(
+        let event = medium.sample_flight_in_cone(
             &ray,
+            self.cone.width,
             self.beta,
             &mut || sampler.next_1d(),
             &mut stats.tracking,
@@ -382,6 +383,7 @@ impl PathState {
                 |_| (p, st),
                 |wi| phase.eval(wi),
                 ShadowMode::Transparent,
+                self.cone.width,
                 sampler,
                 stats,
                 &mut li,
@@ -585,7 +587,15 @@ impl PathState {
                 entry,
             };
             let mut li = None;
-            let c = at.direct_light(scene, &surface, self.stack, sampler, stats, &mut li);
+            let c = at.direct_light(
+                scene,
+                &surface,
+                self.stack,
+                self.cone.width,
+                sampler,
+                stats,
+                &mut li,
+            );
             self.add_light(scene, li, self.beta * c);
         }
 
@@ -729,6 +739,7 @@ impl SurfaceVertex<'_> {
         scene: &Scene,
         surface: &Surface,
         stack: InteriorStack,
+        footprint: f32,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
         chosen: &mut Option<usize>,
@@ -766,6 +777,7 @@ impl SurfaceVertex<'_> {
                 (f, surface.pdf(wo_local, wi_local))
             },
             ShadowMode::Opaque,
+            footprint,
             sampler,
             stats,
             chosen,

@@ -54,9 +54,57 @@ pub struct HeterogeneousMedium {
     pub tracking: TrackingConfig,
     /// Fibre shading of a voxelised fabric (tangent and yarn-id channels of the grid), if any.
     pub fabric: Option<Box<FabricLook>>,
+    /// Coarser mip levels of a fabric whose level is chosen per ray from the ray's footprint
+    /// (`mip = "auto"`); `None` for one fixed level and for other interiors.
+    pub mips: Option<Box<MipChain>>,
+}
+
+/// The coarser levels of a fabric interior whose mip level is chosen per ray (course notes
+/// §5.3, with the footprint of a ray cone, docs/textures.md): a ray whose footprint spans
+/// `w` voxels of the base level (the medium holding the chain) is tracked, and shadowed, in
+/// level `floor(log2 w)` (the base below 2 voxels), capped at the coarsest level built.
+#[derive(Clone, Debug)]
+pub struct MipChain {
+    /// World width of one voxel of the base level (world units; the cube root of a placed
+    /// voxel's volume, or the geometric mean of a shell voxel's widths along the cloth).
+    pub voxel_width: f32,
+    /// Levels 1, 2, … above the base, each a complete medium with its own grid or shell,
+    /// majorant pyramid and fibre look.
+    pub levels: Vec<HeterogeneousMedium>,
+}
+
+impl MipChain {
+    /// The level (0 = the base) for a footprint `width` (world units): `floor(log2(width /
+    /// voxel_width))`, 0 below two voxels (and for NaN), at most the coarsest level held.
+    #[inline]
+    #[must_use]
+    pub fn level_for(&self, width: f32) -> usize {
+        let r = width / self.voxel_width;
+        if !(r >= 2.0) {
+            return 0;
+        }
+        // floor(log2 r) from the exponent bits (r ≥ 2 is normal or infinite).
+        let l = ((r.to_bits() >> 23) & 0xff) as usize - 127;
+        l.min(self.levels.len())
+    }
 }
 
 impl HeterogeneousMedium {
+    /// The medium of the mip level a ray with footprint `width` (world units, the ray cone's
+    /// width at the ray's origin) is tracked in: `self` unless the interior chooses its level
+    /// per ray ([`MipChain`]).
+    #[inline]
+    #[must_use]
+    pub fn at_footprint(&self, width: f32) -> &HeterogeneousMedium {
+        match &self.mips {
+            None => self,
+            Some(chain) => match chain.level_for(width) {
+                0 => self,
+                l => chain.levels.get(l - 1).unwrap_or(self),
+            },
+        }
+    }
+
     /// The fibre frame of a fabric interior at world point `p`: the world-space tangent and
     /// the yarn id of the nearest patch voxel (`None` for other interiors or outside the
     /// patch's shell).

@@ -367,6 +367,7 @@ pub(super) fn manifold_connection(
         distance,
         outside,
         ShadowMode::Opaque,
+        0.0,
         light_shape,
         sampler,
         stats,

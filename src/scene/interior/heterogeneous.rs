@@ -87,6 +87,7 @@ impl DensityLook {
             phase: self.phase,
             tracking: self.tracking,
             fabric: None,
+            mips: None,
         };
         medium
             .attach_local_bounds()
