@@ -224,7 +224,7 @@ pub(super) fn guided_connection(
         shadow_distance,
         outside,
         ShadowMode::Opaque,
-        0.0,
+        crate::medium::RayFootprint::POINT,
         light_shape,
         sampler,
         stats,

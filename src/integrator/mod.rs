@@ -56,6 +56,15 @@ impl RayCone {
         self.width += self.spread * t;
     }
 
+    /// The cone as media see it (fabric mip levels chosen per ray).
+    #[inline]
+    fn footprint(self) -> crate::medium::RayFootprint {
+        crate::medium::RayFootprint {
+            width: self.width,
+            spread: self.spread,
+        }
+    }
+
     /// After a non-specular event.
     #[inline]
     fn widen(&mut self) {
@@ -318,7 +327,7 @@ impl PathState {
         let ray = self.ray;
         let event = medium.sample_flight_in_cone(
             &ray,
-            self.cone.width,
+            self.cone.footprint(),
             self.beta,
             &mut || sampler.next_1d(),
             &mut stats.tracking,
@@ -383,7 +392,7 @@ impl PathState {
                 |_| (p, st),
                 |wi| phase.eval(wi),
                 ShadowMode::Transparent,
-                self.cone.width,
+                self.cone.footprint(),
                 sampler,
                 stats,
                 &mut li,
@@ -591,7 +600,7 @@ impl PathState {
                 scene,
                 &surface,
                 self.stack,
-                self.cone.width,
+                self.cone.footprint(),
                 sampler,
                 stats,
                 &mut li,
@@ -739,7 +748,7 @@ impl SurfaceVertex<'_> {
         scene: &Scene,
         surface: &Surface,
         stack: InteriorStack,
-        footprint: f32,
+        cone: crate::medium::RayFootprint,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
         chosen: &mut Option<usize>,
@@ -777,7 +786,7 @@ impl SurfaceVertex<'_> {
                 (f, surface.pdf(wo_local, wi_local))
             },
             ShadowMode::Opaque,
-            footprint,
+            cone,
             sampler,
             stats,
             chosen,

@@ -22,7 +22,9 @@ pub use artist::{
     MAX_SINGLE_SCATTERING_ALBEDO,
 };
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
-pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments, MipChain};
+pub use heterogeneous::{
+    DensityField, HeterogeneousMedium, MediumSegments, MipChain, RayFootprint,
+};
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
 pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
 
@@ -125,20 +127,20 @@ impl Medium {
         U: FnMut() -> f32,
         B: FnMut(f32) -> f32,
     {
-        self.sample_flight_in_cone(ray, 0.0, beta, u, stats, boundary)
+        self.sample_flight_in_cone(ray, RayFootprint::POINT, beta, u, stats, boundary)
     }
 
     /// [`Self::sample_flight`] for a ray whose boundary is not known yet: `boundary(limit)`
     /// returns the distance to where the ray leaves the interior if that is below `limit`,
     /// and ∞ otherwise. A homogeneous medium samples its distance first and asks for the
     /// boundary only up to it (in a dense medium a short ray, cheap to trace); other media ask
-    /// with `limit = ∞`. `boundary` is called exactly once. `footprint` is the width of the
-    /// ray's cone at its origin (world units): it picks the mip level of a fabric that
-    /// chooses its level per ray ([`MipChain`]); other media ignore it.
+    /// with `limit = ∞`. `boundary` is called exactly once. `cone` is the ray's cone at
+    /// its origin: it picks the mip level of a fabric that chooses its level per ray
+    /// ([`MipChain`]); other media ignore it.
     pub fn sample_flight_in_cone<U, B>(
         &self,
         ray: &Ray,
-        footprint: f32,
+        cone: RayFootprint,
         beta: Rgb,
         u: &mut U,
         stats: &mut TrackingStats,
@@ -173,13 +175,10 @@ impl Medium {
                     },
                 }
             }
-            Medium::Heterogeneous(h) => h.at_footprint(footprint).sample_flight(
-                ray,
-                boundary(f32::INFINITY),
-                beta,
-                u,
-                stats,
-            ),
+            Medium::Heterogeneous(h) => {
+                h.for_ray(ray, cone)
+                    .sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
+            }
         }
     }
 
@@ -192,16 +191,16 @@ impl Medium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
-        self.transmittance_in_cone(ray, t_max, 0.0, u, stats)
+        self.transmittance_in_cone(ray, t_max, RayFootprint::POINT, u, stats)
     }
 
-    /// [`Self::transmittance`] for a ray whose cone is `footprint` wide at its origin (world
-    /// units; picks a per-ray fabric mip level as in [`Self::sample_flight_in_cone`]).
+    /// [`Self::transmittance`] for a ray whose cone is `cone` at its origin (picks a per-ray
+    /// fabric mip level as in [`Self::sample_flight_in_cone`]).
     pub fn transmittance_in_cone<U: FnMut() -> f32>(
         &self,
         ray: &Ray,
         t_max: f32,
-        footprint: f32,
+        cone: RayFootprint,
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
@@ -209,9 +208,7 @@ impl Medium {
             Medium::Absorbing { .. } | Medium::Homogeneous(_) => {
                 self.closed_form_transmittance(t_max)
             }
-            Medium::Heterogeneous(h) => h
-                .at_footprint(footprint)
-                .transmittance(ray, t_max, u, stats),
+            Medium::Heterogeneous(h) => h.for_ray(ray, cone).transmittance(ray, t_max, u, stats),
         }
     }
 

@@ -143,7 +143,7 @@ impl ObjectList {
                         ),
                     ));
                 };
-                let b = h.pyramid.world_bounds().ok_or_else(|| {
+                let b = h.world_bounds().ok_or_else(|| {
                     ctx.invalid(line, format!("{name}: the interior's grid is empty"))
                 })?;
                 (

@@ -367,7 +367,7 @@ pub(super) fn manifold_connection(
         distance,
         outside,
         ShadowMode::Opaque,
-        0.0,
+        crate::medium::RayFootprint::POINT,
         light_shape,
         sampler,
         stats,

@@ -45,7 +45,7 @@ pub(in crate::scene) fn fabric_note(m: &Medium) -> Option<String> {
         return None;
     };
     let look = h.fabric.as_ref()?;
-    if let Some(chain) = &h.mips {
+    if let Some(chain) = h.mips.as_ref().filter(|c| !c.levels.is_empty()) {
         return Some(format!(
             "fabric mip level chosen per ray from the ray cone's footprint: levels {}–{} (a level-{} voxel is {:.4} wide)",
             look.mip_level,
@@ -438,9 +438,26 @@ fn build_fabric(
     let mut medium = media
         .next()
         .ok_or_else(|| at.invalid(format!("{owner}: no mip level to build")))?;
-    if auto_mip {
+    let first = levels.first().copied().unwrap_or(0);
+    if auto_mip || first > 0 {
+        // The fibres' extent: the finest level's occupied box (for a fixed coarser level
+        // of a free-standing patch, from the level-0 grid's pyramid; a shell is bounded by
+        // its mesh).
+        let bounds = if first == 0 {
+            medium.pyramid.world_bounds()
+        } else if shared.shell_mesh.is_none() {
+            let mut grid = base.grid.clone();
+            let placed = DAffine3::from_mat4(xf.as_dmat4()) * grid.index_to_world();
+            grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
+            MajorantPyramid::from_grid(&grid, crate::fabric::voxelise::DENSITY)
+                .map_err(|e| bad(&e))?
+                .world_bounds()
+        } else {
+            None
+        };
         medium.mips = Some(Box::new(MipChain {
             voxel_width,
+            bounds: bounds.unwrap_or(crate::math::Aabb::EMPTY),
             levels: media.collect(),
         }));
     }
