@@ -3,8 +3,8 @@
 //! * `absorption`, `homogeneous` ([`homogeneous`]): constant coefficients.
 //! * `voxel` ([`voxel`]): a density grid from an OpenVDB file.
 //! * `fbm` ([`fbm`]): procedural fBm noise, baked, baked lazily or evaluated exactly.
-//! * `fabric` ([`fabric`]): a woven patch voxelised at load time, free-standing or as a shell
-//!   over a mesh.
+//! * `fabric` ([`fabric`]): a woven patch voxelised at load time or read from a `velour weave`
+//!   file ([`fabric_source`]), free-standing or as a shell over a mesh.
 //!
 //! `voxel` and `fbm` share their coefficients, combined homogeneous base medium and
 //! estimator choices ([`heterogeneous`], [`tracking`]); `homogeneous`, `voxel` and `fbm` share
@@ -12,6 +12,7 @@
 
 mod blend;
 mod fabric;
+mod fabric_source;
 mod fbm;
 mod heterogeneous;
 mod homogeneous;
