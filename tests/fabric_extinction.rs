@@ -77,6 +77,7 @@ fn medium(vp: &VoxelisedPatch, extinction: FibreExtinction, sigma: f32) -> Heter
             extinction,
             shading: FabricShading::from_patch(&FibrePhaseParams::default(), &patch).unwrap(),
         })),
+        mips: None,
     }
 }
 

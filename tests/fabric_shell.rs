@@ -591,11 +591,26 @@ interior = {{ type = "fabric", pattern = "plain", resolution = 32, tiles = 8, mi
             .clone();
         note.rsplit(' ').next().unwrap().parse::<u32>().unwrap()
     };
-    // Pixel angle 40°/64 = 0.0109 rad: at distance 1 the footprint is 0.7 voxels (level 0),
-    // at 12 it is 8.4 voxels (level 3), at 1000 it is capped by the 32 voxels across (5).
-    assert_eq!(level(&scene(1.0, "\"auto\"")), 0);
-    assert_eq!(level(&scene(12.0, "\"auto\"")), 3);
-    assert_eq!(level(&scene(1000.0, "\"auto\"")), 5);
+    // `"auto"` picks the level per ray: the level of the camera ray through the centre.
+    let auto_level = |eye_z: f32| {
+        let s = scene_from_text(&scene(eye_z, "\"auto\""), "m.toml");
+        let velour::medium::Medium::Heterogeneous(h) = &s.media[0] else {
+            panic!("a heterogeneous medium");
+        };
+        let chain = h.mips.as_ref().expect("levels chosen per ray");
+        let ray = velour::math::Ray::new(Vec3::new(2.0, 2.0, eye_z), Vec3::new(0.0, 0.0, -1.0));
+        let cone = velour::medium::RayFootprint {
+            width: 0.0,
+            spread: s.camera.pixel_spread_angle(),
+        };
+        chain.level_for_ray(&ray, cone)
+    };
+    // Pixel spread atan(2 tan 20° / 64) = 0.0114 rad: at distance 1 the footprint is 0.7
+    // voxels (level 0), at 12 it is 8.8 voxels (level 3), at 1000 it is capped by the 32
+    // voxels across (5).
+    assert_eq!(auto_level(1.0), 0);
+    assert_eq!(auto_level(12.0), 3);
+    assert_eq!(auto_level(1000.0), 5);
     assert_eq!(level(&scene(1.0, "2")), 2);
     for (bad, what) in [
         ("7", "mip = 7"),

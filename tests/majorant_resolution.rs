@@ -87,6 +87,7 @@ fn lookups_per_collision(n: i32, sigma: f32, rays: usize) -> f64 {
         phase: PhaseFunction::HenyeyGreenstein { g: 0.0 },
         tracking: TrackingConfig::default(),
         fabric: None,
+        mips: None,
     }));
     let mut rng = Rng::new(3, 1);
     let mut stats = TrackingStats::default();

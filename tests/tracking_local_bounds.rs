@@ -129,6 +129,7 @@ fn medium(g: SparseGrid, coeff: DensityCoefficients, tracking: TrackingConfig) -
         phase: PhaseFunction::HenyeyGreenstein { g: 0.0 },
         tracking,
         fabric: None,
+        mips: None,
     };
     m.attach_local_bounds().unwrap_or_else(|e| panic!("{e}"));
     Medium::Heterogeneous(Box::new(m))

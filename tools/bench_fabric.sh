@@ -13,7 +13,7 @@ bin=target/release/velour
 cargo build --release -q
 tmp=${VELOUR_BENCH_OUT:-out/bench_fabric}
 mkdir -p "$tmp"
-# The scene at 240x180 in its own file, so mip = "auto" sees that resolution.
+# The scene at 240x180 in its own file (mip = "auto" chooses per ray, so --width/--height would do too).
 sed -e 's|file = "meshes/|file = "'"$PWD"'/scenes/meshes/|' -e 's|^width = .*|width = 240|' \
     -e 's|^height = .*|height = 180|' scenes/draped_cloth.toml > "$tmp/base.toml"
 variant() { # name, extra interior keys

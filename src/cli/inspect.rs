@@ -119,6 +119,11 @@ pub fn run(args: &InspectArgs) -> CliResult {
             file.library_version.0,
             file.library_version.1
         );
+        for e in &file.metadata {
+            if let Some(v) = e.display() {
+                outln!("  {} ({}): {v}", e.name, e.type_name);
+            }
+        }
     }
     let mut failures = Vec::new();
     for i in 0..file.grid_names().len() {

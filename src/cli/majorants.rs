@@ -341,6 +341,7 @@ fn grids_from_vdb(
             phase: crate::phase::PhaseFunction::henyey_greenstein(0.0)?,
             tracking: TrackingConfig::default(),
             fabric: None,
+            mips: None,
         };
         out.push((n, medium));
     }

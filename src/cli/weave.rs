@@ -4,8 +4,8 @@
 
 use super::CliResult;
 use crate::fabric::{
-    generate_patch, render_preview, voxelise, write_patch_vdb, PreviewOptions, VoxeliseOptions,
-    WeaveParams, WeavePattern, YarnParams,
+    generate_patch, render_preview, voxelise, write_patch_vdb_with_metadata, PreviewOptions,
+    VoxeliseOptions, WeaveParams, WeavePattern, WeaveRecord, YarnParams,
 };
 use crate::grid::Storage;
 use std::path::PathBuf;
@@ -47,7 +47,8 @@ pub struct WeaveArgs {
     /// Also write the fibres as Wavefront OBJ polylines.
     #[arg(long)]
     pub obj: Option<PathBuf>,
-    /// Output OpenVDB file (grids density, tangent, id).
+    /// Output OpenVDB file (grids density, tangent, id; the generator parameters as file
+    /// metadata `velour_weave.*`, so that `interior = { type = "fabric", file = … }` renders it).
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
     /// Extra mip levels written as density_mip1, tangent_mip1, id_mip1, ... (0..=8).
@@ -107,13 +108,7 @@ fn params(args: &WeaveArgs) -> Result<WeaveParams, String> {
             args.flyaways
         ));
     }
-    let (rw, rf) = (warp.envelope_radius(), weft.envelope_radius());
-    let mut p = WeaveParams::new(pattern, warp.clone());
-    p.weft_yarn = weft;
-    p.warp_spacing = 2.0 * rw / 0.9;
-    p.weft_spacing = 2.0 * rf / 0.9;
-    p.warp_height = 0.5 * (rw + rf);
-    p.weft_height = 0.5 * (rw + rf);
+    let mut p = WeaveParams::with_yarns(pattern, warp, weft);
     p.flyaway_fraction = args.flyaways;
     p.repeats = parse_repeats(&args.repeats)?;
     Ok(p)
@@ -187,7 +182,20 @@ pub fn run(args: &WeaveArgs) -> CliResult {
     if let Some(out) = &args.output {
         let mut levels = vec![&vp];
         levels.extend(mips.iter());
-        write_patch_vdb(out, &levels, args.half)?;
+        let names = [
+            args.pattern.as_str(),
+            args.warp_yarn.as_deref().unwrap_or(&args.yarn),
+            args.weft_yarn.as_deref().unwrap_or(&args.yarn),
+        ];
+        let record = WeaveRecord::new(
+            names,
+            &p,
+            args.seed,
+            args.resolution as u32,
+            patch.pile_albedo,
+            &vp,
+        );
+        write_patch_vdb_with_metadata(out, &levels, args.half, &record.to_metadata())?;
     }
     let t_write = t3.elapsed().as_secs_f64();
     let t4 = Instant::now();

@@ -61,10 +61,17 @@ impl ViewFootprint {
 /// area.
 #[must_use]
 pub fn true_size_tiles(mesh: &TriangleMesh, patch: &FabricPatch) -> Option<[f32; 2]> {
+    true_size_tiles_of(mesh, [f64::from(patch.tile.x), f64::from(patch.tile.y)])
+}
+
+/// [`true_size_tiles`] for a patch whose tile is `tile` (patch units; e.g. read from a patch
+/// file's metadata).
+#[must_use]
+pub fn true_size_tiles_of(mesh: &TriangleMesh, tile: [f64; 2]) -> Option<[f32; 2]> {
     let per_uv = super::shell::world_length_per_uv(mesh)?;
     Some([
-        ((per_uv / f64::from(patch.tile.x)).round() as f32).max(1.0),
-        ((per_uv / f64::from(patch.tile.y)).round() as f32).max(1.0),
+        ((per_uv / tile[0]).round() as f32).max(1.0),
+        ((per_uv / tile[1]).round() as f32).max(1.0),
     ])
 }
 

@@ -21,6 +21,8 @@
 //!   shell map from world points to patch voxels.
 //! * [`look`]: how a voxelised patch is shaded and looked up by the renderer: fibre phase
 //!   functions per yarn family, fibre tangents in world space, fibre-projected extinction.
+//! * [`patch_file`]: the patch files `velour weave` writes (grids plus the generator's
+//!   parameters as metadata) read back for rendering.
 //! * [`lod`]: the level-of-detail policy of a rendered fabric: the mip level a view needs, the
 //!   tiles that give a shell's weave its true size, the normalisation of fibre-projected
 //!   extinction.
@@ -32,6 +34,7 @@
 pub mod fibre_scattering;
 pub mod lod;
 pub mod look;
+pub mod patch_file;
 pub mod shell;
 pub mod voxelise;
 pub mod weave;
@@ -42,10 +45,11 @@ pub use fibre_scattering::{
     SggxSample,
 };
 pub use look::{projected_width, FabricLook, FibreExtinction, FibreGridLookup, ShellLookup};
+pub use patch_file::{read_patch_file, PatchFile, PatchFileError, WeaveRecord};
 pub use shell::{FabricShell, FibreVoxel, ShellParams};
 pub use voxelise::{
-    render_preview, voxelise, write_patch_vdb, PreviewImage, PreviewOptions, VoxelStats,
-    VoxeliseOptions, VoxelisedPatch,
+    render_preview, voxelise, write_patch_vdb, write_patch_vdb_with_metadata, PreviewImage,
+    PreviewOptions, VoxelStats, VoxeliseOptions, VoxelisedPatch,
 };
 pub use weave::{
     generate_patch, FabricPatch, FabricShading, PatchFibre, PileParams, TwillDirection,

@@ -46,7 +46,9 @@ use crate::grid::{
 };
 use crate::math::{Frame, Mat3, Vec3};
 use crate::spectrum::Rgb;
-use crate::vdb::{write_vdb, Compression, GridStats, GridToWrite, MetaEntry, WriteOptions};
+use crate::vdb::{
+    write_vdb_with_metadata, Compression, GridStats, GridToWrite, MetaEntry, WriteOptions,
+};
 use glam::{DAffine3, DVec3, IVec3};
 use rayon::prelude::*;
 use std::path::Path;
@@ -707,6 +709,98 @@ impl VoxelisedPatch {
         )
     }
 
+    /// A patch from stored channels (a weave patch file read back): `grid` holds the
+    /// [`DENSITY`], [`TANGENT`] and [`ID`] channels of mip level `level`, whose tile is `tile`
+    /// (world units) covered by `dims` voxels along `x` and `y` at that level. The voxel size
+    /// and origin come from the grid's index-to-world map; `x` and `y` wrap.
+    ///
+    /// The accumulators that [`VoxelisedPatch::mip`] sums are rebuilt from the channels: each
+    /// voxel's volume (density × voxel volume) with the structure tensor `t tᵀ` of its stored
+    /// tangent, all of it in the family of its stored id. Coarser levels built from them
+    /// have the same densities as levels built while voxelising (volume is summed either way);
+    /// their tangents and ids can differ where one coarse voxel gathers fine voxels whose
+    /// fibres cross or whose families mix (the fine tensors' anisotropy and minority families
+    /// are not stored).
+    ///
+    /// # Errors
+    /// [`FabricError::InvalidParameter`] when the grid lacks one of the three channels (or has
+    /// them with the wrong kind), or for a non-finite or non-positive voxel size.
+    pub fn from_channels(
+        grid: SparseGrid,
+        level: u32,
+        dims: [u32; 2],
+        tile: [f64; 2],
+    ) -> Result<VoxelisedPatch, FabricError> {
+        let kinds = [
+            (DENSITY, ChannelKind::Scalar, "density"),
+            (TANGENT, ChannelKind::Vec3, "tangent"),
+            (ID, ChannelKind::Scalar, "id"),
+        ];
+        for (c, kind, name) in kinds {
+            if grid.channel_kind(c) != Some(kind) {
+                return Err(super::invalid(
+                    "patch channels",
+                    name,
+                    "density (scalar), tangent (vec3) and id (scalar) channels",
+                ));
+            }
+        }
+        let hv = grid.voxel_size();
+        if !(hv.is_finite() && hv.min_element() > 0.0) {
+            return Err(super::invalid("voxel size", hv, "finite and > 0"));
+        }
+        let origin = grid.index_to_world().translation - 0.5 * hv;
+        let voxel_volume = (hv.x * hv.y * hv.z) as f32;
+        let mut acc: Vec<(IVec3, BrickAcc)> = Vec::with_capacity(grid.brick_count());
+        let mut deposited = 0.0f64;
+        for b in 0..grid.brick_count() {
+            let dens = grid.brick_data(DENSITY, b);
+            let tan = grid.brick_data(TANGENT, b);
+            let id = grid.brick_data(ID, b);
+            let mask = grid.brick_active_mask(b);
+            let mut a = new_brick();
+            for v in 0..BRICK_VOXELS {
+                if mask[v >> 6] & (1 << (v & 63)) == 0 {
+                    continue;
+                }
+                let d = dens.get(v, 1, 0);
+                if !(d > 0.0) || !d.is_finite() {
+                    continue;
+                }
+                let vol = d * voxel_volume;
+                deposited += f64::from(vol);
+                let t = Vec3::new(tan.get(v, 3, 0), tan.get(v, 3, 1), tan.get(v, 3, 2))
+                    .normalize_or_zero();
+                let s = &mut a[v * ACC..(v + 1) * ACC];
+                s[0] = vol * t.x * t.x;
+                s[1] = vol * t.x * t.y;
+                s[2] = vol * t.x * t.z;
+                s[3] = vol * t.y * t.y;
+                s[4] = vol * t.y * t.z;
+                s[5] = vol * t.z * t.z;
+                let family = id.get(v, 1, 0).round().clamp(0.0, 2.0) as usize;
+                s[6 + family] = vol;
+            }
+            acc.push((grid.brick_origin(b) >> 3, a));
+        }
+        acc.sort_unstable_by_key(|(k, _)| (k.x, k.y, k.z));
+        Ok(VoxelisedPatch {
+            grid,
+            level,
+            voxel_size: hv,
+            origin,
+            dims,
+            tile,
+            wrapped: true,
+            deposited_volume: deposited,
+            clamped_volume: 0.0,
+            deposits: 0,
+            mean_fibre_radius: 0.0,
+            acc,
+            has_acc: true,
+        })
+    }
+
     /// The world-space point of index-space point `p` wrapped into the tile (`x, y`).
     fn wrap_index(&self, p: Vec3) -> Vec3 {
         if !self.wrapped {
@@ -730,6 +824,20 @@ pub fn write_patch_vdb(
     path: &Path,
     levels: &[&VoxelisedPatch],
     half: bool,
+) -> Result<(), FabricError> {
+    write_patch_vdb_with_metadata(path, levels, half, &[])
+}
+
+/// [`write_patch_vdb`] with file-level metadata (the generator parameters `velour weave`
+/// records, [`super::patch_file::WeaveRecord`]).
+///
+/// # Errors
+/// As [`write_patch_vdb`].
+pub fn write_patch_vdb_with_metadata(
+    path: &Path,
+    levels: &[&VoxelisedPatch],
+    half: bool,
+    file_metadata: &[MetaEntry],
 ) -> Result<(), FabricError> {
     if levels.is_empty() {
         return Err(super::invalid(
@@ -782,7 +890,7 @@ pub fn write_patch_vdb(
         compression: Compression::Blosc,
         active_mask: true,
     };
-    write_vdb(path, &grids, &opts).map_err(|e| FabricError::Io {
+    write_vdb_with_metadata(path, &grids, &opts, file_metadata).map_err(|e| FabricError::Io {
         what: format!("OpenVDB file {}", path.display()),
         reason: e.to_string(),
     })

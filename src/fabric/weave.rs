@@ -461,6 +461,22 @@ impl WeaveParams {
         }
     }
 
+    /// [`WeaveParams::new`] with separate warp and weft yarns (what `velour weave` and
+    /// `fabric` interiors use): spacings `2r_w/0.9` and `2r_f/0.9`, crossing heights
+    /// `h_w = h_f = (r_w + r_f)/2` with the envelope radii `r_w`, `r_f` of the two yarns. The
+    /// same as [`WeaveParams::new`] when the yarns are equal.
+    #[must_use]
+    pub fn with_yarns(pattern: WeavePattern, warp: YarnParams, weft: YarnParams) -> Self {
+        let (rw, rf) = (warp.envelope_radius(), weft.envelope_radius());
+        let mut p = WeaveParams::new(pattern, warp);
+        p.weft_yarn = weft;
+        p.warp_spacing = 2.0 * rw / 0.9;
+        p.weft_spacing = 2.0 * rf / 0.9;
+        p.warp_height = 0.5 * (rw + rf);
+        p.weft_height = 0.5 * (rw + rf);
+        p
+    }
+
     /// Minimum `h_w + h_f` for warp and weft not to interpenetrate at crossings: the sum of
     /// the two yarns' envelope radii.
     #[must_use]
@@ -935,11 +951,22 @@ impl FabricShading {
         base: &super::FibrePhaseParams,
         patch: &FabricPatch,
     ) -> Result<FabricShading, FabricError> {
+        Self::from_albedos(
+            base,
+            [patch.warp_albedo, patch.weft_albedo, patch.pile_albedo],
+        )
+    }
+
+    /// [`FabricShading::from_patch`] from the warp, weft and pile albedos.
+    pub fn from_albedos(
+        base: &super::FibrePhaseParams,
+        albedos: [Rgb; 3],
+    ) -> Result<FabricShading, FabricError> {
         let make = |c: Rgb| super::FibrePhase::new(base.clone().with_colour(c));
         Ok(FabricShading {
-            warp: make(patch.warp_albedo)?,
-            weft: make(patch.weft_albedo)?,
-            pile: make(patch.pile_albedo)?,
+            warp: make(albedos[0])?,
+            weft: make(albedos[1])?,
+            pile: make(albedos[2])?,
         })
     }
 

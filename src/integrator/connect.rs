@@ -224,6 +224,7 @@ pub(super) fn guided_connection(
         shadow_distance,
         outside,
         ShadowMode::Opaque,
+        crate::medium::RayFootprint::POINT,
         light_shape,
         sampler,
         stats,

@@ -6,6 +6,7 @@ use super::TraceStats;
 use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::film::MAX_LIGHT_LAYERS;
 use crate::math::{Ray, Vec3};
+use crate::medium::RayFootprint;
 use crate::sampling::{power_heuristic, PixelSampler};
 use crate::scene::{ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -22,6 +23,9 @@ pub(super) enum ShadowMode {
 
 /// Transmittance from `origin` along unit `dir` over `distance` (∞ for distant lights), through
 /// media and boundaries. `ignore_shape` is the light's own shape (never an occluder).
+/// `cone` is the path's ray cone at the shadow ray's origin: the media it crosses pick a
+/// per-ray fabric mip level with it (the path's own level at an interior vertex;
+/// [`RayFootprint::POINT`] = the finest).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn shadow_transmittance(
     scene: &Scene,
@@ -30,6 +34,7 @@ pub(super) fn shadow_transmittance(
     distance: f32,
     mut stack: InteriorStack,
     mode: ShadowMode,
+    cone: RayFootprint,
     ignore_shape: Option<u32>,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
@@ -42,9 +47,10 @@ pub(super) fn shadow_transmittance(
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
         let mut scratch = None;
         if let Some((m, _)) = current_medium(scene, &stack, &mut scratch) {
-            tr *= m.transmittance(
+            tr *= m.transmittance_in_cone(
                 &Ray::new(origin, dir),
                 seg,
+                cone,
                 &mut || sampler.next_1d(),
                 &mut stats.tracking,
             );
@@ -137,7 +143,8 @@ pub(super) struct GuidedPrev {
 
 /// Next event estimation from a point: picks a light, traces a shadow ray, returns the
 /// MIS-weighted contribution (without the path throughput). `eval` gives (f·|cos| or phase
-/// value, pdf of the scattering strategy) for a world direction.
+/// value, pdf of the scattering strategy) for a world direction. `cone`: the path's
+/// ray cone at `p` (see [`shadow_transmittance`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn estimate_direct(
     scene: &Scene,
@@ -145,6 +152,7 @@ pub(super) fn estimate_direct(
     shadow_origin: impl Fn(Vec3) -> (Vec3, InteriorStack),
     eval: impl Fn(Vec3) -> (Rgb, f32),
     mode: ShadowMode,
+    cone: RayFootprint,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
     chosen: &mut Option<usize>,
@@ -184,6 +192,7 @@ pub(super) fn estimate_direct(
         distance,
         stack,
         mode,
+        cone,
         light_shape,
         sampler,
         stats,

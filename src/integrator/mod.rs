@@ -56,6 +56,15 @@ impl RayCone {
         self.width += self.spread * t;
     }
 
+    /// The cone as media see it (fabric mip levels chosen per ray).
+    #[inline]
+    fn footprint(self) -> crate::medium::RayFootprint {
+        crate::medium::RayFootprint {
+            width: self.width,
+            spread: self.spread,
+        }
+    }
+
     /// After a non-specular event.
     #[inline]
     fn widen(&mut self) {
@@ -316,8 +325,9 @@ impl PathState {
         };
         let mut hit = None;
         let ray = self.ray;
-        let event = medium.sample_flight_to_boundary(
+        let event = medium.sample_flight_in_cone(
             &ray,
+            self.cone.footprint(),
             self.beta,
             &mut || sampler.next_1d(),
             &mut stats.tracking,
@@ -382,6 +392,7 @@ impl PathState {
                 |_| (p, st),
                 |wi| phase.eval(wi),
                 ShadowMode::Transparent,
+                self.cone.footprint(),
                 sampler,
                 stats,
                 &mut li,
@@ -585,7 +596,15 @@ impl PathState {
                 entry,
             };
             let mut li = None;
-            let c = at.direct_light(scene, &surface, self.stack, sampler, stats, &mut li);
+            let c = at.direct_light(
+                scene,
+                &surface,
+                self.stack,
+                self.cone.footprint(),
+                sampler,
+                stats,
+                &mut li,
+            );
             self.add_light(scene, li, self.beta * c);
         }
 
@@ -729,6 +748,7 @@ impl SurfaceVertex<'_> {
         scene: &Scene,
         surface: &Surface,
         stack: InteriorStack,
+        cone: crate::medium::RayFootprint,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
         chosen: &mut Option<usize>,
@@ -766,6 +786,7 @@ impl SurfaceVertex<'_> {
                 (f, surface.pdf(wo_local, wi_local))
             },
             ShadowMode::Opaque,
+            cone,
             sampler,
             stats,
             chosen,

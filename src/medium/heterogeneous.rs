@@ -10,7 +10,7 @@ use super::lookup::{DensityLookup, GridLookup, LocalProbe};
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
 use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments};
-use crate::math::Ray;
+use crate::math::{Aabb, Ray};
 use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
 use crate::spectrum::Rgb;
@@ -54,9 +54,122 @@ pub struct HeterogeneousMedium {
     pub tracking: TrackingConfig,
     /// Fibre shading of a voxelised fabric (tangent and yarn-id channels of the grid), if any.
     pub fabric: Option<Box<FabricLook>>,
+    /// Coarser mip levels of a fabric whose level is chosen per ray from the ray's footprint
+    /// (`mip = "auto"`), or, for a fixed coarser level, only the finest level's box (no
+    /// levels); `None` for other interiors.
+    pub mips: Option<Box<MipChain>>,
+}
+
+/// The coarser levels of a fabric interior whose mip level is chosen per ray (course notes
+/// §5.3, with the footprint of a ray cone, docs/textures.md): a ray whose footprint where it
+/// reaches the fabric (the box of the base level's non-empty cells) spans `w` voxels of the
+/// base level (the medium holding the chain) is tracked, and shadowed, in level
+/// `floor(log2 w)` (the base below 2 voxels), capped at the coarsest level built.
+#[derive(Clone, Debug)]
+pub struct MipChain {
+    /// World width of one voxel of the base level (world units; the cube root of a placed
+    /// voxel's volume, or the geometric mean of a shell voxel's widths along the cloth).
+    pub voxel_width: f32,
+    /// World box of the finest level's non-empty majorant cells (the fibres' extent): where
+    /// the footprint is measured (a ray that starts outside is measured where it enters the
+    /// box), and the box of a `shape = "bounds"` object, whatever its level (a coarser
+    /// level's trilinear fringe beyond the fibres is not rendered).
+    pub bounds: Aabb,
+    /// Levels 1, 2, … above the base, each a complete medium with its own grid or shell,
+    /// majorant pyramid and fibre look.
+    pub levels: Vec<HeterogeneousMedium>,
+}
+
+impl MipChain {
+    /// The level (0 = the base) for a footprint `width` (world units): `floor(log2(width /
+    /// voxel_width))`, 0 below two voxels (and for NaN), at most the coarsest level held.
+    #[inline]
+    #[must_use]
+    pub fn level_for(&self, width: f32) -> usize {
+        let r = width / self.voxel_width;
+        if !(r >= 2.0) {
+            return 0;
+        }
+        // floor(log2 r) from the exponent bits (r ≥ 2 is normal or infinite).
+        let l = ((r.to_bits() >> 23) & 0xff) as usize - 127;
+        l.min(self.levels.len())
+    }
+
+    /// The level for a ray whose cone is `cone` at its origin: [`Self::level_for`] of the
+    /// cone's width where the ray enters [`Self::bounds`] (at its origin when it starts
+    /// inside, or misses the box).
+    #[inline]
+    #[must_use]
+    pub fn level_for_ray(&self, ray: &Ray, cone: RayFootprint) -> usize {
+        let t = self
+            .bounds
+            .intersect(ray, 0.0, f32::INFINITY)
+            .map_or(0.0, |(t0, _)| t0.max(0.0));
+        self.level_for(cone.width_at(t))
+    }
+}
+
+/// A ray's cone (Akenine-Möller et al. 2019/2021, docs/references.md §14.2), as the
+/// integrator tracks it for texture and fabric mip footprints.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RayFootprint {
+    /// Width at the ray's origin, world units.
+    pub width: f32,
+    /// Spread angle, radians: the width grows by `spread · t`.
+    pub spread: f32,
+}
+
+impl RayFootprint {
+    /// No footprint: every per-ray choice takes the finest level.
+    pub const POINT: RayFootprint = RayFootprint {
+        width: 0.0,
+        spread: 0.0,
+    };
+
+    /// The width at distance `t` along the ray (world units).
+    #[inline]
+    #[must_use]
+    pub fn width_at(self, t: f32) -> f32 {
+        self.width + self.spread * t
+    }
 }
 
 impl HeterogeneousMedium {
+    /// The medium of the mip level `ray`, whose cone is `cone` at its origin, is tracked in:
+    /// `self` unless the interior chooses its level per ray ([`MipChain::level_for_ray`]).
+    #[inline]
+    #[must_use]
+    pub fn for_ray(&self, ray: &Ray, cone: RayFootprint) -> &HeterogeneousMedium {
+        match &self.mips {
+            None => self,
+            Some(chain) => self.level(chain.level_for_ray(ray, cone)),
+        }
+    }
+
+    /// Level `l` of a fabric with a per-ray mip choice (0, or a level past the coarsest
+    /// built, is `self`).
+    #[must_use]
+    pub fn level(&self, l: usize) -> &HeterogeneousMedium {
+        match &self.mips {
+            None => self,
+            Some(chain) => match l {
+                0 => self,
+                l => chain.levels.get(l - 1).unwrap_or(self),
+            },
+        }
+    }
+
+    /// The world box of the density's non-empty majorant cells (`None` when it is empty);
+    /// for a fabric with a [`MipChain`], the box of its finest level, whichever level the
+    /// medium itself is.
+    #[must_use]
+    pub fn world_bounds(&self) -> Option<Aabb> {
+        match &self.mips {
+            Some(chain) if chain.bounds.is_valid() => Some(chain.bounds),
+            _ => self.pyramid.world_bounds(),
+        }
+    }
+
     /// The fibre frame of a fabric interior at world point `p`: the world-space tangent and
     /// the yarn id of the nearest patch voxel (`None` for other interiors or outside the
     /// patch's shell).

@@ -27,7 +27,9 @@ pub use artist::{
 };
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use grids::{AlbedoGrid, AlbedoSource, EmissionGrid, EmissionKind};
-pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
+pub use heterogeneous::{
+    DensityField, HeterogeneousMedium, MediumSegments, MipChain, RayFootprint,
+};
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
 pub use mixture::{ComponentDensity, MixtureComponent, MixtureMedium};
 pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
@@ -121,14 +123,34 @@ impl Medium {
         self.sample_flight_to_boundary(ray, beta, u, stats, |_| t_max)
     }
 
+    /// [`Self::sample_flight_in_cone`] with a zero footprint (the finest level of a fabric
+    /// whose mip level is chosen per ray).
+    pub fn sample_flight_to_boundary<U, B>(
+        &self,
+        ray: &Ray,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+        boundary: B,
+    ) -> MediumEvent<'_>
+    where
+        U: FnMut() -> f32,
+        B: FnMut(f32) -> f32,
+    {
+        self.sample_flight_in_cone(ray, RayFootprint::POINT, beta, u, stats, boundary)
+    }
+
     /// [`Self::sample_flight`] for a ray whose boundary is not known yet: `boundary(limit)`
     /// returns the distance to where the ray leaves the interior if that is below `limit`,
     /// and ∞ otherwise. A homogeneous medium samples its distance first and asks for the
     /// boundary only up to it (in a dense medium a short ray, cheap to trace); other media ask
-    /// with `limit = ∞`. `boundary` is called exactly once.
-    pub fn sample_flight_to_boundary<U, B>(
+    /// with `limit = ∞`. `boundary` is called exactly once. `cone` is the ray's cone at
+    /// its origin: it picks the mip level of a fabric that chooses its level per ray
+    /// ([`MipChain`]); other media ignore it.
+    pub fn sample_flight_in_cone<U, B>(
         &self,
         ray: &Ray,
+        cone: RayFootprint,
         beta: Rgb,
         u: &mut U,
         stats: &mut TrackingStats,
@@ -164,7 +186,8 @@ impl Medium {
                 }
             }
             Medium::Heterogeneous(h) => {
-                h.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
+                h.for_ray(ray, cone)
+                    .sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
             }
             Medium::Mixture(m) => m.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
         }
@@ -179,11 +202,24 @@ impl Medium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
+        self.transmittance_in_cone(ray, t_max, RayFootprint::POINT, u, stats)
+    }
+
+    /// [`Self::transmittance`] for a ray whose cone is `cone` at its origin (picks a per-ray
+    /// fabric mip level as in [`Self::sample_flight_in_cone`]).
+    pub fn transmittance_in_cone<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        cone: RayFootprint,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Rgb {
         match self {
             Medium::Absorbing { .. } | Medium::Homogeneous(_) => {
                 self.closed_form_transmittance(t_max)
             }
-            Medium::Heterogeneous(h) => h.transmittance(ray, t_max, u, stats),
+            Medium::Heterogeneous(h) => h.for_ray(ray, cone).transmittance(ray, t_max, u, stats),
             Medium::Mixture(m) => m.transmittance(ray, t_max, u, stats),
         }
     }

@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use super::context::Ctx;
 use super::{camera, lights, objects, read, Scene, SceneError, ShapeOwner};
-use crate::fabric::lod::ViewFootprint;
 use crate::geometry::{SceneGeometry, Shape};
 use crate::light::{Light, LightSampler};
 
@@ -34,13 +33,12 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let mut notes = Vec::new();
     let film = camera::build_film(&ctx, file.film.as_ref())?;
     let (camera, camera_params) = camera::build_camera(&ctx, file.camera.as_ref(), &film)?;
-    let view = ViewFootprint::new(camera_params.eye, camera_params.fov, film.height);
 
     let mut shapes: Vec<Shape> = Vec::new();
     let mut shape_owner = Vec::new();
     let mut built = objects::ObjectList::default();
     for (index, desc) in file.object.iter().enumerate() {
-        let shape = built.add(&ctx, index, desc, view, &mut warnings, &mut notes)?;
+        let shape = built.add(&ctx, index, desc, &mut warnings, &mut notes)?;
         shapes.push(shape);
         shape_owner.push(ShapeOwner::Object((built.objects.len() - 1) as u32));
     }

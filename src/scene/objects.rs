@@ -10,7 +10,6 @@ use super::surface::build_surface;
 use super::validate::{check_range, reject_unused, vec3};
 use super::{Object, ObjectSurface, SceneError};
 use crate::bsdf::microfacet::SMOOTH_ALPHA;
-use crate::fabric::lod::ViewFootprint;
 use crate::geometry::{load_ply, LevelSet, Shape, TriangleMesh};
 use crate::math::{Aabb, Mat4, Vec3};
 use crate::medium::{DensityField, Medium, NeeStrategy};
@@ -30,14 +29,13 @@ pub(super) struct ObjectList {
 }
 
 impl ObjectList {
-    /// Builds the `index`-th `[[object]]` of the file (its interior seen from `view`), adds it
+    /// Builds the `index`-th `[[object]]` of the file, adds it
     /// and returns its world shape. Warnings and notes go to the scene's lists.
     pub fn add(
         &mut self,
         ctx: &Ctx,
         index: usize,
         spanned: &Spanned<ObjectDesc>,
-        view: ViewFootprint,
         warnings: &mut Vec<String>,
         notes: &mut Vec<String>,
     ) -> Result<Shape, SceneError> {
@@ -74,7 +72,6 @@ impl ObjectList {
                         RestShape::Mesh(m) => Some(m),
                         _ => None,
                     },
-                    view,
                     has_uvs,
                 };
                 let interior_line = ctx.line_of(interior.span().start);
@@ -145,7 +142,7 @@ impl ObjectList {
             }
             (RestShape::Bounds, _) => {
                 let bounds = match medium.map(|m| &media[m as usize]) {
-                    Some(Medium::Heterogeneous(h)) => Ok(h.pyramid.world_bounds()),
+                    Some(Medium::Heterogeneous(h)) => Ok(h.world_bounds()),
                     Some(Medium::Mixture(m)) => Ok(m.world_bounds()),
                     _ => Err(ctx.invalid(
                         line,

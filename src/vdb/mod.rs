@@ -20,7 +20,10 @@ mod write;
 
 pub use read::VdbFile;
 pub use stats::GridStats;
-pub use write::{write_vdb, write_vdb_to_vec, Compression, GridToWrite, WriteOptions};
+pub use write::{
+    write_vdb, write_vdb_to_vec, write_vdb_to_vec_with_metadata, write_vdb_with_metadata,
+    Compression, GridToWrite, WriteOptions,
+};
 
 use crate::grid::{GridError, SparseGrid};
 use glam::{DAffine3, DMat3, DVec3};
@@ -277,6 +280,83 @@ impl MetaEntry {
             type_name: "string".into(),
             data: value.as_bytes().to_vec(),
         }
+    }
+    /// An `int64` entry.
+    #[must_use]
+    pub fn int64(name: &str, value: i64) -> Self {
+        MetaEntry {
+            name: name.into(),
+            type_name: "int64".into(),
+            data: value.to_le_bytes().to_vec(),
+        }
+    }
+    /// A `float` entry.
+    #[must_use]
+    pub fn float(name: &str, value: f32) -> Self {
+        MetaEntry {
+            name: name.into(),
+            type_name: "float".into(),
+            data: value.to_le_bytes().to_vec(),
+        }
+    }
+    /// A `double` entry.
+    #[must_use]
+    pub fn double(name: &str, value: f64) -> Self {
+        MetaEntry {
+            name: name.into(),
+            type_name: "double".into(),
+            data: value.to_le_bytes().to_vec(),
+        }
+    }
+    /// A `vec3s` entry.
+    #[must_use]
+    pub fn vec3s(name: &str, value: [f32; 3]) -> Self {
+        MetaEntry {
+            name: name.into(),
+            type_name: "vec3s".into(),
+            data: value.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        }
+    }
+    /// The value of a `string` entry.
+    #[must_use]
+    pub fn as_str(&self) -> Option<&str> {
+        (self.type_name == "string")
+            .then(|| std::str::from_utf8(&self.data).ok())
+            .flatten()
+    }
+    /// The value of an `int32` or `int64` entry.
+    #[must_use]
+    pub fn as_i64(&self) -> Option<i64> {
+        match (self.type_name.as_str(), self.data.as_slice()) {
+            ("int32", &[a, b, c, d]) => Some(i64::from(i32::from_le_bytes([a, b, c, d]))),
+            ("int64", &[a, b, c, d, e, f, g, h]) => {
+                Some(i64::from_le_bytes([a, b, c, d, e, f, g, h]))
+            }
+            _ => None,
+        }
+    }
+    /// The value of a `float` or `double` entry.
+    #[must_use]
+    pub fn as_f64(&self) -> Option<f64> {
+        match (self.type_name.as_str(), self.data.as_slice()) {
+            ("float", &[a, b, c, d]) => Some(f64::from(f32::from_le_bytes([a, b, c, d]))),
+            ("double", &[a, b, c, d, e, f, g, h]) => {
+                Some(f64::from_le_bytes([a, b, c, d, e, f, g, h]))
+            }
+            _ => None,
+        }
+    }
+    /// The value of a `vec3s` entry.
+    #[must_use]
+    pub fn as_vec3s(&self) -> Option<[f32; 3]> {
+        if self.type_name != "vec3s" || self.data.len() != 12 {
+            return None;
+        }
+        let mut v = [0.0f32; 3];
+        for (x, c) in v.iter_mut().zip(self.data.chunks_exact(4)) {
+            *x = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+        }
+        Some(v)
     }
     /// The value as text, for printing (`None` for types without a text form).
     #[must_use]

@@ -194,7 +194,21 @@ pub fn write_vdb(
     grids: &[GridToWrite<'_>],
     opts: &WriteOptions,
 ) -> Result<(), VdbError> {
-    let bytes = write_vdb_to_vec(grids, opts)?;
+    write_vdb_with_metadata(path, grids, opts, &[])
+}
+
+/// [`write_vdb`] with extra file-level metadata (after `creator`; entries named `creator` are
+/// skipped), as OpenVDB's `io::File::write(grids, metadata)` stores it.
+///
+/// # Errors
+/// As [`write_vdb`].
+pub fn write_vdb_with_metadata(
+    path: impl AsRef<Path>,
+    grids: &[GridToWrite<'_>],
+    opts: &WriteOptions,
+    file_metadata: &[MetaEntry],
+) -> Result<(), VdbError> {
+    let bytes = write_vdb_to_vec_with_metadata(grids, opts, file_metadata)?;
     std::fs::write(path.as_ref(), bytes).map_err(|source| VdbError::Io {
         path: path.as_ref().to_path_buf(),
         source,
@@ -209,6 +223,18 @@ pub fn write_vdb_to_vec(
     grids: &[GridToWrite<'_>],
     opts: &WriteOptions,
 ) -> Result<Vec<u8>, VdbError> {
+    write_vdb_to_vec_with_metadata(grids, opts, &[])
+}
+
+/// [`write_vdb_to_vec`] with extra file-level metadata (see [`write_vdb_with_metadata`]).
+///
+/// # Errors
+/// As [`write_vdb_to_vec`].
+pub fn write_vdb_to_vec_with_metadata(
+    grids: &[GridToWrite<'_>],
+    opts: &WriteOptions,
+    file_metadata: &[MetaEntry],
+) -> Result<Vec<u8>, VdbError> {
     let mut o = Vec::new();
     o.extend_from_slice(&[0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0]);
     put_u32(&mut o, 224);
@@ -216,7 +242,14 @@ pub fn write_vdb_to_vec(
     put_u32(&mut o, 0);
     o.push(1);
     o.extend_from_slice(uuid().as_bytes());
-    put_meta(&mut o, &[MetaEntry::string("creator", "velour")]);
+    let mut file_meta = vec![MetaEntry::string("creator", "velour")];
+    file_meta.extend(
+        file_metadata
+            .iter()
+            .filter(|e| e.name != "creator")
+            .cloned(),
+    );
+    put_meta(&mut o, &file_meta);
     put_u32(&mut o, grids.len() as u32);
     let mut used: Vec<String> = Vec::new();
     for g in grids {

@@ -367,6 +367,7 @@ pub(super) fn manifold_connection(
         distance,
         outside,
         ShadowMode::Opaque,
+        crate::medium::RayFootprint::POINT,
         light_shape,
         sampler,
         stats,

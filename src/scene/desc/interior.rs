@@ -187,10 +187,18 @@ pub struct FbmDesc {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FabricDesc {
+    /// A patch written by `velour weave` (OpenVDB with grids density, tangent, id and the
+    /// generator parameters as metadata), relative to the scene file. The generator keys
+    /// below must then agree with the file's metadata when given.
+    pub file: Option<String>,
     /// Weave pattern: "plain" (default), "twill", "basket", "satin" or "velvet".
     pub pattern: Option<String>,
-    /// Yarn preset, e.g. "cotton1" (default), "silk1", "polyester1".
+    /// Yarn preset of warp and weft, e.g. "cotton1" (default), "silk1", "polyester1".
     pub yarn: Option<String>,
+    /// Yarn preset of the warps (overrides `yarn` for the warps).
+    pub warp_yarn: Option<String>,
+    /// Yarn preset of the wefts (overrides `yarn` for the wefts).
+    pub weft_yarn: Option<String>,
     /// Voxels across the patch's largest side (default 128).
     pub resolution: Option<u32>,
     /// Pattern repeats per side of the patch (default 1).
@@ -203,6 +211,10 @@ pub struct FabricDesc {
     pub warp_albedo: Option<ColorValue>,
     /// Weft yarn colour.
     pub weft_albedo: Option<ColorValue>,
+    /// Pile (velvet) fibre colour.
+    pub pile_albedo: Option<ColorValue>,
+    /// Fibre scattering parameters shared by the yarn families.
+    pub fibre_phase: Option<FibrePhaseDesc>,
     /// Patch tiles across the unit UV square (shell on a mesh only).
     pub tiles: Option<TilesValue>,
     /// Mip level of the voxelised patch: 0–6 or "auto".
@@ -215,6 +227,24 @@ pub struct FabricDesc {
     pub density: Option<f32>,
     /// "exit" or "interior".
     pub nee: Option<String>,
+}
+
+/// `fibre_phase = { ... }`: the fibre scattering parameters of a fabric interior (Chiang et
+/// al. 2016 plus a diffuse lobe); the absorption and diffuse albedo come from each yarn's
+/// colour.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FibrePhaseDesc {
+    /// Fibre index of refraction, [1, 3] (default 1.55).
+    pub eta: Option<f32>,
+    /// Longitudinal roughness β_m, [0.01, 1] (default 0.3).
+    pub beta_m: Option<f32>,
+    /// Azimuthal roughness β_n, [0.01, 1] (default 0.3).
+    pub beta_n: Option<f32>,
+    /// Cuticle tilt α in radians, [−0.2, 0.2] (default 0).
+    pub alpha: Option<f32>,
+    /// Weight of the diffuse lobe, [0, 1] (default 0.3).
+    pub diffuse_weight: Option<f32>,
 }
 
 /// `tracking = { ... }`: estimator choices of a heterogeneous interior.

@@ -19,8 +19,8 @@ use toml::Spanned;
 pub use texture::{ColorInput, MaskDesc, ScalarInput, TextureDesc};
 
 pub use interior::{
-    AbsorptionDesc, BlendDesc, FabricDesc, FbmDesc, HomogeneousDesc, InteriorDesc, MixtureDesc,
-    NoiseDesc, PhaseDesc, TrackingDesc, VoxelDesc,
+    AbsorptionDesc, BlendDesc, FabricDesc, FbmDesc, FibrePhaseDesc, HomogeneousDesc, InteriorDesc,
+    MixtureDesc, NoiseDesc, PhaseDesc, TrackingDesc, VoxelDesc,
 };
 pub use light::{
     DistantLightDesc, EnvironmentLightDesc, EnvmapLightDesc, LightDesc, SphereLightDesc,

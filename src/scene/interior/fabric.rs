@@ -1,21 +1,24 @@
 //! `fabric` interiors: a woven patch (course notes §3) generated and voxelised at load time
-//! into density, tangent and yarn-id channels, shaded with one fibre phase function per yarn
-//! family. Free-standing (`shape = "bounds"`, placed by the object transform) or a shell
+//! into density, tangent and yarn-id channels, or read from a patch file `velour weave` wrote
+//! (`file`, checked against the file's metadata), shaded with one fibre phase function per
+//! yarn family. Free-standing (`shape = "bounds"`, placed by the object transform) or a shell
 //! tiled over a mesh's texture coordinates (notes §3.3). The level-of-detail choices (mip
 //! level, tiles, extinction normalisation) are the fabric module's ([`crate::fabric::lod`]).
 
 use glam::DAffine3;
 
+use super::fabric_source::{generate, read_file, PatchSource};
 use super::{extinction_and_nee, Placement, Site};
 use crate::fabric::lod::{self, MAX_MIP_LEVEL};
 use crate::fabric::{
-    generate_patch, voxelise, FabricLook, FabricShading, FabricShell, FibreExtinction,
-    FibrePhaseParams, ShellParams, VoxeliseOptions, WeaveParams, WeavePattern, YarnParams,
+    FabricLook, FabricShading, FabricShell, FibreExtinction, FibrePhaseParams, ShellParams,
+    VoxelisedPatch,
 };
+use crate::geometry::TriangleMesh;
 use crate::majorant::MajorantPyramid;
-use crate::medium::{DensityField, HeterogeneousMedium, Medium, NeeStrategy};
+use crate::medium::{DensityField, HeterogeneousMedium, Medium, MipChain, NeeStrategy};
 use crate::phase::PhaseFunction;
-use crate::scene::desc::{FabricDesc, MipValue, TilesValue};
+use crate::scene::desc::{FabricDesc, FibrePhaseDesc, MipValue, TilesValue};
 use crate::scene::SceneError;
 use crate::spectrum::Rgb;
 use crate::tracking::{DensityCoefficients, TrackingConfig};
@@ -42,6 +45,15 @@ pub(in crate::scene) fn fabric_note(m: &Medium) -> Option<String> {
         return None;
     };
     let look = h.fabric.as_ref()?;
+    if let Some(chain) = h.mips.as_ref().filter(|c| !c.levels.is_empty()) {
+        return Some(format!(
+            "fabric mip level chosen per ray from the ray cone's footprint: levels {}–{} (a level-{} voxel is {:.4} wide)",
+            look.mip_level,
+            look.mip_level as usize + chain.levels.len(),
+            look.mip_level,
+            chain.voxel_width
+        ));
+    }
     Some(match &h.field {
         DensityField::Shell(s) => format!(
             "fabric shell of {} tetrahedra, {} × {} tiles, {:.4} thick, patch mip level {}",
@@ -77,11 +89,99 @@ fn requested_mip(at: &Site, mip: Option<&MipValue>) -> Result<Option<u32>, Scene
     }
 }
 
-/// Generates, voxelises, mips and places the patch (a shell over the placement's mesh, or
-/// the free-standing patch), and sets its coefficients: the density is the fibre volume
-/// fraction; σ_t⁰ = density / attenuation per unit fraction (× 4/π with fibre-projected
-/// extinction, so that its mean over directions is the same); the fibre phase functions
-/// carry the yarn colours, so σ_s⁰ = σ_t⁰.
+/// The fibre scattering parameters of `fibre_phase = { ... }` (the defaults of
+/// [`FibrePhaseParams`] for keys not given).
+fn fibre_phase(at: &Site, d: Option<&FibrePhaseDesc>) -> Result<FibrePhaseParams, SceneError> {
+    let mut p = FibrePhaseParams::default();
+    let Some(d) = d else {
+        return Ok(p);
+    };
+    let key = |k: &str| format!("fibre_phase.{k}");
+    if let Some(v) = d.eta {
+        p.eta = at.range(&key("eta"), v, 1.0, 3.0)?;
+    }
+    if let Some(v) = d.beta_m {
+        p.beta_m = at.range(&key("beta_m"), v, 0.01, 1.0)?;
+    }
+    if let Some(v) = d.beta_n {
+        p.beta_n = at.range(&key("beta_n"), v, 0.01, 1.0)?;
+    }
+    if let Some(v) = d.alpha {
+        p.alpha = at.range(&key("alpha"), v, -0.2, 0.2)?;
+    }
+    if let Some(v) = d.diffuse_weight {
+        p.diffuse_weight = at.range(&key("diffuse_weight"), v, 0.0, 1.0)?;
+    }
+    Ok(p)
+}
+
+/// What every level of one fabric interior shares.
+struct Shared<'a> {
+    shell_mesh: Option<&'a TriangleMesh>,
+    tiles: Option<[f32; 2]>,
+    xf: crate::math::Mat4,
+    sigma_t: Rgb,
+    extinction: FibreExtinction,
+    shading: &'a FabricShading,
+}
+
+/// The medium of one mip level `vp` of the patch: a shell over the mesh or the free-standing
+/// placed grid, its majorant pyramid, the fibre look and the local bounds.
+fn level_medium(
+    at: &Site,
+    vp: VoxelisedPatch,
+    s: &Shared<'_>,
+) -> Result<HeterogeneousMedium, SceneError> {
+    let bad = |e: &dyn std::fmt::Display| at.failed(e);
+    let level = vp.level;
+    let patch_voxel_size = vp.voxel_size;
+    let (field, pyramid) = match (s.shell_mesh, s.tiles) {
+        (Some(mesh), Some(tiles)) => {
+            // A shell over the cloth mesh (notes §3.3), in world space.
+            let shell = FabricShell::new(&vp, mesh, &ShellParams { tiles }).map_err(|e| bad(&e))?;
+            let pyramid = shell.majorant_pyramid().map_err(|e| bad(&e))?;
+            (DensityField::Shell(Box::new(shell)), pyramid)
+        }
+        _ => {
+            let mut grid = vp.grid;
+            let placed = DAffine3::from_mat4(s.xf.as_dmat4()) * grid.index_to_world();
+            grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
+            let pyramid = MajorantPyramid::from_grid(&grid, crate::fabric::voxelise::DENSITY)
+                .map_err(|e| bad(&e))?;
+            let field = DensityField::Grid {
+                grid,
+                channel: crate::fabric::voxelise::DENSITY,
+            };
+            (field, pyramid)
+        }
+    };
+    let mut medium = HeterogeneousMedium {
+        field,
+        pyramid,
+        coefficients: DensityCoefficients::new(s.sigma_t, s.sigma_t),
+        phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e))?,
+        tracking: TrackingConfig::default(),
+        fabric: Some(Box::new(FabricLook {
+            tangent_channel: crate::fabric::voxelise::TANGENT,
+            id_channel: crate::fabric::voxelise::ID,
+            patch_voxel_size,
+            mip_level: level,
+            extinction: s.extinction,
+            shading: s.shading.clone(),
+        })),
+        mips: None,
+    };
+    medium.attach_local_bounds().map_err(|e| bad(&e))?;
+    Ok(medium)
+}
+
+/// Generates (or reads), voxelises, mips and places the patch (a shell over the placement's
+/// mesh, or the free-standing patch), and sets its coefficients: the density is the fibre
+/// volume fraction; σ_t⁰ = density / attenuation per unit fraction (× 4/π with
+/// fibre-projected extinction, so that its mean over directions is the same); the fibre
+/// phase functions carry the yarn colours, so σ_s⁰ = σ_t⁰. With `mip = "auto"` every level
+/// that halves the tile exactly is built and the level is chosen per ray
+/// ([`crate::medium::MipChain`]).
 fn build_fabric(
     at: &Site,
     d: &FabricDesc,
@@ -92,34 +192,28 @@ fn build_fabric(
     let owner = &at.owner;
     let xf = placement.xf;
     let bad = |e: &dyn std::fmt::Display| at.failed(e);
-    let pattern =
-        WeavePattern::from_name(d.pattern.as_deref().unwrap_or("plain")).map_err(|e| bad(&e))?;
-    let yarn = YarnParams::preset(d.yarn.as_deref().unwrap_or("cotton1")).map_err(|e| bad(&e))?;
-    let resolution = d.resolution.unwrap_or(128);
-    if !(8..=1024).contains(&resolution) {
-        return Err(at.invalid(format!(
-            "{owner}.resolution = {resolution} is outside [8, 1024]"
-        )));
-    }
-    let repeats = d.repeats.unwrap_or(1);
-    if !(1..=16).contains(&repeats) {
-        return Err(at.invalid(format!("{owner}.repeats = {repeats} is outside [1, 16]")));
-    }
-    let flyaways = at.range("flyaways", d.flyaways.unwrap_or(1.0), 0.0, 100.0)?;
-    let mut params = WeaveParams::new(pattern, yarn);
-    params.repeats = [repeats, repeats];
-    params.flyaway_fraction = flyaways;
-    params.warp_albedo = at.unit_colour("warp_albedo", d.warp_albedo, params.warp_albedo)?;
-    params.weft_albedo = at.unit_colour("weft_albedo", d.weft_albedo, params.weft_albedo)?;
-    let patch = generate_patch(&params, d.seed.unwrap_or(1)).map_err(|e| bad(&e))?;
     let mip = requested_mip(at, d.mip.as_ref())?;
     let auto_mip = matches!(&d.mip, Some(MipValue::Named(_)));
-    let opts = VoxeliseOptions {
+    let (source, albedos) = match d.file.as_deref() {
+        Some(file) => {
+            let pf = read_file(at, d, file)?;
+            let albedos = pf.record.albedos;
+            (PatchSource::File(Box::new(pf)), albedos)
+        }
         // Mip levels are summed from the fine accumulators.
-        keep_accumulators: auto_mip || mip.is_some_and(|l| l > 0),
-        ..VoxeliseOptions::default()
+        None => {
+            let (vp, albedos) = generate(at, d, auto_mip || mip.is_some_and(|l| l > 0))?;
+            (PatchSource::Generated(vp), albedos)
+        }
     };
-    let vp = voxelise(&patch, resolution, &opts).map_err(|e| bad(&e))?;
+    let albedos = [
+        at.unit_colour("warp_albedo", d.warp_albedo, albedos[0])?,
+        at.unit_colour("weft_albedo", d.weft_albedo, albedos[1])?,
+        at.unit_colour("pile_albedo", d.pile_albedo, albedos[2])?,
+    ];
+    let base = source
+        .base()
+        .ok_or_else(|| at.invalid(format!("{owner}: the patch has no level 0")))?;
     // The shell's world mesh and tiles, or the free-standing placement.
     let shell_mesh = placement.rest_mesh.map(|m| m.transformed(xf));
     let requested_tiles = d.tiles.map(|t| match t {
@@ -135,49 +229,29 @@ fn build_fabric(
             }
             None
         }
-        Some(mesh) => Some(lod::shell_tiles(requested_tiles, mesh, &patch).ok_or_else(|| {
-            at.invalid(format!("{owner}: a fabric shell needs a mesh with texture coordinates (u, v) spanning a non-zero area"))
-        })?),
+        Some(mesh) => Some(
+            requested_tiles
+                .or_else(|| lod::true_size_tiles_of(mesh, base.tile))
+                .ok_or_else(|| {
+                    at.invalid(format!("{owner}: a fabric shell needs a mesh with texture coordinates (u, v) spanning a non-zero area"))
+                })?,
+        ),
     };
-    let level = if auto_mip {
-        let (voxel_world, bounds) = lod::voxel_footprint(&vp, xf, shell_mesh.as_ref(), tiles);
-        lod::auto_mip(&vp, placement.view.at(bounds) / voxel_world.max(1e-30))
+    // The levels to build: the fixed one, or every level that halves the tile exactly.
+    let levels: Vec<u32> = if auto_mip {
+        (0..=MAX_MIP_LEVEL)
+            .take_while(|&l| lod::halves_exactly(base, l))
+            .collect()
     } else {
         let l = mip.unwrap_or(0);
-        if !lod::halves_exactly(&vp, l) {
-            return Err(at.invalid(format!("{owner}.mip = {l}: the patch has {} × {} voxels across its tile, which {l} halvings do not divide exactly; use a resolution that is a multiple of {}", vp.dims[0], vp.dims[1], 1u32 << l)));
+        if !lod::halves_exactly(base, l) {
+            return Err(at.invalid(format!("{owner}.mip = {l}: the patch has {} × {} voxels across its tile, which {l} halvings do not divide exactly; use a resolution that is a multiple of {}", base.dims[0], base.dims[1], 1u32 << l)));
         }
-        l
+        vec![l]
     };
-    let vp = if level > 0 {
-        vp.mip(level).map_err(|e| bad(&e))?
-    } else {
-        vp
-    };
-    let patch_voxel_size = vp.voxel_size;
-    let (field, pyramid) = match (shell_mesh, tiles) {
-        (Some(mesh), Some(tiles)) => {
-            // A shell over the cloth mesh (notes §3.3), in world space.
-            let shell =
-                FabricShell::new(&vp, &mesh, &ShellParams { tiles }).map_err(|e| bad(&e))?;
-            let pyramid = shell.majorant_pyramid().map_err(|e| bad(&e))?;
-            (DensityField::Shell(Box::new(shell)), pyramid)
-        }
-        _ => {
-            let mut grid = vp.grid;
-            let placed = DAffine3::from_mat4(xf.as_dmat4()) * grid.index_to_world();
-            grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
-            let pyramid = MajorantPyramid::from_grid(&grid, crate::fabric::voxelise::DENSITY)
-                .map_err(|e| bad(&e))?;
-            let field = DensityField::Grid {
-                grid,
-                channel: crate::fabric::voxelise::DENSITY,
-            };
-            (field, pyramid)
-        }
-    };
-    let shading =
-        FabricShading::from_patch(&FibrePhaseParams::default(), &patch).map_err(|e| bad(&e))?;
+    let voxel_width = lod::voxel_footprint(base, xf, shell_mesh.as_ref(), tiles).0;
+    let fibre = fibre_phase(at, d.fibre_phase.as_ref())?;
+    let shading = FabricShading::from_albedos(&fibre, albedos).map_err(|e| bad(&e))?;
     let extinction = match d.extinction.as_deref().unwrap_or("fibre") {
         "fibre" => FibreExtinction::Projected,
         "isotropic" => FibreExtinction::Isotropic,
@@ -188,22 +262,45 @@ fn build_fabric(
         }
     };
     let scale = extinction.sigma_scale();
-    let sigma_t = attenuation.map(|d| density * scale / d);
-    let mut medium = HeterogeneousMedium {
-        field,
-        pyramid,
-        coefficients: DensityCoefficients::new(sigma_t, sigma_t),
-        phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e))?,
-        tracking: TrackingConfig::default(),
-        fabric: Some(Box::new(FabricLook {
-            tangent_channel: crate::fabric::voxelise::TANGENT,
-            id_channel: crate::fabric::voxelise::ID,
-            patch_voxel_size,
-            mip_level: level,
-            extinction,
-            shading,
-        })),
+    let shared = Shared {
+        shell_mesh: shell_mesh.as_ref(),
+        tiles,
+        xf,
+        sigma_t: attenuation.map(|d| density * scale / d),
+        extinction,
+        shading: &shading,
     };
-    medium.attach_local_bounds().map_err(|e| bad(&e))?;
+    let mut media = Vec::with_capacity(levels.len());
+    for &l in &levels {
+        let vp = source.level(l).map_err(|e| bad(&e))?;
+        media.push(level_medium(at, vp, &shared)?);
+    }
+    let mut media = media.into_iter();
+    let mut medium = media
+        .next()
+        .ok_or_else(|| at.invalid(format!("{owner}: no mip level to build")))?;
+    let first = levels.first().copied().unwrap_or(0);
+    if auto_mip || first > 0 {
+        // The fibres' extent: the finest level's occupied box (for a fixed coarser level
+        // of a free-standing patch, from the level-0 grid's pyramid; a shell is bounded by
+        // its mesh).
+        let bounds = if first == 0 {
+            medium.pyramid.world_bounds()
+        } else if shared.shell_mesh.is_none() {
+            let mut grid = base.grid.clone();
+            let placed = DAffine3::from_mat4(xf.as_dmat4()) * grid.index_to_world();
+            grid.set_index_to_world(placed).map_err(|e| bad(&e))?;
+            MajorantPyramid::from_grid(&grid, crate::fabric::voxelise::DENSITY)
+                .map_err(|e| bad(&e))?
+                .world_bounds()
+        } else {
+            None
+        };
+        medium.mips = Some(Box::new(MipChain {
+            voxel_width,
+            bounds: bounds.unwrap_or(crate::math::Aabb::EMPTY),
+            levels: media.collect(),
+        }));
+    }
     Ok(medium)
 }

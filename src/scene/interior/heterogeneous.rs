@@ -93,6 +93,7 @@ impl DensityLook {
             phase: self.phase,
             tracking: self.tracking,
             fabric: None,
+            mips: None,
         };
         medium
             .attach_local_bounds()
@@ -131,6 +132,7 @@ impl DensityLook {
                 phase: self.phase,
                 tracking: super::mixture::component_tracking(tracking),
                 fabric: None,
+                mips: None,
             })),
             phase: self.phase,
             albedo: albedo.map(Box::new),

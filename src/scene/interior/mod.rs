@@ -3,8 +3,8 @@
 //! * `absorption`, `homogeneous` ([`homogeneous`]): constant coefficients.
 //! * `voxel` ([`voxel`]): a density grid from an OpenVDB file.
 //! * `fbm` ([`fbm`]): procedural fBm noise, baked, baked lazily or evaluated exactly.
-//! * `fabric` ([`fabric`]): a woven patch voxelised at load time, free-standing or as a shell
-//!   over a mesh.
+//! * `fabric` ([`fabric`]): a woven patch voxelised at load time or read from a `velour weave`
+//!   file ([`fabric_source`]), free-standing or as a shell over a mesh.
 //! * `mixture` ([`mixture`]): two to four of `homogeneous`, `voxel` and `fbm` in one object;
 //!   `voxel` interiors with albedo or emission grids ([`grids`]) are built as one-component
 //!   mixtures.
@@ -15,6 +15,7 @@
 
 mod blend;
 mod fabric;
+mod fabric_source;
 mod fbm;
 mod grids;
 mod heterogeneous;
@@ -31,14 +32,14 @@ use super::desc::{ColorInput, ColorValue, InteriorDesc, ScalarInput};
 use super::textures::ParamSite;
 use super::validate::{check_range, color};
 use super::SceneError;
-use crate::fabric::lod::ViewFootprint;
 use crate::geometry::TriangleMesh;
 use crate::math::{Aabb, Mat4};
 use crate::medium::{Medium, NeeStrategy, WalkInterior};
 use crate::spectrum::Rgb;
 use crate::texture::{ColorParam, ScalarParam};
 
-/// Where an interior sits: the object transform and its rest shape, and the camera's view.
+/// Where an interior sits: the object transform and its rest shape. (Nothing here depends on
+/// the camera or the film size: a fabric's mip level is chosen per ray, from the ray cone.)
 pub(super) struct Placement<'a> {
     /// Object to world.
     pub xf: Mat4,
@@ -46,8 +47,6 @@ pub(super) struct Placement<'a> {
     pub rest_bounds: Option<Aabb>,
     /// The rest-space mesh of a mesh shape.
     pub rest_mesh: Option<&'a TriangleMesh>,
-    /// The camera's pixel footprint, for fabric mip selection.
-    pub view: ViewFootprint,
     /// True when the shape has texture coordinates (a mesh with UVs, or a sphere).
     pub has_uvs: bool,
 }
