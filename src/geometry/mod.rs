@@ -19,6 +19,7 @@
 
 mod aabox;
 mod bvh;
+mod closest;
 mod icosphere;
 mod mesh;
 mod ply;
@@ -32,6 +33,7 @@ use crate::math::{Mat3, Mat4, Vec2, Vec3};
 
 pub use aabox::{intersect_box, BoxHit};
 pub use bvh::SceneGeometry;
+pub use closest::{closest_on_triangle, ClosestPointMesh, NearestPoint};
 pub use icosphere::icosphere;
 pub use mesh::{MeshTopology, TriangleMesh};
 pub use ply::{load_ply, parse_ply, write_ply};

@@ -9,12 +9,14 @@
 //! - [`heterogeneous`]: density fields, their segments and lookups, tracked;
 //! - [`lookup`]: density lookups along a ray, one enum over the density sources;
 //! - [`event`]: the event and the per-vertex phase function;
-//! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends).
+//! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends);
+//! - [`projected`]: textured interiors read at the closest boundary point of every lookup.
 
 pub mod artist;
 pub mod event;
 pub mod heterogeneous;
 pub mod lookup;
+pub mod projected;
 pub mod walk;
 
 pub use artist::{
@@ -24,6 +26,7 @@ pub use artist::{
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use heterogeneous::{DensityField, HeterogeneousMedium, MediumSegments};
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
+pub use projected::ProjectedMedium;
 pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
 
 use crate::math::Ray;
@@ -72,6 +75,9 @@ pub enum Medium {
     Homogeneous(HomogeneousMedium),
     /// Spatially varying density (voxel data, procedural noise, fabric).
     Heterogeneous(Box<HeterogeneousMedium>),
+    /// Textured parameters read at the boundary point closest to every lookup
+    /// (`projection = "surface"`): RGB coefficients varying per channel, tracked.
+    Projected(Box<ProjectedMedium>),
 }
 
 impl Medium {
@@ -83,6 +89,7 @@ impl Medium {
             Medium::Absorbing { sigma_a } => *sigma_a,
             Medium::Homogeneous(h) => h.coefficients.sigma_t(),
             Medium::Heterogeneous(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
+            Medium::Projected(p) => p.sigma_t_max,
         }
     }
 
@@ -93,6 +100,7 @@ impl Medium {
             Medium::Absorbing { .. } => false,
             Medium::Homogeneous(h) => !h.coefficients.sigma_s.is_black(),
             Medium::Heterogeneous(h) => !h.coefficients.sigma_s.is_black(),
+            Medium::Projected(p) => p.scatters(),
         }
     }
 
@@ -156,6 +164,7 @@ impl Medium {
             Medium::Heterogeneous(h) => {
                 h.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
             }
+            Medium::Projected(p) => p.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
         }
     }
 
@@ -173,6 +182,7 @@ impl Medium {
                 self.closed_form_transmittance(t_max)
             }
             Medium::Heterogeneous(h) => h.transmittance(ray, t_max, u, stats),
+            Medium::Projected(p) => p.transmittance(ray, t_max, u, stats),
         }
     }
 

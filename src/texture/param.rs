@@ -50,6 +50,24 @@ impl ColorParam {
             ColorParam::Texture(t) => t.max(),
         }
     }
+
+    /// The smallest value per channel anywhere.
+    #[must_use]
+    pub fn min(&self) -> Rgb {
+        match self {
+            ColorParam::Constant(c) => *c,
+            ColorParam::Texture(t) => t.min(),
+        }
+    }
+
+    /// The mean value per channel (a constant's value).
+    #[must_use]
+    pub fn mean(&self) -> Rgb {
+        match self {
+            ColorParam::Constant(c) => *c,
+            ColorParam::Texture(t) => t.mean(),
+        }
+    }
 }
 
 impl ScalarParam {

@@ -20,7 +20,10 @@
 //! - [`transmittance`] with [`TransmittanceMode::Ratio`] (Cramer 1978; Novák et al. 2014),
 //!   [`TransmittanceMode::ResidualRatio`] (Novák, Selle, Jarosz 2014) with a per-segment
 //!   control density, and [`TransmittanceMode::RayMarch`] (the biased fixed-step baseline);
-//! - [`ray_march_free_flight`]: the biased fixed-step free-flight baseline.
+//! - [`ray_march_free_flight`]: the biased fixed-step free-flight baseline;
+//! - [`spectral_delta_track`], [`spectral_ratio_transmittance`]: the same two questions for
+//!   media whose RGB coefficients vary per channel independently (surface-projected textures),
+//!   against one scalar majorant.
 
 mod channels;
 mod delta;
@@ -28,6 +31,7 @@ mod homogeneous;
 mod march;
 mod march_estimators;
 mod ratio;
+mod spectral;
 mod split;
 
 pub use channels::{channel_probabilities, pick_channel};
@@ -38,6 +42,7 @@ pub use march_estimators::{
     comb_teeth, jackknife_segment, order_survival, unbiased_ray_march_segment, URM_MAX_ORDER,
 };
 pub use ratio::{transmittance, transmittance_local};
+pub use spectral::{spectral_delta_track, spectral_ratio_transmittance, SPECTRAL_MAX_STEPS};
 pub use split::{split_flight, SPLIT_MIN_SCATTER};
 
 use crate::majorant::{MajorantMode, MajorantSegment};
