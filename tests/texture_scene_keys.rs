@@ -408,8 +408,9 @@ fn surface_blends_check_their_looks() {
     assert_eq!(scene.objects[0].ior, 1.4);
 }
 
-/// `projection = "surface"` needs a mesh with texture coordinates: a mesh without them, or
-/// `shape = "bounds"`, are errors naming the object and key; on a mesh with them it builds a
+/// `projection = "surface"` needs a mesh with texture coordinates: a mesh without them is an
+/// error naming the object and key (a sphere: `projection_and_blend_keys_are_checked`); on a
+/// mesh with them it builds a
 /// projected medium whose majorant is the textures' largest extinction.
 #[test]
 fn surface_projection_needs_a_mesh_with_texture_coordinates() {
