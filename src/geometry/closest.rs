@@ -101,11 +101,26 @@ impl ClosestPointMesh {
     /// The nearest point of the surface to `p`, or `None` for a non-finite `p`.
     #[must_use]
     pub fn nearest(&self, p: Vec3) -> Option<NearestPoint> {
+        let mut none = u32::MAX;
+        self.nearest_from(p, &mut none)
+    }
+
+    /// [`Self::nearest`] starting from the triangle of an earlier answer: `hint` holds the
+    /// triangle's slot in this structure (any value, e.g. `u32::MAX`, for none) and is set to
+    /// the answer's. Successive queries along one ray are close together, so the old
+    /// triangle's distance is a tight first bound and prunes most of the tree.
+    #[must_use]
+    pub fn nearest_from(&self, p: Vec3, hint: &mut u32) -> Option<NearestPoint> {
         if !p.is_finite() {
             return None;
         }
         let mut best = f32::INFINITY;
         let mut found: Option<(usize, Vec3, [f32; 3])> = None;
+        if let Some(t) = self.tris.get(*hint as usize) {
+            let (q, bary) = closest_on_triangle(p, t[0], t[1], t[2]);
+            best = (q - p).length_squared();
+            found = Some((*hint as usize, q, bary));
+        }
         let mut stack = [0u32; STACK];
         let mut len = 1usize;
         while len > 0 {
@@ -144,6 +159,7 @@ impl ClosestPointMesh {
             }
         }
         let (i, q, bary) = found?;
+        *hint = i as u32;
         let uv = self.uvs.get(i)?;
         Some(NearestPoint {
             p: q,
@@ -385,6 +401,12 @@ mod tests {
             let u = |d: u32| 3.0 * hash_uniform(11, i, d) - 1.5;
             let p = Vec3::new(u(0), u(1), u(2));
             let n = cp.nearest(p).unwrap();
+            // Starting from any triangle gives the same distance.
+            let mut hint = i % 1280;
+            assert_eq!(
+                cp.nearest_from(p, &mut hint).unwrap().distance2,
+                n.distance2
+            );
             let b = brute(&mesh, p);
             assert!((n.distance2 - b).abs() <= 1e-6 * b.max(1.0), "{p:?}");
         }

@@ -80,6 +80,19 @@ impl ProjectedMedium {
         self.boundary.nearest(p).map_or(Vec2::ZERO, |n| n.uv)
     }
 
+    /// [`Self::uv_at`] for successive points of one ray: `hint` carries the last answer's
+    /// triangle ([`ClosestPointMesh::nearest_from`]).
+    #[inline]
+    fn uv_near(&self, p: Vec3, hint: &Cell<u32>) -> Vec2 {
+        let mut h = hint.get();
+        let uv = self
+            .boundary
+            .nearest_from(p, &mut h)
+            .map_or(Vec2::ZERO, |n| n.uv);
+        hint.set(h);
+        uv
+    }
+
     /// σ_t at texture coordinates `uv` (density / attenuation per channel).
     #[inline]
     fn sigma_t_at(&self, uv: Vec2) -> Rgb {
@@ -128,11 +141,12 @@ impl ProjectedMedium {
         // The uv of the last σ_t lookup: σ_s is asked for at the same point.
         let last_uv = Cell::new(Vec2::ZERO);
         let scattered = Cell::new(Rgb::ZERO);
+        let hint = Cell::new(u32::MAX);
         let flight = spectral_delta_track(
             self.majorant(),
             t_max,
             |t| {
-                let uv = self.uv_at(ray.at(t));
+                let uv = self.uv_near(ray.at(t), &hint);
                 last_uv.set(uv);
                 self.sigma_t_at(uv)
             },
@@ -169,10 +183,11 @@ impl ProjectedMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
+        let hint = Cell::new(u32::MAX);
         spectral_ratio_transmittance(
             self.majorant(),
             t_max,
-            |t| self.sigma_t_at(self.uv_at(ray.at(t))),
+            |t| self.sigma_t_at(self.uv_near(ray.at(t), &hint)),
             u,
             stats,
         )
