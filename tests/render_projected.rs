@@ -1,8 +1,10 @@
 //! `projection = "surface"` in renders (z-tests on image and region means with standard
 //! errors from the renders' own per-pixel variances, fixed and independent seeds):
 //! - with textures of one value, surface projection renders like entry projection and like
-//!   the untextured constant interior (the spectral tracker against the textures' majorant is
-//!   unbiased; per-channel attenuations exercise null collisions in the other channels);
+//!   the untextured constant interior, behind a rough and behind an index-matched boundary
+//!   (the spectral trackers against the textures' majorant are unbiased; per-channel
+//!   attenuations exercise null collisions in the other channels; behind the index-matched
+//!   boundary shadow rays from interior vertices are ratio-tracked);
 //! - with an albedo texture white on one side of a plane and black on the other, paths that
 //!   enter on the white side near the edge and wander under the black side are absorbed with
 //!   surface projection but not with entry projection: the white side near the edge is darker
@@ -39,6 +41,17 @@ fn render(text: &str, dir: &Path) -> Film {
 }
 
 fn scene(interior: &str, spp: u32, seed: u32) -> String {
+    lit_scene(
+        interior,
+        spp,
+        seed,
+        r#"{ type = "dielectric", ior = 1.33, roughness = 0.3 }"#,
+        "[[light]]\ntype = \"distant\"\ndirection = [0.3, 0.5, 0.8]\nirradiance = 2.0\n",
+    )
+}
+
+/// The ball under an environment light and `lights`, with boundary `surface`.
+fn lit_scene(interior: &str, spp: u32, seed: u32, surface: &str, lights: &str) -> String {
     format!(
         r#"
 [camera]
@@ -54,15 +67,12 @@ max_depth = 100000
 [[light]]
 type = "environment"
 radiance = 1.0
-[[light]]
-type = "distant"
-direction = [0.3, 0.5, 0.8]
-irradiance = 2.0
+{lights}
 [[object]]
 name = "ball"
 shape = "mesh"
 file = "ball.ply"
-surface = {{ type = "dielectric", ior = 1.33, roughness = 0.3 }}
+surface = {surface}
 interior = {interior}
 "#
     )
@@ -106,6 +116,21 @@ fn surface_projection_of_constant_textures_matches_entry_and_the_constant() {
         // two: the MIS weights of the channels follow the count of null collisions).
         assert!(ms.1 < 0.06 * ms.0, "channel {ch}: {ms:?}");
     }
+    // Behind an index-matched boundary NEE happens at interior vertices: shadow rays are
+    // ratio-tracked through the projected medium.
+    let clear = r#"{ type = "dielectric", ior = 1.0 }"#;
+    let s = render(
+        &lit_scene(&textured("surface"), 128, 4, clear, ""),
+        dir.path(),
+    );
+    let c = render(&lit_scene(constant, 128, 5, clear, ""), dir.path());
+    for ch in 0..3 {
+        assert_agree(
+            image_mean(&s, ch),
+            image_mean(&c, ch),
+            &format!("index-matched: surface vs constant, channel {ch}"),
+        );
+    }
 }
 
 /// The world x of the ball point pixel (i, j)'s centre ray hits (the unit sphere the
@@ -142,8 +167,17 @@ fn surface_projection_darkens_white_skin_near_black_skin() {
             r#"{{ type = "homogeneous", albedo = {{ texture = "stripe.png" }}, attenuation = 0.15, projection = "{projection}" }}"#
         )
     };
-    let s = render(&scene(&interior("surface"), 256, 11), dir.path());
-    let e = render(&scene(&interior("entry"), 256, 12), dir.path());
+    // An index-matched boundary under the environment alone: NEE at the interior vertices,
+    // its shadow rays ratio-tracked through the projected medium; no caustic fireflies.
+    let clear = r#"{ type = "dielectric", ior = 1.0 }"#;
+    let s = render(
+        &lit_scene(&interior("surface"), 256, 11, clear, ""),
+        dir.path(),
+    );
+    let e = render(
+        &lit_scene(&interior("entry"), 256, 12, clear, ""),
+        dir.path(),
+    );
     let near_white = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x > 0.13 && x < 0.4 && cos > 0.4);
     let near_black = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x < -0.13 && x > -0.4 && cos > 0.4);
     for ch in 0..3 {
