@@ -121,16 +121,19 @@ impl ClosestPointMesh {
             best = (q - p).length_squared();
             found = Some((*hint as usize, q, bary));
         }
-        let mut stack = [0u32; STACK];
+        // Nodes still to visit, with their boxes' squared distances (the root's is 0: it is
+        // tested against the best distance only through its children).
+        let mut stack = [(0u32, 0.0f32); STACK];
         let mut len = 1usize;
         while len > 0 {
             len -= 1;
-            let Some(node) = self.nodes.get(stack[len] as usize) else {
-                continue;
-            };
-            if box_distance2(&node.bounds, p) >= best {
+            let (index, d2) = stack[len];
+            if d2 >= best {
                 continue;
             }
+            let Some(node) = self.nodes.get(index as usize) else {
+                continue;
+            };
             if node.count > 0 {
                 let first = node.first as usize;
                 for i in first..first + node.count as usize {
@@ -150,12 +153,18 @@ impl ClosestPointMesh {
                     .get(i as usize)
                     .map_or(f32::INFINITY, |n| box_distance2(&n.bounds, p))
             };
-            // Nearer child on top of the stack.
-            let (near, far) = if dist(l) <= dist(r) { (l, r) } else { (r, l) };
-            if len + 2 <= STACK {
-                stack[len] = far;
-                stack[len + 1] = near;
-                len += 2;
+            let (dl, dr) = (dist(l), dist(r));
+            // The nearer child on top of the stack; children out of reach are not pushed.
+            let (near, far) = if dl <= dr {
+                ((l, dl), (r, dr))
+            } else {
+                ((r, dr), (l, dl))
+            };
+            for child in [far, near] {
+                if child.1 < best && len < STACK {
+                    stack[len] = child;
+                    len += 1;
+                }
             }
         }
         let (i, q, bary) = found?;
