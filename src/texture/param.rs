@@ -59,15 +59,6 @@ impl ColorParam {
             ColorParam::Texture(t) => t.min(),
         }
     }
-
-    /// The mean value per channel (a constant's value).
-    #[must_use]
-    pub fn mean(&self) -> Rgb {
-        match self {
-            ColorParam::Constant(c) => *c,
-            ColorParam::Texture(t) => t.mean(),
-        }
-    }
 }
 
 impl ScalarParam {
