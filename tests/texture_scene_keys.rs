@@ -248,13 +248,16 @@ fn projection_and_blend_keys_are_checked() {
     );
     assert_mentions(
         &e,
-        &["ball: interior.projection = \"surface\"", "not implemented"],
+        &[
+            "ball: interior.projection = \"surface\"",
+            "needs a mesh boundary",
+        ],
     );
     let e = err(
         &dir,
         &sphere_with("{ type = \"homogeneous\", projection = \"planar\" }"),
     );
-    assert_mentions(&e, &["projection = \"planar\"", "unknown"]);
+    assert_mentions(&e, &["projection = \"planar\"", "unknown", "\"surface\""]);
     let e = err(
         &dir,
         &sphere_with("{ type = \"blend\", mask = 0.5, a = { type = \"homogeneous\" } }"),
@@ -403,4 +406,68 @@ fn surface_blends_check_their_looks() {
     .unwrap();
     assert!(matches!(scene.objects[0].surface, ObjectSurface::Blend(_)));
     assert_eq!(scene.objects[0].ior, 1.4);
+}
+
+/// `projection = "surface"` needs a mesh with texture coordinates: a mesh without them is an
+/// error naming the object and key (a sphere: `projection_and_blend_keys_are_checked`); on a
+/// mesh with them it builds a
+/// projected medium whose majorant is the textures' largest extinction.
+#[test]
+fn surface_projection_needs_a_mesh_with_texture_coordinates() {
+    let dir = TempDir::new("tex-proj-surface");
+    png_rgb8(&dir.join("c.png"), 2, 2, |_, _| [100, 100, 100]);
+    exr_grey(
+        &dir.join("d.exr"),
+        2,
+        2,
+        |x, _| if x == 0 { 1.0 } else { 3.0 },
+    );
+    let mut bare = icosphere(1);
+    write_ply(&dir.join("bare.ply"), &bare, false).unwrap();
+    bare.uvs = Some(vec![Vec2::new(0.5, 0.5); bare.positions.len()]);
+    write_ply(&dir.join("uv.ply"), &bare, false).unwrap();
+    let mesh_with = |file: &str, interior: &str| {
+        format!("[[object]]\nname = \"skin\"\nshape = \"mesh\"\nfile = \"{file}\"\nsurface = {{ type = \"dielectric\" }}\ninterior = {interior}\n")
+    };
+    let e = err(
+        &dir,
+        &mesh_with(
+            "bare.ply",
+            "{ type = \"homogeneous\", attenuation = 0.5, projection = \"surface\" }",
+        ),
+    );
+    assert_mentions(
+        &e,
+        &[
+            "scene.toml:",
+            "skin: interior.projection = \"surface\"",
+            "no texture coordinates",
+        ],
+    );
+    let e = err(
+        &dir,
+        &mesh_with(
+            "bare.ply",
+            "{ type = \"absorption\", density = { texture = \"d.exr\" }, projection = \"surface\" }",
+        ),
+    );
+    assert_mentions(&e, &["skin: interior", "texture coordinates"]);
+    let scene = load(
+        &dir,
+        &mesh_with(
+            "uv.ply",
+            "{ type = \"homogeneous\", albedo = { texture = \"c.png\" }, density = { texture = \"d.exr\" }, attenuation = [0.5, 1.0, 2.0], projection = \"surface\" }",
+        ),
+    )
+    .unwrap();
+    let m = scene.objects[0].medium.unwrap() as usize;
+    match &scene.media[m] {
+        velour::medium::Medium::Projected(p) => {
+            // max density 3 / min attenuation 0.5.
+            assert!((p.majorant() - 6.0).abs() < 1e-5, "{}", p.majorant());
+            assert!((p.sigma_t_max.0[2] - 1.5).abs() < 1e-5);
+        }
+        other => panic!("not a projected medium: {other:?}"),
+    }
+    assert!(scene.objects[0].walk.is_none());
 }

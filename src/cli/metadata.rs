@@ -25,6 +25,10 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
         let what = match medium {
             Medium::Absorbing { .. } => "absorbing".to_string(),
             Medium::Homogeneous(_) => "homogeneous".to_string(),
+            Medium::Projected(_) => {
+                "surface-projected textures; free_flight spectral delta; transmittance ratio"
+                    .to_string()
+            }
             Medium::Heterogeneous(h) => format!(
                 "heterogeneous; free_flight {:?}; transmittance {:?}; majorant {:?}",
                 h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
@@ -60,6 +64,11 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
         let built = match medium {
             Medium::Absorbing { .. } => "absorbing only (no grid)".to_string(),
             Medium::Homogeneous(_) => "no grid".to_string(),
+            Medium::Projected(p) => format!(
+                "textures projected to the closest boundary point ({} triangles), majorant {:.4}",
+                p.boundary.triangle_count(),
+                p.majorant()
+            ),
             Medium::Heterogeneous(h) => {
                 let field = match &h.field {
                     DensityField::Grid { grid, .. } => {

@@ -19,6 +19,7 @@
 
 mod aabox;
 mod bvh;
+mod closest;
 mod empty_cells;
 mod icosphere;
 mod levelset;
@@ -35,6 +36,7 @@ use crate::math::{Mat3, Mat4, Vec2, Vec3};
 
 pub use aabox::{intersect_box, BoxHit};
 pub use bvh::SceneGeometry;
+pub use closest::{closest_on_triangle, ClosestPointMesh, NearestPoint};
 pub use icosphere::icosphere;
 pub use levelset::{LevelSet, LevelSetError, LevelSetHit};
 pub use mesh::{MeshTopology, TriangleMesh};

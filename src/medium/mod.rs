@@ -11,7 +11,8 @@
 //! - [`event`]: the event and the per-vertex phase function;
 //! - [`mixture`]: several media in one object;
 //! - [`grids`]: per-vertex albedo and emission grids;
-//! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends).
+//! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends);
+//! - [`projected`]: textured interiors read at the closest boundary point of every lookup.
 
 pub mod artist;
 pub mod event;
@@ -19,6 +20,7 @@ pub mod grids;
 pub mod heterogeneous;
 pub mod lookup;
 pub mod mixture;
+pub mod projected;
 pub mod walk;
 
 pub use artist::{
@@ -32,6 +34,7 @@ pub use heterogeneous::{
 };
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
 pub use mixture::{ComponentDensity, MixtureComponent, MixtureMedium};
+pub use projected::ProjectedMedium;
 pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
 
 use crate::math::Ray;
@@ -82,6 +85,9 @@ pub enum Medium {
     Heterogeneous(Box<HeterogeneousMedium>),
     /// Several media in one object, or a medium with albedo or emission grids.
     Mixture(Box<MixtureMedium>),
+    /// Textured parameters read at the boundary point closest to every lookup
+    /// (`projection = "surface"`): RGB coefficients varying per channel, tracked.
+    Projected(Box<ProjectedMedium>),
 }
 
 impl Medium {
@@ -94,6 +100,7 @@ impl Medium {
             Medium::Homogeneous(h) => h.coefficients.sigma_t(),
             Medium::Heterogeneous(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
             Medium::Mixture(m) => m.max_sigma_t(),
+            Medium::Projected(p) => p.sigma_t_max,
         }
     }
 
@@ -105,6 +112,7 @@ impl Medium {
             Medium::Homogeneous(h) => !h.coefficients.sigma_s.is_black(),
             Medium::Heterogeneous(h) => !h.coefficients.sigma_s.is_black(),
             Medium::Mixture(m) => m.scatters(),
+            Medium::Projected(p) => p.scatters(),
         }
     }
 
@@ -190,6 +198,7 @@ impl Medium {
                     .sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
             }
             Medium::Mixture(m) => m.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
+            Medium::Projected(p) => p.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
         }
     }
 
@@ -221,6 +230,7 @@ impl Medium {
             }
             Medium::Heterogeneous(h) => h.for_ray(ray, cone).transmittance(ray, t_max, u, stats),
             Medium::Mixture(m) => m.transmittance(ray, t_max, u, stats),
+            Medium::Projected(p) => p.transmittance(ray, t_max, u, stats),
         }
     }
 

@@ -182,6 +182,22 @@ impl Texture {
         self.pyramid.max()
     }
 
+    /// The smallest texel of level 0 per channel (grey textures: the same in every channel):
+    /// no filtered lookup falls below it. Computed on each call (a pass over level 0).
+    #[must_use]
+    pub fn min(&self) -> Rgb {
+        let level = self.pyramid.level(0);
+        let c = self.pyramid.channels().max(1);
+        let mut m = [f32::INFINITY; 3];
+        for texel in level.texels.chunks_exact(c) {
+            for (k, v) in m.iter_mut().enumerate() {
+                let x = texel.get(k).or(texel.first()).copied().unwrap_or(0.0);
+                *v = v.min(x);
+            }
+        }
+        Rgb(m)
+    }
+
     /// The mean over level 0 per channel (= the value of the coarsest level).
     #[must_use]
     pub fn mean(&self) -> Rgb {

@@ -50,6 +50,15 @@ impl ColorParam {
             ColorParam::Texture(t) => t.max(),
         }
     }
+
+    /// The smallest value per channel anywhere.
+    #[must_use]
+    pub fn min(&self) -> Rgb {
+        match self {
+            ColorParam::Constant(c) => *c,
+            ColorParam::Texture(t) => t.min(),
+        }
+    }
 }
 
 impl ScalarParam {

@@ -9,20 +9,20 @@ use crate::spectrum::Rgb;
 
 /// Running numerator (per channel contribution) and per-hero-channel path probabilities of a
 /// one-sample-MIS free flight. Common factors (e^{-M Δt}) are omitted from both.
-struct MisChain {
-    f: Rgb,
-    p: Rgb,
+pub(super) struct MisChain {
+    pub(super) f: Rgb,
+    pub(super) p: Rgb,
 }
 
 impl MisChain {
-    fn renormalise(&mut self) {
+    pub(super) fn renormalise(&mut self) {
         let m = self.p.max_component();
         if m > 0.0 && !(1e-20..=1e20).contains(&m) {
             self.f /= m;
             self.p /= m;
         }
     }
-    fn weight(&self, probs: [f32; 3]) -> Rgb {
+    pub(super) fn weight(&self, probs: [f32; 3]) -> Rgb {
         let denom = probs[0] * self.p[0] + probs[1] * self.p[1] + probs[2] * self.p[2];
         if denom > 0.0 && denom.is_finite() {
             self.f / denom

@@ -20,7 +20,10 @@
 //! - [`transmittance`] with [`TransmittanceMode::Ratio`] (Cramer 1978; Novák et al. 2014),
 //!   [`TransmittanceMode::ResidualRatio`] (Novák, Selle, Jarosz 2014) with a per-segment
 //!   control density, and [`TransmittanceMode::RayMarch`] (the biased fixed-step baseline);
-//! - [`ray_march_free_flight`]: the biased fixed-step free-flight baseline.
+//! - [`ray_march_free_flight`]: the biased fixed-step free-flight baseline;
+//! - [`spectral_delta_track`], [`spectral_ratio_transmittance`]: the same two questions for
+//!   media whose RGB coefficients vary per channel independently (surface-projected textures),
+//!   against one scalar majorant.
 
 mod channels;
 mod delta;
@@ -29,6 +32,7 @@ mod march;
 mod march_estimators;
 mod mixture;
 mod ratio;
+mod spectral;
 mod split;
 
 pub use channels::{channel_probabilities, pick_channel};
@@ -40,6 +44,7 @@ pub use march_estimators::{
 };
 pub use mixture::{mixture_track, MixFlight, MixPoint, RateSegment, MAX_COMPONENTS};
 pub use ratio::{transmittance, transmittance_local};
+pub use spectral::{spectral_delta_track, spectral_ratio_transmittance, SPECTRAL_MAX_STEPS};
 pub use split::{split_flight, SPLIT_MIN_SCATTER};
 
 use crate::majorant::{MajorantMode, MajorantSegment};

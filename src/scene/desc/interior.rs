@@ -36,7 +36,8 @@ pub struct AbsorptionDesc {
     pub density: Option<ScalarInput>,
     /// "exit" or "interior".
     pub nee: Option<String>,
-    /// How textured parameters are read: "entry" (the default; the only mode so far).
+    /// How textured parameters are read: "entry" (the default: at the entry point) or
+    /// "surface" (at the boundary point closest to every lookup; needs a mesh with UVs).
     pub projection: Option<String>,
 }
 
@@ -56,7 +57,8 @@ pub struct HomogeneousDesc {
     pub phase: Option<PhaseDesc>,
     /// "exit" or "interior".
     pub nee: Option<String>,
-    /// How textured parameters are read: "entry" (the default; the only mode so far).
+    /// How textured parameters are read: "entry" (the default: at the entry point) or
+    /// "surface" (at the boundary point closest to every lookup; needs a mesh with UVs).
     pub projection: Option<String>,
 }
 

@@ -1,11 +1,13 @@
 //! `absorption` and `homogeneous` interiors: constant coefficients everywhere inside, or,
 //! with textured parameters, constant along each walk and read at its entry point
-//! (`projection = "entry"`, docs/textures.md).
+//! (`projection = "entry"`, docs/textures.md), or read at the boundary point closest to
+//! every lookup (`projection = "surface"`: a tracked [`ProjectedMedium`]).
 
 use super::scattering::Scattering;
-use super::{textured_extinction_and_nee, BuiltInterior, Site};
+use super::{textured_extinction_and_nee, BuiltInterior, Placement, Projection, Site};
+use crate::geometry::ClosestPointMesh;
 use crate::math::Vec2;
-use crate::medium::{EntryInterior, HomogeneousMedium, Medium, WalkInterior};
+use crate::medium::{EntryInterior, HomogeneousMedium, Medium, ProjectedMedium, WalkInterior};
 use crate::phase::PhaseFunction;
 use crate::scene::desc::{AbsorptionDesc, HomogeneousDesc};
 use crate::scene::SceneError;
@@ -27,15 +29,65 @@ fn entry(e: EntryInterior, nee: crate::medium::NeeStrategy) -> BuiltInterior {
     }
 }
 
+/// A textured interior read at the closest point of the object's mesh (`projection =
+/// "surface"`): the rest mesh placed in the world, prepared for closest-point queries.
+fn projected(
+    at: &Site,
+    e: EntryInterior,
+    nee: crate::medium::NeeStrategy,
+    placement: &Placement<'_>,
+) -> Result<BuiltInterior, SceneError> {
+    let mesh = placement.rest_mesh.ok_or_else(|| {
+        at.invalid(format!(
+            "{}.projection = \"surface\" needs a mesh boundary",
+            at.owner
+        ))
+    })?;
+    let world = mesh.transformed(placement.xf);
+    let boundary = ClosestPointMesh::build(&world, &format!("{}.projection", at.owner))
+        .map_err(|e| at.failed(&e))?;
+    let medium = ProjectedMedium::new(e, boundary);
+    if !medium.majorant().is_finite() {
+        return Err(at.invalid(format!(
+            "{}: density/attenuation gives a non-finite extinction",
+            at.owner
+        )));
+    }
+    Ok(BuiltInterior {
+        medium: Medium::Projected(Box::new(medium)),
+        nee,
+        walk: None,
+    })
+}
+
+/// The built interior of textured parameters `e`: per walk (`"entry"`) or projected
+/// (`"surface"`).
+fn textured(
+    at: &Site,
+    e: EntryInterior,
+    nee: crate::medium::NeeStrategy,
+    projection: Projection,
+    placement: &Placement<'_>,
+) -> Result<BuiltInterior, SceneError> {
+    match projection {
+        Projection::Entry => Ok(entry(e, nee)),
+        Projection::Surface => projected(at, e, nee, placement),
+    }
+}
+
 /// Coloured glass: σ_a = density / attenuation per channel (0 for an infinite distance).
-pub(super) fn absorption(at: &Site, d: &AbsorptionDesc) -> Result<BuiltInterior, SceneError> {
+pub(super) fn absorption(
+    at: &Site,
+    d: &AbsorptionDesc,
+    placement: &Placement<'_>,
+) -> Result<BuiltInterior, SceneError> {
+    let projection = at.projection(d.projection.as_deref(), placement)?;
     let (density, attenuation, nee) = textured_extinction_and_nee(
         at,
         d.density.as_ref(),
         d.attenuation.as_ref(),
         d.nee.as_deref(),
     )?;
-    at.projection(d.projection.as_deref())?;
     if density.is_textured() || attenuation.is_textured() {
         let e = EntryInterior {
             albedo: ColorParam::Constant(Rgb::ZERO),
@@ -45,7 +97,7 @@ pub(super) fn absorption(at: &Site, d: &AbsorptionDesc) -> Result<BuiltInterior,
             phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| at.failed(&e))?,
             absorbing: true,
         };
-        return Ok(entry(e, nee));
+        return textured(at, e, nee, projection, placement);
     }
     let (density, attenuation) = (density.max(), attenuation.max());
     let sigma_a = attenuation.map(|d| if d.is_infinite() { 0.0 } else { density / d });
@@ -58,14 +110,18 @@ pub(super) fn absorption(at: &Site, d: &AbsorptionDesc) -> Result<BuiltInterior,
 
 /// A scattering medium of constant density: σ_t = density / attenuation, the albedo inverted
 /// into σ_s (course notes eq. 1–3).
-pub(super) fn homogeneous(at: &Site, d: &HomogeneousDesc) -> Result<BuiltInterior, SceneError> {
+pub(super) fn homogeneous(
+    at: &Site,
+    d: &HomogeneousDesc,
+    placement: &Placement<'_>,
+) -> Result<BuiltInterior, SceneError> {
+    let projection = at.projection(d.projection.as_deref(), placement)?;
     let (density, attenuation, nee) = textured_extinction_and_nee(
         at,
         d.density.as_ref(),
         d.attenuation.as_ref(),
         d.nee.as_deref(),
     )?;
-    at.projection(d.projection.as_deref())?;
     let scattering = Scattering::read(at, None, d.albedo_mode.as_deref(), d.phase.as_ref())?;
     let albedo = at
         .params()
@@ -79,7 +135,7 @@ pub(super) fn homogeneous(at: &Site, d: &HomogeneousDesc) -> Result<BuiltInterio
             phase: scattering.phase,
             absorbing: false,
         };
-        return Ok(entry(e, nee));
+        return textured(at, e, nee, projection, placement);
     }
     let coefficients = scattering.coefficients_of(albedo.max(), attenuation.max(), density.max());
     if !coefficients.sigma_t().is_finite() {

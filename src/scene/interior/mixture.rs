@@ -144,6 +144,11 @@ pub(super) fn build(
                     components.push(c);
                 }
             }
+            Medium::Projected(_) => {
+                return Err(bad(
+                    "a surface-projected interior (projection = \"surface\") cannot be a mixture component; use constant values".into(),
+                ))
+            }
         }
     }
     if components.len() > MAX_COMPONENTS {

@@ -94,14 +94,23 @@ pub(super) fn build_medium(
         has_uvs: placement.has_uvs,
     };
     Ok(match interior {
-        InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d)?,
-        InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d)?,
+        InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d, placement)?,
+        InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d, placement)?,
         InteriorDesc::Voxel(d) => BuiltInterior::fixed(voxel::build(&at, d, placement)?),
         InteriorDesc::Fbm(d) => BuiltInterior::fixed(fbm::build(&at, d, placement)?),
         InteriorDesc::Fabric(d) => BuiltInterior::fixed(fabric::build(&at, d, placement)?),
         InteriorDesc::Blend(d) => blend::build(&at, d, placement, media)?,
         InteriorDesc::Mixture(d) => mixture::build(&at, d, placement, media)?,
     })
+}
+
+/// How an interior's textured parameters are read (`projection`, docs/textures.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Projection {
+    /// At the entry point, homogeneous along the walk.
+    Entry,
+    /// At the boundary point closest to every lookup.
+    Surface,
 }
 
 /// What an interior builder reports errors with: the scene, the interior table's line, the
@@ -126,14 +135,24 @@ impl Site<'_> {
         }
     }
 
-    /// How textured parameters are read (`projection`): "entry" (the default) or an error.
-    fn projection(&self, p: Option<&str>) -> Result<(), SceneError> {
+    /// How textured parameters are read (`projection`): "entry" (the default) or "surface",
+    /// which needs a mesh boundary with texture coordinates.
+    fn projection(
+        &self,
+        p: Option<&str>,
+        placement: &Placement<'_>,
+    ) -> Result<Projection, SceneError> {
         match p.unwrap_or("entry") {
-            "entry" => Ok(()),
-            "surface" => Err(self.invalid(format!("{}.projection = \"surface\" is not implemented yet (use \"entry\": the textures are read at the entry point)", self.owner))),
-            other => Err(self.invalid(format!("{}.projection = \"{other}\" is unknown (expected \"entry\")", self.owner))),
+            "entry" => Ok(Projection::Entry),
+            "surface" => match placement.rest_mesh {
+                None => Err(self.invalid(format!("{}.projection = \"surface\" needs a mesh boundary to project onto (shape = \"mesh\" with texture coordinates); this object's shape is a sphere or bounds (use \"entry\")", self.owner))),
+                Some(m) if m.uvs.is_none() => Err(self.invalid(format!("{}.projection = \"surface\": the mesh has no texture coordinates (per-vertex u, v in the PLY) to read the textures at", self.owner))),
+                Some(_) => Ok(Projection::Surface),
+            },
+            other => Err(self.invalid(format!("{}.projection = \"{other}\" is unknown (expected \"entry\" or \"surface\")", self.owner))),
         }
     }
+
     /// An invalid-value error at the interior's line.
     fn invalid(&self, message: impl Into<String>) -> SceneError {
         self.ctx.invalid(self.line, message)
