@@ -7,12 +7,56 @@ use std::path::Path;
 
 use common::cli::{velour, Capture};
 use common::files::TempDir;
-use velour::cli::tradeoff::{apply, configurations, csv, most_efficient, svg_plot, Measurement};
+use velour::cli::tradeoff::{
+    apply, configurations, csv, most_efficient, svg_plot, Measurement, Target,
+};
 use velour::scene::{load_scene, load_scene_str};
 
 const CLOUD: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cloud.toml");
 const FBM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fbm_creature.toml");
 const SKIN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/skin_sphere.toml");
+const EYE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/eye.toml");
+
+/// A small eye-like scene: a scattering ball behind a dielectric boundary of the given
+/// roughness (0 = smooth), lit by a small sphere light and a dim environment.
+fn ball_scene(roughness: f64) -> String {
+    format!(
+        r#"
+[camera]
+eye = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 30
+
+[film]
+width = 8
+height = 6
+spp = 2
+seed = 3
+max_depth = 32
+
+[[light]]
+type = "sphere"
+center = [-3.0, 2.0, 2.0]
+radius = 0.1
+radiance = [400.0, 400.0, 400.0]
+
+[[light]]
+type = "environment"
+radiance = [0.05, 0.05, 0.05]
+
+[[object]]
+name = "ball"
+shape = "sphere"
+radius = 1.0
+surface = {{ type = "dielectric", ior = 1.4, roughness = {roughness} }}
+interior = {{ type = "homogeneous", albedo = 0.9, attenuation = 0.3, nee = "exit" }}
+"#
+    )
+}
+
+fn names(configs: &[velour::cli::tradeoff::Configuration]) -> Vec<&str> {
+    configs.iter().map(|c| c.name.as_str()).collect()
+}
 
 fn configs_of(path: &str) -> (toml::Table, Vec<velour::cli::tradeoff::Configuration>) {
     let text = std::fs::read_to_string(path).expect("scene");
@@ -174,4 +218,97 @@ fn tradeoff_cli_end_to_end() {
         .arg(&reference)
         .capture();
     assert!(!o.success() && o.stderr.contains("--budgets"));
+}
+
+#[test]
+fn manifold_nee_is_offered_exactly_where_the_scene_accepts_it() {
+    // The eye: both scattering interiors (sclera = object 1, iris = object 4) sit behind the
+    // smooth cornea; the absorbing ones are left alone.
+    let (doc, configs) = configs_of(EYE);
+    let manifold = configs
+        .iter()
+        .find(|c| c.name == "NEE manifold")
+        .unwrap_or_else(|| panic!("{:?}", names(&configs)));
+    let objects: Vec<_> = manifold.edits.iter().map(|e| e.target).collect();
+    assert_eq!(objects, [Target::Object(1), Target::Object(4)]);
+    let text = apply(&doc, manifold).expect("apply");
+    load_scene_str(&text, Path::new(EYE)).expect("the edited eye loads");
+
+    // A smooth ball gets it beside exit and interior NEE; a rough one (roughness 0.3, and the
+    // shipped skin sphere's 0.6, see homogeneous_scenes_only_vary_nee) does not.
+    let dir = TempDir::new("tradeoff-manifold");
+    for (roughness, offered) in [(0.0, true), (0.3, false)] {
+        let path = dir.join(format!("ball_{roughness}.toml"));
+        std::fs::write(&path, ball_scene(roughness)).expect("write");
+        let text = ball_scene(roughness);
+        let doc: toml::Table = toml::from_str(&text).expect("toml");
+        let scene = load_scene(&path).expect("load");
+        let configs = configurations(&doc, &scene, &[]);
+        let want: &[&str] = if offered {
+            &["scene file", "NEE exit", "NEE interior", "NEE manifold"]
+        } else {
+            &["scene file", "NEE exit", "NEE interior"]
+        };
+        assert_eq!(names(&configs), want, "roughness {roughness}");
+    }
+    // No sphere or distant light: nothing to connect to.
+    let path = dir.join("ball_env.toml");
+    let text = ball_scene(0.0).replace("type = \"sphere\"\ncenter = [-3.0, 2.0, 2.0]\nradius = 0.1\nradiance = [400.0, 400.0, 400.0]\n\n[[light]]\n", "");
+    std::fs::write(&path, &text).expect("write");
+    let doc: toml::Table = toml::from_str(&text).expect("toml");
+    let scene = load_scene(&path).expect("load");
+    assert_eq!(scene.lights.len(), 1);
+    assert!(!names(&configurations(&doc, &scene, &[])).contains(&"NEE manifold"));
+}
+
+#[test]
+fn tradeoff_cli_measures_manifold_nee() {
+    let dir = TempDir::new("tradeoff-manifold-cli");
+    let scene = dir.join("ball.toml");
+    std::fs::write(&scene, ball_scene(0.0)).expect("write");
+    let reference = dir.join("ref.exr");
+    velour()
+        .arg("reference")
+        .arg(&scene)
+        .args(["--spp", "16", "--threads", "2", "-q", "-o"])
+        .arg(&reference)
+        .capture()
+        .assert_success();
+    let out = dir.join("t");
+    let o = velour()
+        .arg("tradeoff")
+        .arg(&scene)
+        .args([
+            "--budgets",
+            "2",
+            "--unit",
+            "spp",
+            "--only",
+            "NEE",
+            "--threads",
+            "2",
+        ])
+        .arg("--reference")
+        .arg(&reference)
+        .arg("-o")
+        .arg(&out)
+        .capture();
+    o.assert_success();
+    assert!(
+        o.stdout.contains("most efficient at 2 spp: NEE "),
+        "{}",
+        o.stdout
+    );
+    let table = std::fs::read_to_string(out.join("tradeoff.csv")).expect("csv");
+    assert_eq!(table.lines().count(), 1 + 3, "{table}");
+    let row = table
+        .lines()
+        .find(|l| l.starts_with("\"NEE manifold\""))
+        .unwrap_or_else(|| panic!("{table}"));
+    let f: Vec<&str> = row.rsplitn(11, ',').collect();
+    let (rmse, efficiency): (f64, f64) = (
+        f[5].parse().expect("rmse"),
+        f[2].parse().expect("efficiency"),
+    );
+    assert!(rmse.is_finite() && rmse > 0.0 && efficiency > 0.0, "{row}");
 }

@@ -14,7 +14,11 @@
 //!   transmittance) at several step sizes (fractions of the medium's bounding-box diagonal);
 //!   baked against exact procedural (`fbm`) density;
 //! - every scattering interior: next event estimation at exit points against at interior
-//!   vertices.
+//!   vertices;
+//! - manifold next event estimation (`nee = "manifold"`, "NEE manifold") on every scattering
+//!   interior where the scene loader accepts it (a smooth dielectric boundary, its own or an
+//!   enclosing one, and a sphere or distant light: see [`manifold_objects`]); the other
+//!   interiors keep the scene file's strategy.
 //!
 //! Each configuration's edit is applied to every interior it concerns. Renders use the scene's
 //! seed; the reference should come from `velour reference` (which offsets the seed) with many
@@ -27,6 +31,7 @@ use std::path::{Path, PathBuf};
 use super::reference::{load_scene_with, render_budget, Budget, BudgetOptions, SceneOverrides};
 use super::CliResult;
 use crate::image_io::{self, compare};
+use crate::light::Light;
 use crate::medium::Medium;
 use crate::scene::{load_scene_str, Scene};
 
@@ -50,6 +55,8 @@ pub enum Target {
     Procedural,
     /// Every interior except `absorption`.
     Scattering,
+    /// The interior of the scene file's `index`-th `[[object]]` (counting from 0).
+    Object(usize),
 }
 
 /// A named estimator configuration: edits applied to the scene file.
@@ -218,8 +225,66 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
                 }],
             });
         }
+        let manifold = manifold_objects(doc, scene);
+        if !manifold.is_empty() {
+            out.push(Configuration {
+                name: "NEE manifold".into(),
+                edits: manifold
+                    .into_iter()
+                    .map(|index| Edit {
+                        target: Target::Object(index),
+                        key: "nee".into(),
+                        value: s("manifold"),
+                    })
+                    .collect(),
+            });
+        }
     }
     out
+}
+
+/// Indices (in the scene file's `[[object]]` array) of the scattering interiors where
+/// `nee = "manifold"` is valid. The scene loader decides: the scene file is loaded again (from
+/// `scene.source`) with that one interior switched to `"manifold"`, and the interior counts
+/// when it loads. Loads that would certainly fail are skipped: objects whose surface is neither
+/// absent nor `type = "dielectric"`, and every object when the scene has no sphere or distant
+/// light (the only lights manifold NEE connects to).
+#[must_use]
+pub fn manifold_objects(doc: &toml::Table, scene: &Scene) -> Vec<usize> {
+    let finite_light = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Sphere { .. } | Light::Distant { .. }));
+    if !finite_light {
+        return Vec::new();
+    }
+    let objects = doc.get("object").and_then(|o| o.as_array());
+    interiors(doc)
+        .filter(|(_, t)| estimator_kind(t) != "absorption")
+        .filter(|(i, _)| {
+            let surface = objects
+                .and_then(|o| o.get(*i))
+                .and_then(|o| o.get("surface"));
+            match surface {
+                None => true,
+                Some(s) => s.get("type").and_then(|t| t.as_str()) == Some("dielectric"),
+            }
+        })
+        .map(|(i, _)| i)
+        .filter(|&i| {
+            let trial = Configuration {
+                name: String::new(),
+                edits: vec![Edit {
+                    target: Target::Object(i),
+                    key: "nee".into(),
+                    value: s("manifold"),
+                }],
+            };
+            apply(doc, &trial)
+                .ok()
+                .is_some_and(|text| load_scene_str(&text, &scene.source).is_ok())
+        })
+        .collect()
 }
 
 fn interiors(doc: &toml::Table) -> impl Iterator<Item = (usize, &toml::Table)> {
@@ -250,7 +315,7 @@ fn estimator_kind(t: &toml::Table) -> String {
 pub fn apply(doc: &toml::Table, config: &Configuration) -> Result<String, String> {
     let mut doc = doc.clone();
     if let Some(objects) = doc.get_mut("object").and_then(|o| o.as_array_mut()) {
-        for o in objects.iter_mut() {
+        for (index, o) in objects.iter_mut().enumerate() {
             let Some(interior) = o.get_mut("interior").and_then(|t| t.as_table_mut()) else {
                 continue;
             };
@@ -260,6 +325,7 @@ pub fn apply(doc: &toml::Table, config: &Configuration) -> Result<String, String
                     Target::Heterogeneous => kind == "voxel" || kind == "fbm",
                     Target::Procedural => kind == "fbm",
                     Target::Scattering => kind != "absorption",
+                    Target::Object(i) => i == index,
                 };
                 if applies {
                     interior.insert(e.key.clone(), e.value.clone());
