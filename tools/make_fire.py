@@ -11,11 +11,13 @@ same transform:
 
   density      in [0, 1]: thin in the flames near the base, thicker in the smoke that rises and
                widens above them (the scene scales it with `attenuation`)
-  temperature  in units of 1000 K (the scene sets `temperature_scale = 1000`): about 2.3 (2300 K)
-               in the core just above the base, falling with height and towards the plume's edge
-               in flame tongues shaped by stretched value noise; 0 in the cold smoke
+  temperature  in units of 1000 K (the scene sets `temperature_scale = 1000`): up to about 2.2
+               (2200 K) in the core just above the base, falling with height and towards the
+               plume's edge in flame tongues shaped by stretched value noise; 0 (inactive) below
+               900 K, which emits next to nothing visible, and in the smoke
 
-Values are stored as 16-bit halves and zero voxels are left inactive. Deterministic (fixed seed).
+Values are stored as 16-bit halves and zero voxels are left inactive. Deterministic (fixed seed):
+reruns write the same grids; only the 16-byte file UUID OpenVDB puts in the header differs.
 """
 
 import argparse
@@ -86,8 +88,9 @@ def plume(rng):
     flame_top = 0.5 + 0.6 * (tongues - 0.5)
     heat = np.clip(1.0 - h / np.maximum(flame_top, 0.05), 0.0, 1.0)
     core = np.clip(1.0 - q**2 * (1.1 - 0.6 * tongues), 0.0, 1.0)
-    # Blackbody brightness rises steeply with temperature (about 18 times from 1800 K to 2260 K
-    # in the visible), so the profile is flat: a broad region at 1500-2000 K, the core hotter.
+    # Blackbody brightness rises steeply with temperature (the luminance Y is about 16 times
+    # higher at 2260 K than at 1800 K), so the profile is flat: a broad region at 1500-2000 K,
+    # the core hotter.
     temperature = 2.2 * (heat * core) ** 0.35
     density[density < 1e-3] = 0.0
     temperature[(temperature < 0.9) | (density == 0.0)] = 0.0
