@@ -17,7 +17,7 @@ same transform:
                900 K, which emits next to nothing visible, and in the smoke
 
 Values are stored as 16-bit halves and zero voxels are left inactive. Deterministic (fixed seed):
-reruns write the same grids; only the 16-byte file UUID OpenVDB puts in the header differs.
+reruns write the same grids; only the random file UUID OpenVDB writes in the header differs.
 """
 
 import argparse
