@@ -1,12 +1,17 @@
 //! `scenes/fire.toml` reads as a fire: its flames (the `temperature` grid of `volumes/fire.vdb`
 //! emitting blackbody light) are bright and warm (R > G > B), they light the ground beside them,
 //! and the smoke above them is darker than the sky beside it. Each comparison is a z-test of
-//! region means with standard errors from the pixels' own variances (fixed seed).
+//! region means with standard errors from the pixels' own variances (fixed seed). And the
+//! committed VDB is what `tools/make_fire.py` writes, voxel for voxel (when Debian's Python with
+//! OpenVDB and numpy is present).
 
 mod common;
 
-use common::files::repo_path;
+use common::external::{require_python_numpy, require_python_openvdb, run_python};
+use common::files::{repo_path, TempDir};
 use common::render::{region_mean, render_finite, scene_from_text};
+use glam::IVec3;
+use velour::vdb::{read_vdb_grids, VdbGrid};
 
 /// Standard errors a difference must exceed to count.
 const Z: f64 = 5.0;
@@ -78,4 +83,75 @@ fn fire_scene_has_warm_bright_flames_lit_ground_and_dark_smoke() {
         mean(2, sky),
         mean(2, smoke),
     );
+}
+
+fn fire_grids(path: &std::path::Path) -> Vec<VdbGrid> {
+    read_vdb_grids(path, &["density", "temperature"])
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn committed_fire_vdb_is_what_make_fire_writes() {
+    let committed = fire_grids(&repo_path("volumes/fire.vdb"));
+    // Aligned grids (the scene loader refuses others), temperatures only where there is density
+    // and at most about 2200 K (grid units of 1000 K).
+    let (density, temperature) = (&committed[0], &committed[1]);
+    assert_eq!(density.map, temperature.map);
+    let (lo, hi) = temperature
+        .grid
+        .active_bbox()
+        .expect("temperature grid is empty");
+    let mut t_max = 0.0f32;
+    let mut t_acc = temperature.grid.accessor(0);
+    for i in lo.x..=hi.x {
+        for j in lo.y..=hi.y {
+            for k in lo.z..=hi.z {
+                let ijk = IVec3::new(i, j, k);
+                if temperature.grid.is_active(ijk) {
+                    assert!(
+                        density.grid.is_active(ijk),
+                        "temperature without density at {ijk}"
+                    );
+                    t_max = t_max.max(t_acc.value(ijk));
+                }
+            }
+        }
+    }
+    assert!(
+        (2.0..2.3).contains(&t_max),
+        "hottest voxel {t_max} (x 1000 K)"
+    );
+
+    if !require_python_openvdb() || !require_python_numpy() {
+        return;
+    }
+    let dir = TempDir::new("make_fire");
+    run_python([
+        repo_path("tools/make_fire.py").to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let made = fire_grids(&dir.join("fire.vdb"));
+    for (a, b) in committed.iter().zip(&made) {
+        assert_eq!(a.map, b.map, "{}", a.name);
+        let bbox = a.grid.active_bbox();
+        assert_eq!(bbox, b.grid.active_bbox(), "{}", a.name);
+        let (lo, hi) = bbox.expect("empty grid");
+        let (mut acc_a, mut acc_b) = (a.grid.accessor(0), b.grid.accessor(0));
+        for i in lo.x..=hi.x {
+            for j in lo.y..=hi.y {
+                for k in lo.z..=hi.z {
+                    let ijk = IVec3::new(i, j, k);
+                    assert_eq!(
+                        a.grid.is_active(ijk),
+                        b.grid.is_active(ijk),
+                        "{} {ijk}",
+                        a.name
+                    );
+                    let (va, vb) = (acc_a.value(ijk), acc_b.value(ijk));
+                    assert_eq!(va.to_bits(), vb.to_bits(), "{} {ijk}: {va} vs {vb}", a.name);
+                }
+            }
+        }
+    }
 }
