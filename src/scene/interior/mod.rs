@@ -97,8 +97,8 @@ pub(super) fn build_medium(
     Ok(match interior {
         InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d)?,
         InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d)?,
-        InteriorDesc::Voxel(d) => BuiltInterior::fixed(voxel::build(&at, d, placement)?),
-        InteriorDesc::Fbm(d) => BuiltInterior::fixed(fbm::build(&at, d, placement)?),
+        InteriorDesc::Voxel(d) => voxel::build(&at, d, placement)?,
+        InteriorDesc::Fbm(d) => fbm::build(&at, d, placement)?,
         InteriorDesc::Fabric(d) => BuiltInterior::fixed(fabric::build(&at, d, placement)?),
         InteriorDesc::Blend(d) => blend::build(&at, d, placement, media)?,
         InteriorDesc::Mixture(d) => mixture::build(&at, d, placement, media)?,
