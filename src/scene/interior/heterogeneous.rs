@@ -16,6 +16,7 @@ use crate::medium::{
 };
 use crate::phase::PhaseFunction;
 use crate::scene::desc::{ColorInput, ColorValue, PhaseDesc, ScalarInput, TrackingDesc};
+use crate::scene::validate::color;
 use crate::scene::SceneError;
 use crate::spectrum::Rgb;
 use crate::texture::{ColorParam, ScalarParam};
@@ -195,7 +196,9 @@ impl FieldParams {
                 at.params()
                     .colour("albedo", albedo, Rgb::splat(0.8), 0.0, 1.0)?
             }
-            _ => ColorParam::Constant(Rgb::ZERO),
+            // Checked by `DensityLook::read`.
+            Some(ColorInput::Value(v)) => ColorParam::Constant(color(Some(*v), Rgb::splat(0.8))),
+            None => ColorParam::Constant(Rgb::splat(0.8)),
         };
         Ok(FieldParams {
             albedo,
