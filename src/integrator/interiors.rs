@@ -357,4 +357,19 @@ mod tests {
             Some(WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])))
         );
     }
+
+    #[test]
+    fn field_walk_media_keep_their_coefficients_and_look() {
+        let mut s = InteriorStack::new();
+        for look in [0, 1] {
+            let f = WalkMedium::Field {
+                sigma_t: Rgb([1.5, 2.5, 3.5]),
+                sigma_s: Rgb([1.0, 2.0, 3.0]),
+                look,
+            };
+            s.push_walk(5, f);
+            assert_eq!(s.walk_medium(5), Some(f));
+            s.remove(5);
+        }
+    }
 }
