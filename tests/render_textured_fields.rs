@@ -203,8 +203,8 @@ fn a_two_valued_density_texture_gives_each_half_its_own_density() {
         0,
     );
     // Each walk's majorants are the field's density bounds times that walk's σ_t⁰: none is
-    // ever exceeded (weighted tracking would hide a bias from the z-tests below, not from
-    // this count).
+    // ever exceeded (the trackers would stay unbiased through a violation, so the z-tests
+    // below cannot see one; this count can).
     assert_eq!(summary.tracking.violations, 0, "majorant violations");
     assert!(summary.tracking.real_collisions > 0);
     let dense = render(&ball(&voxel("4.0"), 256, 8), dir.path());
