@@ -3,7 +3,8 @@
 
 use glam::DAffine3;
 
-use super::heterogeneous::{DensityKeys, DensityLook, FieldParams};
+use super::field_params::FieldParams;
+use super::heterogeneous::{DensityKeys, DensityLook};
 use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
 use crate::math::Aabb;

@@ -10,12 +10,14 @@
 //!   mixtures.
 //!
 //! `voxel` and `fbm` share their coefficients, combined homogeneous base medium and
-//! estimator choices ([`heterogeneous`], [`tracking`]); `homogeneous`, `voxel` and `fbm` share
-//! the scattering keys ([`scattering`]).
+//! estimator choices ([`heterogeneous`], [`tracking`]), and their texturable `albedo`,
+//! `attenuation` and `density` ([`field_params`]); `homogeneous`, `voxel` and `fbm` share the
+//! scattering keys ([`scattering`]).
 
 mod blend;
 mod fabric;
 mod fbm;
+mod field_params;
 mod grids;
 mod heterogeneous;
 mod homogeneous;

@@ -3,8 +3,9 @@
 
 use glam::DAffine3;
 
+use super::field_params::FieldParams;
 use super::grids::{self, DensityGridRef};
-use super::heterogeneous::{DensityKeys, DensityLook, FieldParams};
+use super::heterogeneous::{DensityKeys, DensityLook};
 use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
 use crate::medium::DensityField;
@@ -37,8 +38,8 @@ pub(super) fn build(
     let look = DensityLook::read(at, &keys, density, attenuation)?;
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let (field, pyramid, density_ref) = voxel_field(at, d, xf)?;
+    let mode = look.mode;
     if !grids::wanted(d) {
-        let mode = look.mode;
         return Ok(params.finish(look.into_medium(at, field, pyramid)?, mode));
     }
     if params.is_textured() {
@@ -50,7 +51,7 @@ pub(super) fn build(
     let albedo = grids::albedo_grid(at, d, &density_ref, xf, look.mode, look.mean_cosine())?;
     let emission = grids::emission_grid(at, d, &density_ref, xf)?;
     let medium = look.into_mixture(at, field, pyramid, albedo, emission, d.tracking.as_ref())?;
-    Ok(params.finish(medium, crate::medium::AlbedoMode::MultipleScattering))
+    Ok(params.finish(medium, mode))
 }
 
 /// The grid named by `grid` (default "density") of the file, checked (finite, scalar,
