@@ -364,6 +364,8 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
             if let Some(m) = obj.medium {
                 match &scene.media[m as usize] {
                     Medium::Heterogeneous(h) => v.push((obj.name.clone(), (**h).clone())),
+                    // A textured voxel/fbm interior: its field at the textures' means.
+                    Medium::Scaled(f) => v.push((obj.name.clone(), (*f.medium).clone())),
                     Medium::Mixture(mix) => {
                         for (i, c) in mix.components.iter().enumerate() {
                             if let crate::medium::ComponentDensity::Field(h) = &c.density {

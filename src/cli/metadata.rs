@@ -33,6 +33,10 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
                 "heterogeneous; free_flight {:?}; transmittance {:?}; majorant {:?}",
                 h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
             ),
+            Medium::Scaled(f) => format!(
+                "heterogeneous, textured per walk; free_flight {:?}; transmittance {:?}; majorant {:?}",
+                f.medium.tracking.free_flight, f.medium.tracking.transmittance, f.medium.tracking.majorant
+            ),
             Medium::Mixture(m) => format!(
                 "mixture of {}; free_flight delta (mixture); transmittance {} per component",
                 m.components.len(),
@@ -94,6 +98,10 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
                     h.tracking.free_flight, h.tracking.transmittance, h.tracking.majorant
                 )
             }
+            Medium::Scaled(f) => format!(
+                "density field with albedo/attenuation/density textures read per walk; free flights {:?}, transmittance {:?}, majorants {:?}",
+                f.medium.tracking.free_flight, f.medium.tracking.transmittance, f.medium.tracking.majorant
+            ),
             Medium::Mixture(m) => {
                 let parts: Vec<String> = m
                     .components

@@ -132,11 +132,15 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
         let mut levels = 1usize;
         let mut diagonal = 0.0f64;
         for m in &scene.media {
-            if let Medium::Heterogeneous(h) = m {
-                levels = levels.max(h.pyramid.level_count());
-                if let Some(b) = h.pyramid.world_bounds() {
-                    diagonal = diagonal.max(f64::from(b.extent().length()));
-                }
+            let h = match m {
+                Medium::Heterogeneous(h) => &**h,
+                // A textured voxel/fbm interior's field.
+                Medium::Scaled(f) => &*f.medium,
+                _ => continue,
+            };
+            levels = levels.max(h.pyramid.level_count());
+            if let Some(b) = h.pyramid.world_bounds() {
+                diagonal = diagonal.max(f64::from(b.extent().length()));
             }
         }
         out.push(Configuration {

@@ -25,10 +25,11 @@ pub struct InteriorStack {
     len: u8,
     walk_len: u8,
     /// Per walk slot: 0 a scene medium (index in the first value's bits), 1 homogeneous look
-    /// `a` (or an entry interior), 2 homogeneous look `b`, 3 absorbing.
+    /// `a` (or an entry interior), 2 homogeneous look `b`, 3 absorbing, 4 field look `a` (or a
+    /// textured voxel/fbm interior), 5 field look `b`.
     walk_kind: [u8; WALK_SLOTS],
     walk_obj: [u32; WALK_SLOTS],
-    /// σ_a then σ_s (homogeneous), σ_a (absorbing).
+    /// σ_a then σ_s (homogeneous), σ_a (absorbing), σ_t then σ_s per unit density (field).
     walk_data: [[f32; 6]; WALK_SLOTS],
 }
 
@@ -57,6 +58,14 @@ fn pack(m: WalkMedium) -> (u8, [f32; 6]) {
             let a = sigma_a.0;
             (3, [a[0], a[1], a[2], 0.0, 0.0, 0.0])
         }
+        WalkMedium::Field {
+            sigma_t,
+            sigma_s,
+            look,
+        } => {
+            let (t, s) = (sigma_t.0, sigma_s.0);
+            (4 + look.min(1), [t[0], t[1], t[2], s[0], s[1], s[2]])
+        }
     }
 }
 
@@ -70,6 +79,11 @@ fn unpack(kind: u8, d: [f32; 6]) -> WalkMedium {
                 sigma_s: Rgb([d[3], d[4], d[5]]),
             },
             look: kind - 1,
+        },
+        4 | 5 => WalkMedium::Field {
+            sigma_t: Rgb([d[0], d[1], d[2]]),
+            sigma_s: Rgb([d[3], d[4], d[5]]),
+            look: kind - 4,
         },
         _ => WalkMedium::Absorbing(Rgb([d[0], d[1], d[2]])),
     }
@@ -342,5 +356,20 @@ mod tests {
             s.walk_medium(7),
             Some(WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])))
         );
+    }
+
+    #[test]
+    fn field_walk_media_keep_their_coefficients_and_look() {
+        let mut s = InteriorStack::new();
+        for look in [0, 1] {
+            let f = WalkMedium::Field {
+                sigma_t: Rgb([1.5, 2.5, 3.5]),
+                sigma_s: Rgb([1.0, 2.0, 3.0]),
+                look,
+            };
+            s.push_walk(5, f);
+            assert_eq!(s.walk_medium(5), Some(f));
+            s.remove(5);
+        }
     }
 }

@@ -265,7 +265,7 @@ impl HeterogeneousMedium {
         } else {
             self.shadow_model()
         };
-        self.segments_with(ray, t0, t1, model)
+        self.segments_with(&self.coefficients, ray, t0, t1, model)
     }
 
     /// The walk's lookup model of shadow rays (and of free flights without point bounds).
@@ -280,17 +280,24 @@ impl HeterogeneousMedium {
         }
     }
 
-    /// [`Self::segments_along`] under lookup model `model`.
-    fn segments_with(&self, ray: &Ray, t0: f32, t1: f32, model: LookupModel) -> MediumSegments<'_> {
+    /// [`Self::segments_along`] under lookup model `model`, for coefficients `c`.
+    fn segments_with(
+        &self,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        t0: f32,
+        t1: f32,
+        model: LookupModel,
+    ) -> MediumSegments<'_> {
         let inner = self.pyramid.segments_along(
             ray,
             t0,
             t1,
             self.tracking.majorant,
-            Some(self.coefficients.max_sigma_t()),
+            Some(c.max_sigma_t()),
             model,
         );
-        let fill = (!self.coefficients.base_t.is_black() && t1.is_finite()).then_some(GapFill {
+        let fill = (!c.base_t.is_black() && t1.is_finite()).then_some(GapFill {
             t: t0,
             end: t1,
             held: None,
@@ -340,41 +347,49 @@ impl HeterogeneousMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
+        self.sample_flight_with(&self.coefficients, ray, t_max, beta, u, stats)
+    }
+
+    /// [`Self::sample_flight`] with coefficients `c` in place of the medium's own (a walk's
+    /// entry-projected coefficients, docs/textures.md); the majorants scale with `c`.
+    pub(super) fn sample_flight_with<U: FnMut() -> f32>(
+        &self,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        t_max: f32,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> MediumEvent<'_> {
+        let model = if self.uses_local_bounds() {
+            LookupModel::Probed
+        } else {
+            self.shadow_model()
+        };
         // Made only where used, and passed by reference: the segment iterator holds the walk's
         // DDA stack, which a move would copy.
-        let segments = || self.segments_along(ray, 0.0, t_max);
+        let segments = || self.segments_with(c, ray, 0.0, t_max, model);
         let mut lookup = self.density_along(ray);
         let probe = self.local_probe(ray);
         let flight = match (self.tracking.free_flight, probe) {
-            (FreeFlightMethod::DeltaTracking, Some(probe)) => delta_track_local(
-                &mut segments(),
-                &self.coefficients,
-                |t| lookup.at(t),
-                probe,
-                beta,
-                u,
-                stats,
-            ),
+            (FreeFlightMethod::DeltaTracking, Some(probe)) => {
+                delta_track_local(&mut segments(), c, |t| lookup.at(t), probe, beta, u, stats)
+            }
             (FreeFlightMethod::Decomposition, Some(probe)) => decomposition_track_local(
                 &mut segments(),
-                &self.coefficients,
+                c,
                 |t| lookup.at(t),
                 probe,
                 beta,
                 u,
                 stats,
             ),
-            (FreeFlightMethod::DeltaTracking, _) => delta_track(
-                &mut segments(),
-                &self.coefficients,
-                |t| lookup.at(t),
-                beta,
-                u,
-                stats,
-            ),
+            (FreeFlightMethod::DeltaTracking, _) => {
+                delta_track(&mut segments(), c, |t| lookup.at(t), beta, u, stats)
+            }
             (FreeFlightMethod::Split, _) if t_max.is_finite() => split_flight(
-                |a, b| self.segments_along(ray, a, b),
-                &self.coefficients,
+                |a, b| self.segments_with(c, ray, a, b, model),
+                c,
                 |t| lookup.at(t),
                 self.tracking.transmittance,
                 t_max,
@@ -382,37 +397,20 @@ impl HeterogeneousMedium {
                 stats,
             ),
             // An open interior (no boundary ahead): delta tracking.
-            (FreeFlightMethod::Split, _) => delta_track(
-                &mut segments(),
-                &self.coefficients,
-                |t| lookup.at(t),
-                beta,
-                u,
-                stats,
-            ),
-            (FreeFlightMethod::Decomposition, _) => decomposition_track(
-                &mut segments(),
-                &self.coefficients,
-                |t| lookup.at(t),
-                beta,
-                u,
-                stats,
-            ),
-            (FreeFlightMethod::RayMarch { step }, _) => ray_march_free_flight(
-                &mut segments(),
-                &self.coefficients,
-                |t| lookup.at(t),
-                step,
-                beta,
-                u,
-                stats,
-            ),
+            (FreeFlightMethod::Split, _) => {
+                delta_track(&mut segments(), c, |t| lookup.at(t), beta, u, stats)
+            }
+            (FreeFlightMethod::Decomposition, _) => {
+                decomposition_track(&mut segments(), c, |t| lookup.at(t), beta, u, stats)
+            }
+            (FreeFlightMethod::RayMarch { step }, _) => {
+                ray_march_free_flight(&mut segments(), c, |t| lookup.at(t), step, beta, u, stats)
+            }
         };
         match flight {
             Flight::Escape { weight } => MediumEvent::pass(weight),
             Flight::Scatter { t, weight, density } => {
                 let p = ray.at(t);
-                let c = &self.coefficients;
                 MediumEvent {
                     weight,
                     emitted: Rgb::ZERO,
@@ -436,14 +434,26 @@ impl HeterogeneousMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
+        self.transmittance_with(&self.coefficients, ray, t_max, u, stats)
+    }
+
+    /// [`Self::transmittance`] with coefficients `c` in place of the medium's own.
+    pub(super) fn transmittance_with<U: FnMut() -> f32>(
+        &self,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        t_max: f32,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Rgb {
         // Shadow rays do not thin by the point bounds (`tracking::transmittance_local`): that
         // saves lookups but ratio tracking's variance grows as its majorant tightens (on the
         // dense peer cloud 35 % of the lookups at 1.5× the image's relative MSE).
-        let mut segments = self.segments_with(ray, 0.0, t_max, self.shadow_model());
+        let mut segments = self.segments_with(c, ray, 0.0, t_max, self.shadow_model());
         let mut lookup = self.density_along(ray);
         transmittance(
             &mut segments,
-            &self.coefficients,
+            c,
             |t| lookup.at(t),
             self.tracking.transmittance,
             u,

@@ -35,7 +35,7 @@ pub use heterogeneous::{
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
 pub use mixture::{ComponentDensity, MixtureComponent, MixtureMedium};
 pub use projected::ProjectedMedium;
-pub use walk::{EntryInterior, WalkInterior, WalkLook, WalkMedium};
+pub use walk::{EntryInterior, FieldInterior, WalkInterior, WalkLook, WalkMedium};
 
 use crate::math::Ray;
 use crate::phase::PhaseFunction;
@@ -88,6 +88,36 @@ pub enum Medium {
     /// Textured parameters read at the boundary point closest to every lookup
     /// (`projection = "surface"`): RGB coefficients varying per channel, tracked.
     Projected(Box<ProjectedMedium>),
+    /// A heterogeneous medium's field with one walk's coefficients (a textured `voxel` or
+    /// `fbm` interior read at the entry point, docs/textures.md).
+    Scaled(ScaledField),
+}
+
+/// A shared heterogeneous medium with other coefficients per unit density (its combined base
+/// medium kept): what a walk through a textured `voxel` or `fbm` interior sees. Building one
+/// shares the field (no copy, no allocation).
+#[derive(Clone, Debug)]
+pub struct ScaledField {
+    /// The field, majorants, phase function, estimator choices and base medium.
+    pub medium: std::sync::Arc<HeterogeneousMedium>,
+    /// Extinction per unit density (1/length).
+    pub sigma_t: Rgb,
+    /// Scattering per unit density (1/length).
+    pub sigma_s: Rgb,
+}
+
+impl ScaledField {
+    /// The coefficients in use: these per unit density, the medium's base medium.
+    #[must_use]
+    pub fn coefficients(&self) -> crate::tracking::DensityCoefficients {
+        let own = self.medium.coefficients;
+        crate::tracking::DensityCoefficients {
+            sigma_t: self.sigma_t,
+            sigma_s: self.sigma_s,
+            base_t: own.base_t,
+            base_s: own.base_s,
+        }
+    }
 }
 
 impl Medium {
@@ -101,6 +131,9 @@ impl Medium {
             Medium::Heterogeneous(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
             Medium::Mixture(m) => m.max_sigma_t(),
             Medium::Projected(p) => p.sigma_t_max,
+            Medium::Scaled(f) => f
+                .coefficients()
+                .sigma_t_at(f.medium.pyramid.global_bounds().max),
         }
     }
 
@@ -113,6 +146,7 @@ impl Medium {
             Medium::Heterogeneous(h) => !h.coefficients.sigma_s.is_black(),
             Medium::Mixture(m) => m.scatters(),
             Medium::Projected(p) => p.scatters(),
+            Medium::Scaled(f) => !f.sigma_s.is_black() || !f.medium.coefficients.base_s.is_black(),
         }
     }
 
@@ -199,6 +233,11 @@ impl Medium {
             }
             Medium::Mixture(m) => m.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
             Medium::Projected(p) => p.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
+            Medium::Scaled(f) => {
+                let c = f.coefficients();
+                f.medium
+                    .sample_flight_with(&c, ray, boundary(f32::INFINITY), beta, u, stats)
+            }
         }
     }
 
@@ -231,6 +270,10 @@ impl Medium {
             Medium::Heterogeneous(h) => h.for_ray(ray, cone).transmittance(ray, t_max, u, stats),
             Medium::Mixture(m) => m.transmittance(ray, t_max, u, stats),
             Medium::Projected(p) => p.transmittance(ray, t_max, u, stats),
+            Medium::Scaled(f) => {
+                f.medium
+                    .transmittance_with(&f.coefficients(), ray, t_max, u, stats)
+            }
         }
     }
 

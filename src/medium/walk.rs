@@ -4,9 +4,13 @@
 //! walk with the probability a mask gives at the entry point. The integrator resolves such
 //! an interior into a [`WalkMedium`] when a path (or a shadow ray) enters the object, and
 //! keeps it on its interior stack until it leaves; a path that re-enters resolves again.
+//! A `voxel` or `fbm` interior with textured parameters ([`FieldInterior`]) keeps its density
+//! field; only its coefficients per unit density are read at the entry point.
+
+use std::sync::Arc;
 
 use super::artist::{AlbedoMode, Coefficients};
-use super::HomogeneousMedium;
+use super::{HeterogeneousMedium, HomogeneousMedium, ScaledField};
 use crate::math::Vec2;
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
@@ -60,6 +64,45 @@ impl EntryInterior {
     }
 }
 
+/// A `voxel` or `fbm` interior with textured `albedo`, `attenuation` or `density`, read at the
+/// entry point: the density field is the scene's, the coefficients per unit density are the
+/// walk's (constant along it), and the majorants scale with them, so tracking stays
+/// conservative (docs/textures.md).
+#[derive(Clone, Debug)]
+pub struct FieldInterior {
+    /// The field, its majorants, phase function, estimator choices and combined base medium
+    /// (its own coefficients are those of the textures' means).
+    pub medium: Arc<HeterogeneousMedium>,
+    /// Artist albedo in [0, 1].
+    pub albedo: ColorParam,
+    /// Attenuation distance per channel at density 1 (world units), > 0.
+    pub attenuation: ColorParam,
+    /// Density multiplier ≥ 0.
+    pub density: ScalarParam,
+    /// How the albedo is read.
+    pub mode: AlbedoMode,
+}
+
+impl FieldInterior {
+    /// The coefficients per unit density of a walk entering at `uv` with a footprint
+    /// `width_uv` wide, inverted as for constant parameters (notes eq. 1–3).
+    #[must_use]
+    pub fn at(&self, uv: Vec2, width_uv: f32, look: u8) -> WalkMedium {
+        let c = Coefficients::from_artist(
+            self.albedo.eval(uv, width_uv),
+            self.attenuation.eval(uv, width_uv),
+            self.density.eval(uv, width_uv),
+            self.mode,
+            self.medium.phase.mean_cosine(),
+        );
+        WalkMedium::Field {
+            sigma_t: c.sigma_t(),
+            sigma_s: c.sigma_s,
+            look,
+        }
+    }
+}
+
 /// One look of a blend: an interior of the scene (any type, by index into the scene's
 /// media) or an entry-projected one.
 #[derive(Clone, Debug)]
@@ -68,6 +111,8 @@ pub enum WalkLook {
     Medium(u32),
     /// Textured parameters read at the entry point.
     Entry(EntryInterior),
+    /// A density field with textured parameters read at the entry point.
+    Field(FieldInterior),
 }
 
 impl WalkLook {
@@ -77,6 +122,7 @@ impl WalkLook {
     pub fn at(&self, uv: Vec2, width_uv: f32, look: u8) -> WalkMedium {
         match self {
             WalkLook::Medium(i) => WalkMedium::Scene(*i),
+            WalkLook::Field(f) => f.at(uv, width_uv, look),
             WalkLook::Entry(e) => match e.at(uv, width_uv) {
                 WalkMedium::Homogeneous { coefficients, .. } => {
                     WalkMedium::Homogeneous { coefficients, look }
@@ -92,6 +138,9 @@ impl WalkLook {
 pub enum WalkInterior {
     /// `projection = "entry"`: textured parameters read at the entry point.
     Entry(EntryInterior),
+    /// `projection = "entry"` on a `voxel` or `fbm` interior: coefficients read at the entry
+    /// point, the density field kept.
+    Field(FieldInterior),
     /// `type = "blend"`: look `a` with probability mask(uv) at the entry point, else `b`.
     Blend {
         /// The probability of `a`, in [0, 1].
@@ -117,6 +166,7 @@ impl WalkInterior {
     pub fn resolve(&self, uv: Vec2, width_uv: f32, u: f32) -> WalkMedium {
         match self {
             WalkInterior::Entry(e) => e.at(uv, width_uv),
+            WalkInterior::Field(f) => f.at(uv, width_uv, 0),
             WalkInterior::Blend { mask, a, b } => {
                 if u < mask.eval(uv, width_uv) {
                     a.at(uv, width_uv, 0)
@@ -133,12 +183,27 @@ impl WalkInterior {
     pub fn phase(&self, look: u8) -> Option<PhaseFunction> {
         let entry = match self {
             WalkInterior::Entry(e) => e,
+            WalkInterior::Field(_) => return None,
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Entry(e) => e,
-                WalkLook::Medium(_) => return None,
+                WalkLook::Medium(_) | WalkLook::Field(_) => return None,
             },
         };
         Some(entry.phase)
+    }
+
+    /// The density field of look `look` (0: the interior itself or `a`, 1: `b`) when it is a
+    /// textured `voxel` or `fbm` interior.
+    #[must_use]
+    pub fn field(&self, look: u8) -> Option<&Arc<HeterogeneousMedium>> {
+        match self {
+            WalkInterior::Field(f) => Some(&f.medium),
+            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
+                WalkLook::Field(f) => Some(&f.medium),
+                WalkLook::Medium(_) | WalkLook::Entry(_) => None,
+            },
+            WalkInterior::Entry(_) => None,
+        }
     }
 
     /// The scene medium of a resolved walk medium: `Medium::Homogeneous` with the look's
@@ -154,6 +219,15 @@ impl WalkInterior {
                 }))
             }
             WalkMedium::Absorbing(sigma_a) => Some(super::Medium::Absorbing { sigma_a }),
+            WalkMedium::Field {
+                sigma_t,
+                sigma_s,
+                look,
+            } => Some(super::Medium::Scaled(ScaledField {
+                medium: Arc::clone(self.field(look)?),
+                sigma_t,
+                sigma_s,
+            })),
         }
     }
 }
@@ -175,4 +249,14 @@ pub enum WalkMedium {
     },
     /// An absorbing medium with this σ_a (1/length).
     Absorbing(Rgb),
+    /// A textured `voxel` or `fbm` look's density field with these coefficients per unit
+    /// density; `look` as for `Homogeneous`.
+    Field {
+        /// Extinction per unit density (1/length).
+        sigma_t: Rgb,
+        /// Scattering per unit density (1/length).
+        sigma_s: Rgb,
+        /// Which look.
+        look: u8,
+    },
 }

@@ -568,14 +568,24 @@ fn aov_albedo(desc: &InteriorDesc) -> Option<Rgb> {
         },
         // An albedo grid varies per vertex: the first event inside shows it.
         InteriorDesc::Voxel(d) if d.albedo_grid.is_some() => return None,
-        InteriorDesc::Voxel(d) => d.albedo,
-        InteriorDesc::Fbm(d) => d.albedo,
+        InteriorDesc::Voxel(d) => constant_colour(d.albedo.as_ref())?,
+        InteriorDesc::Fbm(d) => constant_colour(d.albedo.as_ref())?,
         InteriorDesc::Absorption(_)
         | InteriorDesc::Fabric(_)
         | InteriorDesc::Blend(_)
         | InteriorDesc::Mixture(_) => return None,
     };
     Some(super::validate::color(value, Rgb::splat(0.8)))
+}
+
+/// A colour key's constant (`Some(None)` when absent), or `None` for a texture (it varies per
+/// entry: the first event inside shows it).
+fn constant_colour(v: Option<&ColorInput>) -> Option<Option<crate::scene::desc::ColorValue>> {
+    match v {
+        None => Some(None),
+        Some(ColorInput::Value(c)) => Some(Some(*c)),
+        Some(ColorInput::Texture(_)) => None,
+    }
 }
 
 /// How the render summary names an interior: its `type`, and for fBm its evaluation.

@@ -89,14 +89,18 @@ pub struct VoxelDesc {
     pub file: Option<String>,
     /// Grid name in the file (default "density").
     pub grid: Option<String>,
-    /// Artist albedo in [0, 1] (default 0.8).
-    pub albedo: Option<ColorValue>,
+    /// Artist albedo in [0, 1] (default 0.8); may be a texture (read at the entry point).
+    pub albedo: Option<ColorInput>,
     /// "multiple" (default) or "single".
     pub albedo_mode: Option<String>,
-    /// Attenuation distance per channel at density 1 (world units), > 0 (default 1).
-    pub attenuation: Option<ColorValue>,
-    /// Density multiplier ≥ 0 (default 1).
-    pub density: Option<f32>,
+    /// Attenuation distance per channel at density 1 (world units), > 0 (default 1); may be a
+    /// texture (read at the entry point).
+    pub attenuation: Option<ColorInput>,
+    /// Density multiplier ≥ 0 (default 1); may be a texture (read at the entry point).
+    pub density: Option<ScalarInput>,
+    /// How textured parameters are read: "entry" (the default; the only mode for density
+    /// fields).
+    pub projection: Option<String>,
     /// Phase function (default isotropic).
     pub phase: Option<PhaseDesc>,
     /// "exit" or "interior".
@@ -164,14 +168,18 @@ pub struct FbmDesc {
     pub trial_samples: Option<u32>,
     /// Safety factor ≥ 1 on estimated bounds.
     pub safety: Option<f32>,
-    /// Artist albedo in [0, 1] (default 0.8).
-    pub albedo: Option<ColorValue>,
+    /// Artist albedo in [0, 1] (default 0.8); may be a texture (read at the entry point).
+    pub albedo: Option<ColorInput>,
     /// "multiple" (default) or "single".
     pub albedo_mode: Option<String>,
-    /// Attenuation distance per channel at density 1 (world units), > 0 (default 1).
-    pub attenuation: Option<ColorValue>,
-    /// Density multiplier ≥ 0 (default 1).
-    pub density: Option<f32>,
+    /// Attenuation distance per channel at density 1 (world units), > 0 (default 1); may be a
+    /// texture (read at the entry point).
+    pub attenuation: Option<ColorInput>,
+    /// Density multiplier ≥ 0 (default 1); may be a texture (read at the entry point).
+    pub density: Option<ScalarInput>,
+    /// How textured parameters are read: "entry" (the default; the only mode for density
+    /// fields).
+    pub projection: Option<String>,
     /// Phase function (default isotropic).
     pub phase: Option<PhaseDesc>,
     /// "exit" or "interior".

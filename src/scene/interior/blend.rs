@@ -56,6 +56,7 @@ pub(super) fn build(
         let built = build_medium(at.ctx, line, at.name, inner_owner, inner, placement, media)?;
         Ok::<_, SceneError>(match built.walk {
             Some(WalkInterior::Entry(e)) => (WalkLook::Entry(e), built.medium),
+            Some(WalkInterior::Field(f)) => (WalkLook::Field(f), built.medium),
             Some(WalkInterior::Blend { .. }) => unreachable_blend(at)?,
             None => {
                 media.push(built.medium.clone());

@@ -3,11 +3,12 @@
 
 use glam::DAffine3;
 
+use super::field_params::FieldParams;
 use super::heterogeneous::{DensityKeys, DensityLook};
-use super::{extinction_and_nee, Placement, Site};
+use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
 use crate::math::Aabb;
-use crate::medium::{DensityField, Medium, NeeStrategy};
+use crate::medium::DensityField;
 use crate::procedural::{
     bake_fbm, procedural_pyramid, FbmField, FbmParams, LazyFbmGrid, ProceduralBound,
     ProceduralLattice,
@@ -21,11 +22,18 @@ pub(super) fn build(
     at: &Site,
     d: &FbmDesc,
     placement: &Placement<'_>,
-) -> Result<(Medium, NeeStrategy), SceneError> {
-    let (density, attenuation, nee) =
-        extinction_and_nee(at, d.density, d.attenuation, d.nee.as_deref())?;
+) -> Result<BuiltInterior, SceneError> {
+    let params = FieldParams::read(
+        at,
+        d.albedo.as_ref(),
+        d.attenuation.as_ref(),
+        d.density.as_ref(),
+        d.nee.as_deref(),
+        d.projection.as_deref(),
+    )?;
+    let (density, attenuation) = params.look_extinction();
     let keys = DensityKeys {
-        albedo: d.albedo,
+        albedo: params.look_albedo(d.albedo.as_ref()),
         albedo_mode: d.albedo_mode.as_deref(),
         phase: d.phase.as_ref(),
         base_albedo: d.base_albedo,
@@ -41,7 +49,8 @@ pub(super) fn build(
         ))
     })?;
     let (field, pyramid) = fbm_field(at, d, xf, rest_bounds)?;
-    Ok((look.into_medium(at, field, pyramid)?, nee))
+    let mode = look.mode;
+    Ok(params.finish(look.into_medium(at, field, pyramid)?, mode))
 }
 
 /// The noise field over the lattice of `voxel_size` spanning `rest_bounds`, baked, baked

@@ -136,6 +136,9 @@ pub(super) fn build(
                     emission: None,
                 });
             }
+            Medium::Scaled(_) => {
+                return Err(bad("textured parameters are read per walk and cannot be a mixture component; use constant values".into()));
+            }
             Medium::Mixture(m) => {
                 for mut c in m.components {
                     if let ComponentDensity::Field(h) = &mut c.density {

@@ -10,13 +10,15 @@
 //!   mixtures.
 //!
 //! `voxel` and `fbm` share their coefficients, combined homogeneous base medium and
-//! estimator choices ([`heterogeneous`], [`tracking`]); `homogeneous`, `voxel` and `fbm` share
-//! the scattering keys ([`scattering`]).
+//! estimator choices ([`heterogeneous`], [`tracking`]), and their texturable `albedo`,
+//! `attenuation` and `density` ([`field_params`]); `homogeneous`, `voxel` and `fbm` share the
+//! scattering keys ([`scattering`]).
 
 mod blend;
 mod fabric;
 mod fabric_source;
 mod fbm;
+mod field_params;
 mod grids;
 mod heterogeneous;
 mod homogeneous;
@@ -96,8 +98,8 @@ pub(super) fn build_medium(
     Ok(match interior {
         InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d, placement)?,
         InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d, placement)?,
-        InteriorDesc::Voxel(d) => BuiltInterior::fixed(voxel::build(&at, d, placement)?),
-        InteriorDesc::Fbm(d) => BuiltInterior::fixed(fbm::build(&at, d, placement)?),
+        InteriorDesc::Voxel(d) => voxel::build(&at, d, placement)?,
+        InteriorDesc::Fbm(d) => fbm::build(&at, d, placement)?,
         InteriorDesc::Fabric(d) => BuiltInterior::fixed(fabric::build(&at, d, placement)?),
         InteriorDesc::Blend(d) => blend::build(&at, d, placement, media)?,
         InteriorDesc::Mixture(d) => mixture::build(&at, d, placement, media)?,

@@ -3,11 +3,12 @@
 
 use glam::DAffine3;
 
+use super::field_params::FieldParams;
 use super::grids::{self, DensityGridRef};
 use super::heterogeneous::{DensityKeys, DensityLook};
-use super::{extinction_and_nee, Placement, Site};
+use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
-use crate::medium::{DensityField, Medium, NeeStrategy};
+use crate::medium::DensityField;
 use crate::scene::desc::VoxelDesc;
 use crate::scene::SceneError;
 
@@ -16,11 +17,18 @@ pub(super) fn build(
     at: &Site,
     d: &VoxelDesc,
     placement: &Placement<'_>,
-) -> Result<(Medium, NeeStrategy), SceneError> {
-    let (density, attenuation, nee) =
-        extinction_and_nee(at, d.density, d.attenuation, d.nee.as_deref())?;
+) -> Result<BuiltInterior, SceneError> {
+    let params = FieldParams::read(
+        at,
+        d.albedo.as_ref(),
+        d.attenuation.as_ref(),
+        d.density.as_ref(),
+        d.nee.as_deref(),
+        d.projection.as_deref(),
+    )?;
+    let (density, attenuation) = params.look_extinction();
     let keys = DensityKeys {
-        albedo: d.albedo,
+        albedo: params.look_albedo(d.albedo.as_ref()),
         albedo_mode: d.albedo_mode.as_deref(),
         phase: d.phase.as_ref(),
         base_albedo: d.base_albedo,
@@ -30,13 +38,20 @@ pub(super) fn build(
     let look = DensityLook::read(at, &keys, density, attenuation)?;
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let (field, pyramid, density_ref) = voxel_field(at, d, xf)?;
+    let mode = look.mode;
     if !grids::wanted(d) {
-        return Ok((look.into_medium(at, field, pyramid)?, nee));
+        return Ok(params.finish(look.into_medium(at, field, pyramid)?, mode));
+    }
+    if params.is_textured() {
+        return Err(at.invalid(format!(
+            "{}: textured albedo/attenuation/density cannot be combined with albedo or emission grids (use constant values, or the albedo grid alone)",
+            at.owner
+        )));
     }
     let albedo = grids::albedo_grid(at, d, &density_ref, xf, look.mode, look.mean_cosine())?;
     let emission = grids::emission_grid(at, d, &density_ref, xf)?;
     let medium = look.into_mixture(at, field, pyramid, albedo, emission, d.tracking.as_ref())?;
-    Ok((medium, nee))
+    Ok(params.finish(medium, mode))
 }
 
 /// The grid named by `grid` (default "density") of the file, checked (finite, scalar,

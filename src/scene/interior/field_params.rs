@@ -1,0 +1,133 @@
+//! The texturable keys of `voxel` and `fbm` interiors (`albedo`, `attenuation`, `density`):
+//! constants, or textures read at each walk's entry point that set the walk's coefficients per
+//! unit density over the unchanged density field (docs/textures.md, "Density fields read at
+//! the entry point").
+
+use std::sync::Arc;
+
+use super::{textured_extinction_and_nee, BuiltInterior, Site};
+use crate::math::Vec2;
+use crate::medium::{AlbedoMode, FieldInterior, Medium, NeeStrategy, ScaledField, WalkInterior};
+use crate::scene::desc::{ColorInput, ColorValue, ScalarInput};
+use crate::scene::validate::color;
+use crate::scene::SceneError;
+use crate::spectrum::Rgb;
+use crate::texture::{ColorParam, ScalarParam};
+
+/// The texturable keys of a `voxel` or `fbm` interior (`albedo`, `attenuation`, `density`),
+/// read at the entry point when textured (docs/textures.md): the constants (or the textures'
+/// means, for the stand-in medium) and the parameters.
+pub(super) struct FieldParams {
+    /// Artist albedo.
+    pub albedo: ColorParam,
+    /// Attenuation distance at density 1.
+    pub attenuation: ColorParam,
+    /// Density multiplier.
+    pub density: ScalarParam,
+    /// Where NEE happens.
+    pub nee: NeeStrategy,
+}
+
+impl FieldParams {
+    /// Reads the keys; `projection` must be "entry" (or absent): `"surface"` is refused for
+    /// density fields, naming the object and key.
+    pub fn read(
+        at: &Site,
+        albedo: Option<&ColorInput>,
+        attenuation: Option<&ColorInput>,
+        density: Option<&ScalarInput>,
+        nee: Option<&str>,
+        projection: Option<&str>,
+    ) -> Result<FieldParams, SceneError> {
+        let (density, attenuation, nee) =
+            textured_extinction_and_nee(at, density, attenuation, nee)?;
+        if projection == Some("surface") {
+            return Err(at.invalid(format!(
+                "{}.projection = \"surface\" is not supported on voxel and fbm interiors (their textured parameters are read at the entry point: use \"entry\")",
+                at.owner
+            )));
+        }
+        if let Some(other) = projection.filter(|p| *p != "entry") {
+            return Err(at.invalid(format!(
+                "{}.projection = \"{other}\" is unknown (expected \"entry\"; voxel and fbm interiors read their textures at the entry point)",
+                at.owner
+            )));
+        }
+        let albedo = match albedo {
+            Some(ColorInput::Texture(_)) => {
+                at.params()
+                    .colour("albedo", albedo, Rgb::splat(0.8), 0.0, 1.0)?
+            }
+            // Checked by `DensityLook::read`.
+            Some(ColorInput::Value(v)) => ColorParam::Constant(color(Some(*v), Rgb::splat(0.8))),
+            None => ColorParam::Constant(Rgb::splat(0.8)),
+        };
+        Ok(FieldParams {
+            albedo,
+            attenuation,
+            density,
+            nee,
+        })
+    }
+
+    /// True when a parameter is a texture.
+    pub fn is_textured(&self) -> bool {
+        self.albedo.is_textured() || self.attenuation.is_textured() || self.density.is_textured()
+    }
+
+    /// The albedo for `DensityLook::read`: the constant as written, or the texture's mean.
+    pub fn look_albedo(&self, written: Option<&ColorInput>) -> Option<ColorValue> {
+        match (&self.albedo, written) {
+            (ColorParam::Texture(_), _) => Some(ColorValue::Rgb(mean(&self.albedo).0)),
+            (_, Some(ColorInput::Value(v))) => Some(*v),
+            _ => None,
+        }
+    }
+
+    /// The density and attenuation for `DensityLook::read`: the constants, or the textures'
+    /// means.
+    pub fn look_extinction(&self) -> (f32, Rgb) {
+        (
+            self.density.eval(Vec2::ZERO, f32::INFINITY),
+            mean(&self.attenuation),
+        )
+    }
+
+    /// The interior of `medium` (built with [`Self::look_albedo`] and
+    /// [`Self::look_extinction`]): fixed when nothing is textured, else resolved per walk,
+    /// its stand-in the field at the textures' means.
+    pub fn finish(self, medium: Medium, mode: AlbedoMode) -> BuiltInterior {
+        let h = match medium {
+            Medium::Heterogeneous(h) if self.is_textured() => h,
+            medium => {
+                return BuiltInterior {
+                    medium,
+                    nee: self.nee,
+                    walk: None,
+                }
+            }
+        };
+        let c = h.coefficients;
+        let shared = Arc::new(*h);
+        BuiltInterior {
+            medium: Medium::Scaled(ScaledField {
+                medium: Arc::clone(&shared),
+                sigma_t: c.sigma_t,
+                sigma_s: c.sigma_s,
+            }),
+            nee: self.nee,
+            walk: Some(WalkInterior::Field(FieldInterior {
+                medium: shared,
+                albedo: self.albedo,
+                attenuation: self.attenuation,
+                density: self.density,
+                mode,
+            })),
+        }
+    }
+}
+
+/// A colour parameter's mean (its pyramid's top level; the constant itself).
+fn mean(p: &ColorParam) -> Rgb {
+    p.eval(Vec2::ZERO, f32::INFINITY)
+}
