@@ -95,16 +95,16 @@ def albedo(d):
 def veins_wide(d):
     """The same vein lines as `veins`, about three times wider, with a soft core."""
     f = math.sin(9.0 * d[0] + 3.0 * math.sin(7.0 * d[1])) + math.sin(8.0 * d[1] + 2.5 * math.sin(6.0 * d[2]))
-    line = max(0.0, 1.0 - abs(f) * 1.1)
+    line = max(0.0, 1.0 - abs(f) * 1.6)
     where = max(near(d, c, 0.6) for c in D_BROW + D_TEMPLE + D_CHEEK)
-    return min(1.0, 1.5 * line) * where
+    return min(1.0, 1.8 * line) * where
 
 
 def albedo_surface(d):
     """Albedo painted for surface projection: wide, dark blue-purple (low albedo) veins."""
     base = (236, 178, 150)
     warm = (222, 120, 110)
-    vein = (30, 18, 80)
+    vein = (22, 12, 62)
     t = near(d, D_SNOUT, 0.5) * 0.6
     col = [b + (w - b) * t for b, w in zip(base, warm)]
     k = min(1.0, veins_wide(d) * 1.2)
