@@ -104,7 +104,7 @@ def albedo_surface(d):
     """Albedo painted for surface projection: wide, dark blue-purple (low albedo) veins."""
     base = (236, 178, 150)
     warm = (222, 120, 110)
-    vein = (22, 12, 62)
+    vein = (40, 16, 150)
     t = near(d, D_SNOUT, 0.5) * 0.6
     col = [b + (w - b) * t for b, w in zip(base, warm)]
     k = min(1.0, veins_wide(d) * 1.2)
