@@ -14,7 +14,7 @@ stands for, with the same landmark directions the mesh generator displaces:
   creature_lips_mask.png  mask (linear data): 1 on the lips and the horns, 0 elsewhere, soft edges
   creature_albedo_surface.png
                           the same skin colour with veins painted for projection = "surface"
-                          (scenes/creature_veins.toml): about three times wider and darker, more
+                          (scenes/creature_veins.toml): about twice as wide and darker, more
                           saturated blue-purple, so that they survive the light diffusing around
                           them under the skin instead of washing out to faint shadows
 
@@ -93,7 +93,7 @@ def albedo(d):
 
 
 def veins_wide(d):
-    """The same vein lines as `veins`, about three times wider, with a soft core."""
+    """The same vein lines as `veins`, about twice as wide, with a saturated core."""
     f = math.sin(9.0 * d[0] + 3.0 * math.sin(7.0 * d[1])) + math.sin(8.0 * d[1] + 2.5 * math.sin(6.0 * d[2]))
     line = max(0.0, 1.0 - abs(f) * 1.6)
     where = max(near(d, c, 0.6) for c in D_BROW + D_TEMPLE + D_CHEEK)
