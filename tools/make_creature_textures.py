@@ -12,6 +12,11 @@ stands for, with the same landmark directions the mesh generator displaces:
   creature_density.png    skin density (linear data, 0..1 scaled in the scene): thick on the skull,
                           thin on the horns, the snout and the ear-like brow ridges
   creature_lips_mask.png  mask (linear data): 1 on the lips and the horns, 0 elsewhere, soft edges
+  creature_albedo_surface.png
+                          the same skin colour with veins painted for projection = "surface"
+                          (scenes/creature_veins.toml): about twice as wide and darker, more
+                          saturated blue-purple, so that they survive the light diffusing around
+                          them under the skin instead of washing out to faint shadows
 
 Small files (128 x 64); the scene scales them with the mesh's UVs.
 """
@@ -87,6 +92,25 @@ def albedo(d):
     return tuple(int(round(c + (v - c) * k)) for c, v in zip(col, vein))
 
 
+def veins_wide(d):
+    """The same vein lines as `veins`, about twice as wide, with a saturated core."""
+    f = math.sin(9.0 * d[0] + 3.0 * math.sin(7.0 * d[1])) + math.sin(8.0 * d[1] + 2.5 * math.sin(6.0 * d[2]))
+    line = max(0.0, 1.0 - abs(f) * 1.6)
+    where = max(near(d, c, 0.6) for c in D_BROW + D_TEMPLE + D_CHEEK)
+    return min(1.0, 1.8 * line) * where
+
+
+def albedo_surface(d):
+    """Albedo painted for surface projection: wide, dark blue-purple (low albedo) veins."""
+    base = (236, 178, 150)
+    warm = (222, 120, 110)
+    vein = (40, 16, 150)
+    t = near(d, D_SNOUT, 0.5) * 0.6
+    col = [b + (w - b) * t for b, w in zip(base, warm)]
+    k = min(1.0, veins_wide(d) * 1.2)
+    return tuple(int(round(c + (v - c) * k)) for c, v in zip(col, vein))
+
+
 def density(d):
     thin = max([near(d, c, 0.28) for c in D_HORN] + [near(d, D_SNOUT, 0.35)] + [near(d, c, 0.2) for c in D_BROW])
     value = 1.0 - 0.8 * thin
@@ -104,7 +128,8 @@ def main():
     out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..", "scenes", "textures")
     os.makedirs(out, exist_ok=True)
     w, h = 128, 64
-    for name, fn in (("creature_albedo.png", albedo), ("creature_density.png", density), ("creature_lips_mask.png", lips_mask)):
+    for name, fn in (("creature_albedo.png", albedo), ("creature_density.png", density), ("creature_lips_mask.png", lips_mask),
+                     ("creature_albedo_surface.png", albedo_surface)):
         write_png(os.path.join(out, name), w, h, lambda x, y, fn=fn: fn(direction(x, y, w, h)))
         print(os.path.join(out, name))
 
