@@ -15,13 +15,11 @@ mod common;
 use std::path::Path;
 
 use common::files::TempDir;
-use common::render::{image_mean, region_mean, render_finite, scene_from_text};
-use common::stats::z_score;
+use common::render::{image_mean, region_mean, render_text, unit_sphere_hit_x};
+use common::stats::{assert_means_agree, z_score};
 use common::textures::{exr_grey, png_rgb8};
-use velour::camera::Camera;
-use velour::film::Film;
 use velour::geometry::{icosphere, write_ply};
-use velour::math::{Vec2, Vec3};
+use velour::math::Vec2;
 
 /// A unit icosphere (1280 triangles) with planar texture coordinates u = (x + 1)/2,
 /// v = (y + 1)/2: no seam, and u = ½ on the plane x = 0.
@@ -34,10 +32,6 @@ fn write_ball(path: &Path) {
             .collect(),
     );
     write_ply(path, &mesh, false).unwrap();
-}
-
-fn render(text: &str, dir: &Path) -> Film {
-    render_finite(&scene_from_text(text, dir.join("scene.toml")), 0).0
 }
 
 fn scene(interior: &str, spp: u32, seed: u32) -> String {
@@ -78,19 +72,6 @@ interior = {interior}
     )
 }
 
-/// Asserts that two estimates agree within 4 standard errors of their difference.
-fn assert_agree(a: (f64, f64), b: (f64, f64), what: &str) {
-    let z = z_score(a.0, b.0, (a.1 * a.1 + b.1 * b.1).sqrt());
-    assert!(
-        z.abs() < 4.0,
-        "{what}: {} ± {} vs {} ± {} (z = {z:.2})",
-        a.0,
-        a.1,
-        b.0,
-        b.1
-    );
-}
-
 #[test]
 fn surface_projection_of_constant_textures_matches_entry_and_the_constant() {
     let dir = TempDir::new("render-proj-const");
@@ -104,13 +85,13 @@ fn surface_projection_of_constant_textures_matches_entry_and_the_constant() {
         )
     };
     let constant = r#"{ type = "homogeneous", albedo = [0.8, 0.6, 0.3], density = 1.5, attenuation = [0.3, 0.45, 0.9] }"#;
-    let s = render(&scene(&textured("surface"), 192, 1), dir.path());
-    let e = render(&scene(&textured("entry"), 192, 2), dir.path());
-    let c = render(&scene(constant, 192, 3), dir.path());
+    let s = render_text(&scene(&textured("surface"), 192, 1), dir.path());
+    let e = render_text(&scene(&textured("entry"), 192, 2), dir.path());
+    let c = render_text(&scene(constant, 192, 3), dir.path());
     for ch in 0..3 {
         let (ms, me, mc) = (image_mean(&s, ch), image_mean(&e, ch), image_mean(&c, ch));
-        assert_agree(ms, me, &format!("surface vs entry, channel {ch}"));
-        assert_agree(ms, mc, &format!("surface vs constant, channel {ch}"));
+        assert_means_agree(ms, me, &format!("surface vs entry, channel {ch}"));
+        assert_means_agree(ms, mc, &format!("surface vs constant, channel {ch}"));
         // Standard errors small enough for the comparison to mean something (a scalar
         // majorant over three channels is noisier than the closed-form flights of the other
         // two: the MIS weights of the channels follow the count of null collisions).
@@ -119,32 +100,18 @@ fn surface_projection_of_constant_textures_matches_entry_and_the_constant() {
     // Behind an index-matched boundary NEE happens at interior vertices: shadow rays are
     // ratio-tracked through the projected medium.
     let clear = r#"{ type = "dielectric", ior = 1.0 }"#;
-    let s = render(
+    let s = render_text(
         &lit_scene(&textured("surface"), 128, 4, clear, ""),
         dir.path(),
     );
-    let c = render(&lit_scene(constant, 128, 5, clear, ""), dir.path());
+    let c = render_text(&lit_scene(constant, 128, 5, clear, ""), dir.path());
     for ch in 0..3 {
-        assert_agree(
+        assert_means_agree(
             image_mean(&s, ch),
             image_mean(&c, ch),
             &format!("index-matched: surface vs constant, channel {ch}"),
         );
     }
-}
-
-/// The world x of the ball point pixel (i, j)'s centre ray hits (the unit sphere the
-/// icosphere approximates), with the cosine there; `None` when it misses.
-fn hit_x(i: u32, j: u32) -> Option<(f32, f32)> {
-    let cam = Camera::pinhole(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, Vec3::Y, 32.0, 16, 16).ok()?;
-    let r = cam.generate_ray(Vec2::new(i as f32 + 0.5, j as f32 + 0.5), Vec2::ZERO);
-    let b = r.o.dot(r.d);
-    let disc = b * b - (r.o.length_squared() - 1.0);
-    if disc <= 0.0 {
-        return None;
-    }
-    let p = r.o + r.d * (-b - disc.sqrt());
-    Some((p.x, -p.normalize().dot(r.d)))
 }
 
 #[test]
@@ -170,16 +137,20 @@ fn surface_projection_darkens_white_skin_near_black_skin() {
     // An index-matched boundary under the environment alone: NEE at the interior vertices,
     // its shadow rays ratio-tracked through the projected medium; no caustic fireflies.
     let clear = r#"{ type = "dielectric", ior = 1.0 }"#;
-    let s = render(
+    let s = render_text(
         &lit_scene(&interior("surface"), 256, 11, clear, ""),
         dir.path(),
     );
-    let e = render(
+    let e = render_text(
         &lit_scene(&interior("entry"), 256, 12, clear, ""),
         dir.path(),
     );
-    let near_white = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x > 0.13 && x < 0.4 && cos > 0.4);
-    let near_black = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x < -0.13 && x > -0.4 && cos > 0.4);
+    let near_white = |i, j| {
+        unit_sphere_hit_x(32.0, i, j).is_some_and(|(x, cos)| x > 0.13 && x < 0.4 && cos > 0.4)
+    };
+    let near_black = |i, j| {
+        unit_sphere_hit_x(32.0, i, j).is_some_and(|(x, cos)| x < -0.13 && x > -0.4 && cos > 0.4)
+    };
     for ch in 0..3 {
         let (sw, ew) = (
             region_mean(&s, ch, near_white),

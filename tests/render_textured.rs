@@ -11,17 +11,12 @@ mod common;
 use std::path::Path;
 
 use common::files::TempDir;
-use common::render::{image_mean, region_mean, render_finite, scene_from_text};
-use common::stats::z_score;
+use common::render::{image_mean, region_mean, render_text, unit_sphere_hit_x};
+use common::stats::{assert_means_agree, z_score};
 use common::textures::{exr_grey, png_rgb8};
-use velour::camera::Camera;
 use velour::film::Film;
 use velour::math::{Vec2, Vec3};
 use velour::texture::srgb_to_linear;
-
-fn render(text: &str, dir: &Path) -> Film {
-    render_finite(&scene_from_text(text, dir.join("scene.toml")), 0).0
-}
 
 fn head(spp: u32, seed: u32, fov: f32) -> String {
     format!(
@@ -45,19 +40,6 @@ direction = [0.5, 0.6, 0.6]
 irradiance = 2.0
 "#
     )
-}
-
-/// Asserts that two estimates agree within 4 standard errors of their difference.
-fn assert_agree(a: (f64, f64), b: (f64, f64), what: &str) {
-    let z = z_score(a.0, b.0, (a.1 * a.1 + b.1 * b.1).sqrt());
-    assert!(
-        z.abs() < 4.0,
-        "{what}: {} ± {} vs {} ± {} (z = {z:.2})",
-        a.0,
-        a.1,
-        b.0,
-        b.1
-    );
 }
 
 #[test]
@@ -88,10 +70,10 @@ fn a_texture_of_one_value_renders_like_the_constant() {
             lin(120)
         ),
     );
-    let t = render(&format!("{}{textured}", head(64, 1, 24.0)), dir.path());
-    let c = render(&format!("{}{constant}", head(64, 2, 24.0)), dir.path());
+    let t = render_text(&format!("{}{textured}", head(64, 1, 24.0)), dir.path());
+    let c = render_text(&format!("{}{constant}", head(64, 2, 24.0)), dir.path());
     for ch in 0..3 {
-        assert_agree(
+        assert_means_agree(
             image_mean(&t, ch),
             image_mean(&c, ch),
             &format!("channel {ch}"),
@@ -115,9 +97,9 @@ fn a_blend_with_a_constant_mask_is_the_weighted_sum_of_its_looks() {
     let b = r#"{ type = "homogeneous", albedo = [0.1, 0.5, 0.95], attenuation = [0.1, 0.3, 0.2], phase = { g = 0.5 } }"#;
     let blend =
         format!(r#"{{ type = "blend", mask = {{ texture = "mask.exr" }}, a = {a}, b = {b} }}"#);
-    let fb = render(&blend_scene(&blend, 128, 3), dir.path());
-    let fa = render(&blend_scene(a, 64, 4), dir.path());
-    let fbb = render(&blend_scene(b, 64, 5), dir.path());
+    let fb = render_text(&blend_scene(&blend, 128, 3), dir.path());
+    let fa = render_text(&blend_scene(a, 64, 4), dir.path());
+    let fbb = render_text(&blend_scene(b, 64, 5), dir.path());
     let m = f64::from(m);
     for c in 0..3 {
         let (mb, sb) = image_mean(&fb, c);
@@ -125,7 +107,7 @@ fn a_blend_with_a_constant_mask_is_the_weighted_sum_of_its_looks() {
         let (m2, s2) = image_mean(&fbb, c);
         let expected = m * ma + (1.0 - m) * m2;
         let se = (m * m * sa * sa + (1.0 - m) * (1.0 - m) * s2 * s2).sqrt();
-        assert_agree((mb, sb), (expected, se), &format!("blend channel {c}"));
+        assert_means_agree((mb, sb), (expected, se), &format!("blend channel {c}"));
         // The two looks differ enough that a wrong weight would show.
         let z_looks = z_score(ma, m2, (sa * sa + s2 * s2).sqrt());
         if c != 1 {
@@ -158,48 +140,34 @@ fn halves_scene(albedo: &str, spp: u32, seed: u32) -> String {
     )
 }
 
-/// The world x of the sphere point pixel (i, j)'s centre ray hits, with the cosine there;
-/// `None` when it misses.
-fn hit_x(i: u32, j: u32) -> Option<(f32, f32)> {
-    let cam = Camera::pinhole(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, Vec3::Y, 36.0, 16, 16).ok()?;
-    let r = cam.generate_ray(Vec2::new(i as f32 + 0.5, j as f32 + 0.5), Vec2::ZERO);
-    let b = r.o.dot(r.d);
-    let disc = b * b - (r.o.length_squared() - 1.0);
-    if disc <= 0.0 {
-        return None;
-    }
-    let p = r.o + r.d * (-b - disc.sqrt());
-    Some((p.x, -p.normalize().dot(r.d)))
-}
-
 #[test]
 fn entry_projection_is_red_on_one_side_and_blue_on_the_other() {
     let dir = TempDir::new("render-tex-halves");
     half_red_half_blue(&dir);
     let lin = |v: u8| srgb_to_linear(f32::from(v) / 255.0);
     let (hi, lo) = (lin(240), lin(20));
-    let textured = render(
+    let textured = render_text(
         &halves_scene(r#"{ texture = "halves.png" }"#, 64, 7),
         dir.path(),
     );
-    let red = render(
+    let red = render_text(
         &halves_scene(&format!("[{hi:.9}, {lo:.9}, {lo:.9}]"), 64, 8),
         dir.path(),
     );
-    let blue = render(
+    let blue = render_text(
         &halves_scene(&format!("[{lo:.9}, {lo:.9}, {hi:.9}]"), 64, 9),
         dir.path(),
     );
     // Pixels well inside each half (the filter footprint is a few texels) and not grazing.
-    let right = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x > 0.5 && cos > 0.5);
-    let left = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x < -0.5 && cos > 0.5);
+    let right = |i, j| unit_sphere_hit_x(36.0, i, j).is_some_and(|(x, cos)| x > 0.5 && cos > 0.5);
+    let left = |i, j| unit_sphere_hit_x(36.0, i, j).is_some_and(|(x, cos)| x < -0.5 && cos > 0.5);
     for c in 0..3 {
-        assert_agree(
+        assert_means_agree(
             region_mean(&textured, c, right),
             region_mean(&red, c, right),
             &format!("right (red) half, channel {c}"),
         );
-        assert_agree(
+        assert_means_agree(
             region_mean(&textured, c, left),
             region_mean(&blue, c, left),
             &format!("left (blue) half, channel {c}"),
@@ -291,18 +259,18 @@ fn ray_cones_pick_the_mip_level_of_the_pixel_footprint() {
         ((x + y) % 2) as f32
     });
     let spp = 16;
-    let checker = render(
+    let checker = render_text(
         &quad_scene(r#"{ texture = "checker.exr" }"#, spp, 11),
         dir.path(),
     );
-    let grey = render(&quad_scene("0.5", spp, 12), dir.path());
+    let grey = render_text(&quad_scene("0.5", spp, 12), dir.path());
     let (vc, vg) = (mean_variance(&checker), mean_variance(&grey));
     let point_sampled = 0.25 / f64::from(spp);
     assert!(
         vc < 2.0 * vg + 0.02 * point_sampled,
         "checker pixels are noisy: variance {vc} vs grey {vg} (point sampling ≈ {point_sampled})"
     );
-    assert_agree(
+    assert_means_agree(
         image_mean(&checker, 0),
         image_mean(&grey, 0),
         "checker vs grey",
@@ -327,16 +295,16 @@ fn a_surface_blend_with_a_constant_mask_is_the_weighted_sum_of_its_surfaces() {
     let b = r#"{ type = "conductor", reflectance = [0.2, 0.5, 0.95], roughness = 0.4 }"#;
     let blend =
         format!(r#"{{ type = "blend", mask = {{ texture = "mask.exr" }}, a = {a}, b = {b} }}"#);
-    let fb = render(&opaque_ball(&blend, 128, 21), dir.path());
-    let fa = render(&opaque_ball(a, 64, 22), dir.path());
-    let fbb = render(&opaque_ball(b, 64, 23), dir.path());
+    let fb = render_text(&opaque_ball(&blend, 128, 21), dir.path());
+    let fa = render_text(&opaque_ball(a, 64, 22), dir.path());
+    let fbb = render_text(&opaque_ball(b, 64, 23), dir.path());
     let m = f64::from(m);
     for c in 0..3 {
         let (ma, sa) = image_mean(&fa, c);
         let (m2, s2) = image_mean(&fbb, c);
         let expected = m * ma + (1.0 - m) * m2;
         let se = (m * m * sa * sa + (1.0 - m) * (1.0 - m) * s2 * s2).sqrt();
-        assert_agree(
+        assert_means_agree(
             image_mean(&fb, c),
             (expected, se),
             &format!("surface blend channel {c}"),
@@ -361,15 +329,15 @@ fn a_blend_of_a_heterogeneous_and_a_homogeneous_look() {
     };
     let m = 0.4;
     let blend = format!(r#"{{ type = "blend", mask = {m}, a = {a}, b = {b} }}"#);
-    let fb = render(&scene(&blend, 96, 31), dir.path());
-    let fa = render(&scene(a, 48, 32), dir.path());
-    let fbb = render(&scene(b, 48, 33), dir.path());
+    let fb = render_text(&scene(&blend, 96, 31), dir.path());
+    let fa = render_text(&scene(a, 48, 32), dir.path());
+    let fbb = render_text(&scene(b, 48, 33), dir.path());
     for c in 0..3 {
         let (ma, sa) = image_mean(&fa, c);
         let (m2, s2) = image_mean(&fbb, c);
         let expected = m * ma + (1.0 - m) * m2;
         let se = (m * m * sa * sa + (1.0 - m) * (1.0 - m) * s2 * s2).sqrt();
-        assert_agree(
+        assert_means_agree(
             image_mean(&fb, c),
             (expected, se),
             &format!("fbm/homogeneous blend channel {c}"),

@@ -10,25 +10,19 @@
 
 mod common;
 
-use std::path::Path;
-
 use common::files::TempDir;
-use common::render::{image_mean, region_mean, render_finite, scene_from_text};
-use common::stats::z_score;
+use common::render::{
+    image_mean, region_mean, render_finite, render_text, scene_from_text, unit_sphere_hit_x,
+};
+use common::stats::{assert_means_agree, z_score};
 use common::textures::{exr_grey, exr_rgb, png_rgb8};
 use glam::{DAffine3, DVec3, IVec3, Vec3};
-use velour::camera::Camera;
 use velour::film::Film;
 use velour::grid::{ChannelKind, SparseGridBuilder, Storage};
-use velour::math::Vec2;
 use velour::medium::{Medium, WalkInterior};
 use velour::scene::load_scene_str;
 use velour::texture::srgb_to_linear;
 use velour::vdb::{write_vdb, GridToWrite, WriteOptions};
-
-fn render(text: &str, dir: &Path) -> Film {
-    render_finite(&scene_from_text(text, dir.join("scene.toml")), 0).0
-}
 
 const FOV: f32 = 36.0;
 
@@ -62,19 +56,6 @@ fn ball(interior: &str, spp: u32, seed: u32) -> String {
         "{}[[object]]\nname = \"ball\"\nshape = \"sphere\"\ninterior = {interior}\n",
         head(spp, seed)
     )
-}
-
-/// Asserts that two estimates agree within 4 standard errors of their difference.
-fn assert_agree(a: (f64, f64), b: (f64, f64), what: &str) {
-    let z = z_score(a.0, b.0, (a.1 * a.1 + b.1 * b.1).sqrt());
-    assert!(
-        z.abs() < 4.0,
-        "{what}: {} ± {} vs {} ± {} (z = {z:.2})",
-        a.0,
-        a.1,
-        b.0,
-        b.1
-    );
 }
 
 /// `density.vdb`: a 16³ grid over [−1.5, 1.5]³ whose density steps between 0.3, 0.65 and 1
@@ -114,7 +95,7 @@ fn lin(v: u8) -> f32 {
 
 fn assert_images_agree(t: &Film, c: &Film, what: &str) {
     for ch in 0..3 {
-        assert_agree(
+        assert_means_agree(
             image_mean(t, ch),
             image_mean(c, ch),
             &format!("{what}, channel {ch}"),
@@ -135,8 +116,8 @@ fn a_one_value_texture_on_a_voxel_interior_renders_like_the_constant() {
         lin(180),
         lin(120)
     );
-    let t = render(&ball(textured, 256, 1), dir.path());
-    let c = render(&ball(&constant, 256, 2), dir.path());
+    let t = render_text(&ball(textured, 256, 1), dir.path());
+    let c = render_text(&ball(&constant, 256, 2), dir.path());
     assert_images_agree(&t, &c, "voxel");
 }
 
@@ -154,23 +135,9 @@ fn a_one_value_texture_on_an_fbm_interior_renders_like_the_constant() {
         lin(120),
         lin(220)
     );
-    let t = render(&ball(&textured, 128, 3), dir.path());
-    let c = render(&ball(&constant, 128, 4), dir.path());
+    let t = render_text(&ball(&textured, 128, 3), dir.path());
+    let c = render_text(&ball(&constant, 128, 4), dir.path());
     assert_images_agree(&t, &c, "fbm");
-}
-
-/// The world x of the sphere point pixel (i, j)'s centre ray hits, with the cosine there;
-/// `None` when it misses.
-fn hit_x(i: u32, j: u32) -> Option<(f32, f32)> {
-    let cam = Camera::pinhole(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, Vec3::Y, FOV, 16, 16).ok()?;
-    let r = cam.generate_ray(Vec2::new(i as f32 + 0.5, j as f32 + 0.5), Vec2::ZERO);
-    let b = r.o.dot(r.d);
-    let disc = b * b - (r.o.length_squared() - 1.0);
-    if disc <= 0.0 {
-        return None;
-    }
-    let p = r.o + r.d * (-b - disc.sqrt());
-    Some((p.x, -p.normalize().dot(r.d)))
 }
 
 /// A voxel sphere whose density texture is 4 where x > 0 (cos 2πu > 0 for the sphere's
@@ -207,17 +174,17 @@ fn a_two_valued_density_texture_gives_each_half_its_own_density() {
     // below cannot see one; this count can).
     assert_eq!(summary.tracking.violations, 0, "majorant violations");
     assert!(summary.tracking.real_collisions > 0);
-    let dense = render(&ball(&voxel("4.0"), 256, 8), dir.path());
-    let thin = render(&ball(&voxel("0.25"), 256, 9), dir.path());
-    let right = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x > 0.5 && cos > 0.5);
-    let left = |i, j| hit_x(i, j).is_some_and(|(x, cos)| x < -0.5 && cos > 0.5);
+    let dense = render_text(&ball(&voxel("4.0"), 256, 8), dir.path());
+    let thin = render_text(&ball(&voxel("0.25"), 256, 9), dir.path());
+    let right = |i, j| unit_sphere_hit_x(FOV, i, j).is_some_and(|(x, cos)| x > 0.5 && cos > 0.5);
+    let left = |i, j| unit_sphere_hit_x(FOV, i, j).is_some_and(|(x, cos)| x < -0.5 && cos > 0.5);
     for c in 0..3 {
-        assert_agree(
+        assert_means_agree(
             region_mean(&textured, c, right),
             region_mean(&dense, c, right),
             &format!("right (dense) half, channel {c}"),
         );
-        assert_agree(
+        assert_means_agree(
             region_mean(&textured, c, left),
             region_mean(&thin, c, left),
             &format!("left (thin) half, channel {c}"),
@@ -249,15 +216,15 @@ fn a_textured_voxel_look_in_a_blend_is_weighted_by_the_mask() {
         r#"{ type = "voxel", file = "density.vdb", albedo = [0.95, 0.7, 0.4], attenuation = 0.3 }"#;
     let m = 0.3;
     let blend = format!(r#"{{ type = "blend", mask = {m}, a = {a}, b = {b} }}"#);
-    let fm = render(&ball(&blend, 256, 11), dir.path());
-    let fa = render(&ball(a, 128, 12), dir.path());
-    let fb = render(&ball(b_constant, 128, 13), dir.path());
+    let fm = render_text(&ball(&blend, 256, 11), dir.path());
+    let fa = render_text(&ball(a, 128, 12), dir.path());
+    let fb = render_text(&ball(b_constant, 128, 13), dir.path());
     for c in 0..3 {
         let (ma, sa) = image_mean(&fa, c);
         let (mb, sb) = image_mean(&fb, c);
         let expected = m * ma + (1.0 - m) * mb;
         let se = (m * m * sa * sa + (1.0 - m) * (1.0 - m) * sb * sb).sqrt();
-        assert_agree(
+        assert_means_agree(
             image_mean(&fm, c),
             (expected, se),
             &format!("blend with a textured voxel look, channel {c}"),

@@ -73,3 +73,28 @@ pub fn pixel_bits(path: &Path) -> std::collections::BTreeMap<String, Vec<u32>> {
         .map(|(k, v)| (k, v.into_iter().map(f32::to_bits).collect()))
         .collect()
 }
+
+/// Renders scene `text` as if it were the file `dir/scene.toml` (relative paths resolve in
+/// `dir`), on all threads, failing on any non-finite sample.
+#[allow(dead_code)]
+pub fn render_text(text: &str, dir: &Path) -> Film {
+    render_finite(&scene_from_text(text, dir.join("scene.toml")), 0).0
+}
+
+/// Where the centre ray of pixel `(i, j)` of a 16×16 pinhole camera at (0, 0, 4) looking at
+/// the origin with vertical field of view `fov` degrees first meets the unit sphere at the
+/// origin: the hit's x coordinate and the cosine between the ray and the normal there.
+#[allow(dead_code)]
+pub fn unit_sphere_hit_x(fov: f32, i: u32, j: u32) -> Option<(f32, f32)> {
+    use velour::camera::Camera;
+    use velour::math::{Vec2, Vec3};
+    let cam = Camera::pinhole(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, Vec3::Y, fov, 16, 16).ok()?;
+    let r = cam.generate_ray(Vec2::new(i as f32 + 0.5, j as f32 + 0.5), Vec2::ZERO);
+    let b = r.o.dot(r.d);
+    let disc = b * b - (r.o.length_squared() - 1.0);
+    if disc <= 0.0 {
+        return None;
+    }
+    let p = r.o + r.d * (-b - disc.sqrt());
+    Some((p.x, -p.normalize().dot(r.d)))
+}

@@ -133,3 +133,18 @@ pub fn binomial_standard_error(p: f64, n: usize) -> f64 {
 pub fn poisson_z_score(count: f64, mean: f64) -> f64 {
     (count - mean) / mean.sqrt()
 }
+
+/// Asserts that two estimates `(mean, standard error)` agree within 4 standard errors of their
+/// difference (independent estimates, so the errors add in quadrature).
+#[allow(dead_code)]
+pub fn assert_means_agree(a: (f64, f64), b: (f64, f64), what: &str) {
+    let z = z_score(a.0, b.0, (a.1 * a.1 + b.1 * b.1).sqrt());
+    assert!(
+        z.abs() < 4.0,
+        "{what}: {} ± {} vs {} ± {} (z = {z:.2})",
+        a.0,
+        a.1,
+        b.0,
+        b.1
+    );
+}
