@@ -23,6 +23,18 @@ struct BrickValues {
     split: u64,
 }
 
+impl BrickValues {
+    /// Adds this brick's active voxels and split sign votes to `report`.
+    fn count_into(&self, report: &mut VoxelizeReport) {
+        report.split_votes += self.split;
+        report.active_voxels += self
+            .mask
+            .iter()
+            .map(|m| u64::from(m.count_ones()))
+            .sum::<u64>();
+    }
+}
+
 fn local(v: usize) -> IVec3 {
     IVec3::new((v >> 6) as i32, ((v >> 3) & 7) as i32, (v & 7) as i32)
 }
@@ -124,12 +136,7 @@ pub(super) fn level_set(
     b.reserve_bricks(bricks.len());
     for br in &bricks {
         b.fill_brick(0, br.key, &br.values, br.mask)?;
-        report.split_votes += br.split;
-        report.active_voxels += br
-            .mask
-            .iter()
-            .map(|m| u64::from(m.count_ones()))
-            .sum::<u64>();
+        br.count_into(report);
         report.integral += br
             .values
             .iter()
@@ -170,12 +177,7 @@ pub(super) fn fog(
     let voxel_volume = v.powi(3);
     for br in &bricks {
         b.fill_brick(0, br.key, &br.values, br.mask)?;
-        report.split_votes += br.split;
-        report.active_voxels += br
-            .mask
-            .iter()
-            .map(|m| u64::from(m.count_ones()))
-            .sum::<u64>();
+        br.count_into(report);
         report.integral += br.values.iter().map(|&x| f64::from(x)).sum::<f64>() * voxel_volume;
     }
     match noise {
