@@ -123,16 +123,14 @@ pub(super) fn albedo_grid(
 ) -> Result<Option<AlbedoGrid>, SceneError> {
     let owner = &at.owner;
     let Some(name) = d.albedo_grid.as_deref() else {
-        for (key, set) in [
-            ("albedo_ramp", d.albedo_ramp.is_some()),
-            ("albedo_file", d.albedo_file.is_some()),
-        ] {
-            if set {
-                return Err(at.invalid(format!(
-                    "{owner}.{key} has no effect without `albedo_grid` (the name of the albedo grid)"
-                )));
-            }
-        }
+        refuse_unused(
+            at,
+            &[
+                ("albedo_ramp", d.albedo_ramp.is_some()),
+                ("albedo_file", d.albedo_file.is_some()),
+            ],
+            "`albedo_grid` (the name of the albedo grid)",
+        )?;
         return Ok(None);
     };
     if d.albedo.is_some() {
@@ -225,18 +223,16 @@ pub(super) fn emission_grid(
         (Some(n), None) => (n, false),
         (None, Some(n)) => (n, true),
         (None, None) => {
-            for (key, set) in [
-                ("emission_color", d.emission_color.is_some()),
-                ("emission_file", d.emission_file.is_some()),
-                ("emission_scale", d.emission_scale.is_some()),
-                ("temperature_scale", d.temperature_scale.is_some()),
-            ] {
-                if set {
-                    return Err(at.invalid(format!(
-                        "{owner}.{key} has no effect without `emission_grid` or `temperature_grid`"
-                    )));
-                }
-            }
+            refuse_unused(
+                at,
+                &[
+                    ("emission_color", d.emission_color.is_some()),
+                    ("emission_file", d.emission_file.is_some()),
+                    ("emission_scale", d.emission_scale.is_some()),
+                    ("temperature_scale", d.temperature_scale.is_some()),
+                ],
+                "`emission_grid` or `temperature_grid`",
+            )?;
             return Ok(None);
         }
     };
@@ -301,4 +297,15 @@ pub(super) fn emission_grid(
         kind,
         scale: tint * scale,
     }))
+}
+
+/// An error for the first key of `keys` that is set although the key it depends on
+/// (`needs`, as the message names it) is absent.
+fn refuse_unused(at: &Site, keys: &[(&str, bool)], needs: &str) -> Result<(), SceneError> {
+    match keys.iter().find(|(_, set)| *set) {
+        Some((key, _)) => {
+            Err(at.invalid(format!("{}.{key} has no effect without {needs}", at.owner)))
+        }
+        None => Ok(()),
+    }
 }
