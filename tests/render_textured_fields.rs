@@ -5,7 +5,7 @@
 //! - a density texture of two values (¼ and 4 around a stand-in mean near 2) renders, in
 //!   each half of the sphere, like the constant of that half: the majorant follows each
 //!   walk's density up and down;
-//! - bad input: `projection = "surface"`, textures in mixtures or with albedo grids, textures
+//! - bad input: `projection = "surface"`, textures with albedo grids, textures
 //!   without texture coordinates, bad texels, unknown keys.
 
 mod common;
@@ -322,17 +322,11 @@ fn surface_projection_on_density_fields_is_refused() {
 }
 
 #[test]
-fn textured_fields_in_mixtures_and_with_albedo_grids_are_refused() {
+fn textured_fields_with_albedo_grids_are_refused() {
     let dir = TempDir::new("texfield-mixture");
     write_voxels(&dir);
     png_rgb8(&dir.join("a.png"), 2, 2, |_, _| [100, 100, 100]);
-    let e = err(
-        &dir,
-        &sphere_with(&format!(
-            r#"{{ type = "mixture", media = [{{ type = "homogeneous" }}, {{ {FBM}, albedo = {{ texture = "a.png" }} }}] }}"#
-        )),
-    );
-    assert_mentions(&e, &["ball: interior.media[1]", "mixture component"]);
+    // (Textured mixture components are accepted: tests/render_textured_mixture.rs.)
     let e = err(
         &dir,
         &sphere_with(

@@ -366,7 +366,12 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
                     Medium::Heterogeneous(h) => v.push((obj.name.clone(), (**h).clone())),
                     // A textured voxel/fbm interior: its field at the textures' means.
                     Medium::Scaled(f) => v.push((obj.name.clone(), (*f.medium).clone())),
-                    Medium::Mixture(mix) => {
+                    Medium::Mixture(_) | Medium::ScaledMixture(_) => {
+                        let mix = match &scene.media[m as usize] {
+                            Medium::ScaledMixture(s) => &*s.medium,
+                            Medium::Mixture(b) => &**b,
+                            _ => continue,
+                        };
                         for (i, c) in mix.components.iter().enumerate() {
                             if let crate::medium::ComponentDensity::Field(h) = &c.density {
                                 v.push((format!("{} (media[{i}])", obj.name), (**h).clone()));

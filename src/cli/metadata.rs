@@ -42,6 +42,11 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
                 m.components.len(),
                 mixture_transmittance(m)
             ),
+            Medium::ScaledMixture(m) => format!(
+                "mixture of {}, textured per walk; free_flight delta (mixture); transmittance {} per component",
+                m.medium.components.len(),
+                mixture_transmittance(&m.medium)
+            ),
         };
         let name: String = object
             .name
@@ -101,6 +106,10 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
             Medium::Scaled(f) => format!(
                 "density field with albedo/attenuation/density textures read per walk; free flights {:?}, transmittance {:?}, majorants {:?}",
                 f.medium.tracking.free_flight, f.medium.tracking.transmittance, f.medium.tracking.majorant
+            ),
+            Medium::ScaledMixture(m) => format!(
+                "mixture of {} with components textured per walk (read at the entry point)",
+                m.medium.components.len()
             ),
             Medium::Mixture(m) => {
                 let parts: Vec<String> = m

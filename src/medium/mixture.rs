@@ -9,6 +9,13 @@
 //!
 //! A one-component "mixture" is how a `voxel` interior with an albedo or emission grid is
 //! built: the grids need the per-vertex albedo and the emission of these trackers.
+//!
+//! Every estimator here reads the components' coefficients from a [`WalkCoefficients`]
+//! array: the components' own, or one walk's ([`ScaledMixture`]: textured components read at
+//! the entry point, docs/textures.md), so that the majorants scale with each walk's
+//! coefficients and stay conservative.
+
+use std::sync::Arc;
 
 use glam::Vec3;
 
@@ -17,13 +24,49 @@ use super::event::{MediumEvent, ScatterVertex, VertexPhase};
 use super::grids::{AlbedoGrid, EmissionGrid, GridRay};
 use super::heterogeneous::{HeterogeneousMedium, MediumSegments};
 use super::lookup::DensityLookup;
+use super::walk::{EntryInterior, WalkMedium};
 use crate::majorant::MajorantSegment;
-use crate::math::Ray;
+use crate::math::{Ray, Vec2};
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
+use crate::texture::{ColorParam, ScalarParam};
 use crate::tracking::{
-    channel_probabilities, mixture_track, MixPoint, RateSegment, TrackingStats, MAX_COMPONENTS,
+    channel_probabilities, mixture_track, DensityCoefficients, MixPoint, RateSegment,
+    TrackingStats, MAX_COMPONENTS,
 };
+
+/// One component's coefficients: σ_t and σ_s (1/length; per unit density for a field
+/// component).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ComponentCoefficients {
+    /// Extinction (per unit density for a field).
+    pub sigma_t: Rgb,
+    /// Scattering (per unit density for a field).
+    pub sigma_s: Rgb,
+}
+
+impl ComponentCoefficients {
+    /// No extinction, no scattering (the unused entries of a [`WalkCoefficients`]).
+    pub const ZERO: ComponentCoefficients = ComponentCoefficients {
+        sigma_t: Rgb::ZERO,
+        sigma_s: Rgb::ZERO,
+    };
+}
+
+/// The coefficients of a mixture's components (entry `i` for component `i`; entries past
+/// the last component unused).
+pub type WalkCoefficients = [ComponentCoefficients; MAX_COMPONENTS];
+
+/// The coefficients field `h` is tracked with when its component's coefficients are `k`
+/// (its base medium kept: a component's is empty).
+fn field_coefficients(h: &HeterogeneousMedium, k: &ComponentCoefficients) -> DensityCoefficients {
+    DensityCoefficients {
+        sigma_t: k.sigma_t,
+        sigma_s: k.sigma_s,
+        base_t: h.coefficients.base_t,
+        base_s: h.coefficients.base_s,
+    }
+}
 
 /// Where a component's extinction comes from.
 #[derive(Clone, Debug)]
@@ -49,27 +92,36 @@ pub struct MixtureComponent {
 }
 
 impl MixtureComponent {
-    /// The component's constant single-scattering albedo σ_s/σ_t (ignoring an albedo grid).
-    fn constant_albedo(&self) -> Rgb {
+    /// The component's own coefficients (σ_t and σ_s; per unit density for a field).
+    fn own_coefficients(&self) -> ComponentCoefficients {
         match &self.density {
-            ComponentDensity::Constant(c) => c.sigma_s.safe_div(c.sigma_t()),
-            ComponentDensity::Field(h) => h.coefficients.sigma_s.safe_div(h.coefficients.sigma_t),
+            ComponentDensity::Constant(c) => ComponentCoefficients {
+                sigma_t: c.sigma_t(),
+                sigma_s: c.sigma_s,
+            },
+            ComponentDensity::Field(h) => ComponentCoefficients {
+                sigma_t: h.coefficients.sigma_t,
+                sigma_s: h.coefficients.sigma_s,
+            },
         }
     }
 
-    /// The single-scattering albedo at world point `p`.
-    fn albedo_at(&self, p: Vec3) -> Rgb {
+    /// The single-scattering albedo at world point `p` with coefficients `k`: the albedo
+    /// grid's, or σ_s/σ_t.
+    fn albedo_at(&self, p: Vec3, k: &ComponentCoefficients) -> Rgb {
         match &self.albedo {
             Some(a) => a.single_scattering_at(p),
-            None => self.constant_albedo(),
+            None => k.sigma_s.safe_div(k.sigma_t),
         }
     }
 
-    /// The largest extinction the component can have (RGB, 1/length).
-    fn max_sigma_t(&self) -> Rgb {
+    /// The largest extinction the component can have with coefficients `k` (RGB, 1/length).
+    fn max_sigma_t(&self, k: &ComponentCoefficients) -> Rgb {
         match &self.density {
-            ComponentDensity::Constant(c) => c.sigma_t(),
-            ComponentDensity::Field(h) => h.coefficients.sigma_t_at(h.pyramid.global_bounds().max),
+            ComponentDensity::Constant(_) => k.sigma_t,
+            ComponentDensity::Field(h) => {
+                field_coefficients(h, k).sigma_t_at(h.pyramid.global_bounds().max)
+            }
         }
     }
 }
@@ -84,13 +136,14 @@ pub struct MixtureMedium {
 /// The per-ray state of a mixture: density lookups and emission lookups per component.
 struct MixRay<'a> {
     medium: &'a MixtureMedium,
+    k: &'a WalkCoefficients,
     ray: Ray,
     density: [Option<DensityLookup<'a>>; MAX_COMPONENTS],
     emission: [Option<GridRay<'a>>; MAX_COMPONENTS],
 }
 
 impl<'a> MixRay<'a> {
-    fn new(medium: &'a MixtureMedium, ray: &Ray, emission: bool) -> Self {
+    fn new(medium: &'a MixtureMedium, k: &'a WalkCoefficients, ray: &Ray, emission: bool) -> Self {
         let mut density: [Option<DensityLookup<'a>>; MAX_COMPONENTS] = [None, None, None, None];
         let mut em: [Option<GridRay<'a>>; MAX_COMPONENTS] = [None, None, None, None];
         for (i, c) in medium.components.iter().take(MAX_COMPONENTS).enumerate() {
@@ -105,6 +158,7 @@ impl<'a> MixRay<'a> {
         }
         MixRay {
             medium,
+            k,
             ray: *ray,
             density,
             emission: em,
@@ -119,21 +173,24 @@ impl<'a> MixRay<'a> {
             emission: Rgb::ZERO,
         };
         let comps = self.medium.components.iter().take(MAX_COMPONENTS);
-        for (((c, slot), lookup), sigma) in comps
+        for ((((c, k), slot), lookup), sigma) in comps
+            .zip(self.k.iter())
             .zip(self.emission.iter_mut())
             .zip(self.density.iter_mut())
             .zip(point.sigma_t.iter_mut())
         {
             *sigma = match (&c.density, lookup) {
-                (ComponentDensity::Constant(k), _) => k.sigma_t(),
-                (ComponentDensity::Field(h), Some(l)) => h.coefficients.sigma_t_at(l.at(t)),
+                (ComponentDensity::Constant(_), _) => k.sigma_t,
+                (ComponentDensity::Field(h), Some(l)) => {
+                    field_coefficients(h, k).sigma_t_at(l.at(t))
+                }
                 (ComponentDensity::Field(_), None) => Rgb::ZERO,
             };
             if emission {
                 if let (Some(e), Some(r)) = (&c.emission, slot.as_mut()) {
                     let le = e.at(r, t);
                     if !le.is_black() {
-                        let alpha = c.albedo_at(self.ray.at(t));
+                        let alpha = c.albedo_at(self.ray.at(t), k);
                         point.emission += *sigma * (Rgb::ONE - alpha) * le;
                     }
                 }
@@ -156,17 +213,20 @@ struct MixSegments<'a> {
 }
 
 impl<'a> MixSegments<'a> {
-    fn new(medium: &'a MixtureMedium, ray: &Ray, t0: f32, t1: f32) -> Self {
+    /// The merged segments of `medium` with coefficients `k` along `ray` over `[t0, t1]`:
+    /// each field's density bounds times its σ_t per unit density in `k`.
+    fn new(medium: &'a MixtureMedium, k: &WalkCoefficients, ray: &Ray, t0: f32, t1: f32) -> Self {
         let mut streams: [Option<MediumSegments<'a>>; MAX_COMPONENTS] = [None, None, None, None];
         let mut scale = [Rgb::ZERO; MAX_COMPONENTS];
         let mut constant = Rgb::ZERO;
-        for (i, c) in medium.components.iter().take(MAX_COMPONENTS).enumerate() {
+        let comps = medium.components.iter().take(MAX_COMPONENTS);
+        for (i, (c, own)) in comps.zip(k.iter()).enumerate() {
             match &c.density {
-                ComponentDensity::Constant(k) => constant += k.sigma_t(),
+                ComponentDensity::Constant(_) => constant += own.sigma_t,
                 ComponentDensity::Field(h) => {
                     if let (Some(s), Some(k)) = (streams.get_mut(i), scale.get_mut(i)) {
                         *s = Some(h.segments_along(ray, t0, t1));
-                        *k = h.coefficients.sigma_t;
+                        *k = own.sigma_t;
                     }
                 }
             }
@@ -239,16 +299,32 @@ impl Iterator for MixSegments<'_> {
 }
 
 impl MixtureMedium {
-    /// The constant components' extinctions (zero for the fields), as a [`MixPoint`].
-    fn constant_point(&self) -> MixPoint {
+    /// The components' own coefficients.
+    #[must_use]
+    pub fn own_coefficients(&self) -> WalkCoefficients {
+        let mut k = [ComponentCoefficients::ZERO; MAX_COMPONENTS];
+        for (c, slot) in self.components.iter().zip(k.iter_mut()) {
+            *slot = c.own_coefficients();
+        }
+        k
+    }
+
+    /// The constant components' extinctions with coefficients `k` (zero for the fields), as
+    /// a [`MixPoint`].
+    fn constant_point(&self, k: &WalkCoefficients) -> MixPoint {
         let mut point = MixPoint {
             sigma_t: [Rgb::ZERO; MAX_COMPONENTS],
             count: self.components.len().min(MAX_COMPONENTS),
             emission: Rgb::ZERO,
         };
-        for (c, s) in self.components.iter().zip(point.sigma_t.iter_mut()) {
-            if let ComponentDensity::Constant(k) = &c.density {
-                *s = k.sigma_t();
+        for ((c, s), own) in self
+            .components
+            .iter()
+            .zip(point.sigma_t.iter_mut())
+            .zip(k.iter())
+        {
+            if let ComponentDensity::Constant(_) = &c.density {
+                *s = own.sigma_t;
             }
         }
         point
@@ -272,9 +348,15 @@ impl MixtureMedium {
     /// The sum of the components' largest extinctions (RGB, 1/length).
     #[must_use]
     pub fn max_sigma_t(&self) -> Rgb {
+        self.max_sigma_t_with(&self.own_coefficients())
+    }
+
+    /// [`Self::max_sigma_t`] with coefficients `k`.
+    fn max_sigma_t_with(&self, k: &WalkCoefficients) -> Rgb {
         self.components
             .iter()
-            .fold(Rgb::ZERO, |a, c| a + c.max_sigma_t())
+            .zip(k.iter())
+            .fold(Rgb::ZERO, |a, (c, k)| a + c.max_sigma_t(k))
     }
 
     /// The union of the world boxes of the field components' majorant pyramids (`None` when
@@ -300,16 +382,33 @@ impl MixtureMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
+        self.sample_flight_with(&self.own_coefficients(), ray, t_max, beta, u, stats)
+    }
+
+    /// [`Self::sample_flight`] with coefficients `k` in place of the components' own; the
+    /// majorants scale with `k`.
+    fn sample_flight_with<U: FnMut() -> f32>(
+        &self,
+        k: &WalkCoefficients,
+        ray: &Ray,
+        t_max: f32,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> MediumEvent<'_> {
         let emits = self.emits();
-        let segments = MixSegments::new(self, ray, 0.0, t_max);
-        let mut state = MixRay::new(self, ray, emits);
+        let segments = MixSegments::new(self, k, ray, 0.0, t_max);
+        let mut state = MixRay::new(self, k, ray, emits);
         let probs = channel_probabilities(beta, Rgb::ONE);
+        let none = ComponentCoefficients::ZERO;
         let flight = mixture_track(
             segments,
-            &self.constant_point(),
+            &self.constant_point(k),
             |t, e| state.at(t, e),
             |i, t, point| match (self.components.get(i), point.sigma_t.get(i)) {
-                (Some(c), Some(&sigma_t)) => c.albedo_at(ray.at(t)) * sigma_t,
+                (Some(c), Some(&sigma_t)) => {
+                    c.albedo_at(ray.at(t), k.get(i).unwrap_or(&none)) * sigma_t
+                }
                 _ => Rgb::ZERO,
             },
             emits,
@@ -323,7 +422,7 @@ impl MixtureMedium {
             Some(ScatterVertex {
                 t,
                 p,
-                albedo: c.albedo_at(p),
+                albedo: c.albedo_at(p, k.get(i)?),
                 phase: VertexPhase::Hg(&c.phase),
             })
         });
@@ -346,22 +445,182 @@ impl MixtureMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
+        self.transmittance_with(&self.own_coefficients(), ray, t_max, u, stats)
+    }
+
+    /// [`Self::transmittance`] with coefficients `k` in place of the components' own.
+    fn transmittance_with<U: FnMut() -> f32>(
+        &self,
+        k: &WalkCoefficients,
+        ray: &Ray,
+        t_max: f32,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Rgb {
         let mut tr = Rgb::ONE;
-        for c in &self.components {
+        for (c, k) in self.components.iter().zip(k.iter()) {
             match &c.density {
-                ComponentDensity::Constant(k) => {
+                ComponentDensity::Constant(_) => {
                     // Guard 0·∞ (σ_t = 0 over an open interior): docs/references.md §8.
                     tr *= k
-                        .sigma_t()
+                        .sigma_t
                         .map(|s| if s == 0.0 { 1.0 } else { (-s * t_max).exp() });
                 }
-                ComponentDensity::Field(h) => tr *= h.transmittance(ray, t_max, u, stats),
+                ComponentDensity::Field(h) => {
+                    tr *= h.transmittance_with(&field_coefficients(h, k), ray, t_max, u, stats);
+                }
             }
             if tr.is_black() {
                 break;
             }
         }
         tr
+    }
+}
+
+/// A shared mixture with one walk's coefficients per component (textured components read at
+/// the entry point, docs/textures.md): what a walk through a textured `mixture` interior, or a
+/// `voxel`/`fbm` interior with a textured base medium, sees. Building one shares the
+/// components (no copy, no allocation); each field's majorants are its density bounds times
+/// the walk's σ_t per unit density, so tracking stays conservative.
+#[derive(Clone, Debug)]
+pub struct ScaledMixture {
+    /// The components (their own coefficients are the textures' means).
+    pub medium: Arc<MixtureMedium>,
+    /// The walk's coefficients, per component.
+    pub coefficients: WalkCoefficients,
+}
+
+impl ScaledMixture {
+    /// The sum of the components' largest extinctions with the walk's coefficients (RGB,
+    /// 1/length).
+    #[must_use]
+    pub fn max_sigma_t(&self) -> Rgb {
+        self.medium.max_sigma_t_with(&self.coefficients)
+    }
+
+    /// True when some component scatters with the walk's coefficients.
+    #[must_use]
+    pub fn scatters(&self) -> bool {
+        self.coefficients
+            .iter()
+            .take(self.medium.components.len())
+            .any(|k| !k.sigma_s.is_black())
+    }
+
+    /// A free flight along `ray` over `[0, t_max]` ([`MixtureMedium`]'s, with the walk's
+    /// coefficients).
+    pub(super) fn sample_flight<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> MediumEvent<'_> {
+        self.medium
+            .sample_flight_with(&self.coefficients, ray, t_max, beta, u, stats)
+    }
+
+    /// The transmittance along `ray` over `[0, t_max]` with the walk's coefficients.
+    pub(super) fn transmittance<U: FnMut() -> f32>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Rgb {
+        self.medium
+            .transmittance_with(&self.coefficients, ray, t_max, u, stats)
+    }
+}
+
+/// A density-field component's textured parameters, read at the entry point: its
+/// coefficients per unit density (the field itself does not change).
+#[derive(Clone, Debug)]
+pub struct FieldTextures {
+    /// Artist albedo in [0, 1].
+    pub albedo: ColorParam,
+    /// Attenuation distance per channel at density 1 (world units), > 0.
+    pub attenuation: ColorParam,
+    /// Density multiplier ≥ 0.
+    pub density: ScalarParam,
+    /// How the albedo is read.
+    pub mode: super::AlbedoMode,
+    /// The component's phase function's mean cosine (for the albedo inversion).
+    pub mean_cosine: f32,
+}
+
+/// How one component of a textured mixture gets each walk's coefficients.
+#[derive(Clone, Debug)]
+pub enum ComponentTextures {
+    /// Its own, constant coefficients.
+    Fixed,
+    /// A `homogeneous` or `absorption` component (or a combined interior's base medium) with
+    /// textured parameters, read at the entry point.
+    Entry(EntryInterior),
+    /// A `voxel` or `fbm` component with textured parameters, read at the entry point.
+    Field(FieldTextures),
+}
+
+impl ComponentTextures {
+    /// The coefficients at texture coordinates `uv` (footprint `width_uv` wide), inverted as
+    /// for constants (notes eq. 1–3); `own` when fixed.
+    fn at(&self, uv: Vec2, width_uv: f32, own: ComponentCoefficients) -> ComponentCoefficients {
+        match self {
+            ComponentTextures::Fixed => own,
+            ComponentTextures::Entry(e) => match e.at(uv, width_uv) {
+                WalkMedium::Homogeneous { coefficients, .. } => ComponentCoefficients {
+                    sigma_t: coefficients.sigma_t(),
+                    sigma_s: coefficients.sigma_s,
+                },
+                WalkMedium::Absorbing(sigma_a) => ComponentCoefficients {
+                    sigma_t: sigma_a,
+                    sigma_s: Rgb::ZERO,
+                },
+                _ => own,
+            },
+            ComponentTextures::Field(f) => {
+                let c = Coefficients::from_artist(
+                    f.albedo.eval(uv, width_uv),
+                    f.attenuation.eval(uv, width_uv),
+                    f.density.eval(uv, width_uv),
+                    f.mode,
+                    f.mean_cosine,
+                );
+                ComponentCoefficients {
+                    sigma_t: c.sigma_t(),
+                    sigma_s: c.sigma_s,
+                }
+            }
+        }
+    }
+}
+
+/// A mixture with textured components, resolved per walk: at the entry point each textured
+/// component's parameters are read and inverted, and the walk tracks the shared components
+/// with those coefficients ([`ScaledMixture`]).
+#[derive(Clone, Debug)]
+pub struct TexturedMixture {
+    /// The components, their own coefficients the textures' means.
+    pub medium: Arc<MixtureMedium>,
+    /// Per component, how a walk's coefficients are read (as many as components).
+    pub textures: Vec<ComponentTextures>,
+}
+
+impl TexturedMixture {
+    /// The medium of a walk entering at texture coordinates `uv` with a footprint `width_uv`
+    /// wide.
+    #[must_use]
+    pub fn at(&self, uv: Vec2, width_uv: f32) -> ScaledMixture {
+        let mut coefficients = self.medium.own_coefficients();
+        for (k, t) in coefficients.iter_mut().zip(self.textures.iter()) {
+            *k = t.at(uv, width_uv, *k);
+        }
+        ScaledMixture {
+            medium: Arc::clone(&self.medium),
+            coefficients,
+        }
     }
 }
 
@@ -397,7 +656,8 @@ mod tests {
             ],
         };
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
-        let segs: Vec<RateSegment> = MixSegments::new(&m, &ray, 0.0, 2.0).collect();
+        let own = m.own_coefficients();
+        let segs: Vec<RateSegment> = MixSegments::new(&m, &own, &ray, 0.0, 2.0).collect();
         assert_eq!(
             segs,
             vec![RateSegment {
@@ -408,7 +668,7 @@ mod tests {
             }]
         );
         // Open interiors: one infinite segment.
-        let open: Vec<RateSegment> = MixSegments::new(&m, &ray, 0.0, f32::INFINITY).collect();
+        let open: Vec<RateSegment> = MixSegments::new(&m, &own, &ray, 0.0, f32::INFINITY).collect();
         assert_eq!(open.len(), 1);
     }
 }

@@ -33,7 +33,10 @@ pub use heterogeneous::{
     DensityField, HeterogeneousMedium, MediumSegments, MipChain, RayFootprint,
 };
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
-pub use mixture::{ComponentDensity, MixtureComponent, MixtureMedium};
+pub use mixture::{
+    ComponentCoefficients, ComponentDensity, ComponentTextures, FieldTextures, MixtureComponent,
+    MixtureMedium, ScaledMixture, TexturedMixture, WalkCoefficients,
+};
 pub use projected::ProjectedMedium;
 pub use walk::{EntryInterior, FieldInterior, WalkInterior, WalkLook, WalkMedium};
 
@@ -91,6 +94,9 @@ pub enum Medium {
     /// A heterogeneous medium's field with one walk's coefficients (a textured `voxel` or
     /// `fbm` interior read at the entry point, docs/textures.md).
     Scaled(ScaledField),
+    /// A mixture's components with one walk's coefficients (textured components read at the
+    /// entry point, docs/textures.md).
+    ScaledMixture(ScaledMixture),
 }
 
 /// A shared heterogeneous medium with other coefficients per unit density (its combined base
@@ -134,6 +140,7 @@ impl Medium {
             Medium::Scaled(f) => f
                 .coefficients()
                 .sigma_t_at(f.medium.pyramid.global_bounds().max),
+            Medium::ScaledMixture(m) => m.max_sigma_t(),
         }
     }
 
@@ -147,6 +154,7 @@ impl Medium {
             Medium::Mixture(m) => m.scatters(),
             Medium::Projected(p) => p.scatters(),
             Medium::Scaled(f) => !f.sigma_s.is_black() || !f.medium.coefficients.base_s.is_black(),
+            Medium::ScaledMixture(m) => m.scatters(),
         }
     }
 
@@ -238,6 +246,9 @@ impl Medium {
                 f.medium
                     .sample_flight_with(&c, ray, boundary(f32::INFINITY), beta, u, stats)
             }
+            Medium::ScaledMixture(m) => {
+                m.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
+            }
         }
     }
 
@@ -274,6 +285,7 @@ impl Medium {
                 f.medium
                     .transmittance_with(&f.coefficients(), ray, t_max, u, stats)
             }
+            Medium::ScaledMixture(m) => m.transmittance(ray, t_max, u, stats),
         }
     }
 

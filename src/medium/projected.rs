@@ -117,7 +117,7 @@ impl ProjectedMedium {
                 sigma_a,
                 sigma_s: Rgb::ZERO,
             },
-            WalkMedium::Scene(_) | WalkMedium::Field { .. } => Coefficients {
+            _ => Coefficients {
                 sigma_a: Rgb::ZERO,
                 sigma_s: Rgb::ZERO,
             },

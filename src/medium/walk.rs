@@ -5,11 +5,15 @@
 //! an interior into a [`WalkMedium`] when a path (or a shadow ray) enters the object, and
 //! keeps it on its interior stack until it leaves; a path that re-enters resolves again.
 //! A `voxel` or `fbm` interior with textured parameters ([`FieldInterior`]) keeps its density
-//! field; only its coefficients per unit density are read at the entry point.
+//! field; only its coefficients per unit density are read at the entry point. A `mixture`
+//! with textured components ([`TexturedMixture`]) keeps its components; their coefficients are
+//! read at the entry point, whose texture coordinates ride on the stack
+//! ([`WalkMedium::EntryPoint`]: four components' coefficients would not fit).
 
 use std::sync::Arc;
 
 use super::artist::{AlbedoMode, Coefficients};
+use super::mixture::TexturedMixture;
 use super::{HeterogeneousMedium, HomogeneousMedium, ScaledField};
 use crate::math::Vec2;
 use crate::phase::PhaseFunction;
@@ -113,6 +117,8 @@ pub enum WalkLook {
     Entry(EntryInterior),
     /// A density field with textured parameters read at the entry point.
     Field(FieldInterior),
+    /// A mixture with textured components read at the entry point.
+    Mixture(TexturedMixture),
 }
 
 impl WalkLook {
@@ -123,6 +129,7 @@ impl WalkLook {
         match self {
             WalkLook::Medium(i) => WalkMedium::Scene(*i),
             WalkLook::Field(f) => f.at(uv, width_uv, look),
+            WalkLook::Mixture(_) => WalkMedium::EntryPoint { uv, width_uv, look },
             WalkLook::Entry(e) => match e.at(uv, width_uv) {
                 WalkMedium::Homogeneous { coefficients, .. } => {
                     WalkMedium::Homogeneous { coefficients, look }
@@ -141,6 +148,10 @@ pub enum WalkInterior {
     /// `projection = "entry"` on a `voxel` or `fbm` interior: coefficients read at the entry
     /// point, the density field kept.
     Field(FieldInterior),
+    /// A `mixture` with textured components, or a `voxel`/`fbm` interior with a textured
+    /// base medium (built as a mixture): the components' coefficients read at the entry
+    /// point.
+    Mixture(TexturedMixture),
     /// `type = "blend"`: look `a` with probability mask(uv) at the entry point, else `b`.
     Blend {
         /// The probability of `a`, in [0, 1].
@@ -167,6 +178,11 @@ impl WalkInterior {
         match self {
             WalkInterior::Entry(e) => e.at(uv, width_uv),
             WalkInterior::Field(f) => f.at(uv, width_uv, 0),
+            WalkInterior::Mixture(_) => WalkMedium::EntryPoint {
+                uv,
+                width_uv,
+                look: 0,
+            },
             WalkInterior::Blend { mask, a, b } => {
                 if u < mask.eval(uv, width_uv) {
                     a.at(uv, width_uv, 0)
@@ -183,10 +199,10 @@ impl WalkInterior {
     pub fn phase(&self, look: u8) -> Option<PhaseFunction> {
         let entry = match self {
             WalkInterior::Entry(e) => e,
-            WalkInterior::Field(_) => return None,
+            WalkInterior::Field(_) | WalkInterior::Mixture(_) => return None,
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Entry(e) => e,
-                WalkLook::Medium(_) | WalkLook::Field(_) => return None,
+                WalkLook::Medium(_) | WalkLook::Field(_) | WalkLook::Mixture(_) => return None,
             },
         };
         Some(entry.phase)
@@ -200,9 +216,22 @@ impl WalkInterior {
             WalkInterior::Field(f) => Some(&f.medium),
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Field(f) => Some(&f.medium),
-                WalkLook::Medium(_) | WalkLook::Entry(_) => None,
+                WalkLook::Medium(_) | WalkLook::Entry(_) | WalkLook::Mixture(_) => None,
             },
-            WalkInterior::Entry(_) => None,
+            WalkInterior::Entry(_) | WalkInterior::Mixture(_) => None,
+        }
+    }
+
+    /// The textured mixture of look `look` (0: the interior itself or `a`, 1: `b`).
+    #[must_use]
+    pub fn mixture(&self, look: u8) -> Option<&TexturedMixture> {
+        match self {
+            WalkInterior::Mixture(m) => Some(m),
+            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
+                WalkLook::Mixture(m) => Some(m),
+                WalkLook::Medium(_) | WalkLook::Entry(_) | WalkLook::Field(_) => None,
+            },
+            WalkInterior::Entry(_) | WalkInterior::Field(_) => None,
         }
     }
 
@@ -228,6 +257,10 @@ impl WalkInterior {
                 sigma_t,
                 sigma_s,
             })),
+            // Texture reads at every use: the price of not storing the coefficients.
+            WalkMedium::EntryPoint { uv, width_uv, look } => Some(super::Medium::ScaledMixture(
+                self.mixture(look)?.at(uv, width_uv),
+            )),
         }
     }
 }
@@ -256,6 +289,16 @@ pub enum WalkMedium {
         sigma_t: Rgb,
         /// Scattering per unit density (1/length).
         sigma_s: Rgb,
+        /// Which look.
+        look: u8,
+    },
+    /// A textured mixture's entry point: its components' coefficients are read there again
+    /// whenever the walk's medium is needed; `look` as for `Homogeneous`.
+    EntryPoint {
+        /// Texture coordinates of the entry point.
+        uv: Vec2,
+        /// Footprint there (texture units).
+        width_uv: f32,
         /// Which look.
         look: u8,
     },

@@ -105,10 +105,12 @@ pub struct VoxelDesc {
     pub phase: Option<PhaseDesc>,
     /// "exit" or "interior".
     pub nee: Option<String>,
-    /// Albedo of a homogeneous medium added to the density field (combined interior).
-    pub base_albedo: Option<ColorValue>,
-    /// Attenuation distance of that homogeneous medium.
-    pub base_attenuation: Option<ColorValue>,
+    /// Albedo of a homogeneous medium added to the density field (combined interior); may be
+    /// a texture (read at the entry point).
+    pub base_albedo: Option<ColorInput>,
+    /// Attenuation distance of that homogeneous medium; may be a texture (read at the entry
+    /// point).
+    pub base_attenuation: Option<ColorInput>,
     /// Estimator choices.
     pub tracking: Option<TrackingDesc>,
     /// Name of a grid giving the artist albedo per voxel: a Vec3 grid, or a scalar grid
@@ -184,10 +186,12 @@ pub struct FbmDesc {
     pub phase: Option<PhaseDesc>,
     /// "exit" or "interior".
     pub nee: Option<String>,
-    /// Albedo of a homogeneous medium added to the density field (combined interior).
-    pub base_albedo: Option<ColorValue>,
-    /// Attenuation distance of that homogeneous medium.
-    pub base_attenuation: Option<ColorValue>,
+    /// Albedo of a homogeneous medium added to the density field (combined interior); may be
+    /// a texture (read at the entry point).
+    pub base_albedo: Option<ColorInput>,
+    /// Attenuation distance of that homogeneous medium; may be a texture (read at the entry
+    /// point).
+    pub base_attenuation: Option<ColorInput>,
     /// Estimator choices.
     pub tracking: Option<TrackingDesc>,
 }

@@ -4,7 +4,7 @@
 use glam::DAffine3;
 
 use super::field_params::FieldParams;
-use super::heterogeneous::{DensityKeys, DensityLook};
+use super::heterogeneous::{field_textures, BaseParams, DensityKeys, DensityLook};
 use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
 use crate::math::Aabb;
@@ -31,13 +31,14 @@ pub(super) fn build(
         d.nee.as_deref(),
         d.projection.as_deref(),
     )?;
+    let base = BaseParams::read(at, d.base_albedo.as_ref(), d.base_attenuation.as_ref())?;
     let (density, attenuation) = params.look_extinction();
     let keys = DensityKeys {
         albedo: params.look_albedo(d.albedo.as_ref()),
         albedo_mode: d.albedo_mode.as_deref(),
         phase: d.phase.as_ref(),
-        base_albedo: d.base_albedo,
-        base_attenuation: d.base_attenuation,
+        base_albedo: base.albedo(),
+        base_attenuation: base.attenuation(),
         tracking: d.tracking.as_ref(),
     };
     let look = DensityLook::read(at, &keys, density, attenuation)?;
@@ -50,6 +51,13 @@ pub(super) fn build(
     })?;
     let (field, pyramid) = fbm_field(at, d, xf, rest_bounds)?;
     let mode = look.mode;
+    if base.is_textured() {
+        // The field and the base medium as a two-component mixture, the base (and the
+        // field's own textured parameters) read per walk.
+        let textures = vec![field_textures(&params, &look), base.textures(&look)];
+        let medium = look.into_mixture(at, field, pyramid, None, None, d.tracking.as_ref())?;
+        return super::mixture::with_base_textures(at, medium, textures, params.nee);
+    }
     Ok(params.finish(look.into_medium(at, field, pyramid)?, mode))
 }
 

@@ -6,16 +6,132 @@ use super::scattering::Scattering;
 use super::tracking::build_tracking;
 use super::Site;
 use crate::majorant::MajorantPyramid;
+use crate::math::Vec2;
 use crate::medium::{
-    AlbedoGrid, AlbedoMode, Coefficients, ComponentDensity, DensityField, EmissionGrid,
-    HeterogeneousMedium, Medium, MixtureComponent, MixtureMedium,
+    AlbedoGrid, AlbedoMode, Coefficients, ComponentDensity, ComponentTextures, DensityField,
+    EmissionGrid, EntryInterior, FieldTextures, HeterogeneousMedium, Medium, MixtureComponent,
+    MixtureMedium,
 };
 use crate::phase::PhaseFunction;
-use crate::scene::desc::{ColorValue, PhaseDesc, TrackingDesc};
+use crate::scene::desc::{ColorInput, ColorValue, PhaseDesc, TrackingDesc};
+use crate::scene::validate::color;
 use crate::scene::SceneError;
 use crate::spectrum::Rgb;
+use crate::texture::{ColorParam, ScalarParam};
 use crate::tracking::DensityCoefficients;
 use crate::tracking::TrackingConfig;
+
+/// `base_albedo` and `base_attenuation` of a `voxel` or `fbm` interior: constants, or
+/// textures read at the entry point (docs/textures.md). With a texture the combined interior
+/// is built as a two-component mixture (the field, and the base medium with per-walk
+/// coefficients).
+pub(super) struct BaseParams {
+    albedo: Option<ColorValue>,
+    attenuation: Option<ColorValue>,
+    /// The textures, when either key is one (the other then a constant parameter).
+    textures: Option<(ColorParam, ColorParam)>,
+}
+
+impl BaseParams {
+    /// Reads the keys: textured base albedos must lie in [0, 1], attenuations be > 0
+    /// (errors name the object, key and pixel).
+    pub fn read(
+        at: &Site,
+        albedo: Option<&ColorInput>,
+        attenuation: Option<&ColorInput>,
+    ) -> Result<BaseParams, SceneError> {
+        let constant = |v: Option<&ColorInput>| match v {
+            Some(ColorInput::Value(c)) => Some(*c),
+            _ => None,
+        };
+        let textured = |v: Option<&ColorInput>| matches!(v, Some(ColorInput::Texture(_)));
+        if !textured(albedo) && !textured(attenuation) {
+            return Ok(BaseParams {
+                albedo: constant(albedo),
+                attenuation: constant(attenuation),
+                textures: None,
+            });
+        }
+        let p = at.params();
+        let a = match albedo {
+            Some(ColorInput::Texture(_)) => {
+                p.colour("base_albedo", albedo, Rgb::splat(0.8), 0.0, 1.0)?
+            }
+            _ => ColorParam::Constant(at.unit_colour(
+                "base_albedo",
+                constant(albedo),
+                Rgb::splat(0.8),
+            )?),
+        };
+        let d = match attenuation {
+            Some(ColorInput::Texture(_)) => p.colour(
+                "base_attenuation",
+                attenuation,
+                Rgb::ONE,
+                1e-9,
+                f32::INFINITY,
+            )?,
+            // Checked by `DensityLook::read`.
+            _ => ColorParam::Constant(color(constant(attenuation), Rgb::ONE)),
+        };
+        let mean = |c: &ColorParam| Some(ColorValue::Rgb(c.eval(Vec2::ZERO, f32::INFINITY).0));
+        Ok(BaseParams {
+            albedo: mean(&a),
+            attenuation: mean(&d),
+            textures: Some((a, d)),
+        })
+    }
+
+    /// True when a key is a texture.
+    pub fn is_textured(&self) -> bool {
+        self.textures.is_some()
+    }
+
+    /// The base albedo for [`DensityKeys`]: the constant as written, or the texture's mean.
+    pub fn albedo(&self) -> Option<ColorValue> {
+        self.albedo
+    }
+
+    /// The base attenuation for [`DensityKeys`]: the constant as written, or the texture's
+    /// mean.
+    pub fn attenuation(&self) -> Option<ColorValue> {
+        self.attenuation
+    }
+
+    /// How a walk reads the base medium: its textures, inverted with `look`'s albedo mode
+    /// and phase function (density 1), or fixed.
+    pub fn textures(self, look: &DensityLook) -> ComponentTextures {
+        match self.textures {
+            Some((albedo, attenuation)) => ComponentTextures::Entry(EntryInterior {
+                albedo,
+                attenuation,
+                density: ScalarParam::Constant(1.0),
+                mode: look.mode,
+                phase: look.phase,
+                absorbing: false,
+            }),
+            None => ComponentTextures::Fixed,
+        }
+    }
+}
+
+/// How a walk reads a field's own coefficients per unit density: the textured `albedo`,
+/// `attenuation` and `density` of `params`, or fixed when none is a texture.
+pub(super) fn field_textures(
+    params: &super::field_params::FieldParams,
+    look: &DensityLook,
+) -> ComponentTextures {
+    if !params.is_textured() {
+        return ComponentTextures::Fixed;
+    }
+    ComponentTextures::Field(FieldTextures {
+        albedo: params.albedo.clone(),
+        attenuation: params.attenuation.clone(),
+        density: params.density.clone(),
+        mode: look.mode,
+        mean_cosine: look.mean_cosine(),
+    })
+}
 
 /// The keys of a density-field interior other than its field.
 pub(super) struct DensityKeys<'a> {

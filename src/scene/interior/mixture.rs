@@ -1,10 +1,17 @@
 //! `mixture` interiors: two to four `homogeneous`, `voxel` or `fbm` media in one object
 //! (clear water plus foam), each with its own albedo, attenuation, density source and phase
 //! function; `tracking` and `nee` belong to the mixture (docs/references.md §15.1).
+//! Components with textured parameters are read at each walk's entry point
+//! (docs/textures.md, "Mixtures read at the entry point").
+
+use std::sync::Arc;
 
 use super::tracking::build_tracking;
 use super::{build_medium, BuiltInterior, Placement, Site};
-use crate::medium::{Coefficients, ComponentDensity, Medium, MixtureComponent, MixtureMedium};
+use crate::medium::{
+    Coefficients, ComponentDensity, ComponentTextures, FieldTextures, Medium, MixtureComponent,
+    MixtureMedium, NeeStrategy, ScaledMixture, TexturedMixture, WalkInterior,
+};
 use crate::phase::PhaseFunction;
 use crate::scene::desc::{InteriorDesc, MixtureDesc, TrackingDesc};
 use crate::scene::SceneError;
@@ -63,6 +70,7 @@ pub(super) fn build(
     let (_, _, nee) = super::extinction_and_nee(at, None, None, d.nee.as_deref())?;
     let cfg = check_mixture_tracking(at, d.tracking.as_ref())?;
     let mut components = Vec::with_capacity(n);
+    let mut textures = Vec::with_capacity(n);
     for (i, entry) in d.media.iter().enumerate() {
         let line = at.ctx.line_of(entry.span().start);
         let inner = entry.get_ref();
@@ -107,9 +115,26 @@ pub(super) fn build(
             placement,
             media,
         )?;
-        if built.walk.is_some() {
-            return Err(bad("textured parameters are read per walk and cannot be a mixture component; use constant values".into()));
-        }
+        // A textured component keeps its textures; its stand-in (the textures' means) is
+        // its constant part.
+        let texture = match built.walk {
+            None => ComponentTextures::Fixed,
+            Some(WalkInterior::Entry(e)) => ComponentTextures::Entry(e),
+            Some(WalkInterior::Field(f)) => ComponentTextures::Field(FieldTextures {
+                albedo: f.albedo,
+                attenuation: f.attenuation,
+                density: f.density,
+                mode: f.mode,
+                mean_cosine: f.medium.phase.mean_cosine(),
+            }),
+            Some(WalkInterior::Mixture(_) | WalkInterior::Blend { .. }) => {
+                return Err(bad(
+                    "a blend, or a combined interior with a textured base, cannot be a mixture component"
+                        .into(),
+                ))
+            }
+        };
+        let before = components.len();
         match built.medium {
             Medium::Homogeneous(h) => components.push(MixtureComponent {
                 density: ComponentDensity::Constant(h.coefficients),
@@ -136,8 +161,20 @@ pub(super) fn build(
                     emission: None,
                 });
             }
-            Medium::Scaled(_) => {
-                return Err(bad("textured parameters are read per walk and cannot be a mixture component; use constant values".into()));
+            Medium::Scaled(f) => {
+                // The walk's copy of the field was dropped with `built.walk`: the field is
+                // usually this stand-in's alone.
+                let mut h = Arc::try_unwrap(f.medium).unwrap_or_else(|shared| (*shared).clone());
+                h.coefficients.sigma_t = f.sigma_t;
+                h.coefficients.sigma_s = f.sigma_s;
+                h.tracking = component_tracking(cfg);
+                let phase = h.phase;
+                components.push(MixtureComponent {
+                    density: ComponentDensity::Field(Box::new(h)),
+                    phase,
+                    albedo: None,
+                    emission: None,
+                });
             }
             Medium::Mixture(m) => {
                 for mut c in m.components {
@@ -149,9 +186,19 @@ pub(super) fn build(
             }
             Medium::Projected(_) => {
                 return Err(bad(
-                    "a surface-projected interior (projection = \"surface\") cannot be a mixture component; use constant values".into(),
+                    "a surface-projected interior (projection = \"surface\") cannot be a mixture component; use projection = \"entry\" or constant values".into(),
                 ))
             }
+            Medium::ScaledMixture(_) => {
+                return Err(bad(
+                    "a combined interior with a textured base cannot be a mixture component; write the base as another entry of `media`".into(),
+                ))
+            }
+        }
+        if components.len() == before + 1 {
+            textures.push(texture);
+        } else {
+            textures.extend((before..components.len()).map(|_| ComponentTextures::Fixed));
         }
     }
     if components.len() > MAX_COMPONENTS {
@@ -160,9 +207,57 @@ pub(super) fn build(
             components.len()
         )));
     }
-    Ok(BuiltInterior {
-        medium: Medium::Mixture(Box::new(MixtureMedium { components })),
+    Ok(with_textures(MixtureMedium { components }, textures, nee))
+}
+
+/// The interior of a `voxel` or `fbm` interior with a textured base medium: `medium` is the
+/// field and its base as a mixture ([`super::heterogeneous::DensityLook::into_mixture`]),
+/// `textures` how each of the two reads its coefficients per walk.
+pub(super) fn with_base_textures(
+    at: &Site,
+    medium: Medium,
+    textures: Vec<ComponentTextures>,
+    nee: NeeStrategy,
+) -> Result<BuiltInterior, SceneError> {
+    match medium {
+        Medium::Mixture(m) if m.components.len() == textures.len() => {
+            Ok(with_textures(*m, textures, nee))
+        }
+        _ => Err(at.invalid(format!(
+            "{}: the textured base medium has no extinction (base_attenuation is infinite)",
+            at.owner
+        ))),
+    }
+}
+
+/// The interior of mixture `medium` whose components get their coefficients per walk as
+/// `textures` says (one entry per component): fixed when none is textured, else resolved at
+/// each entry point, its stand-in the mixture at the textures' means.
+pub(super) fn with_textures(
+    medium: MixtureMedium,
+    textures: Vec<ComponentTextures>,
+    nee: NeeStrategy,
+) -> BuiltInterior {
+    if textures
+        .iter()
+        .all(|t| matches!(t, ComponentTextures::Fixed))
+    {
+        return BuiltInterior {
+            medium: Medium::Mixture(Box::new(medium)),
+            nee,
+            walk: None,
+        };
+    }
+    let shared = Arc::new(medium);
+    BuiltInterior {
+        medium: Medium::ScaledMixture(ScaledMixture {
+            medium: Arc::clone(&shared),
+            coefficients: shared.own_coefficients(),
+        }),
         nee,
-        walk: None,
-    })
+        walk: Some(WalkInterior::Mixture(TexturedMixture {
+            medium: shared,
+            textures,
+        })),
+    }
 }

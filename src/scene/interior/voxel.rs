@@ -5,7 +5,7 @@ use glam::DAffine3;
 
 use super::field_params::FieldParams;
 use super::grids::{self, DensityGridRef};
-use super::heterogeneous::{DensityKeys, DensityLook};
+use super::heterogeneous::{field_textures, BaseParams, DensityKeys, DensityLook};
 use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
 use crate::medium::DensityField;
@@ -26,23 +26,24 @@ pub(super) fn build(
         d.nee.as_deref(),
         d.projection.as_deref(),
     )?;
+    let base = BaseParams::read(at, d.base_albedo.as_ref(), d.base_attenuation.as_ref())?;
     let (density, attenuation) = params.look_extinction();
     let keys = DensityKeys {
         albedo: params.look_albedo(d.albedo.as_ref()),
         albedo_mode: d.albedo_mode.as_deref(),
         phase: d.phase.as_ref(),
-        base_albedo: d.base_albedo,
-        base_attenuation: d.base_attenuation,
+        base_albedo: base.albedo(),
+        base_attenuation: base.attenuation(),
         tracking: d.tracking.as_ref(),
     };
     let look = DensityLook::read(at, &keys, density, attenuation)?;
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let (field, pyramid, density_ref) = voxel_field(at, d, xf)?;
     let mode = look.mode;
-    if !grids::wanted(d) {
+    if !grids::wanted(d) && !base.is_textured() {
         return Ok(params.finish(look.into_medium(at, field, pyramid)?, mode));
     }
-    if params.is_textured() {
+    if params.is_textured() && grids::wanted(d) {
         return Err(at.invalid(format!(
             "{}: textured albedo/attenuation/density cannot be combined with albedo or emission grids (use constant values, or the albedo grid alone)",
             at.owner
@@ -50,6 +51,14 @@ pub(super) fn build(
     }
     let albedo = grids::albedo_grid(at, d, &density_ref, xf, look.mode, look.mean_cosine())?;
     let emission = grids::emission_grid(at, d, &density_ref, xf)?;
+    if base.is_textured() {
+        // The field and the base medium as a two-component mixture, the base (and the
+        // field's own textured parameters) read per walk.
+        let textures = vec![field_textures(&params, &look), base.textures(&look)];
+        let medium =
+            look.into_mixture(at, field, pyramid, albedo, emission, d.tracking.as_ref())?;
+        return super::mixture::with_base_textures(at, medium, textures, params.nee);
+    }
     let medium = look.into_mixture(at, field, pyramid, albedo, emission, d.tracking.as_ref())?;
     Ok(params.finish(medium, mode))
 }
