@@ -382,4 +382,19 @@ mod tests {
             s.remove(5);
         }
     }
+
+    #[test]
+    fn textured_mixture_entry_points_ride_on_the_stack() {
+        let mut s = InteriorStack::new();
+        for look in [0, 1] {
+            let e = WalkMedium::EntryPoint {
+                uv: Vec2::new(0.25, 0.75),
+                width_uv: 0.01,
+                look,
+            };
+            s.push_walk(4, e);
+            assert_eq!(s.walk_medium(4), Some(e));
+            s.remove(4);
+        }
+    }
 }

@@ -671,4 +671,53 @@ mod tests {
         let open: Vec<RateSegment> = MixSegments::new(&m, &own, &ray, 0.0, f32::INFINITY).collect();
         assert_eq!(open.len(), 1);
     }
+
+    #[test]
+    fn a_walks_coefficients_set_the_majorant_and_the_albedo() {
+        let phase = PhaseFunction::HenyeyGreenstein { g: 0.0 };
+        let c = Coefficients {
+            sigma_a: Rgb::splat(0.5),
+            sigma_s: Rgb::splat(0.5),
+        };
+        let m = Arc::new(MixtureMedium {
+            components: vec![
+                MixtureComponent {
+                    density: ComponentDensity::Constant(c),
+                    phase,
+                    albedo: None,
+                    emission: None,
+                },
+                MixtureComponent {
+                    density: ComponentDensity::Constant(c),
+                    phase,
+                    albedo: None,
+                    emission: None,
+                },
+            ],
+        });
+        let mut k = m.own_coefficients();
+        k[1] = ComponentCoefficients {
+            sigma_t: Rgb::new(4.0, 2.0, 1.0),
+            sigma_s: Rgb::new(1.0, 1.0, 1.0),
+        };
+        let ray = Ray::new(Vec3::ZERO, Vec3::X);
+        let segs: Vec<RateSegment> = MixSegments::new(&m, &k, &ray, 0.0, 1.0).collect();
+        assert_eq!(segs.len(), 1);
+        assert!((segs[0].majorant - 5.0).abs() < 1e-6, "{segs:?}");
+        let walk = ScaledMixture {
+            medium: Arc::clone(&m),
+            coefficients: k,
+        };
+        assert_eq!(walk.max_sigma_t(), Rgb::new(5.0, 3.0, 2.0));
+        let tr = walk.transmittance(&ray, 1.0, &mut || 0.5, &mut TrackingStats::default());
+        for (t, s) in tr.0.iter().zip([5.0f32, 3.0, 2.0]) {
+            assert!((t - (-s).exp()).abs() < 1e-6, "{tr:?}");
+        }
+        // A fixed-only textured mixture resolves to the components' own coefficients.
+        let fixed = TexturedMixture {
+            medium: Arc::clone(&m),
+            textures: vec![ComponentTextures::Fixed, ComponentTextures::Fixed],
+        };
+        assert_eq!(fixed.at(Vec2::ZERO, 1.0).coefficients, m.own_coefficients());
+    }
 }
