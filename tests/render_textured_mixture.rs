@@ -8,7 +8,7 @@
 //!   of two values, render in each half of the sphere like the constant of that half, with no
 //!   majorant violation (each walk's majorants scale with its coefficients), and the halves
 //!   differ;
-//! - a textured mixture can be a blend's look;
+//! - a textured mixture can be a blend's look, and a textured base sits next to an albedo grid;
 //! - bad input: textures without texture coordinates, NaN and out-of-range texels, estimators
 //!   a textured base does not have, each naming the object and key.
 
@@ -180,6 +180,31 @@ fn one_value_base_textures_render_like_the_constant_base() {
     let t = render_text(&ball(&textured, 128, 5), dir.path());
     let c = render_text(&ball(&constant, 128, 6), dir.path());
     assert_images_agree(&t, &c, "fbm base");
+}
+
+/// A textured base next to an albedo grid (the grid stays on the field component): a
+/// one-value base texture renders like the constant base.
+#[test]
+fn a_textured_base_with_an_albedo_grid_renders_like_the_constant_base() {
+    let dir = TempDir::new("render-texmix-base-grid");
+    write_voxels(&dir);
+    exr_rgb(&dir.join("base.exr"), 2, 2, |_, _| [0.7, 0.5, 0.9]);
+    let voxel = |base: &str| {
+        format!(
+            r#"{{ type = "voxel", file = "density.vdb", albedo_grid = "density", albedo_ramp = [[0.3, [0.9, 0.5, 0.2]], [1.0, [0.3, 0.8, 0.95]]], attenuation = 0.5, base_albedo = {base}, base_attenuation = 1.5 }}"#
+        )
+    };
+    let s = scene_from_text(
+        &ball(&voxel(r#"{ texture = "base.exr" }"#), 256, 41),
+        dir.join("scene.toml"),
+    );
+    assert!(matches!(
+        s.objects[0].walk.as_deref(),
+        Some(WalkInterior::Mixture(_))
+    ));
+    let t = render_finite(&s, 0).0;
+    let c = render_text(&ball(&voxel("[0.7, 0.5, 0.9]"), 256, 42), dir.path());
+    assert_images_agree(&t, &c, "voxel base with an albedo grid");
 }
 
 /// Renders `textured` and the two constant interiors of its halves, and checks each half of
