@@ -157,10 +157,14 @@ impl SceneGeometry {
                 Shape::LevelSet(_) => analytic.push(Analytic::LevelSet { shape: si as u32 }),
             }
         }
-        if prims.len() > (u32::MAX / 2) as usize {
+        if prims.len() > super::wide_bvh::MAX_PRIMITIVES {
             return Err(GeometryError::InvalidShape {
                 shape: 0,
-                message: "too many primitives".to_string(),
+                message: format!(
+                    "too many triangles: {} (at most {} in one scene)",
+                    prims.len(),
+                    super::wide_bvh::MAX_PRIMITIVES
+                ),
             });
         }
         // Padding covers the rounding of the slab test's box planes with a wide margin.
@@ -456,6 +460,164 @@ mod tests {
                 h.prim,
             ]
         })
+    }
+
+    /// Closest hit by the reference traversal ([`WideBvh::traverse_reference`]) or by brute
+    /// force over every triangle: (t, triangle position, barycentrics) as bits.
+    fn reference_hit(
+        geometry: &SceneGeometry,
+        ray: &Ray,
+        t_max: f32,
+        brute: bool,
+    ) -> Option<[u32; 5]> {
+        let sr = ShearedRay::new(ray);
+        let mut best = None;
+        let mut test = |slot: u32, t: f32| match sr.intersect(&geometry.tris[slot as usize], t) {
+            Some(h) => {
+                best = Some((slot, h));
+                h.t
+            }
+            None => t,
+        };
+        if brute {
+            let mut t = t_max;
+            for slot in 0..geometry.tris.len() as u32 {
+                t = test(slot, t);
+            }
+        } else {
+            geometry.bvh.traverse_reference(ray, t_max, test);
+        }
+        best.map(|(slot, h)| {
+            [
+                h.t.to_bits(),
+                slot,
+                h.b0.to_bits(),
+                h.b1.to_bits(),
+                h.b2.to_bits(),
+            ]
+        })
+    }
+
+    /// Closest hit by the traversal: the same fields as [`reference_hit`].
+    fn traversal_hit(geometry: &SceneGeometry, ray: &Ray, t_max: f32) -> Option<[u32; 5]> {
+        let sr = ShearedRay::new(ray);
+        let mut best = None;
+        geometry.bvh.traverse(ray, t_max, |slot, t| {
+            match sr.intersect(&geometry.tris[slot as usize], t) {
+                Some(h) => {
+                    best = Some((slot, h));
+                    h.t
+                }
+                None => t,
+            }
+        });
+        best.map(|(slot, h)| {
+            [
+                h.t.to_bits(),
+                slot,
+                h.b0.to_bits(),
+                h.b1.to_bits(),
+                h.b2.to_bits(),
+            ]
+        })
+    }
+
+    /// The skin icosphere's rays: from outside towards the sphere, from inside to the
+    /// boundary, short free flights inside, and rays grazing the surface from just inside.
+    fn icosphere_ray(rng: &mut Rng, i: usize) -> (Ray, f32) {
+        let centre = Vec3::new(10.0, -2.0, 5.0);
+        match i % 4 {
+            0 => {
+                let o = centre + sample_uniform_sphere(rng.next_2d()) * 12.0;
+                let target = centre
+                    + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE)
+                        * 3.3;
+                (Ray::new(o, (target - o).normalize()), f32::INFINITY)
+            }
+            1 => {
+                let o = centre + sample_uniform_sphere(rng.next_2d()) * rng.next_f32().cbrt() * 2.9;
+                (
+                    Ray::new(o, sample_uniform_sphere(rng.next_2d())),
+                    f32::INFINITY,
+                )
+            }
+            2 => {
+                let o = centre + sample_uniform_sphere(rng.next_2d()) * rng.next_f32().cbrt() * 2.9;
+                let t = -(1.0 - rng.next_f32()).ln() / 8.0;
+                (Ray::new(o, sample_uniform_sphere(rng.next_2d())), t)
+            }
+            _ => {
+                let o =
+                    centre + sample_uniform_sphere(rng.next_2d()) * (2.99 + 0.01 * rng.next_f32());
+                (
+                    Ray::new(o, sample_uniform_sphere(rng.next_2d())),
+                    0.5 * rng.next_f32(),
+                )
+            }
+        }
+    }
+
+    fn skin_icosphere() -> SceneGeometry {
+        let mut mesh = icosphere(5);
+        for p in &mut mesh.positions {
+            *p = *p * 3.0 + Vec3::new(10.0, -2.0, 5.0);
+        }
+        SceneGeometry::build(vec![Shape::Mesh(mesh)]).expect("geometry")
+    }
+
+    #[test]
+    fn traversal_hits_are_those_of_the_reference_traversal_bit_for_bit() {
+        let geometry = skin_icosphere();
+        for avx2 in [true, false] {
+            let mut g = geometry.clone();
+            if !avx2 {
+                g.bvh = g.bvh.without_avx2();
+            }
+            let mut rng = Rng::new(33, 2);
+            let (mut hits, mut occluded) = (0, 0);
+            for i in 0..200_000 {
+                let (ray, t_max) = icosphere_ray(&mut rng, i);
+                let expected = reference_hit(&g, &ray, t_max, false);
+                assert_eq!(
+                    traversal_hit(&g, &ray, t_max),
+                    expected,
+                    "ray {i} (avx2 {avx2})"
+                );
+                // Shadow rays: any hit, stopping at the first.
+                let mut calls_after_hit = 0;
+                let mut found = false;
+                let sr = ShearedRay::new(&ray);
+                g.bvh.traverse(&ray, t_max, |slot, t| {
+                    calls_after_hit += usize::from(found);
+                    if sr.intersect(&g.tris[slot as usize], t).is_some() {
+                        found = true;
+                        0.0
+                    } else {
+                        t
+                    }
+                });
+                assert_eq!(found, expected.is_some(), "ray {i}: shadow ray");
+                assert_eq!(calls_after_hit, 0, "ray {i}: the shadow ray went on");
+                hits += usize::from(expected.is_some());
+                occluded += usize::from(g.occluded(&ray, t_max));
+            }
+            assert_eq!(hits, occluded);
+            assert!((100_000..190_000).contains(&hits), "{hits} hits");
+        }
+    }
+
+    #[test]
+    fn traversal_hits_are_those_of_brute_force_bit_for_bit() {
+        let geometry = skin_icosphere();
+        let mut rng = Rng::new(35, 2);
+        let mut hits = 0;
+        for i in 0..20_000 {
+            let (ray, t_max) = icosphere_ray(&mut rng, i);
+            let expected = reference_hit(&geometry, &ray, t_max, true);
+            assert_eq!(traversal_hit(&geometry, &ray, t_max), expected, "ray {i}");
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 10_000, "{hits} hits");
     }
 
     #[test]

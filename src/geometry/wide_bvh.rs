@@ -15,6 +15,8 @@
 //! were built, and the interval is clipped to `[0, t_max]`, so a primitive the ray hits is never
 //! culled.
 
+use std::mem::MaybeUninit;
+
 use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb as OAabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -26,9 +28,6 @@ use crate::math::{Ray, Vec3};
 
 /// Leaves hold at most this many primitives.
 pub const MAX_LEAF_PRIMITIVES: u32 = 2;
-
-/// Entries of the traversal stack kept on the machine stack; deeper trees spill to the heap.
-const STACK_INLINE: usize = 48;
 
 /// Children per node.
 const WIDTH: usize = 8;
@@ -42,10 +41,9 @@ struct Node8 {
     /// (empty slots hold −∞). One array, so that a ray picks its near and far plane per axis
     /// by index instead of by a branch.
     planes: [[Vec4; 2]; 6],
-    /// Child node index, or the first primitive of a leaf.
-    child: [u32; WIDTH],
-    /// Primitives of a leaf child (0 for an inner child or an empty slot).
-    count: [u32; WIDTH],
+    /// What each child is ([`leaf_ref`] for a leaf, else the child node's index; 0 for an
+    /// empty slot, which the ray never enters).
+    refs: [u32; WIDTH],
 }
 
 impl Node8 {
@@ -59,8 +57,7 @@ impl Node8 {
                 [Vec4::splat(f32::NEG_INFINITY); 2],
                 [Vec4::splat(f32::NEG_INFINITY); 2],
             ],
-            child: [0; WIDTH],
-            count: [0; WIDTH],
+            refs: [0; WIDTH],
         }
     }
 }
@@ -147,37 +144,97 @@ impl SlabRay {
 /// 1 + 2γ₃: the relative rounding bound of a slab distance.
 const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
-/// The slab test of one node: the entry distances of its eight children and the mask of those
-/// the ray enters within `[0, t_max]` (bit `i` for child `i`).
+/// The slab test of one node, and the push of the children it enters onto the traversal
+/// stack, farthest first (so that the nearest is popped next).
 trait NodeTest {
-    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32);
+    /// Tests `node`'s children against `[0, t_max]` and writes the entered ones to `keys` and
+    /// `refs` (eight slots each; entries past the returned count are unspecified), farthest
+    /// first: `keys` are [`child_key`]s, `refs` the children's [`Node8::refs`]. Returns how
+    /// many children were entered.
+    fn push(
+        &self,
+        node: &Node8,
+        t_max: f32,
+        keys: &mut [MaybeUninit<u32>; WIDTH],
+        refs: &mut [MaybeUninit<u32>; WIDTH],
+    ) -> usize;
+}
+
+/// The stack key of a child the ray enters at distance `near` (≥ 0 or −0): the distance's bits
+/// with the low three replaced by the child's slot, so that keys are distinct and sort like the
+/// distances up to 8 ulps. [`key_distance`] recovers a lower bound on the distance.
+#[inline(always)]
+fn child_key(near: f32, slot: usize) -> u32 {
+    (near.to_bits() & KEY_DISTANCE_BITS) | slot as u32
+}
+
+/// The bits of a [`child_key`] that come from the distance (the sign is dropped: `near` is
+/// never below zero, but may be `-0`).
+const KEY_DISTANCE_BITS: u32 = 0x7FFF_FFF8;
+
+/// A lower bound (within 8 ulps) on the entry distance of a stack key: culling with it never
+/// drops a child the ray enters before `t_max`.
+#[inline(always)]
+fn key_distance(key: u32) -> f32 {
+    f32::from_bits(key & KEY_DISTANCE_BITS)
 }
 
 impl NodeTest for SlabRay {
     #[inline(always)]
-    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+    fn push(
+        &self,
+        node: &Node8,
+        t_max: f32,
+        keys: &mut [MaybeUninit<u32>; WIDTH],
+        refs: &mut [MaybeUninit<u32>; WIDTH],
+    ) -> usize {
         let (a, ma) = self.test_half(node, 0, t_max);
         let (b, mb) = self.test_half(node, 1, t_max);
         let mut near = [0.0; WIDTH];
         near[..4].copy_from_slice(&a.to_array());
         near[4..].copy_from_slice(&b.to_array());
-        (near, ma | (mb << 4))
+        let mut mask = ma | (mb << 4);
+        // Insertion sort of the entered children, farthest first (keys are distinct).
+        let mut sorted = [0u32; WIDTH];
+        let mut n = 0;
+        while mask != 0 {
+            let slot = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let key = child_key(near[slot], slot);
+            let mut j = n;
+            while j > 0 && sorted[j - 1] < key {
+                sorted[j] = sorted[j - 1];
+                j -= 1;
+            }
+            sorted[j] = key;
+            n += 1;
+        }
+        for (i, &key) in sorted[..n].iter().enumerate() {
+            keys[i] = MaybeUninit::new(key);
+            refs[i] = MaybeUninit::new(node.refs[(key & 7) as usize]);
+        }
+        n
     }
 }
 
-/// The 8-wide AVX2 node test: [`SlabRay`]'s operations on all eight children at once.
+/// The 8-wide AVX2 node test: [`SlabRay`]'s operations on all eight children at once, and a
+/// branch-free push: the eight keys sorted by a sorting network in one register.
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
-        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
-        _CMP_LE_OS,
+        __m256, __m256i, _mm256_and_si256, _mm256_andnot_si256, _mm256_blend_epi32,
+        _mm256_castps_si256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_loadu_si256, _mm256_max_epi32,
+        _mm256_max_ps, _mm256_min_epi32, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps,
+        _mm256_or_si256, _mm256_permute4x64_epi64, _mm256_permutevar8x32_epi32, _mm256_set1_epi32,
+        _mm256_set1_ps, _mm256_setr_epi32, _mm256_setzero_ps, _mm256_shuffle_epi32,
+        _mm256_storeu_si256, _mm256_sub_ps, _CMP_LE_OS,
     };
+    use std::mem::MaybeUninit;
 
-    use super::{Node8, NodeTest, SlabRay, FAR_SCALE, WIDTH};
+    use super::{Node8, NodeTest, SlabRay, FAR_SCALE, KEY_DISTANCE_BITS, WIDTH};
 
     /// The ray of a [`SlabRay`] splatted to 8 lanes. Made only by [`AvxSlab::new`], which
-    /// needs AVX.
+    /// needs AVX2.
     pub(super) struct AvxSlab {
         o: [__m256; 3],
         inv: [__m256; 3],
@@ -199,12 +256,52 @@ mod avx2 {
         }
     }
 
+    /// One layer of the sorting network: each lane compared with lane `partner` (already
+    /// permuted into place), the lanes whose bit is set in `MIN` keeping the smaller key.
+    #[inline(always)]
+    unsafe fn exchange<const MIN: i32>(v: __m256i, partner: __m256i) -> __m256i {
+        // SAFETY: the caller runs with AVX2.
+        unsafe {
+            _mm256_blend_epi32::<MIN>(_mm256_max_epi32(v, partner), _mm256_min_epi32(v, partner))
+        }
+    }
+
+    /// Sorts eight signed keys in descending order: Knuth's 19-comparator, depth-6 network
+    /// (The Art of Computer Programming, vol. 3, §5.3.4), a lane permutation per layer.
+    #[inline(always)]
+    unsafe fn sort_descending(v: __m256i) -> __m256i {
+        // SAFETY: the caller runs with AVX2.
+        unsafe {
+            // (0,2) (1,3) (4,6) (5,7)
+            let v = exchange::<0b1100_1100>(v, _mm256_shuffle_epi32::<0x4E>(v));
+            // (0,4) (1,5) (2,6) (3,7)
+            let v = exchange::<0b1111_0000>(v, _mm256_permute4x64_epi64::<0x4E>(v));
+            // (0,1) (2,3) (4,5) (6,7)
+            let v = exchange::<0b1010_1010>(v, _mm256_shuffle_epi32::<0xB1>(v));
+            // (2,4) (3,5)
+            let p = _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7);
+            let v = exchange::<0b0011_0000>(v, _mm256_permutevar8x32_epi32(v, p));
+            // (1,4) (3,6)
+            let p = _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7);
+            let v = exchange::<0b0101_0000>(v, _mm256_permutevar8x32_epi32(v, p));
+            // (1,2) (3,4) (5,6)
+            let p = _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7);
+            exchange::<0b0101_0100>(v, _mm256_permutevar8x32_epi32(v, p))
+        }
+    }
+
     impl NodeTest for AvxSlab {
         #[inline(always)]
-        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+        fn push(
+            &self,
+            node: &Node8,
+            t_max: f32,
+            keys: &mut [MaybeUninit<u32>; WIDTH],
+            refs: &mut [MaybeUninit<u32>; WIDTH],
+        ) -> usize {
             // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
-            // it); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
-            // writes the 8 floats of `out`.
+            // it); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane and the 8
+            // refs, the stores write the 8 entries of `keys` and of `refs`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
@@ -223,57 +320,89 @@ mod avx2 {
                         ),
                     );
                 }
-                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)) as u32;
-                let mut out = [0.0f32; WIDTH];
-                _mm256_storeu_ps(out.as_mut_ptr(), near);
-                (out, mask)
+                let hit = _mm256_cmp_ps::<_CMP_LE_OS>(near, far);
+                let count = _mm256_movemask_ps(hit).count_ones() as usize;
+                // Keys of the entered children (see `child_key`); −1 for the others, which
+                // sort last.
+                let slots = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+                let key = _mm256_or_si256(
+                    _mm256_and_si256(
+                        _mm256_castps_si256(near),
+                        _mm256_set1_epi32(KEY_DISTANCE_BITS as i32),
+                    ),
+                    slots,
+                );
+                let hit = _mm256_castps_si256(hit);
+                let key = _mm256_or_si256(key, _mm256_andnot_si256(hit, _mm256_set1_epi32(-1)));
+                let key = sort_descending(key);
+                // The permutation uses the low three bits of each key: the slot.
+                let child = _mm256_permutevar8x32_epi32(
+                    _mm256_loadu_si256(node.refs.as_ptr().cast::<__m256i>()),
+                    key,
+                );
+                _mm256_storeu_si256(keys.as_mut_ptr().cast::<__m256i>(), key);
+                _mm256_storeu_si256(refs.as_mut_ptr().cast::<__m256i>(), child);
+                count
+            }
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn the_sorting_network_sorts_every_0_1_input_and_random_keys() {
+            if !super::super::has_avx2() {
+                eprintln!("no AVX2 on this CPU");
+                return;
+            }
+            let mut state = 1u64;
+            for case in 0..(256 + 10_000) {
+                let input: [i32; 8] = if case < 256 {
+                    std::array::from_fn(|i| (case >> i) & 1)
+                } else {
+                    std::array::from_fn(|_| {
+                        state = state
+                            .wrapping_mul(6_364_136_223_846_793_005)
+                            .wrapping_add(1);
+                        (state >> 33) as i32 - (1 << 30)
+                    })
+                };
+                let mut out = [0i32; 8];
+                // SAFETY: AVX2 was detected above.
+                unsafe {
+                    let v = sort_descending(_mm256_loadu_si256(input.as_ptr().cast()));
+                    _mm256_storeu_si256(out.as_mut_ptr().cast(), v);
+                }
+                let mut expected = input;
+                expected.sort_unstable_by(|a, b| b.cmp(a));
+                assert_eq!(out, expected, "input {input:?}");
             }
         }
     }
 }
 
-/// A traversal stack entry: an inner node with the distance the ray enters it.
-#[derive(Clone, Copy, Debug, Default)]
-struct Entry {
-    node: u32,
-    t: f32,
+/// The [`Node8::refs`] entry of a leaf: the leaf flag, its first primitive position and its
+/// primitive count less one in the low two bits.
+fn leaf_ref(first: u32, count: u32) -> u32 {
+    LEAF | (first << 2) | (count - 1)
 }
 
-/// The traversal stack: inline entries, spilling to the heap only for unusually deep trees.
-struct Stack {
-    inline: [Entry; STACK_INLINE],
-    len: usize,
-    spill: Vec<Entry>,
-}
+/// The flag of a leaf in [`Node8::refs`].
+const LEAF: u32 = 1 << 31;
 
-impl Stack {
-    fn new() -> Self {
-        Stack {
-            inline: [Entry::default(); STACK_INLINE],
-            len: 0,
-            spill: Vec::new(),
-        }
-    }
-    #[inline(always)]
-    fn push(&mut self, e: Entry) {
-        if self.len < STACK_INLINE {
-            self.inline[self.len] = e;
-            self.len += 1;
-        } else {
-            self.spill.push(e);
-        }
-    }
-    #[inline(always)]
-    fn pop(&mut self) -> Option<Entry> {
-        if let Some(e) = self.spill.pop() {
-            return Some(e);
-        }
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        Some(self.inline[self.len])
-    }
+/// Primitives a hierarchy can hold (leaf references keep 29 bits for the first position).
+pub const MAX_PRIMITIVES: usize = 1 << 29;
+
+/// Traversal stack entries kept on the machine stack: enough for hierarchies of this many
+/// levels (each level leaves at most seven siblings waiting); deeper ones use the heap.
+const INLINE_DEPTH: usize = 32;
+
+/// Stack entries a hierarchy of `depth` levels needs: seven waiting siblings per level above
+/// the node visited, and eight slots for the push.
+const fn stack_len(depth: usize) -> usize {
+    (WIDTH - 1) * depth + 1
 }
 
 impl WideBvh {
@@ -312,8 +441,7 @@ impl WideBvh {
                 node.planes[k][0][0] = f32::NEG_INFINITY;
                 node.planes[k + 3][0][0] = f32::INFINITY;
             }
-            node.child[0] = first;
-            node.count[0] = out.order.len() as u32 - first;
+            node.refs[0] = leaf_ref(first, out.order.len() as u32 - first);
             out.nodes.push(node);
             out.depth = 1;
             return out;
@@ -333,12 +461,11 @@ impl WideBvh {
                 if counts[c] <= MAX_LEAF_PRIMITIVES {
                     let first = out.order.len() as u32;
                     collect_primitives(&bvh2, c, &mut out.order);
-                    node.child[slot] = first;
-                    node.count[slot] = out.order.len() as u32 - first;
+                    node.refs[slot] = leaf_ref(first, out.order.len() as u32 - first);
                 } else {
                     let index = out.nodes.len();
                     out.nodes.push(Node8::empty());
-                    node.child[slot] = index as u32;
+                    node.refs[slot] = index as u32;
                     work.push((c, index, depth + 1));
                 }
             }
@@ -375,7 +502,7 @@ impl WideBvh {
             unsafe { self.traverse_avx2(&slab, t_max, primitive) };
             return;
         }
-        self.traverse_with(&slab, t_max, primitive);
+        self.traverse_stack(&slab, t_max, primitive);
     }
 
     /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
@@ -392,90 +519,136 @@ impl WideBvh {
     ) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::new(slab) };
-        self.traverse_with(&wide, t_max, primitive);
+        self.traverse_stack(&wide, t_max, primitive);
+    }
+
+    /// The traversal before the sorted push (kept for tests, which compare hits with it):
+    /// 4-wide node tests, exact entry distances, the entered children insertion-sorted
+    /// nearest first, their leaves intersected at once, inner children pushed farthest first.
+    #[cfg(test)]
+    pub(super) fn traverse_reference(
+        &self,
+        ray: &Ray,
+        mut t_max: f32,
+        mut primitive: impl FnMut(u32, f32) -> f32,
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let slab = SlabRay::new(ray);
+        let mut stack: Vec<(u32, f32)> = vec![(0, 0.0)];
+        while let Some((current, t)) = stack.pop() {
+            if t > t_max {
+                continue;
+            }
+            let node = &self.nodes[current as usize];
+            let (a, ma) = slab.test_half(node, 0, t_max);
+            let (b, mb) = slab.test_half(node, 1, t_max);
+            let near: Vec<f32> = a.to_array().into_iter().chain(b.to_array()).collect();
+            let mask = ma | (mb << 4);
+            let mut order: Vec<(usize, f32)> = (0..WIDTH)
+                .filter(|k| mask & (1 << k) != 0)
+                .map(|k| (k, near[k]))
+                .collect();
+            order.sort_by(|x, y| x.1.total_cmp(&y.1));
+            let mut inner = Vec::new();
+            for (slot, t) in order {
+                if t > t_max {
+                    break;
+                }
+                let r = node.refs[slot];
+                if r & LEAF == 0 {
+                    inner.push((r, t));
+                    continue;
+                }
+                let first = (r & !LEAF) >> 2;
+                for i in first..=first + (r & 3) {
+                    t_max = primitive(i, t_max);
+                    if t_max <= 0.0 {
+                        return;
+                    }
+                }
+            }
+            stack.extend(inner.into_iter().rev());
+        }
     }
 
     /// Forces the 4-wide node test (tests compare it with the 8-wide one).
     #[cfg(test)]
-    fn without_avx2(mut self) -> Self {
+    pub(super) fn without_avx2(mut self) -> Self {
         self.avx2 = false;
         self
     }
 
-    /// The traversal with node test `slab`.
+    /// The traversal with a stack on the machine stack, or on the heap for hierarchies deeper
+    /// than [`INLINE_DEPTH`].
+    #[inline(always)]
+    fn traverse_stack<T: NodeTest>(
+        &self,
+        slab: &T,
+        t_max: f32,
+        primitive: impl FnMut(u32, f32) -> f32,
+    ) {
+        const INLINE: usize = stack_len(INLINE_DEPTH);
+        if self.depth <= INLINE_DEPTH {
+            let mut keys = [MaybeUninit::<u32>::uninit(); INLINE];
+            let mut refs = [MaybeUninit::<u32>::uninit(); INLINE];
+            self.traverse_with(slab, t_max, primitive, &mut keys, &mut refs);
+        } else {
+            let n = stack_len(self.depth);
+            let mut keys = vec![MaybeUninit::<u32>::uninit(); n];
+            let mut refs = vec![MaybeUninit::<u32>::uninit(); n];
+            self.traverse_with(slab, t_max, primitive, &mut keys, &mut refs);
+        }
+    }
+
+    /// The traversal with node test `slab` and a stack of [`stack_len`]`(self.depth)` entries
+    /// at least: visit a node, push the children the ray enters (farthest first), pop until
+    /// an inner node, intersecting the leaves popped on the way.
     #[inline(always)]
     fn traverse_with<T: NodeTest>(
         &self,
         slab: &T,
         mut t_max: f32,
         mut primitive: impl FnMut(u32, f32) -> f32,
+        keys: &mut [MaybeUninit<u32>],
+        refs: &mut [MaybeUninit<u32>],
     ) {
-        let mut stack = Stack::new();
+        let mut len = 0;
         let mut current = 0u32;
-        // Scratch for the children of the node visited (only entries below the counts are
-        // read), initialised once per ray.
-        let mut order = [(0usize, 0.0f32); WIDTH];
-        let mut inner = [Entry::default(); WIDTH];
         loop {
             let node = &self.nodes[current as usize];
-            let (near, mut mask) = slab.test(node, t_max);
-            // The entered children sorted by entry distance, nearest first.
-            let mut n = 0;
-            while mask != 0 {
-                let slot = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let t = near[slot];
-                let mut j = n;
-                while j > 0 && order[j - 1].1 > t {
-                    order[j] = order[j - 1];
-                    j -= 1;
+            // The stack holds `stack_len(self.depth)` entries: room for this push.
+            let (Some(k), Some(r)) = (
+                keys[len..].first_chunk_mut::<WIDTH>(),
+                refs[len..].first_chunk_mut::<WIDTH>(),
+            ) else {
+                debug_assert!(false, "traversal stack too short");
+                return;
+            };
+            len += slab.push(node, t_max, k, r);
+            loop {
+                if len == 0 {
+                    return;
                 }
-                order[j] = (slot, t);
-                n += 1;
-            }
-            // Leaves are intersected at once, nearest first (a hit shortens the ray for the
-            // rest); inner children are pushed farthest first, so the nearest is visited next.
-            let mut m = 0;
-            for &(slot, t) in &order[..n] {
-                if t > t_max {
-                    break;
-                }
-                let count = node.count[slot];
-                if count > 0 {
-                    let first = node.child[slot];
-                    for i in first..first + count {
-                        t_max = primitive(i, t_max);
-                        if t_max <= 0.0 {
-                            return;
-                        }
-                    }
-                } else {
-                    inner[m] = Entry {
-                        node: node.child[slot],
-                        t,
-                    };
-                    m += 1;
-                }
-            }
-            // The nearest inner child is visited next; the others wait, farthest deepest.
-            if m > 0 {
-                for e in inner[1..m].iter().rev() {
-                    stack.push(*e);
-                }
-                // (A leaf after it may have shortened the ray.)
-                if !(inner[0].t > t_max) {
-                    current = inner[0].node;
+                len -= 1;
+                // SAFETY: entries below `len` were written by `push` (it writes the first
+                // `count` entries it returns at least).
+                let (key, r) = unsafe { (keys[len].assume_init(), refs[len].assume_init()) };
+                // (A leaf intersected since the push may have shortened the ray.)
+                if key_distance(key) > t_max {
                     continue;
                 }
-            }
-            loop {
-                match stack.pop() {
-                    None => return,
-                    Some(e) if !(e.t > t_max) => {
-                        current = e.node;
-                        break;
+                if r & LEAF == 0 {
+                    current = r;
+                    break;
+                }
+                let first = (r & !LEAF) >> 2;
+                for i in first..=first + (r & 3) {
+                    t_max = primitive(i, t_max);
+                    if t_max <= 0.0 {
+                        return;
                     }
-                    Some(_) => {}
                 }
             }
         }
@@ -628,13 +801,22 @@ mod tests {
             // SAFETY: AVX2 was detected above.
             let avx = unsafe { avx2::AvxSlab::new(&slab) };
             let node = &wide.nodes[i % wide.nodes.len()];
-            let (a, ma) = slab.test(node, t_max);
-            let (b, mb) = avx.test(node, t_max);
-            assert_eq!(ma, mb, "ray {i}");
-            for k in 0..WIDTH {
-                if ma & (1 << k) != 0 {
-                    assert_eq!(a[k].to_bits(), b[k].to_bits(), "ray {i} child {k}");
-                }
+            let mut a = ([MaybeUninit::new(0); WIDTH], [MaybeUninit::new(0); WIDTH]);
+            let mut b = a;
+            let na = slab.push(node, t_max, &mut a.0, &mut a.1);
+            let nb = avx.push(node, t_max, &mut b.0, &mut b.1);
+            assert_eq!(na, nb, "ray {i}");
+            // SAFETY: the arrays were initialised above.
+            let read = |x: &[MaybeUninit<u32>]| -> Vec<u32> {
+                x[..na].iter().map(|v| unsafe { v.assume_init() }).collect()
+            };
+            assert_eq!(read(&a.0), read(&b.0), "ray {i}: keys");
+            assert_eq!(read(&a.1), read(&b.1), "ray {i}: children");
+            // Farthest first, each with its child's reference.
+            let (keys, refs) = (read(&a.0), read(&a.1));
+            assert!(keys.windows(2).all(|w| w[0] > w[1]), "ray {i}: {keys:?}");
+            for (key, r) in keys.iter().zip(&refs) {
+                assert_eq!(*r, node.refs[(key & 7) as usize], "ray {i}");
             }
             let mut seen = (Vec::new(), Vec::new());
             // A closest-hit-like query: every third leaf primitive shortens the ray.
