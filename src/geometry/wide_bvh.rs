@@ -15,8 +15,6 @@
 //! were built, and the interval is clipped to `[0, t_max]`, so a primitive the ray hits is never
 //! culled.
 
-use std::mem::MaybeUninit;
-
 use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb as OAabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -29,133 +27,41 @@ use crate::math::{Ray, Vec3};
 /// Leaves hold at most this many primitives.
 pub const MAX_LEAF_PRIMITIVES: u32 = 2;
 
+/// Entries of the traversal stack kept on the machine stack; deeper trees spill to the heap.
+const STACK_INLINE: usize = 48;
+
 /// Children per node.
 const WIDTH: usize = 8;
 
-/// One node in two cache lines: the boxes of up to eight children quantised to 8 bits per
-/// plane on a per-axis grid (Ylitie, Karras & Laine 2017, "Efficient Incoherent Ray Traversal
-/// on GPUs Using Compressed Wide BVHs"), and what each child is.
-///
-/// A plane decodes as `q · scale + origin` (one f32 product, exact since `scale` is a power of
-/// two, and one rounded sum, the same operations in every node test); the builder picks each
-/// byte so that the decoded box contains the child's box: minima rounded down, maxima up.
+/// One node: the boxes of up to eight children, per axis in two 4-wide halves, and what each
+/// child is.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node8 {
-    /// Quantised planes of the children: minima x, y, z, then maxima x, y, z, one byte per
-    /// child (empty slots hold 255 for the minima and 0 for the maxima). One array, so that a
-    /// ray picks its near and far plane per axis by index instead of by a branch.
-    q: [[u8; WIDTH]; 6],
-    /// The grid's origin per axis (world units).
-    origin: [f32; 3],
-    /// The grid's step per axis (world units, a power of two).
-    scale: [f32; 3],
-    /// What each child is ([`leaf_ref`] for a leaf, else the child node's index; 0 for an
-    /// empty slot, which the ray never enters).
-    refs: [u32; WIDTH],
+    /// Box planes of the children: minima x, y, z (empty slots hold +∞), then maxima x, y, z
+    /// (empty slots hold −∞). One array, so that a ray picks its near and far plane per axis
+    /// by index instead of by a branch.
+    planes: [[Vec4; 2]; 6],
+    /// Child node index, or the first primitive of a leaf.
+    child: [u32; WIDTH],
+    /// Primitives of a leaf child (0 for an inner child or an empty slot).
+    count: [u32; WIDTH],
 }
 
 impl Node8 {
-    /// The node over `boxes` (min, max; at most [`WIDTH`], finite) with children `refs`.
-    fn new(boxes: &[(Vec3A, Vec3A)], refs: [u32; WIDTH]) -> Self {
-        let mut node = Node8 {
-            q: [
-                [255; WIDTH],
-                [255; WIDTH],
-                [255; WIDTH],
-                [0; WIDTH],
-                [0; WIDTH],
-                [0; WIDTH],
+    fn empty() -> Self {
+        Node8 {
+            planes: [
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
             ],
-            origin: [0.0; 3],
-            scale: [1.0; 3],
-            refs,
-        };
-        for k in 0..3 {
-            let lo: Vec<f32> = boxes.iter().map(|b| b.0[k]).collect();
-            let hi: Vec<f32> = boxes.iter().map(|b| b.1[k]).collect();
-            let (origin, scale, qlo, qhi) = quantise_axis(&lo, &hi);
-            node.origin[k] = origin;
-            node.scale[k] = scale;
-            for (slot, (a, b)) in qlo.into_iter().zip(qhi).enumerate() {
-                node.q[k][slot] = a;
-                node.q[k + 3][slot] = b;
-            }
+            child: [0; WIDTH],
+            count: [0; WIDTH],
         }
-        node
-    }
-
-    /// Plane `p` (index in [`Node8::q`]) of child `slot`, decoded (world units).
-    #[inline(always)]
-    fn plane(&self, p: usize, slot: usize) -> f32 {
-        decode(self.q[p][slot], self.scale[p % 3], self.origin[p % 3])
-    }
-
-    /// Bit `i` set when slot `i` holds a child.
-    #[inline(always)]
-    fn occupied(&self) -> u32 {
-        let mut mask = 0;
-        for (i, r) in self.refs.iter().enumerate() {
-            mask |= u32::from(*r != 0) << i;
-        }
-        mask
-    }
-}
-
-/// A quantised plane's value: `q · scale + origin`, a product then a sum (never fused), as in
-/// every node test.
-#[inline(always)]
-fn decode(q: u8, scale: f32, origin: f32) -> f32 {
-    f32::from(q) * scale + origin
-}
-
-/// One axis of a node's grid over children spanning `[lo[i], hi[i]]`: the origin (the lowest
-/// minimum), the smallest power-of-two step for which every maximum is reached within 255
-/// steps, and per child the largest byte whose plane is ≤ its minimum and the smallest byte
-/// whose plane is ≥ its maximum (checked on the decoded values, so the rounding of the sum
-/// can only widen a box).
-fn quantise_axis(lo: &[f32], hi: &[f32]) -> (f32, f32, Vec<u8>, Vec<u8>) {
-    if lo.is_empty() {
-        return (0.0, 1.0, Vec::new(), Vec::new());
-    }
-    let origin = lo.iter().copied().fold(f32::INFINITY, f32::min);
-    let top = hi.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-    let mut scale = f32::MIN_POSITIVE;
-    while scale * 255.0 < top - origin {
-        scale *= 2.0;
-    }
-    loop {
-        let qlo: Vec<u8> = lo
-            .iter()
-            .map(|&l| {
-                // `as u8` saturates (and maps NaN to 0).
-                let mut q = ((l - origin) / scale).floor() as u8;
-                while q > 0 && decode(q, scale, origin) > l {
-                    q -= 1;
-                }
-                q
-            })
-            .collect();
-        let qhi: Vec<u8> = hi
-            .iter()
-            .map(|&h| {
-                let mut q = ((h - origin) / scale).ceil() as u8;
-                while q < 255 && decode(q, scale, origin) < h {
-                    q += 1;
-                }
-                q
-            })
-            .collect();
-        // Coordinates are bounded (the geometry rejects larger ones), so the step stays
-        // finite: a coarser grid always reaches the maxima eventually.
-        let fits = qhi
-            .iter()
-            .zip(hi)
-            .all(|(&q, &h)| decode(q, scale, origin) >= h);
-        if fits || !(scale * 2.0).is_finite() {
-            return (origin, scale, qlo, qhi);
-        }
-        scale *= 2.0;
     }
 }
 
@@ -185,7 +91,7 @@ struct SlabRay {
     o: [Vec4; 3],
     /// Capped reciprocal direction, splatted per axis.
     inv: [Vec4; 3],
-    /// Per axis: index in [`Node8::q`] of the plane the ray enters by (the maximum
+    /// Per axis: index in [`Node8::planes`] of the plane the ray enters by (the maximum
     /// when the direction is negative) and of the one it leaves by.
     near: [usize; 3],
     far: [usize; 3],
@@ -226,124 +132,52 @@ impl SlabRay {
 
     #[inline(always)]
     fn test_half(&self, node: &Node8, h: usize, t_max: f32) -> (Vec4, u32) {
-        let plane = |p: usize| {
-            let s = 4 * h;
-            Vec4::new(
-                node.plane(p, s),
-                node.plane(p, s + 1),
-                node.plane(p, s + 2),
-                node.plane(p, s + 3),
-            )
-        };
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
         for k in 0..3 {
-            let n = plane(self.near[k]);
-            let f = plane(self.far[k]);
+            let n = node.planes[self.near[k]][h];
+            let f = node.planes[self.far[k]][h];
             near = near.max((n - self.o[k]) * self.inv[k]);
             far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
         }
-        let occupied = (node.occupied() >> (4 * h)) & 0xF;
-        (near, near.cmple(far).bitmask() & occupied)
+        (near, near.cmple(far).bitmask())
     }
 }
 
 /// 1 + 2γ₃: the relative rounding bound of a slab distance.
 const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
-/// The slab test of one node, and the push of the children it enters onto the traversal
-/// stack, farthest first (so that the nearest is popped next).
+/// The slab test of one node: the entry distances of its eight children and the mask of those
+/// the ray enters within `[0, t_max]` (bit `i` for child `i`).
 trait NodeTest {
-    /// Tests `node`'s children against `[0, t_max]` and writes the entered ones to `keys` and
-    /// `refs` (eight slots each; entries past the returned count are unspecified), farthest
-    /// first: `keys` are [`child_key`]s, `refs` the children's [`Node8::refs`]. Returns how
-    /// many children were entered.
-    fn push(
-        &self,
-        node: &Node8,
-        t_max: f32,
-        keys: &mut [MaybeUninit<u32>; WIDTH],
-        refs: &mut [MaybeUninit<u32>; WIDTH],
-    ) -> usize;
-}
-
-/// The stack key of a child the ray enters at distance `near` (≥ 0 or −0): the distance's bits
-/// with the low three replaced by the child's slot, so that keys are distinct and sort like the
-/// distances up to 8 ulps. [`key_distance`] recovers a lower bound on the distance.
-#[inline(always)]
-fn child_key(near: f32, slot: usize) -> u32 {
-    (near.to_bits() & KEY_DISTANCE_BITS) | slot as u32
-}
-
-/// The bits of a [`child_key`] that come from the distance (the sign is dropped: `near` is
-/// never below zero, but may be `-0`).
-const KEY_DISTANCE_BITS: u32 = 0x7FFF_FFF8;
-
-/// A lower bound (within 8 ulps) on the entry distance of a stack key: culling with it never
-/// drops a child the ray enters before `t_max`.
-#[inline(always)]
-fn key_distance(key: u32) -> f32 {
-    f32::from_bits(key & KEY_DISTANCE_BITS)
+    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32);
 }
 
 impl NodeTest for SlabRay {
     #[inline(always)]
-    fn push(
-        &self,
-        node: &Node8,
-        t_max: f32,
-        keys: &mut [MaybeUninit<u32>; WIDTH],
-        refs: &mut [MaybeUninit<u32>; WIDTH],
-    ) -> usize {
+    fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
         let (a, ma) = self.test_half(node, 0, t_max);
         let (b, mb) = self.test_half(node, 1, t_max);
         let mut near = [0.0; WIDTH];
         near[..4].copy_from_slice(&a.to_array());
         near[4..].copy_from_slice(&b.to_array());
-        let mut mask = ma | (mb << 4);
-        // Insertion sort of the entered children, farthest first (keys are distinct).
-        let mut sorted = [0u32; WIDTH];
-        let mut n = 0;
-        while mask != 0 {
-            let slot = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            let key = child_key(near[slot], slot);
-            let mut j = n;
-            while j > 0 && sorted[j - 1] < key {
-                sorted[j] = sorted[j - 1];
-                j -= 1;
-            }
-            sorted[j] = key;
-            n += 1;
-        }
-        for (i, &key) in sorted[..n].iter().enumerate() {
-            keys[i] = MaybeUninit::new(key);
-            refs[i] = MaybeUninit::new(node.refs[(key & 7) as usize]);
-        }
-        n
+        (near, ma | (mb << 4))
     }
 }
 
-/// The 8-wide AVX2 node test: [`SlabRay`]'s operations on all eight children at once, and a
-/// branch-free push: the eight keys sorted by a sorting network in one register.
+/// The 8-wide AVX2 node test: [`SlabRay`]'s operations on all eight children at once.
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m128i, __m256, __m256i, _mm256_add_ps, _mm256_and_si256, _mm256_andnot_si256,
-        _mm256_blend_epi32, _mm256_castps_si256, _mm256_castsi256_ps, _mm256_cmp_ps,
-        _mm256_cmpeq_epi32, _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32, _mm256_loadu_si256,
-        _mm256_max_epi32, _mm256_max_ps, _mm256_min_epi32, _mm256_min_ps, _mm256_movemask_ps,
-        _mm256_mul_ps, _mm256_or_si256, _mm256_permute4x64_epi64, _mm256_permutevar8x32_epi32,
-        _mm256_set1_epi32, _mm256_set1_ps, _mm256_setr_epi32, _mm256_setzero_ps,
-        _mm256_setzero_si256, _mm256_shuffle_epi32, _mm256_storeu_si256, _mm256_sub_ps,
-        _mm_loadl_epi64, _CMP_LE_OS,
+        __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
+        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        _CMP_LE_OS,
     };
-    use std::mem::MaybeUninit;
 
-    use super::{Node8, NodeTest, SlabRay, FAR_SCALE, KEY_DISTANCE_BITS, WIDTH};
+    use super::{Node8, NodeTest, SlabRay, FAR_SCALE, WIDTH};
 
     /// The ray of a [`SlabRay`] splatted to 8 lanes. Made only by [`AvxSlab::new`], which
-    /// needs AVX2.
+    /// needs AVX.
     pub(super) struct AvxSlab {
         o: [__m256; 3],
         inv: [__m256; 3],
@@ -365,72 +199,18 @@ mod avx2 {
         }
     }
 
-    /// One layer of the sorting network: each lane compared with lane `partner` (already
-    /// permuted into place), the lanes whose bit is set in `MIN` keeping the smaller key.
-    #[inline(always)]
-    unsafe fn exchange<const MIN: i32>(v: __m256i, partner: __m256i) -> __m256i {
-        // SAFETY: the caller runs with AVX2.
-        unsafe {
-            _mm256_blend_epi32::<MIN>(_mm256_max_epi32(v, partner), _mm256_min_epi32(v, partner))
-        }
-    }
-
-    /// The eight bytes of a quantised plane, decoded: `q · scale + origin` as in
-    /// [`super::decode`].
-    #[inline(always)]
-    unsafe fn decode_plane(q: &[u8; WIDTH], scale: __m256, origin: __m256) -> __m256 {
-        // SAFETY: the caller runs with AVX2; the load reads the 8 bytes of `q`.
-        unsafe {
-            let q = _mm_loadl_epi64(q.as_ptr().cast::<__m128i>());
-            let q = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(q));
-            _mm256_add_ps(_mm256_mul_ps(q, scale), origin)
-        }
-    }
-
-    /// Sorts eight signed keys in descending order: Knuth's 19-comparator, depth-6 network
-    /// (The Art of Computer Programming, vol. 3, §5.3.4), a lane permutation per layer.
-    #[inline(always)]
-    unsafe fn sort_descending(v: __m256i) -> __m256i {
-        // SAFETY: the caller runs with AVX2.
-        unsafe {
-            // (0,2) (1,3) (4,6) (5,7)
-            let v = exchange::<0b1100_1100>(v, _mm256_shuffle_epi32::<0x4E>(v));
-            // (0,4) (1,5) (2,6) (3,7)
-            let v = exchange::<0b1111_0000>(v, _mm256_permute4x64_epi64::<0x4E>(v));
-            // (0,1) (2,3) (4,5) (6,7)
-            let v = exchange::<0b1010_1010>(v, _mm256_shuffle_epi32::<0xB1>(v));
-            // (2,4) (3,5)
-            let p = _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7);
-            let v = exchange::<0b0011_0000>(v, _mm256_permutevar8x32_epi32(v, p));
-            // (1,4) (3,6)
-            let p = _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7);
-            let v = exchange::<0b0101_0000>(v, _mm256_permutevar8x32_epi32(v, p));
-            // (1,2) (3,4) (5,6)
-            let p = _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7);
-            exchange::<0b0101_0100>(v, _mm256_permutevar8x32_epi32(v, p))
-        }
-    }
-
     impl NodeTest for AvxSlab {
         #[inline(always)]
-        fn push(
-            &self,
-            node: &Node8,
-            t_max: f32,
-            keys: &mut [MaybeUninit<u32>; WIDTH],
-            refs: &mut [MaybeUninit<u32>; WIDTH],
-        ) -> usize {
+        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
             // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
-            // it); the loads read the 8 bytes of a plane and the 8 refs, the stores write the
-            // 8 entries of `keys` and of `refs`.
+            // it); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
+            // writes the 8 floats of `out`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
                 for k in 0..3 {
-                    let scale = _mm256_set1_ps(node.scale[k]);
-                    let origin = _mm256_set1_ps(node.origin[k]);
-                    let n = decode_plane(&node.q[self.near[k]], scale, origin);
-                    let f = decode_plane(&node.q[self.far[k]], scale, origin);
+                    let n = _mm256_loadu_ps(node.planes[self.near[k]].as_ptr().cast::<f32>());
+                    let f = _mm256_loadu_ps(node.planes[self.far[k]].as_ptr().cast::<f32>());
                     near = _mm256_max_ps(
                         near,
                         _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
@@ -443,90 +223,57 @@ mod avx2 {
                         ),
                     );
                 }
-                let children = _mm256_loadu_si256(node.refs.as_ptr().cast::<__m256i>());
-                let empty = _mm256_cmpeq_epi32(children, _mm256_setzero_si256());
-                let hit = _mm256_andnot_si256(
-                    empty,
-                    _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)),
-                );
-                let count = _mm256_movemask_ps(_mm256_castsi256_ps(hit)).count_ones() as usize;
-                // Keys of the entered children (see `child_key`); −1 for the others, which
-                // sort last.
-                let slots = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-                let key = _mm256_or_si256(
-                    _mm256_and_si256(
-                        _mm256_castps_si256(near),
-                        _mm256_set1_epi32(KEY_DISTANCE_BITS as i32),
-                    ),
-                    slots,
-                );
-                let key = _mm256_or_si256(key, _mm256_andnot_si256(hit, _mm256_set1_epi32(-1)));
-                let key = sort_descending(key);
-                // The permutation uses the low three bits of each key: the slot.
-                let child = _mm256_permutevar8x32_epi32(children, key);
-                _mm256_storeu_si256(keys.as_mut_ptr().cast::<__m256i>(), key);
-                _mm256_storeu_si256(refs.as_mut_ptr().cast::<__m256i>(), child);
-                count
-            }
-        }
-    }
-
-    #[cfg(test)]
-    mod tests {
-        use super::*;
-
-        #[test]
-        fn the_sorting_network_sorts_every_0_1_input_and_random_keys() {
-            if !super::super::has_avx2() {
-                eprintln!("no AVX2 on this CPU");
-                return;
-            }
-            let mut state = 1u64;
-            for case in 0..(256 + 10_000) {
-                let input: [i32; 8] = if case < 256 {
-                    std::array::from_fn(|i| (case >> i) & 1)
-                } else {
-                    std::array::from_fn(|_| {
-                        state = state
-                            .wrapping_mul(6_364_136_223_846_793_005)
-                            .wrapping_add(1);
-                        (state >> 33) as i32 - (1 << 30)
-                    })
-                };
-                let mut out = [0i32; 8];
-                // SAFETY: AVX2 was detected above.
-                unsafe {
-                    let v = sort_descending(_mm256_loadu_si256(input.as_ptr().cast()));
-                    _mm256_storeu_si256(out.as_mut_ptr().cast(), v);
-                }
-                let mut expected = input;
-                expected.sort_unstable_by(|a, b| b.cmp(a));
-                assert_eq!(out, expected, "input {input:?}");
+                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)) as u32;
+                let mut out = [0.0f32; WIDTH];
+                _mm256_storeu_ps(out.as_mut_ptr(), near);
+                (out, mask)
             }
         }
     }
 }
 
-/// The [`Node8::refs`] entry of a leaf: the leaf flag, its first primitive position and its
-/// primitive count less one in the low two bits.
-fn leaf_ref(first: u32, count: u32) -> u32 {
-    LEAF | (first << 2) | (count - 1)
+/// A traversal stack entry: an inner node with the distance the ray enters it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry {
+    node: u32,
+    t: f32,
 }
 
-/// The flag of a leaf in [`Node8::refs`].
-const LEAF: u32 = 1 << 31;
+/// The traversal stack: inline entries, spilling to the heap only for unusually deep trees.
+struct Stack {
+    inline: [Entry; STACK_INLINE],
+    len: usize,
+    spill: Vec<Entry>,
+}
 
-/// Primitives a hierarchy can hold (leaf references keep 29 bits for the first position).
-pub const MAX_PRIMITIVES: usize = 1 << 29;
-
-/// Traversal stack entries kept on the machine stack: enough for hierarchies of this many
-/// levels (each level leaves at most seven siblings waiting); deeper ones use the heap.
-const INLINE_DEPTH: usize = 32;
-
-/// Stack entries a hierarchy of `depth` levels needs: seven waiting siblings per level above
-/// the node visited, and eight slots for the push.
-const fn stack_len(depth: usize) -> usize {
-    (WIDTH - 1) * depth + 1
+impl Stack {
+    fn new() -> Self {
+        Stack {
+            inline: [Entry::default(); STACK_INLINE],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+    #[inline(always)]
+    fn push(&mut self, e: Entry) {
+        if self.len < STACK_INLINE {
+            self.inline[self.len] = e;
+            self.len += 1;
+        } else {
+            self.spill.push(e);
+        }
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<Entry> {
+        if let Some(e) = self.spill.pop() {
+            return Some(e);
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.inline[self.len])
+    }
 }
 
 impl WideBvh {
@@ -559,36 +306,43 @@ impl WideBvh {
         if counts[0] <= MAX_LEAF_PRIMITIVES {
             let first = out.order.len() as u32;
             collect_primitives(&bvh2, 0, &mut out.order);
-            // One node with one leaf child.
-            let mut refs = [0; WIDTH];
-            refs[0] = leaf_ref(first, out.order.len() as u32 - first);
-            let bb = bvh2.nodes[0].aabb;
-            out.nodes.push(Node8::new(&[(bb.min, bb.max)], refs));
+            // One node with one leaf child whose box is all of space (always entered).
+            let mut node = Node8::empty();
+            for k in 0..3 {
+                node.planes[k][0][0] = f32::NEG_INFINITY;
+                node.planes[k + 3][0][0] = f32::INFINITY;
+            }
+            node.child[0] = first;
+            node.count[0] = out.order.len() as u32 - first;
+            out.nodes.push(node);
             out.depth = 1;
             return out;
         }
-        out.nodes.push(Node8::new(&[], [0; WIDTH]));
+        out.nodes.push(Node8::empty());
         let mut work = vec![(0usize, 0usize, 1usize)]; // (bvh2 node, wide node, depth)
         while let Some((b, w, depth)) = work.pop() {
             out.depth = out.depth.max(depth);
             let children = open_children(&bvh2, b, &counts);
-            let mut refs = [0; WIDTH];
-            let mut boxes = Vec::with_capacity(WIDTH);
+            let mut node = Node8::empty();
             for (slot, &c) in children.iter().enumerate() {
                 let bb = bvh2.nodes[c].aabb;
-                boxes.push((bb.min, bb.max));
+                for k in 0..3 {
+                    node.planes[k][slot / 4][slot % 4] = bb.min[k];
+                    node.planes[k + 3][slot / 4][slot % 4] = bb.max[k];
+                }
                 if counts[c] <= MAX_LEAF_PRIMITIVES {
                     let first = out.order.len() as u32;
                     collect_primitives(&bvh2, c, &mut out.order);
-                    refs[slot] = leaf_ref(first, out.order.len() as u32 - first);
+                    node.child[slot] = first;
+                    node.count[slot] = out.order.len() as u32 - first;
                 } else {
                     let index = out.nodes.len();
-                    out.nodes.push(Node8::new(&[], [0; WIDTH]));
-                    refs[slot] = index as u32;
+                    out.nodes.push(Node8::empty());
+                    node.child[slot] = index as u32;
                     work.push((c, index, depth + 1));
                 }
             }
-            out.nodes[w] = Node8::new(&boxes, refs);
+            out.nodes[w] = node;
         }
         out
     }
@@ -621,7 +375,7 @@ impl WideBvh {
             unsafe { self.traverse_avx2(&slab, t_max, primitive) };
             return;
         }
-        self.traverse_stack(&slab, t_max, primitive);
+        self.traverse_with(&slab, t_max, primitive);
     }
 
     /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
@@ -638,58 +392,7 @@ impl WideBvh {
     ) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::new(slab) };
-        self.traverse_stack(&wide, t_max, primitive);
-    }
-
-    /// The traversal before the sorted push (kept for tests, which compare hits with it):
-    /// 4-wide node tests, exact entry distances, the entered children insertion-sorted
-    /// nearest first, their leaves intersected at once, inner children pushed farthest first.
-    #[cfg(test)]
-    pub(super) fn traverse_reference(
-        &self,
-        ray: &Ray,
-        mut t_max: f32,
-        mut primitive: impl FnMut(u32, f32) -> f32,
-    ) {
-        if self.nodes.is_empty() {
-            return;
-        }
-        let slab = SlabRay::new(ray);
-        let mut stack: Vec<(u32, f32)> = vec![(0, 0.0)];
-        while let Some((current, t)) = stack.pop() {
-            if t > t_max {
-                continue;
-            }
-            let node = &self.nodes[current as usize];
-            let (a, ma) = slab.test_half(node, 0, t_max);
-            let (b, mb) = slab.test_half(node, 1, t_max);
-            let near: Vec<f32> = a.to_array().into_iter().chain(b.to_array()).collect();
-            let mask = ma | (mb << 4);
-            let mut order: Vec<(usize, f32)> = (0..WIDTH)
-                .filter(|k| mask & (1 << k) != 0)
-                .map(|k| (k, near[k]))
-                .collect();
-            order.sort_by(|x, y| x.1.total_cmp(&y.1));
-            let mut inner = Vec::new();
-            for (slot, t) in order {
-                if t > t_max {
-                    break;
-                }
-                let r = node.refs[slot];
-                if r & LEAF == 0 {
-                    inner.push((r, t));
-                    continue;
-                }
-                let first = (r & !LEAF) >> 2;
-                for i in first..=first + (r & 3) {
-                    t_max = primitive(i, t_max);
-                    if t_max <= 0.0 {
-                        return;
-                    }
-                }
-            }
-            stack.extend(inner.into_iter().rev());
-        }
+        self.traverse_with(&wide, t_max, primitive);
     }
 
     /// Forces the 4-wide node test (tests compare it with the 8-wide one).
@@ -699,75 +402,80 @@ impl WideBvh {
         self
     }
 
-    /// The traversal with a stack on the machine stack, or on the heap for hierarchies deeper
-    /// than [`INLINE_DEPTH`].
-    #[inline(always)]
-    fn traverse_stack<T: NodeTest>(
-        &self,
-        slab: &T,
-        t_max: f32,
-        primitive: impl FnMut(u32, f32) -> f32,
-    ) {
-        const INLINE: usize = stack_len(INLINE_DEPTH);
-        if self.depth <= INLINE_DEPTH {
-            let mut keys = [MaybeUninit::<u32>::uninit(); INLINE];
-            let mut refs = [MaybeUninit::<u32>::uninit(); INLINE];
-            self.traverse_with(slab, t_max, primitive, &mut keys, &mut refs);
-        } else {
-            let n = stack_len(self.depth);
-            let mut keys = vec![MaybeUninit::<u32>::uninit(); n];
-            let mut refs = vec![MaybeUninit::<u32>::uninit(); n];
-            self.traverse_with(slab, t_max, primitive, &mut keys, &mut refs);
-        }
-    }
-
-    /// The traversal with node test `slab` and a stack of [`stack_len`]`(self.depth)` entries
-    /// at least: visit a node, push the children the ray enters (farthest first), pop until
-    /// an inner node, intersecting the leaves popped on the way.
+    /// The traversal with node test `slab`.
     #[inline(always)]
     fn traverse_with<T: NodeTest>(
         &self,
         slab: &T,
         mut t_max: f32,
         mut primitive: impl FnMut(u32, f32) -> f32,
-        keys: &mut [MaybeUninit<u32>],
-        refs: &mut [MaybeUninit<u32>],
     ) {
-        let mut len = 0;
+        let mut stack = Stack::new();
         let mut current = 0u32;
+        // Scratch for the children of the node visited (only entries below the counts are
+        // read), initialised once per ray.
+        let mut order = [(0usize, 0.0f32); WIDTH];
+        let mut inner = [Entry::default(); WIDTH];
         loop {
             let node = &self.nodes[current as usize];
-            // The stack holds `stack_len(self.depth)` entries: room for this push.
-            let (Some(k), Some(r)) = (
-                keys[len..].first_chunk_mut::<WIDTH>(),
-                refs[len..].first_chunk_mut::<WIDTH>(),
-            ) else {
-                debug_assert!(false, "traversal stack too short");
-                return;
-            };
-            len += slab.push(node, t_max, k, r);
-            loop {
-                if len == 0 {
-                    return;
+            let (near, mut mask) = slab.test(node, t_max);
+            // The entered children sorted by entry distance, nearest first.
+            let mut n = 0;
+            while mask != 0 {
+                let slot = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let t = near[slot];
+                let mut j = n;
+                while j > 0 && order[j - 1].1 > t {
+                    order[j] = order[j - 1];
+                    j -= 1;
                 }
-                len -= 1;
-                // SAFETY: entries below `len` were written by `push` (it writes the first
-                // `count` entries it returns at least).
-                let (key, r) = unsafe { (keys[len].assume_init(), refs[len].assume_init()) };
-                // (A leaf intersected since the push may have shortened the ray.)
-                if key_distance(key) > t_max {
-                    continue;
-                }
-                if r & LEAF == 0 {
-                    current = r;
+                order[j] = (slot, t);
+                n += 1;
+            }
+            // Leaves are intersected at once, nearest first (a hit shortens the ray for the
+            // rest); inner children are pushed farthest first, so the nearest is visited next.
+            let mut m = 0;
+            for &(slot, t) in &order[..n] {
+                if t > t_max {
                     break;
                 }
-                let first = (r & !LEAF) >> 2;
-                for i in first..=first + (r & 3) {
-                    t_max = primitive(i, t_max);
-                    if t_max <= 0.0 {
-                        return;
+                let count = node.count[slot];
+                if count > 0 {
+                    let first = node.child[slot];
+                    for i in first..first + count {
+                        t_max = primitive(i, t_max);
+                        if t_max <= 0.0 {
+                            return;
+                        }
                     }
+                } else {
+                    inner[m] = Entry {
+                        node: node.child[slot],
+                        t,
+                    };
+                    m += 1;
+                }
+            }
+            // The nearest inner child is visited next; the others wait, farthest deepest.
+            if m > 0 {
+                for e in inner[1..m].iter().rev() {
+                    stack.push(*e);
+                }
+                // (A leaf after it may have shortened the ray.)
+                if !(inner[0].t > t_max) {
+                    current = inner[0].node;
+                    continue;
+                }
+            }
+            loop {
+                match stack.pop() {
+                    None => return,
+                    Some(e) if !(e.t > t_max) => {
+                        current = e.node;
+                        break;
+                    }
+                    Some(_) => {}
                 }
             }
         }
@@ -920,22 +628,13 @@ mod tests {
             // SAFETY: AVX2 was detected above.
             let avx = unsafe { avx2::AvxSlab::new(&slab) };
             let node = &wide.nodes[i % wide.nodes.len()];
-            let mut a = ([MaybeUninit::new(0); WIDTH], [MaybeUninit::new(0); WIDTH]);
-            let mut b = a;
-            let na = slab.push(node, t_max, &mut a.0, &mut a.1);
-            let nb = avx.push(node, t_max, &mut b.0, &mut b.1);
-            assert_eq!(na, nb, "ray {i}");
-            // SAFETY: the arrays were initialised above.
-            let read = |x: &[MaybeUninit<u32>]| -> Vec<u32> {
-                x[..na].iter().map(|v| unsafe { v.assume_init() }).collect()
-            };
-            assert_eq!(read(&a.0), read(&b.0), "ray {i}: keys");
-            assert_eq!(read(&a.1), read(&b.1), "ray {i}: children");
-            // Farthest first, each with its child's reference.
-            let (keys, refs) = (read(&a.0), read(&a.1));
-            assert!(keys.windows(2).all(|w| w[0] > w[1]), "ray {i}: {keys:?}");
-            for (key, r) in keys.iter().zip(&refs) {
-                assert_eq!(*r, node.refs[(key & 7) as usize], "ray {i}");
+            let (a, ma) = slab.test(node, t_max);
+            let (b, mb) = avx.test(node, t_max);
+            assert_eq!(ma, mb, "ray {i}");
+            for k in 0..WIDTH {
+                if ma & (1 << k) != 0 {
+                    assert_eq!(a[k].to_bits(), b[k].to_bits(), "ray {i} child {k}");
+                }
             }
             let mut seen = (Vec::new(), Vec::new());
             // A closest-hit-like query: every third leaf primitive shortens the ray.
@@ -949,70 +648,6 @@ mod tests {
                 shorten(pos, t)
             });
             assert_eq!(seen.0, seen.1, "ray {i}");
-        }
-    }
-
-    #[test]
-    fn quantised_boxes_contain_every_primitive_box_below_them() {
-        let mut rng = Lcg(9);
-        // Boxes of very different sizes, far from the origin and near it, and thin ones.
-        for (n, offset, size) in [
-            (5000usize, 1000.0f32, 0.01f32),
-            (3000, 0.0, 0.3),
-            (2, 7.0, 1e-6),
-        ] {
-            let boxes: Vec<(Vec3, Vec3)> = (0..n)
-                .map(|i| {
-                    let c = rng.vec() + Vec3::splat(offset);
-                    let mut e = Vec3::new(rng.next(), rng.next(), rng.next()) * size;
-                    e[i % 3] *= 1e-3;
-                    (c - e, c + e)
-                })
-                .collect();
-            let bvh = WideBvh::build(&boxes);
-            let decoded = |node: &Node8, slot: usize| {
-                let lo = Vec3::new(
-                    node.plane(0, slot),
-                    node.plane(1, slot),
-                    node.plane(2, slot),
-                );
-                let hi = Vec3::new(
-                    node.plane(3, slot),
-                    node.plane(4, slot),
-                    node.plane(5, slot),
-                );
-                (lo, hi)
-            };
-            // Depth-first with the decoded boxes of the slots on the path.
-            let mut work = vec![(0u32, Vec::<(Vec3, Vec3)>::new())];
-            let mut seen = 0;
-            while let Some((index, path)) = work.pop() {
-                let node = &bvh.nodes[index as usize];
-                for slot in 0..WIDTH {
-                    let r = node.refs[slot];
-                    if r == 0 {
-                        continue;
-                    }
-                    let mut path = path.clone();
-                    path.push(decoded(node, slot));
-                    if r & LEAF == 0 {
-                        work.push((r, path));
-                        continue;
-                    }
-                    let first = (r & !LEAF) >> 2;
-                    for i in first..=first + (r & 3) {
-                        let b = boxes[bvh.order()[i as usize] as usize];
-                        for (lo, hi) in &path {
-                            assert!(
-                                lo.cmple(b.0).all() && hi.cmpge(b.1).all(),
-                                "{n} boxes: box {i} {b:?} outside {lo:?} {hi:?}"
-                            );
-                        }
-                        seen += 1;
-                    }
-                }
-            }
-            assert_eq!(seen, n);
         }
     }
 
