@@ -458,6 +458,144 @@ mod tests {
         })
     }
 
+    /// Closest hit by brute force over every triangle (the first of equal distances in BVH
+    /// order): (t, triangle position, barycentrics) as bits.
+    fn brute_force_hit(geometry: &SceneGeometry, ray: &Ray, t_max: f32) -> Option<[u32; 5]> {
+        let sr = ShearedRay::new(ray);
+        let mut best = None;
+        let mut t = t_max;
+        for (slot, tri) in geometry.tris.iter().enumerate() {
+            if let Some(h) = sr.intersect(tri, t) {
+                best = Some((slot as u32, h));
+                t = h.t;
+            }
+        }
+        best.map(|(slot, h)| {
+            [
+                h.t.to_bits(),
+                slot,
+                h.b0.to_bits(),
+                h.b1.to_bits(),
+                h.b2.to_bits(),
+            ]
+        })
+    }
+
+    /// Closest hit by the traversal: the same fields as [`brute_force_hit`].
+    fn traversal_hit(geometry: &SceneGeometry, ray: &Ray, t_max: f32) -> Option<[u32; 5]> {
+        let sr = ShearedRay::new(ray);
+        let mut best = None;
+        geometry.bvh.traverse(ray, t_max, |slot, t| {
+            match sr.intersect(&geometry.tris[slot as usize], t) {
+                Some(h) => {
+                    best = Some((slot, h));
+                    h.t
+                }
+                None => t,
+            }
+        });
+        best.map(|(slot, h)| {
+            [
+                h.t.to_bits(),
+                slot,
+                h.b0.to_bits(),
+                h.b1.to_bits(),
+                h.b2.to_bits(),
+            ]
+        })
+    }
+
+    /// The skin icosphere's rays: from outside towards the sphere, from inside to the
+    /// boundary, short free flights inside, and rays grazing the surface from just inside.
+    fn icosphere_ray(rng: &mut Rng, i: usize) -> (Ray, f32) {
+        let centre = Vec3::new(10.0, -2.0, 5.0);
+        match i % 4 {
+            0 => {
+                let o = centre + sample_uniform_sphere(rng.next_2d()) * 12.0;
+                let target = centre
+                    + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE)
+                        * 3.3;
+                (Ray::new(o, (target - o).normalize()), f32::INFINITY)
+            }
+            1 => {
+                let o = centre + sample_uniform_sphere(rng.next_2d()) * rng.next_f32().cbrt() * 2.9;
+                (
+                    Ray::new(o, sample_uniform_sphere(rng.next_2d())),
+                    f32::INFINITY,
+                )
+            }
+            2 => {
+                let o = centre + sample_uniform_sphere(rng.next_2d()) * rng.next_f32().cbrt() * 2.9;
+                let t = -(1.0 - rng.next_f32()).ln() / 8.0;
+                (Ray::new(o, sample_uniform_sphere(rng.next_2d())), t)
+            }
+            _ => {
+                let o =
+                    centre + sample_uniform_sphere(rng.next_2d()) * (2.99 + 0.01 * rng.next_f32());
+                (
+                    Ray::new(o, sample_uniform_sphere(rng.next_2d())),
+                    0.5 * rng.next_f32(),
+                )
+            }
+        }
+    }
+
+    fn skin_icosphere() -> SceneGeometry {
+        let mut mesh = icosphere(5);
+        for p in &mut mesh.positions {
+            *p = *p * 3.0 + Vec3::new(10.0, -2.0, 5.0);
+        }
+        SceneGeometry::build(vec![Shape::Mesh(mesh)]).expect("geometry")
+    }
+
+    #[test]
+    fn shadow_rays_agree_with_closest_hits_and_stop_at_the_first_hit() {
+        let geometry = skin_icosphere();
+        for avx2 in [true, false] {
+            let mut g = geometry.clone();
+            if !avx2 {
+                g.bvh = g.bvh.without_avx2();
+            }
+            let mut rng = Rng::new(33, 2);
+            let mut hits = 0;
+            for i in 0..200_000 {
+                let (ray, t_max) = icosphere_ray(&mut rng, i);
+                let closest = traversal_hit(&g, &ray, t_max);
+                let mut calls_after_hit = 0;
+                let mut found = false;
+                let sr = ShearedRay::new(&ray);
+                g.bvh.traverse(&ray, t_max, |slot, t| {
+                    calls_after_hit += usize::from(found);
+                    if sr.intersect(&g.tris[slot as usize], t).is_some() {
+                        found = true;
+                        0.0
+                    } else {
+                        t
+                    }
+                });
+                assert_eq!(found, closest.is_some(), "ray {i} (avx2 {avx2})");
+                assert_eq!(calls_after_hit, 0, "ray {i}: the shadow ray went on");
+                assert_eq!(g.occluded(&ray, t_max), found, "ray {i}");
+                hits += usize::from(found);
+            }
+            assert!((100_000..190_000).contains(&hits), "{hits} hits");
+        }
+    }
+
+    #[test]
+    fn traversal_hits_are_those_of_brute_force_bit_for_bit() {
+        let geometry = skin_icosphere();
+        let mut rng = Rng::new(35, 2);
+        let mut hits = 0;
+        for i in 0..20_000 {
+            let (ray, t_max) = icosphere_ray(&mut rng, i);
+            let expected = brute_force_hit(&geometry, &ray, t_max);
+            assert_eq!(traversal_hit(&geometry, &ray, t_max), expected, "ray {i}");
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 10_000, "{hits} hits");
+    }
+
     #[test]
     fn skipping_empty_cells_changes_no_hit() {
         // The skin icosphere (20,480 triangles) scaled and moved off the origin, and a box.

@@ -397,7 +397,7 @@ impl WideBvh {
 
     /// Forces the 4-wide node test (tests compare it with the 8-wide one).
     #[cfg(test)]
-    fn without_avx2(mut self) -> Self {
+    pub(super) fn without_avx2(mut self) -> Self {
         self.avx2 = false;
         self
     }
