@@ -171,9 +171,14 @@ fn check_unit(param: &str, v: f32) -> Result<(), BsdfError> {
     Ok(())
 }
 
+/// Checks each channel of `c` lies in [0, 1]; the channel's name (`param.r`, ...) is formatted
+/// only for an error, so a valid colour costs no allocation (BSDFs are built per hit).
 fn check_rgb_unit(param: &str, c: Rgb) -> Result<(), BsdfError> {
     for (i, ch) in ["r", "g", "b"].iter().enumerate() {
-        check_unit(&format!("{param}.{ch}"), c[i])?;
+        let v = c[i];
+        if v.is_nan() || !(0.0..=1.0).contains(&v) {
+            return check_unit(&format!("{param}.{ch}"), v);
+        }
     }
     Ok(())
 }
@@ -831,7 +836,9 @@ impl Surface {
         distribution: MicrofacetDistribution,
     ) -> Result<Surface, BsdfError> {
         for (i, ch) in ["r", "g", "b"].iter().enumerate() {
-            check_positive(&format!("eta.{ch}"), eta[i])?;
+            if !(eta[i] > 0.0) || !eta[i].is_finite() {
+                return check_positive(&format!("eta.{ch}"), eta[i]);
+            }
             let kv = k[i];
             if kv.is_nan() {
                 return Err(invalid(format!("k.{ch}"), kv, "is NaN"));
