@@ -4,9 +4,12 @@
 # (user + sys) per render, and the efficiency 1/(rel. MSE x CPU s).
 #
 #   tools/bench_exit_guided.sh [VELOUR_BINARY]    # default: target/release/velour
+#   SCENES="tex" tools/bench_exit_guided.sh       # only some rows (default: repro skin ico tex)
 #
 # Scenes: the reproducer (a dense r = 1 sphere behind a roughness-0.3 dielectric under a 1° sun),
-# scenes/skin_sphere.toml, and tools/peers/bench/skin_icosphere.toml (its mesh generated here).
+# scenes/skin_sphere.toml, tools/peers/bench/skin_icosphere.toml (its mesh generated here), and
+# "tex": the reproducer behind a textured boundary (roughness 0.45 with smoother veins at 0.24,
+# and a tinted skin with darker veins, both from tools/make_texture.py's veins image).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=$(realpath "${1:-target/release/velour}")
@@ -37,12 +40,16 @@ TOML
 sed "s#meshes/#$PWD/scenes/meshes/#" scenes/skin_sphere.toml >"$out/skin_exit.toml"
 python3 tools/peers/make_icosphere.py --subdivisions 5 "$out/ico.ply" >/dev/null
 sed "s#../generated/icosphere_20k.ply#$out/ico.ply#" tools/peers/bench/skin_icosphere.toml >"$out/ico_exit.toml"
-for s in repro skin ico; do
+python3 tools/make_texture.py veins "$out/veins.png" >/dev/null
+sed -e "s#roughness = 0.3 }#roughness = { texture = \"$out/veins.png\", channel = \"r\", scale = 0.5 }, tint = { texture = \"$out/veins.png\" } }#" \
+  "$out/repro_exit.toml" >"$out/tex_exit.toml"
+for s in repro skin ico tex; do
   sed 's/nee = "exit"/nee = "exit_guided"/' "$out/${s}_exit.toml" >"$out/${s}_guided.toml"
 done
 cat /proc/loadavg
-for s in "repro 16" "skin 8" "ico 4"; do
+for s in "repro 16" "skin 8" "ico 4" "tex 16"; do
   set -- $s
+  case " ${SCENES:-repro skin ico tex} " in *" $1 "*) ;; *) continue ;; esac
   for nee in exit guided; do
     cpu=()
     for seed in 11 12; do
