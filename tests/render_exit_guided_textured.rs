@@ -14,7 +14,7 @@ mod common;
 
 use common::files::TempDir;
 use common::render::{image_mean, region_mean, render_text, scene_from_text, unit_sphere_hit_x};
-use common::stats::assert_means_agree;
+use common::stats::{assert_means_agree, z_score};
 use common::textures::{exr_grey, exr_rgb};
 use velour::film::Film;
 use velour::medium::NeeStrategy;
@@ -85,20 +85,27 @@ fn left(i: u32, j: u32) -> bool {
     unit_sphere_hit_x(FOV, i, j).is_some_and(|(x, cos)| x < -0.5 && cos > 0.5)
 }
 
+/// [`assert_means_agree`] (4σ), printing the z value (`--nocapture`).
+fn agree(a: (f64, f64), b: (f64, f64), what: &str) {
+    let z = z_score(a.0, b.0, (a.1 * a.1 + b.1 * b.1).sqrt());
+    eprintln!("{what}: {:.5} ± {:.5} vs {:.5} ± {:.5}, z = {z:.2}", a.0, a.1, b.0, b.1);
+    assert_means_agree(a, b, what);
+}
+
 /// `exit` and `exit_guided` agree on each half of the sphere and over the whole image.
 fn assert_halves_agree(exit: &Film, guided: &Film, what: &str) {
     for c in 0..3 {
-        assert_means_agree(
+        agree(
             region_mean(guided, c, right),
             region_mean(exit, c, right),
             &format!("{what}: right half, channel {c} (exit_guided vs exit)"),
         );
-        assert_means_agree(
+        agree(
             region_mean(guided, c, left),
             region_mean(exit, c, left),
             &format!("{what}: left half, channel {c} (exit_guided vs exit)"),
         );
-        assert_means_agree(
+        agree(
             image_mean(guided, c),
             image_mean(exit, c),
             &format!("{what}: image, channel {c} (exit_guided vs exit)"),
@@ -117,7 +124,7 @@ fn exit_guided_with_one_value_textures_renders_like_the_constants() {
     let t = render_text(&lit_sphere(textured, "exit_guided", 128, 1), dir.path());
     let c = render_text(&lit_sphere(constant, "exit_guided", 128, 2), dir.path());
     for ch in 0..3 {
-        assert_means_agree(
+        agree(
             image_mean(&t, ch),
             image_mean(&c, ch),
             &format!("channel {ch} (one-value textures vs constants)"),
@@ -227,7 +234,7 @@ fn a_tint_blend_renders_like_the_mixed_tint_under_every_nee_mode() {
         let fb = render_text(&text, dir.path());
         let fm = render_text(&lit_sphere(&look(&mixed), nee, spp, seed + 1), dir.path());
         for c in 0..3 {
-            assert_means_agree(
+            agree(
                 image_mean(&fb, c),
                 image_mean(&fm, c),
                 &format!("nee = {nee}, channel {c} (tint blend vs mixed tint)"),

@@ -100,7 +100,9 @@ fn may_be_rough(obj: &Object, outside_ior: f32) -> bool {
                     return false;
                 };
                 match &d.coat {
-                    Some((ior, r, w)) => s.with_coat(*ior, *r, w.max()).is_ok_and(|s| !s.is_delta()),
+                    Some((ior, r, w)) => {
+                        s.with_coat(*ior, *r, w.max()).is_ok_and(|s| !s.is_delta())
+                    }
                     None => !s.is_delta(),
                 }
             }
@@ -317,10 +319,21 @@ pub(super) fn guided_connection(
         }
         _ => (u, f32::INFINITY, 1.0),
     };
-    // The boundary at y as the walk would see it arriving along d (its look picked there).
-    let width_y = footprint_at(obj, cone, &y, d);
-    let Some(surface) = boundary_surface_at(obj, outside_ior, y.uv, width_y, u_pick) else {
-        return Rgb::ZERO;
+    // The boundary at y as the walk would see it arriving along d (its look picked there);
+    // an untextured one is the probe's (built once: a coat's tables are costly).
+    let at_y;
+    let surface = match (&lobes.lobes[0], obj.surface.is_textured()) {
+        (Some((s, _)), false) => s,
+        _ => {
+            let width_y = footprint_at(obj, cone, &y, d);
+            match boundary_surface_at(obj, outside_ior, y.uv, width_y, u_pick) {
+                Some(s) => {
+                    at_y = s;
+                    &at_y
+                }
+                None => return Rgb::ZERO,
+            }
+        }
     };
     let frame = Frame::from_normal(y.ns);
     let wo_local = frame.to_local(-d);

@@ -337,8 +337,7 @@ pub(super) fn manifold_connection(
     // Fresnel seen from the light's side (outside), relative index n_inside / n_outside.
     let eta = ior_in / ior_out.max(1e-6);
     let cos_b = sol.wb.dot(sol.x1.ns) as f32;
-    let transmit =
-        tint * ((1.0 - fresnel_dielectric(cos_b, eta)) * eta * eta);
+    let transmit = tint * ((1.0 - fresnel_dielectric(cos_b, eta)) * eta * eta);
     if transmit.is_black() {
         return Rgb::ZERO;
     }
