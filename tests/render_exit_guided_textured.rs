@@ -40,8 +40,8 @@ max_depth = 100000
 [[light]]
 type = "sphere"
 center = [-1.5, 2.0, 1.5]
-radius = 0.4
-radiance = 20.0
+radius = 0.6
+radiance = 10.0
 [[light]]
 type = "distant"
 direction = [0.7, 0.2, 0.6]
@@ -144,8 +144,8 @@ fn exit_guided_agrees_with_exit_behind_two_valued_roughness_and_tint() {
         halves([1.0, 0.75, 0.5], [0.5, 0.8, 1.0]),
     );
     let surface = r#"{ type = "dielectric", ior = 1.4, roughness = { texture = "rough.exr" }, tint = { texture = "tint.exr" } }"#;
-    let exit = render_text(&lit_sphere(surface, "exit", 512, 3), dir.path());
-    let guided = render_text(&lit_sphere(surface, "exit_guided", 128, 4), dir.path());
+    let exit = render_text(&lit_sphere(surface, "exit", 1024, 3), dir.path());
+    let guided = render_text(&lit_sphere(surface, "exit_guided", 256, 4), dir.path());
     assert_halves_agree(&exit, &guided, "two-valued roughness and tint");
     // The halves differ: the textures are read (warm right, cool left).
     let ratio = |f: &Film, keep: fn(u32, u32) -> bool| {
@@ -180,9 +180,9 @@ fn exit_guided_agrees_with_exit_behind_a_blended_boundary() {
     ] {
         let surface =
             format!(r#"{{ type = "blend", mask = {{ texture = "mask.exr" }}, a = {a}, b = {b} }}"#);
-        let exit = render_text(&lit_sphere(&surface, "exit", 512, seed), dir.path());
+        let exit = render_text(&lit_sphere(&surface, "exit", 1024, seed), dir.path());
         let guided = render_text(
-            &lit_sphere(&surface, "exit_guided", 128, seed + 1),
+            &lit_sphere(&surface, "exit_guided", 256, seed + 1),
             dir.path(),
         );
         assert_halves_agree(&exit, &guided, &format!("blend with b = {b}"));
