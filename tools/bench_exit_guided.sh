@@ -57,7 +57,9 @@ for s in "repro 16" "skin 8" "ico 4" "tex 16"; do
         --checkpoint 100000 -o "$out/$seed.exr" >/dev/null; } 2>&1 | tail -1)
       cpu+=("$(echo "$t" | awk '{print $1 + $2}')")
     done
-    rel=$("$bin" diff --json "$out/11.exr" "$out/12.exr" | grep -m1 '"rel_mse"' | sed 's/.*: *//; s/,//')
+    # awk reads the whole report (grep -m1 could close the pipe early: SIGPIPE under pipefail).
+    rel=$("$bin" diff --json "$out/11.exr" "$out/12.exr" |
+      awk '/"rel_mse"/ && !f { f = 1; sub(/.*: */, ""); sub(/,.*/, ""); print }')
     awk -v s="$1" -v n="$nee" -v a="${cpu[0]}" -v b="${cpu[1]}" -v r="$rel" \
       'BEGIN { c = (a + b) / 2; printf "%-6s %-7s cpu %.2f s  rel_mse %.4g  efficiency %.4g\n", s, n, c, r, 1 / (r * c) }'
   done
