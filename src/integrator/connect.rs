@@ -32,14 +32,15 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use super::direct::{shadow_transmittance, ShadowMode};
-use super::interiors::{boundary_surface, is_false_intersection, InteriorStack};
-use super::TraceStats;
+use super::interiors::{boundary_surface_at, is_false_intersection, InteriorStack};
+use super::{RayCone, TraceStats};
+use crate::bsdf::Surface;
 use crate::geometry::Hit;
 use crate::light::Light;
-use crate::math::{Frame, Ray, Vec3};
+use crate::math::{Frame, Ray, Vec2, Vec3};
 use crate::medium::{Medium, PreparedPhase};
 use crate::sampling::{power_heuristic, PixelSampler};
-use crate::scene::{Scene, ShapeOwner};
+use crate::scene::{Object, ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
 
 /// Probability of the uniform-sphere component of the direction mixture.
@@ -65,9 +66,127 @@ fn leaves_through(scene: &Scene, stack: &InteriorStack, oi: u32, hit: &Hit, dir:
         && !is_false_intersection(scene, stack, oi, false)
 }
 
+/// A blend's `u_mask` that picks its look `a` whatever the mask (masks are in [0, 1]).
+const PICK_A: f32 = -1.0;
+
+/// A blend's `u_mask` that picks its look `b` whatever the mask.
+const PICK_B: f32 = 2.0;
+
+/// The ray cone's footprint, in texture units, where a ray of direction `dir` from the
+/// vertex the cone `cone` stands at meets `hit` on `obj`: the width the unidirectional walk
+/// sees there when its flight from the vertex reaches `hit` (the cone advanced by the hit
+/// distance, seen at the hit's cosine; see `PathState::footprint`). 0 for objects with
+/// nothing textured.
+fn footprint_at(obj: &Object, cone: RayCone, hit: &Hit, dir: Vec3) -> f32 {
+    if obj.uv_scale > 0.0 {
+        let mut c = cone;
+        c.advance(hit.t);
+        c.width_uv(obj.uv_scale_at(hit.prim), dir.dot(hit.ng))
+    } else {
+        0.0
+    }
+}
+
+/// True when the boundary of `obj` (seen from a medium of IOR `outside_ior`) can have a
+/// non-delta lobe somewhere: a textured roughness or coat weight at its largest texel, either
+/// look of a blend. Untextured surfaces answer exactly as their one BSDF does.
+fn may_be_rough(obj: &Object, outside_ior: f32) -> bool {
+    fn look(s: &ObjectSurface, outside_ior: f32) -> bool {
+        match s {
+            ObjectSurface::Dielectric(d) => {
+                let eta = d.ior / outside_ior.max(1e-6);
+                let Ok(s) = Surface::dielectric(eta, d.roughness.max(), d.distribution, Rgb::ONE)
+                else {
+                    return false;
+                };
+                match &d.coat {
+                    Some((ior, r, w)) => {
+                        s.with_coat(*ior, *r, w.max()).is_ok_and(|s| !s.is_delta())
+                    }
+                    None => !s.is_delta(),
+                }
+            }
+            ObjectSurface::Fixed(s) => !s.is_delta(),
+            // Diffuse transmission (never delta), or opaque (no interior is reached).
+            ObjectSurface::Textured(_) => true,
+            ObjectSurface::Blend(_) | ObjectSurface::Null => false,
+        }
+    }
+    match &obj.surface {
+        ObjectSurface::Blend(b) => look(&b.a, outside_ior) || look(&b.b, outside_ior),
+        s => look(s, outside_ior),
+    }
+}
+
+/// The non-delta BSDFs of the boundary at the probe point, with the probabilities the
+/// direction mixture gives them: the surface there (its textured parameters read at the
+/// probe's texture coordinates), or a blend's two looks weighted by the mask there (one look
+/// when the other is delta). Empty when every lobe there is delta. Only a proposal: any
+/// choice keeps the connection unbiased, since it divides by the density it sampled from.
+struct ProbeLobes {
+    lobes: [Option<(Surface, f32)>; 2],
+}
+
+impl ProbeLobes {
+    fn at(obj: &Object, outside_ior: f32, uv: Vec2, width_uv: f32) -> Self {
+        let rough = |u_mask: f32| {
+            boundary_surface_at(obj, outside_ior, uv, width_uv, u_mask).filter(|s| !s.is_delta())
+        };
+        let ObjectSurface::Blend(b) = &obj.surface else {
+            return ProbeLobes {
+                lobes: [rough(0.0).map(|s| (s, 1.0)), None],
+            };
+        };
+        let m = b.mask.eval(uv, width_uv);
+        match (rough(PICK_A), rough(PICK_B)) {
+            (Some(a), Some(b)) => ProbeLobes {
+                lobes: [Some((a, m)), Some((b, 1.0 - m))],
+            },
+            (Some(s), None) | (None, Some(s)) => ProbeLobes {
+                lobes: [Some((s, 1.0)), None],
+            },
+            (None, None) => ProbeLobes {
+                lobes: [None, None],
+            },
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.lobes[0].is_none()
+    }
+
+    /// The BSDF to sample with `u_lobe`, and `u_lobe` remapped to [0, 1) for its own use.
+    fn choose(&self, u_lobe: f32) -> Option<(&Surface, f32)> {
+        match &self.lobes {
+            [Some((a, wa)), Some((b, _))] => Some(if u_lobe < *wa {
+                (a, u_lobe / *wa)
+            } else {
+                (b, ((u_lobe - *wa) / (1.0 - *wa)).min(1.0))
+            }),
+            [Some((a, _)), None] => Some((a, u_lobe)),
+            _ => None,
+        }
+    }
+
+    /// The mixture's density of `wi` given `wo` (local to the probe frame).
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match &self.lobes {
+            [Some((a, _)), None] => a.pdf(wo, wi),
+            [Some((a, wa)), Some((b, wb))] => *wa * a.pdf(wo, wi) + *wb * b.pdf(wo, wi),
+            _ => 0.0,
+        }
+    }
+}
+
 /// The guided connection from interior vertex `x` of object `oi` (filled with `medium`)
 /// through its boundary to a light: the MIS-weighted contribution, without the path
-/// throughput. Zero when the boundary is smooth (delta) or absent.
+/// throughput. Zero when the boundary is smooth (delta) everywhere, or absent.
+///
+/// A textured boundary is read as the unidirectional walk reads it: at the exit point's
+/// texture coordinates, with the footprint the path's ray cone `cone` (at `x`) has there;
+/// a blend picks its look at the exit point with its own random number and probability
+/// mask(uv), as the walk picks at each hit, and the MIS weights use that look's densities,
+/// as the walk's light hits do (the mask's probability cancels in them).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn guided_connection(
     scene: &Scene,
@@ -76,16 +195,14 @@ pub(super) fn guided_connection(
     x: Vec3,
     phase: &PreparedPhase<'_>,
     stack: InteriorStack,
+    cone: RayCone,
     sampler: &mut PixelSampler,
     stats: &mut TraceStats,
     chosen: &mut Option<usize>,
 ) -> Rgb {
     let obj = &scene.objects[oi as usize];
     let outside_ior = stack.ior(&scene.objects, Some(oi));
-    let Some(surface) = boundary_surface(obj, outside_ior) else {
-        return Rgb::ZERO;
-    };
-    if surface.is_delta() {
+    if !may_be_rough(obj, outside_ior) {
         return Rgb::ZERO;
     }
     let u_light = sampler.next_1d();
@@ -94,6 +211,12 @@ pub(super) fn guided_connection(
     let u_lobe = sampler.next_1d();
     let u_m = sampler.next_2d();
     let u_rr = sampler.next_1d();
+    // Drawn only for blends: other surfaces keep their sample sequence (and images).
+    let u_pick = if matches!(obj.surface, ObjectSurface::Blend(_)) {
+        sampler.next_1d()
+    } else {
+        0.0
+    };
     let Some((li, p_sel)) = scene.light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
@@ -107,13 +230,23 @@ pub(super) fn guided_connection(
     }
     let u = ls.wi;
 
-    // The probe: the boundary normal where x + t u leaves the interior frames the lobe.
+    // The probe: the boundary where x + t u leaves the interior frames the lobe, and gives
+    // the texture coordinates its parameters are read at.
     stats.rays += 1;
     let probe = scene
         .geometry
         .intersect(&Ray::new(x, u), f32::INFINITY)
         .filter(|h| leaves_through(scene, &stack, oi, h, u));
-    let frame0 = probe.as_ref().map(|h| Frame::from_normal(h.ns));
+    let lobes = probe.as_ref().map_or(
+        ProbeLobes {
+            lobes: [None, None],
+        },
+        |h| ProbeLobes::at(obj, outside_ior, h.uv, footprint_at(obj, cone, h, u)),
+    );
+    let frame0 = probe
+        .as_ref()
+        .filter(|_| !lobes.is_empty())
+        .map(|h| Frame::from_normal(h.ns));
     let q = match &probe {
         Some(h) => {
             let tr = medium.transmittance(
@@ -131,8 +264,8 @@ pub(super) fn guided_connection(
     }
 
     // The inside direction d (x → boundary), from the mixture.
-    let d = match frame0 {
-        Some(f0) if u_mix >= DEFENSIVE => {
+    let d = match (frame0, lobes.choose(u_lobe)) {
+        (Some(f0), Some((surface, u_lobe))) if u_mix >= DEFENSIVE => {
             let Some(s) = surface.sample(f0.to_local(u), u_lobe, u_m) else {
                 return Rgb::ZERO;
             };
@@ -143,7 +276,7 @@ pub(super) fn guided_connection(
         }
         _ => crate::sampling::sample_uniform_sphere(u_m),
     };
-    let p_lobe = frame0.map_or(0.0, |f0| surface.pdf(f0.to_local(u), f0.to_local(-d)));
+    let p_lobe = frame0.map_or(0.0, |f0| lobes.pdf(f0.to_local(u), f0.to_local(-d)));
     let p_d = match frame0 {
         Some(_) => (1.0 - DEFENSIVE) * p_lobe + DEFENSIVE * UNIFORM_SPHERE_PDF,
         None => UNIFORM_SPHERE_PDF,
@@ -185,6 +318,22 @@ pub(super) fn guided_connection(
             (wl, dist2.sqrt(), j)
         }
         _ => (u, f32::INFINITY, 1.0),
+    };
+    // The boundary at y as the walk would see it arriving along d (its look picked there);
+    // an untextured one is the probe's (built once: a coat's tables are costly).
+    let at_y;
+    let surface = match (&lobes.lobes[0], obj.surface.is_textured()) {
+        (Some((s, _)), false) => s,
+        _ => {
+            let width_y = footprint_at(obj, cone, &y, d);
+            match boundary_surface_at(obj, outside_ior, y.uv, width_y, u_pick) {
+                Some(s) => {
+                    at_y = s;
+                    &at_y
+                }
+                None => return Rgb::ZERO,
+            }
+        }
     };
     let frame = Frame::from_normal(y.ns);
     let wo_local = frame.to_local(-d);

@@ -270,12 +270,6 @@ fn enter_walk(
     }
 }
 
-/// Builds the boundary BSDF of `obj` for the media meeting there, with textured parameters
-/// at their means (callers that know the hit use [`boundary_surface_at`]).
-pub(super) fn boundary_surface(obj: &Object, outside_ior: f32) -> Option<Surface> {
-    boundary_surface_at(obj, outside_ior, Vec2::ZERO, f32::INFINITY, 0.0)
-}
-
 /// Builds the boundary BSDF of `obj` for the media meeting there, its textured parameters
 /// read at texture coordinates `uv` with a footprint `width_uv` wide; `u_mask` picks a
 /// blend's surface ([`ObjectSurface::pick`]).

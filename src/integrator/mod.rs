@@ -404,7 +404,7 @@ impl PathState {
             if let Some(oi) = self.stack.top(&scene.objects, None) {
                 let mut li = None;
                 let c = connect::guided_connection(
-                    scene, oi, medium, p, &phase, self.stack, sampler, stats, &mut li,
+                    scene, oi, medium, p, &phase, self.stack, self.cone, sampler, stats, &mut li,
                 );
                 self.add_light(scene, li, self.beta * c);
                 self.guided_from = Some(oi);

@@ -73,11 +73,10 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
             ));
         }
     }
-    let any_interface = built.objects.iter().any(|o| {
-        matches!(&o.surface, super::ObjectSurface::Dielectric(d)
-            if d.coat.is_none() && d.ior != 1.0
-                && d.roughness.max() * d.roughness.max() < crate::bsdf::microfacet::SMOOTH_ALPHA)
-    });
+    let any_interface = built
+        .objects
+        .iter()
+        .any(|o| super::objects::is_smooth_refractor(&o.surface));
     if let Some((name, line, _)) = built.manifold.iter().find(|m| m.2 && !any_interface) {
         return Err(ctx.invalid(
             *line,

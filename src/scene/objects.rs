@@ -167,8 +167,13 @@ impl ObjectList {
         // or a dielectric of IOR 1) it would never happen, so NEE moves to the interior
         // vertices, where transparent shadows through such a boundary are exact. (Manifold NEE
         // behind no surface refracts at the enclosing boundary instead.)
-        let index_matched = matches!(&surface, ObjectSurface::Null)
-            || matches!(&surface, ObjectSurface::Dielectric(d) if d.ior == 1.0);
+        let index_matched = match &surface {
+            ObjectSurface::Null => true,
+            ObjectSurface::Dielectric(d) => d.ior == 1.0,
+            // Both looks are dielectrics of one IOR, or neither (checked by the blend).
+            ObjectSurface::Blend(b) => matches!(&b.a, ObjectSurface::Dielectric(d) if d.ior == 1.0),
+            ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) => false,
+        };
         let nee = if medium.is_some()
             && index_matched
             && !matches!(nee, NeeStrategy::Interior | NeeStrategy::Manifold)
@@ -202,12 +207,6 @@ impl ObjectList {
                 ctx.path.display()
             ));
         }
-        if nee == NeeStrategy::ExitGuided && surface.is_textured() {
-            return Err(ctx.invalid(
-                line,
-                format!("{name}: nee = \"exit_guided\" does not support a textured surface yet (use \"exit\")"),
-            ));
-        }
         let (uv_scale, uv_scales) = if surface.is_textured() || walk.is_some() {
             uv_per_world(&shape)
         } else {
@@ -236,9 +235,10 @@ impl ObjectList {
 /// `nee = "manifold"` needs the object's own boundary to be a smooth refracting dielectric
 /// (the interface the manifold walk solves on): a `dielectric` surface whose roughness the
 /// BSDF treats as smooth (roughness² below [`SMOOTH_ALPHA`], i.e. roughness < 0.0316), an IOR
-/// other than 1 and no coat; or no surface at all (an index-matched region inside such an
-/// object, e.g. an iris inside an eye: the walk then refracts at the enclosing boundary, which
-/// [`super::build`] checks exists).
+/// other than 1 and no coat, or a `blend` of two such dielectrics (of one IOR; the connection
+/// then transmits the mask-weighted tint); or no surface at all (an index-matched region
+/// inside such an object, e.g. an iris inside an eye: the walk then refracts at the enclosing
+/// boundary, which [`super::build`] checks exists).
 fn check_manifold_boundary(
     ctx: &Ctx,
     line: usize,
@@ -246,33 +246,57 @@ fn check_manifold_boundary(
     surface: &ObjectSurface,
 ) -> Result<(), SceneError> {
     let why = match surface {
-        ObjectSurface::Dielectric(d) if d.roughness.max() * d.roughness.max() >= SMOOTH_ALPHA => {
-            format!(
-                "its surface.roughness = {} is rough (must be 0, below {:.4} at most)",
-                d.roughness.max(),
-                SMOOTH_ALPHA.sqrt()
-            )
-        }
-        ObjectSurface::Dielectric(d) if d.ior == 1.0 => {
-            "its surface.ior = 1 does not refract".to_string()
-        }
-        ObjectSurface::Dielectric(d) if d.coat.is_some() => {
-            "its surface has a coat (not supported by the manifold walk)".to_string()
-        }
-        ObjectSurface::Dielectric(_) | ObjectSurface::Null => return Ok(()),
-        ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) => {
-            "its surface is not a dielectric".to_string()
-        }
-        ObjectSurface::Blend(_) => {
-            "its surface is a blend (not supported by the manifold walk)".to_string()
-        }
+        ObjectSurface::Null => None,
+        ObjectSurface::Blend(b) => not_smooth_refractor(&b.a, "surface.a")
+            .or_else(|| not_smooth_refractor(&b.b, "surface.b")),
+        s => not_smooth_refractor(s, "surface"),
+    };
+    let Some(why) = why else {
+        return Ok(());
     };
     Err(ctx.invalid(
         line,
         format!(
-            "{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0, or no surface inside such an object), but {why}"
+            "{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0, or a blend of two such, or no surface inside such an object), but {why}"
         ),
     ))
+}
+
+/// Why surface `s` (the table `key` of its object) is not a smooth refracting dielectric
+/// without a coat; `None` when it is one.
+fn not_smooth_refractor(s: &ObjectSurface, key: &str) -> Option<String> {
+    match s {
+        ObjectSurface::Dielectric(d) if d.roughness.max() * d.roughness.max() >= SMOOTH_ALPHA => {
+            Some(format!(
+                "its {key}.roughness = {} is rough (must be 0, below {:.4} at most)",
+                d.roughness.max(),
+                SMOOTH_ALPHA.sqrt()
+            ))
+        }
+        ObjectSurface::Dielectric(d) if d.ior == 1.0 => {
+            Some(format!("its {key}.ior = 1 does not refract"))
+        }
+        ObjectSurface::Dielectric(d) if d.coat.is_some() => Some(format!(
+            "its {key} has a coat (not supported by the manifold walk)"
+        )),
+        ObjectSurface::Dielectric(_) => None,
+        ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) | ObjectSurface::Null => {
+            Some(format!("its {key} is not a dielectric"))
+        }
+        ObjectSurface::Blend(_) => Some(format!("its {key} is a blend inside a blend")),
+    }
+}
+
+/// True when `surface` can be the manifold walk's interface (seen from vacuum): a smooth
+/// refracting dielectric without a coat, or a blend of two ([`check_manifold_boundary`]).
+pub(super) fn is_smooth_refractor(surface: &ObjectSurface) -> bool {
+    match surface {
+        ObjectSurface::Blend(b) => {
+            not_smooth_refractor(&b.a, "").is_none() && not_smooth_refractor(&b.b, "").is_none()
+        }
+        ObjectSurface::Null => false,
+        s => not_smooth_refractor(s, "").is_none(),
+    }
 }
 
 /// Texture units per world unit of a shape's surface: sqrt(UV area / world area) over the

@@ -18,14 +18,16 @@ use crate::geometry::{Hit, Shape};
 use crate::math::{Ray, Vec3};
 use crate::medium::Medium;
 use crate::scene::{DielectricParams, Object, ObjectSurface, Scene, ShapeOwner};
+use crate::spectrum::Rgb;
 
 /// True when `obj`'s boundary can be the manifold walk's interface for a path whose medium on
 /// the far side has IOR `outside_ior`: a smooth dielectric (the BSDF's delta lobe), without a
-/// coat, that refracts (relative IOR ≠ 1). The integrator's no-double-counting rule
-/// (`ManifoldLeg`) uses the same test.
+/// coat, that refracts (relative IOR ≠ 1), or a blend of two such (of one IOR, so both looks
+/// refract alike). The integrator's no-double-counting rule (`ManifoldLeg`) uses the same
+/// test.
 #[must_use]
 pub(in crate::integrator) fn is_manifold_interface(obj: &Object, outside_ior: f32) -> bool {
-    match &obj.surface {
+    let smooth = |s: &ObjectSurface| match s {
         ObjectSurface::Dielectric(d) => {
             d.coat.is_none()
                 && d.roughness.max() * d.roughness.max() < crate::bsdf::microfacet::SMOOTH_ALPHA
@@ -35,6 +37,26 @@ pub(in crate::integrator) fn is_manifold_interface(obj: &Object, outside_ior: f3
         | ObjectSurface::Textured(_)
         | ObjectSurface::Blend(_)
         | ObjectSurface::Null => false,
+    };
+    match &obj.surface {
+        ObjectSurface::Blend(b) => smooth(&b.a) && smooth(&b.b),
+        s => smooth(s),
+    }
+}
+
+/// The transmission tint of a manifold interface at texture coordinates `uv`: a
+/// dielectric's tint, or a blend's looks' tints weighted by the mask there (the expectation
+/// of the walk's per-hit choice: both looks refract alike, so only the tint depends on it).
+/// `None` for other surfaces.
+pub(super) fn interface_tint(surface: &ObjectSurface, uv: crate::math::Vec2) -> Option<Rgb> {
+    match surface {
+        ObjectSurface::Dielectric(d) => Some(d.tint.eval(uv, 0.0)),
+        ObjectSurface::Blend(b) => {
+            let m = b.mask.eval(uv, 0.0);
+            let (ta, tb) = (interface_tint(&b.a, uv)?, interface_tint(&b.b, uv)?);
+            Some(ta * m + tb * (1.0 - m))
+        }
+        ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) | ObjectSurface::Null => None,
     }
 }
 

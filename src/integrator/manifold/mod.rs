@@ -63,7 +63,7 @@ use crate::light::Light;
 use crate::math::{offset_ray_origin, Ray, Vec3};
 use crate::medium::PreparedPhase;
 use crate::sampling::{sample_uniform_sphere, PixelSampler};
-use crate::scene::{ObjectSurface, Scene, ShapeOwner};
+use crate::scene::{Scene, ShapeOwner};
 use crate::spectrum::Rgb;
 use interface::SceneInterface;
 
@@ -283,7 +283,10 @@ pub(super) fn manifold_connection(
         stats.manifold.count(Failure::Seed);
         return Rgb::ZERO;
     };
-    let Some(ObjectSurface::Dielectric(d)) = scene.objects.get(oi as usize).map(|o| &o.surface)
+    let Some(tint) = scene
+        .objects
+        .get(oi as usize)
+        .and_then(|o| interface::interface_tint(&o.surface, interface.uv))
     else {
         return Rgb::ZERO;
     };
@@ -334,8 +337,7 @@ pub(super) fn manifold_connection(
     // Fresnel seen from the light's side (outside), relative index n_inside / n_outside.
     let eta = ior_in / ior_out.max(1e-6);
     let cos_b = sol.wb.dot(sol.x1.ns) as f32;
-    let transmit =
-        d.tint.eval(interface.uv, 0.0) * ((1.0 - fresnel_dielectric(cos_b, eta)) * eta * eta);
+    let transmit = tint * ((1.0 - fresnel_dielectric(cos_b, eta)) * eta * eta);
     if transmit.is_black() {
         return Rgb::ZERO;
     }
