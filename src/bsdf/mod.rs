@@ -837,7 +837,7 @@ impl Surface {
     ) -> Result<Surface, BsdfError> {
         for (i, ch) in ["r", "g", "b"].iter().enumerate() {
             if !(eta[i] > 0.0) || !eta[i].is_finite() {
-                return check_positive(&format!("eta.{ch}"), eta[i]);
+                check_positive(&format!("eta.{ch}"), eta[i])?;
             }
             let kv = k[i];
             if kv.is_nan() {
