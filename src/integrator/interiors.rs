@@ -26,10 +26,12 @@ pub struct InteriorStack {
     walk_len: u8,
     /// Per walk slot: 0 a scene medium (index in the first value's bits), 1 homogeneous look
     /// `a` (or an entry interior), 2 homogeneous look `b`, 3 absorbing, 4 field look `a` (or a
-    /// textured voxel/fbm interior), 5 field look `b`.
+    /// textured voxel/fbm interior), 5 field look `b`, 6 fabric look `a` (or a textured
+    /// fabric), 7 fabric look `b`.
     walk_kind: [u8; WALK_SLOTS],
     walk_obj: [u32; WALK_SLOTS],
-    /// σ_a then σ_s (homogeneous), σ_a (absorbing), σ_t then σ_s per unit density (field).
+    /// σ_a then σ_s (homogeneous), σ_a (absorbing), σ_t then σ_s per unit density (field),
+    /// the entry point's u, v and footprint (fabric).
     walk_data: [[f32; 6]; WALK_SLOTS],
 }
 
@@ -66,6 +68,9 @@ fn pack(m: WalkMedium) -> (u8, [f32; 6]) {
             let (t, s) = (sigma_t.0, sigma_s.0);
             (4 + look.min(1), [t[0], t[1], t[2], s[0], s[1], s[2]])
         }
+        WalkMedium::Fabric { uv, width_uv, look } => {
+            (6 + look.min(1), [uv.x, uv.y, width_uv, 0.0, 0.0, 0.0])
+        }
     }
 }
 
@@ -84,6 +89,11 @@ fn unpack(kind: u8, d: [f32; 6]) -> WalkMedium {
             sigma_t: Rgb([d[0], d[1], d[2]]),
             sigma_s: Rgb([d[3], d[4], d[5]]),
             look: kind - 4,
+        },
+        6 | 7 => WalkMedium::Fabric {
+            uv: Vec2::new(d[0], d[1]),
+            width_uv: d[2],
+            look: kind - 6,
         },
         _ => WalkMedium::Absorbing(Rgb([d[0], d[1], d[2]])),
     }

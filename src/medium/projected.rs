@@ -117,10 +117,12 @@ impl ProjectedMedium {
                 sigma_a,
                 sigma_s: Rgb::ZERO,
             },
-            WalkMedium::Scene(_) | WalkMedium::Field { .. } => Coefficients {
-                sigma_a: Rgb::ZERO,
-                sigma_s: Rgb::ZERO,
-            },
+            WalkMedium::Scene(_) | WalkMedium::Field { .. } | WalkMedium::Fabric { .. } => {
+                Coefficients {
+                    sigma_a: Rgb::ZERO,
+                    sigma_s: Rgb::ZERO,
+                }
+            }
         }
     }
 

@@ -5,12 +5,13 @@
 //! an interior into a [`WalkMedium`] when a path (or a shadow ray) enters the object, and
 //! keeps it on its interior stack until it leaves; a path that re-enters resolves again.
 //! A `voxel` or `fbm` interior with textured parameters ([`FieldInterior`]) keeps its density
-//! field; only its coefficients per unit density are read at the entry point.
+//! field; only its coefficients per unit density are read at the entry point. A `fabric` with
+//! textured yarn colours ([`FabricInterior`]) keeps its fibres; only its colours are read there.
 
 use std::sync::Arc;
 
 use super::artist::{AlbedoMode, Coefficients};
-use super::{HeterogeneousMedium, HomogeneousMedium, ScaledField};
+use super::{FabricInterior, HeterogeneousMedium, HomogeneousMedium, ScaledField};
 use crate::math::Vec2;
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
@@ -104,7 +105,7 @@ impl FieldInterior {
 }
 
 /// One look of a blend: an interior of the scene (any type, by index into the scene's
-/// media) or an entry-projected one.
+/// media) or one read at the entry point.
 #[derive(Clone, Debug)]
 pub enum WalkLook {
     /// A medium of the scene.
@@ -113,6 +114,8 @@ pub enum WalkLook {
     Entry(EntryInterior),
     /// A density field with textured parameters read at the entry point.
     Field(FieldInterior),
+    /// A fabric with textured yarn colours read at the entry point.
+    Fabric(FabricInterior),
 }
 
 impl WalkLook {
@@ -123,6 +126,7 @@ impl WalkLook {
         match self {
             WalkLook::Medium(i) => WalkMedium::Scene(*i),
             WalkLook::Field(f) => f.at(uv, width_uv, look),
+            WalkLook::Fabric(f) => f.at(uv, width_uv, look),
             WalkLook::Entry(e) => match e.at(uv, width_uv) {
                 WalkMedium::Homogeneous { coefficients, .. } => {
                     WalkMedium::Homogeneous { coefficients, look }
@@ -141,6 +145,8 @@ pub enum WalkInterior {
     /// `projection = "entry"` on a `voxel` or `fbm` interior: coefficients read at the entry
     /// point, the density field kept.
     Field(FieldInterior),
+    /// A `fabric` interior with textured yarn colours, read at the entry point.
+    Fabric(FabricInterior),
     /// `type = "blend"`: look `a` with probability mask(uv) at the entry point, else `b`.
     Blend {
         /// The probability of `a`, in [0, 1].
@@ -167,6 +173,7 @@ impl WalkInterior {
         match self {
             WalkInterior::Entry(e) => e.at(uv, width_uv),
             WalkInterior::Field(f) => f.at(uv, width_uv, 0),
+            WalkInterior::Fabric(f) => f.at(uv, width_uv, 0),
             WalkInterior::Blend { mask, a, b } => {
                 if u < mask.eval(uv, width_uv) {
                     a.at(uv, width_uv, 0)
@@ -183,10 +190,10 @@ impl WalkInterior {
     pub fn phase(&self, look: u8) -> Option<PhaseFunction> {
         let entry = match self {
             WalkInterior::Entry(e) => e,
-            WalkInterior::Field(_) => return None,
+            WalkInterior::Field(_) | WalkInterior::Fabric(_) => return None,
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Entry(e) => e,
-                WalkLook::Medium(_) | WalkLook::Field(_) => return None,
+                WalkLook::Medium(_) | WalkLook::Field(_) | WalkLook::Fabric(_) => return None,
             },
         };
         Some(entry.phase)
@@ -200,9 +207,22 @@ impl WalkInterior {
             WalkInterior::Field(f) => Some(&f.medium),
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Field(f) => Some(&f.medium),
-                WalkLook::Medium(_) | WalkLook::Entry(_) => None,
+                WalkLook::Medium(_) | WalkLook::Entry(_) | WalkLook::Fabric(_) => None,
             },
-            WalkInterior::Entry(_) => None,
+            WalkInterior::Entry(_) | WalkInterior::Fabric(_) => None,
+        }
+    }
+
+    /// The textured fabric of look `look` (0: the interior itself or `a`, 1: `b`).
+    #[must_use]
+    pub fn fabric(&self, look: u8) -> Option<&FabricInterior> {
+        match self {
+            WalkInterior::Fabric(f) => Some(f),
+            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
+                WalkLook::Fabric(f) => Some(f),
+                WalkLook::Medium(_) | WalkLook::Entry(_) | WalkLook::Field(_) => None,
+            },
+            WalkInterior::Entry(_) | WalkInterior::Field(_) => None,
         }
     }
 
@@ -228,6 +248,9 @@ impl WalkInterior {
                 sigma_t,
                 sigma_s,
             })),
+            WalkMedium::Fabric { uv, width_uv, look } => Some(super::Medium::Dyed(
+                self.fabric(look)?.medium_at(uv, width_uv),
+            )),
         }
     }
 }
@@ -256,6 +279,16 @@ pub enum WalkMedium {
         sigma_t: Rgb,
         /// Scattering per unit density (1/length).
         sigma_s: Rgb,
+        /// Which look.
+        look: u8,
+    },
+    /// A textured fabric look entered at texture coordinates `uv` with a footprint
+    /// `width_uv` wide, where its yarn colours are read; `look` as for `Homogeneous`.
+    Fabric {
+        /// The entry point's texture coordinates.
+        uv: Vec2,
+        /// The entry point's footprint (texture units).
+        width_uv: f32,
         /// Which look.
         look: u8,
     },

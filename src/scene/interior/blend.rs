@@ -57,6 +57,7 @@ pub(super) fn build(
         Ok::<_, SceneError>(match built.walk {
             Some(WalkInterior::Entry(e)) => (WalkLook::Entry(e), built.medium),
             Some(WalkInterior::Field(f)) => (WalkLook::Field(f), built.medium),
+            Some(WalkInterior::Fabric(f)) => (WalkLook::Fabric(f), built.medium),
             Some(WalkInterior::Blend { .. }) => unreachable_blend(at)?,
             None => {
                 media.push(built.medium.clone());

@@ -136,7 +136,7 @@ pub(super) fn build(
                     emission: None,
                 });
             }
-            Medium::Scaled(_) => {
+            Medium::Scaled(_) | Medium::Dyed(_) => {
                 return Err(bad("textured parameters are read per walk and cannot be a mixture component; use constant values".into()));
             }
             Medium::Mixture(m) => {
