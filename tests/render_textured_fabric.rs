@@ -304,3 +304,48 @@ fn bad_yarn_colour_textures_are_refused_naming_object_and_key() {
     ));
     assert!(e.contains("chanel"), "{e}");
 }
+
+#[test]
+fn a_fibre_prepared_in_another_colour_is_the_fibre_built_in_that_colour() {
+    use velour::fabric::{FibreColour, FibrePhase, FibrePhaseParams};
+    use velour::spectrum::Rgb;
+    // The per-walk colour goes through the same inversion as a constant colour, so a vertex
+    // prepared in colour c evaluates and samples bit for bit like the phase function built
+    // with c — for the automatic node count and for one beyond the cached nodes.
+    for h_nodes in [0, 200] {
+        let base = FibrePhaseParams {
+            beta_n: 0.4,
+            h_nodes,
+            ..FibrePhaseParams::default()
+        };
+        let own = FibrePhase::new(base.clone().with_colour(Rgb([0.9, 0.9, 0.9])))
+            .unwrap_or_else(|e| panic!("{e}"));
+        for c in [Rgb(RED), Rgb(BLUE), Rgb([0.0, 1.0, 0.5])] {
+            let built =
+                FibrePhase::new(base.clone().with_colour(c)).unwrap_or_else(|e| panic!("{e}"));
+            let colour = FibreColour::new(c, base.beta_n);
+            let tangent = Vec3::new(0.3, 0.9, -0.2).normalize();
+            let wo = Vec3::new(-0.5, 0.1, 0.8).normalize();
+            let a = built.prepare(wo, tangent);
+            let b = own.prepare_coloured(wo, tangent, &colour);
+            for wi in [Vec3::X, Vec3::new(0.2, -0.7, 0.4).normalize(), -wo] {
+                assert_eq!(
+                    built.eval_pdf_prepared(&a, wi),
+                    own.eval_pdf_prepared(&b, wi),
+                    "colour {c:?}, {h_nodes} nodes"
+                );
+            }
+            let u = [0.37, 0.61, 0.13, 0.88];
+            assert_eq!(
+                built.sample_prepared(&a, u),
+                own.sample_prepared(&b, u),
+                "colour {c:?}"
+            );
+            // Not vacuous: the phase function's own colour gives another value.
+            assert_ne!(
+                own.eval_pdf_prepared(&own.prepare(wo, tangent), Vec3::X).0,
+                own.eval_pdf_prepared(&b, Vec3::X).0
+            );
+        }
+    }
+}
