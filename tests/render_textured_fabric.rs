@@ -349,3 +349,48 @@ fn a_fibre_prepared_in_another_colour_is_the_fibre_built_in_that_colour() {
         }
     }
 }
+
+#[test]
+fn a_textured_fabric_can_be_a_look_of_a_blend() {
+    let dir = TempDir::new("render-texfabric-blend");
+    write_plane(&dir);
+    exr_rgb(&dir.join("halves.exr"), 32, 4, |x, _| {
+        if x < 16 {
+            RED
+        } else {
+            BLUE
+        }
+    });
+    let fabric = r#"type = "fabric", pattern = "plain", resolution = 32, tiles = 8, attenuation = 0.01, weft_albedo = [0.7, 0.7, 0.7], warp_albedo = { texture = "halves.exr", wrap = "clamp" }"#;
+    let plain = cloth(
+        r#"{ texture = "halves.exr", wrap = "clamp" }"#,
+        "",
+        3.0,
+        48,
+        21,
+    );
+    // Mask 1: every walk takes look `a`, the textured fabric.
+    let blended = plain.replace(
+        &format!("interior = {{ {fabric} }}"),
+        &format!(
+            "interior = {{ type = \"blend\", mask = 1.0, a = {{ {fabric} }}, b = {{ type = \"homogeneous\", albedo = 0.5, attenuation = 0.1 }} }}"
+        ),
+    );
+    assert_ne!(plain, blended, "the blend replaced the interior");
+    let a = render(&plain, &dir);
+    let b = render(&blended.replace("seed = 21", "seed = 22"), &dir);
+    assert_agree(
+        region_z(&a, &b, 0..SIDE / 2 - 3),
+        "blend look a vs fabric, left",
+    );
+    assert_agree(
+        region_z(&a, &b, SIDE / 2 + 3..SIDE),
+        "blend look a vs fabric, right",
+    );
+    let (l, sl) = region_mean(&b, 0, |x, _| x < SIDE / 2 - 3);
+    let (r, sr) = region_mean(&b, 0, |x, _| x >= SIDE / 2 + 3);
+    assert!(
+        z_score(l, r, sl.hypot(sr)) > 8.0,
+        "the blend's halves do not differ"
+    );
+}
