@@ -8,7 +8,7 @@
 use glam::{DMat3, DVec3, Mat3, Vec3};
 
 use super::fibre_scattering::extinction_scale;
-use super::{FabricShading, FabricShell, FibreColour, FibrePhase, FibreVoxel, YarnId};
+use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, YarnId};
 use crate::grid::{Accessor, SparseGrid};
 use crate::math::{Ray, Vec2};
 use crate::spectrum::Rgb;
@@ -121,7 +121,7 @@ impl FabricLook {
 /// The yarn colours of a fabric whose `warp_albedo`, `weft_albedo` or `pile_albedo` may be
 /// textures (docs/textures.md, "Fabric yarn colours"): read at a walk's entry point, each
 /// colour is the multiple-scattering colour of its yarn family's fibres, inverted to fibre
-/// absorption per value exactly as a constant colour is ([`FibreColour::new`], Chiang et
+/// absorption per value exactly as a constant colour is ([`super::FibreColour::new`], Chiang et
 /// al. 2016 eq. 9).
 #[derive(Clone, Debug)]
 pub struct YarnColours {
@@ -148,12 +148,6 @@ impl YarnColours {
             self.maps[1].eval(uv, width_uv),
             self.maps[2].eval(uv, width_uv),
         ]
-    }
-
-    /// The fibre parameters of colour `colour` ([`FibreColour::new`] with this fabric's β_n).
-    #[must_use]
-    pub fn fibre_colour(&self, colour: Rgb) -> FibreColour {
-        FibreColour::new(colour, self.beta_n)
     }
 }
 

@@ -73,29 +73,22 @@ fn yarn_colours(
     defaults: [Rgb; 3],
     beta_n: f32,
 ) -> Result<YarnColours, SceneError> {
-    let keys = [
-        ("warp_albedo", d.warp_albedo.as_ref()),
-        ("weft_albedo", d.weft_albedo.as_ref()),
-        ("pile_albedo", d.pile_albedo.as_ref()),
-    ];
     let p = at.params();
-    let mut maps = Vec::with_capacity(3);
-    for ((key, input), default) in keys.into_iter().zip(defaults) {
+    let read = |key: &str, input: Option<&ColorInput>, default: Rgb| {
         if let (Some(ColorInput::Texture(t)), None) = (input, placement.rest_mesh) {
             return Err(at.invalid(format!(
                 "{}.{key} is a texture ({}) but a free-standing patch (shape = \"bounds\") has no texture coordinates to read it at; use a constant colour, or a shell over a mesh with u, v (shape = \"mesh\")",
                 at.owner, t.texture
             )));
         }
-        maps.push(p.colour(key, input, default, 0.0, 1.0)?);
-    }
-    let mut maps = maps.into_iter();
-    let mut next = || {
-        maps.next()
-            .ok_or_else(|| at.invalid(format!("{}: yarn colours missing", at.owner)))
+        p.colour(key, input, default, 0.0, 1.0)
     };
     Ok(YarnColours {
-        maps: [next()?, next()?, next()?],
+        maps: [
+            read("warp_albedo", d.warp_albedo.as_ref(), defaults[0])?,
+            read("weft_albedo", d.weft_albedo.as_ref(), defaults[1])?,
+            read("pile_albedo", d.pile_albedo.as_ref(), defaults[2])?,
+        ],
         beta_n,
     })
 }
