@@ -88,7 +88,10 @@ fn left(i: u32, j: u32) -> bool {
 /// [`assert_means_agree`] (4σ), printing the z value (`--nocapture`).
 fn agree(a: (f64, f64), b: (f64, f64), what: &str) {
     let z = z_score(a.0, b.0, (a.1 * a.1 + b.1 * b.1).sqrt());
-    eprintln!("{what}: {:.5} ± {:.5} vs {:.5} ± {:.5}, z = {z:.2}", a.0, a.1, b.0, b.1);
+    eprintln!(
+        "{what}: {:.5} ± {:.5} vs {:.5} ± {:.5}, z = {z:.2}",
+        a.0, a.1, b.0, b.1
+    );
     assert_means_agree(a, b, what);
 }
 

@@ -4,6 +4,7 @@
     tools/make_texture.py veins OUT.png [SIZE]   # skin-like albedo with darker 'veins'
     tools/make_texture.py mask OUT.png [SIZE]    # a soft grey mask (left dark, right light)
     tools/make_texture.py constant OUT.png R G B [SIZE]
+    tools/make_texture.py check OUT.png [SIZE]    # a printed check: red and cream bands
 
 Used by tools/bench_textures.sh; nothing here is committed as binary data.
 """
@@ -42,6 +43,18 @@ def veins(x, y, n):
     return tuple(int(b + (c - b) * t) for b, c in zip(base, vein))
 
 
+def check(x, y, n):
+    # Bands a quarter of the image wide along u and along v: red where both are set, cream
+    # where neither is, a darker red where one is.
+    a = (4 * x // n) % 2 == 0
+    b = (4 * y // n) % 2 == 0
+    if a and b:
+        return (184, 26, 23)
+    if a or b:
+        return (120, 40, 36)
+    return (219, 209, 184)
+
+
 def main():
     kind, out = sys.argv[1], sys.argv[2]
     if kind == "veins":
@@ -54,6 +67,9 @@ def main():
         r, g, b = (int(c) for c in sys.argv[3:6])
         n = int(sys.argv[6]) if len(sys.argv) > 6 else 4
         write_png(out, n, n, lambda x, y: (r, g, b))
+    elif kind == "check":
+        n = int(sys.argv[3]) if len(sys.argv) > 3 else 64
+        write_png(out, n, n, lambda x, y: check(x, y, n))
     else:
         sys.exit(f"unknown kind {kind!r}")
 

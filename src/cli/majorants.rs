@@ -366,6 +366,8 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
                     Medium::Heterogeneous(h) => v.push((obj.name.clone(), (**h).clone())),
                     // A textured voxel/fbm interior: its field at the textures' means.
                     Medium::Scaled(f) => v.push((obj.name.clone(), (*f.medium).clone())),
+                    // A fabric with textured yarn colours: the fabric itself.
+                    Medium::Dyed(f) => v.push((obj.name.clone(), (*f.medium).clone())),
                     Medium::Mixture(_) | Medium::ScaledMixture(_) => {
                         let mix = match &scene.media[m as usize] {
                             Medium::ScaledMixture(s) => &*s.medium,

@@ -37,6 +37,10 @@ pub fn estimator_attributes(scene: &Scene) -> BTreeMap<String, String> {
                 "heterogeneous, textured per walk; free_flight {:?}; transmittance {:?}; majorant {:?}",
                 f.medium.tracking.free_flight, f.medium.tracking.transmittance, f.medium.tracking.majorant
             ),
+            Medium::Dyed(f) => format!(
+                "fabric, yarn colours textured per walk; free_flight {:?}; transmittance {:?}; majorant {:?}",
+                f.medium.tracking.free_flight, f.medium.tracking.transmittance, f.medium.tracking.majorant
+            ),
             Medium::Mixture(m) => format!(
                 "mixture of {}; free_flight delta (mixture); transmittance {} per component",
                 m.components.len(),
@@ -110,6 +114,10 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
             Medium::ScaledMixture(m) => format!(
                 "mixture of {} with components textured per walk (read at the entry point)",
                 m.medium.components.len()
+            ),
+            Medium::Dyed(f) => format!(
+                "fabric shell over a voxelised weave patch, yarn colours textured per walk; free flights {:?}, transmittance {:?}, majorants {:?}",
+                f.medium.tracking.free_flight, f.medium.tracking.transmittance, f.medium.tracking.majorant
             ),
             Medium::Mixture(m) => {
                 let parts: Vec<String> = m

@@ -136,6 +136,7 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
                 Medium::Heterogeneous(h) => &**h,
                 // A textured voxel/fbm interior's field.
                 Medium::Scaled(f) => &*f.medium,
+                Medium::Dyed(f) => &*f.medium,
                 _ => continue,
             };
             levels = levels.max(h.pyramid.level_count());

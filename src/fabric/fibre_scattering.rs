@@ -116,9 +116,36 @@ impl FibrePhaseParams {
     /// This is how warp and weft get their own albedo.
     #[must_use]
     pub fn with_colour(mut self, colour: Rgb) -> Self {
-        self.sigma_a = sigma_a_from_colour(colour, self.beta_n);
-        self.diffuse_albedo = colour.map(|c| c.clamp(0.0, 1.0));
+        let c = FibreColour::new(colour, self.beta_n);
+        self.sigma_a = c.sigma_a;
+        self.diffuse_albedo = c.diffuse_albedo;
         self
+    }
+}
+
+/// The colour-dependent parameters of a [`FibrePhase`]: the fibre's absorption `σ_a` (per
+/// unit radius) and the diffuse lobe's albedo. A fibre phase function evaluated with another
+/// colour ([`FibrePhase::prepare_coloured`]) is the one [`FibrePhaseParams::with_colour`]
+/// would build for that colour, without building it (no allocation): how a textured yarn
+/// colour, read per walk, reaches the phase function.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FibreColour {
+    /// Absorption inside the fibre per unit fibre radius.
+    pub sigma_a: Rgb,
+    /// Albedo of the diffuse lobe, each channel in `[0, 1]`.
+    pub diffuse_albedo: Rgb,
+}
+
+impl FibreColour {
+    /// The parameters of a fibre of multiple-scattering colour `colour` (each channel in
+    /// `[0, 1]`) for azimuthal roughness `beta_n`: `σ_a` by the Chiang et al. 2016 inversion
+    /// ([`sigma_a_from_colour`]), the diffuse albedo `colour` clamped to `[0, 1]`.
+    #[must_use]
+    pub fn new(colour: Rgb, beta_n: f32) -> Self {
+        FibreColour {
+            sigma_a: sigma_a_from_colour(colour, beta_n),
+            diffuse_albedo: colour.map(|c| c.clamp(0.0, 1.0)),
+        }
     }
 }
 
@@ -349,6 +376,9 @@ pub struct PreparedFibre {
     /// Diffuse albedo × diffuse weight, and its RGB average.
     ad: Rgb,
     wd: f32,
+    /// The fibre absorption the terms were computed with (offsets beyond the cached ones
+    /// are computed per evaluation with it).
+    sigma_a: Rgb,
     /// Terms of the first `min(unique nodes, CACHED_NODES)` unique nodes.
     terms: [NodeTerms; CACHED_NODES],
 }
@@ -462,7 +492,7 @@ impl FibrePhase {
     }
 
     /// Attenuations `A_p(h)` (with inactive lobes zeroed and the `(1 − d)` mix applied).
-    fn node(&self, k: usize, sin_o: f32, cos_o: f32) -> NodeLobes {
+    fn node(&self, k: usize, sin_o: f32, cos_o: f32, sigma_a: Rgb) -> NodeLobes {
         let (h, gamma_o, cos_go) = self.nodes[k];
         let eta = self.params.eta;
         let cos_o = cos_o.max(1e-4);
@@ -472,10 +502,10 @@ impl FibrePhase {
         let sin_gt = (h / etap).clamp(-1.0, 1.0);
         let cos_gt = (1.0 - sin_gt * sin_gt).max(0.0).sqrt();
         let gamma_t = sin_gt.asin();
-        let trans = if self.params.sigma_a.is_black() {
+        let trans = if sigma_a.is_black() {
             Rgb::ONE
         } else {
-            (self.params.sigma_a * (-2.0 * cos_gt / cos_t)).exp()
+            (sigma_a * (-2.0 * cos_gt / cos_t)).exp()
         };
         let f = fresnel_dielectric(cos_o * cos_go, eta);
         let mut a = [Rgb::ZERO; 4];
@@ -518,8 +548,8 @@ impl FibrePhase {
     }
 
     /// The terms of unique node `k` for the outgoing angles `o`.
-    fn terms(&self, k: usize, o: &Angles, wd: f32) -> NodeTerms {
-        let node = self.node(k, o.sin_t, o.cos_t);
+    fn terms(&self, k: usize, o: &Angles, wd: f32, sigma_a: Rgb) -> NodeTerms {
+        let node = self.node(k, o.sin_t, o.cos_t, sigma_a);
         let w: [f32; 4] = std::array::from_fn(|p| node.a[p].average());
         let total: f32 = w.iter().sum::<f32>() + wd;
         NodeTerms {
@@ -533,9 +563,23 @@ impl FibrePhase {
     /// Fixes `wo` and the tangent of one scattering vertex; see [`PreparedFibre`].
     #[must_use]
     pub fn prepare(&self, wo: Vec3, tangent: Vec3) -> PreparedFibre {
-        let ad = self.params.diffuse_albedo * self.params.diffuse_weight;
+        self.prepare_with(wo, tangent, self.params.sigma_a, self.params.diffuse_albedo)
+    }
+
+    /// [`FibrePhase::prepare`] for a fibre of another colour: the vertex then evaluates and
+    /// samples exactly as the phase function built with that colour's parameters would
+    /// (bit-identical when `colour` is this phase function's own).
+    #[must_use]
+    pub fn prepare_coloured(&self, wo: Vec3, tangent: Vec3, colour: &FibreColour) -> PreparedFibre {
+        self.prepare_with(wo, tangent, colour.sigma_a, colour.diffuse_albedo)
+    }
+
+    /// [`FibrePhase::prepare`] with absorption `sigma_a` and diffuse albedo `albedo`.
+    fn prepare_with(&self, wo: Vec3, tangent: Vec3, sigma_a: Rgb, albedo: Rgb) -> PreparedFibre {
+        let ad = albedo * self.params.diffuse_weight;
         let wd = ad.average();
         let mut prepared = PreparedFibre {
+            sigma_a,
             frame: tangent_frame(tangent),
             o: Angles {
                 sin_t: 0.0,
@@ -551,7 +595,7 @@ impl FibrePhase {
             prepared.o = o;
             let unique = self.nodes.len().div_ceil(2).min(CACHED_NODES);
             for (k, t) in prepared.terms[..unique].iter_mut().enumerate() {
-                *t = self.terms(k, &o, wd);
+                *t = self.terms(k, &o, wd, sigma_a);
             }
         }
         prepared
@@ -579,7 +623,7 @@ impl FibrePhase {
         for k in 0..n_nodes.div_ceil(2) {
             let node = match prepared.terms.get(k) {
                 Some(t) => *t,
-                None => self.terms(k, o, wd),
+                None => self.terms(k, o, wd, prepared.sigma_a),
             };
             let w = node.w;
             let total = node.total;
@@ -648,7 +692,7 @@ impl FibrePhase {
         let n_nodes = self.nodes.len();
         let k = ((u[0] * n_nodes as f32) as usize).min(n_nodes - 1);
         let mut u0 = (u[0] * n_nodes as f32 - k as f32).clamp(0.0, 1.0);
-        let node = self.node(k, o.sin_t, o.cos_t);
+        let node = self.node(k, o.sin_t, o.cos_t, prepared.sigma_a);
         let wd = prepared.wd;
         let w: [f32; 5] = std::array::from_fn(|p| if p < 4 { node.a[p].average() } else { wd });
         let total: f32 = w.iter().sum();

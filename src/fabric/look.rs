@@ -10,7 +10,9 @@ use glam::{DMat3, DVec3, Mat3, Vec3};
 use super::fibre_scattering::extinction_scale;
 use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, YarnId};
 use crate::grid::{Accessor, SparseGrid};
-use crate::math::Ray;
+use crate::math::{Ray, Vec2};
+use crate::spectrum::Rgb;
+use crate::texture::ColorParam;
 
 /// How the extinction of a fibre medium depends on the direction of travel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -84,6 +86,19 @@ impl FabricLook {
         self.shading.for_yarn(yarn)
     }
 
+    /// The yarn family of id `id`, as [`Self::phase_for_id`] picks it: 0 warp, 1 weft,
+    /// 2 pile (the index into [`YarnColours`]).
+    #[must_use]
+    pub fn family_of_id(id: f32) -> u8 {
+        if id < 0.5 {
+            0
+        } else if id < 1.5 {
+            1
+        } else {
+            2
+        }
+    }
+
     /// The fibre frame of a free-standing patch `grid` at world point `p`: the world-space
     /// tangent and the yarn id of the nearest voxel. Tangents are stored in patch units and
     /// mapped through the placement, so rotated and sheared patches keep their fibre
@@ -100,6 +115,39 @@ impl FabricLook {
             tangent: world.try_normalize().unwrap_or(Vec3::X),
             id,
         }
+    }
+}
+
+/// The yarn colours of a fabric whose `warp_albedo`, `weft_albedo` or `pile_albedo` may be
+/// textures (docs/textures.md, "Fabric yarn colours"): read at a walk's entry point, each
+/// colour is the multiple-scattering colour of its yarn family's fibres, inverted to fibre
+/// absorption per value exactly as a constant colour is ([`super::FibreColour::new`], Chiang et
+/// al. 2016 eq. 9).
+#[derive(Clone, Debug)]
+pub struct YarnColours {
+    /// Warp, weft and pile colours, each channel in `[0, 1]`.
+    pub maps: [ColorParam; 3],
+    /// The shared azimuthal roughness β_n of the fibre phase functions (the inversion
+    /// depends on it).
+    pub beta_n: f32,
+}
+
+impl YarnColours {
+    /// True when a colour is a texture.
+    #[must_use]
+    pub fn is_textured(&self) -> bool {
+        self.maps.iter().any(ColorParam::is_textured)
+    }
+
+    /// The three colours at texture coordinates `uv` with a footprint `width_uv` wide
+    /// (texture units; ∞ gives the textures' means).
+    #[must_use]
+    pub fn at(&self, uv: Vec2, width_uv: f32) -> [Rgb; 3] {
+        [
+            self.maps[0].eval(uv, width_uv),
+            self.maps[1].eval(uv, width_uv),
+            self.maps[2].eval(uv, width_uv),
+        ]
     }
 }
 

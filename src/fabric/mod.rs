@@ -41,10 +41,12 @@ pub mod weave;
 pub mod yarn;
 
 pub use fibre_scattering::{
-    FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, PreparedFibre, SggxFibrePhase,
-    SggxSample,
+    FibreColour, FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, PreparedFibre,
+    SggxFibrePhase, SggxSample,
 };
-pub use look::{projected_width, FabricLook, FibreExtinction, FibreGridLookup, ShellLookup};
+pub use look::{
+    projected_width, FabricLook, FibreExtinction, FibreGridLookup, ShellLookup, YarnColours,
+};
 pub use patch_file::{read_patch_file, PatchFile, PatchFileError, WeaveRecord};
 pub use shell::{FabricShell, FibreVoxel, ShellParams};
 pub use voxelise::{

@@ -745,7 +745,11 @@ fn welded_normals(mesh: &TriangleMesh, canon: &[u32]) -> Vec<DVec3> {
     n.iter().map(|v| v.normalize_or_zero()).collect()
 }
 
-/// Bottom, top and side walls of the shell, with side quads split like the tetrahedra.
+/// Bottom, top and side walls of the shell, with side quads split like the tetrahedra. Each
+/// layer's vertex `i` carries the cloth mesh's texture coordinates of vertex `i`, and the
+/// bottom and top faces keep the mesh's own vertex indices, so that a path entering the shell
+/// reads the cloth's UV there (across a UV seam each side keeps its own; the welded
+/// positions are the same, so the surface is the same). Side walls take their vertices' UVs.
 fn shell_boundary(
     mesh: &TriangleMesh,
     canon: &[u32],
@@ -760,6 +764,10 @@ fn shell_boundary(
             positions.push((p.as_dvec3() + n * (s * thickness)).as_vec3());
         }
     }
+    let uvs = mesh
+        .uvs
+        .as_ref()
+        .map(|uv| uv.iter().chain(uv.iter()).copied().collect::<Vec<_>>());
     let mut indices = Vec::with_capacity(mesh.indices.len() * 4);
     // Edges by welded ids; a boundary edge is used by one triangle, in its winding x → y.
     let mut edges: std::collections::HashMap<(u32, u32), (u32, u32, u32)> =
@@ -769,8 +777,9 @@ fn shell_boundary(
         if a == b || b == c || a == c {
             continue;
         }
-        indices.push([a, c, b]); // bottom, facing −n
-        indices.push([a + nv, b + nv, c + nv]); // top, facing +n
+        let [ia, ib, ic] = *tri;
+        indices.push([ia, ic, ib]); // bottom, facing −n
+        indices.push([ia + nv, ib + nv, ic + nv]); // top, facing +n
         for (x, y) in [(a, b), (b, c), (c, a)] {
             edges.entry((x.min(y), x.max(y))).or_insert((0, x, y)).0 += 1;
         }
@@ -796,7 +805,7 @@ fn shell_boundary(
     let mut m = TriangleMesh {
         positions,
         normals: None,
-        uvs: None,
+        uvs,
         indices,
     };
     m.make_outward();

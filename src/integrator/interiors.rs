@@ -27,11 +27,12 @@ pub struct InteriorStack {
     /// Per walk slot: 0 a scene medium (index in the first value's bits), 1 homogeneous look
     /// `a` (or an entry interior), 2 homogeneous look `b`, 3 absorbing, 4 field look `a` (or a
     /// textured voxel/fbm interior), 5 field look `b`, 6 textured mixture look `a` (or a
-    /// textured mixture), 7 textured mixture look `b`.
+    /// textured mixture), 7 textured mixture look `b`, 8 fabric look `a` (or a textured
+    /// fabric), 9 fabric look `b`.
     walk_kind: [u8; WALK_SLOTS],
     walk_obj: [u32; WALK_SLOTS],
     /// σ_a then σ_s (homogeneous), σ_a (absorbing), σ_t then σ_s per unit density (field),
-    /// the entry point's u, v and footprint width (textured mixture).
+    /// the entry point's u, v and footprint width (textured mixture, fabric).
     walk_data: [[f32; 6]; WALK_SLOTS],
 }
 
@@ -71,6 +72,9 @@ fn pack(m: WalkMedium) -> (u8, [f32; 6]) {
         WalkMedium::EntryPoint { uv, width_uv, look } => {
             (6 + look.min(1), [uv.x, uv.y, width_uv, 0.0, 0.0, 0.0])
         }
+        WalkMedium::Fabric { uv, width_uv, look } => {
+            (8 + look.min(1), [uv.x, uv.y, width_uv, 0.0, 0.0, 0.0])
+        }
     }
 }
 
@@ -94,6 +98,11 @@ fn unpack(kind: u8, d: [f32; 6]) -> WalkMedium {
             uv: Vec2::new(d[0], d[1]),
             width_uv: d[2],
             look: kind - 6,
+        },
+        8 | 9 => WalkMedium::Fabric {
+            uv: Vec2::new(d[0], d[1]),
+            width_uv: d[2],
+            look: kind - 8,
         },
         _ => WalkMedium::Absorbing(Rgb([d[0], d[1], d[2]])),
     }

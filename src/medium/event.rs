@@ -2,7 +2,7 @@
 //! of the flight, any radiance the medium emitted along it, and, where the flight ended in a
 //! real collision, the scattering vertex with its albedo and the phase function chosen there.
 
-use crate::fabric::{FibrePhase, PreparedFibre};
+use crate::fabric::{FibreColour, FibrePhase, PreparedFibre};
 use crate::math::Vec3;
 use crate::phase::PhaseFunction;
 use crate::sampling::PixelSampler;
@@ -59,7 +59,22 @@ pub enum VertexPhase<'a> {
         phase: &'a FibrePhase,
         /// Unit fibre tangent (world space).
         tangent: Vec3,
+        /// The yarn family: 0 warp, 1 weft, 2 pile.
+        yarn: u8,
+        /// The walk's colour of this yarn when the fabric's colours are textured (read at
+        /// the entry point, docs/textures.md): the phase function is evaluated for that
+        /// colour ([`FibrePhase::prepare_coloured`]); `None` for its own.
+        dye: Option<Rgb>,
     },
+}
+
+/// The prepared fibre vertex of `phase` for `wo` around `tangent`, in the walk's colour
+/// `dye` when there is one.
+fn prepare_fibre(phase: &FibrePhase, wo: Vec3, tangent: Vec3, dye: Option<Rgb>) -> PreparedFibre {
+    match dye {
+        None => phase.prepare(wo, tangent),
+        Some(c) => phase.prepare_coloured(wo, tangent, &FibreColour::new(c, phase.params().beta_n)),
+    }
 }
 
 /// A direction sampled from a [`VertexPhase`].
@@ -79,7 +94,12 @@ impl<'a> VertexPhase<'a> {
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
         match self {
             VertexPhase::Hg(p) => (Rgb::splat(p.eval(wo, wi)), p.pdf(wo, wi)),
-            VertexPhase::Fibre { phase, tangent } => phase.eval_pdf(wo, wi, *tangent),
+            VertexPhase::Fibre {
+                phase,
+                tangent,
+                dye,
+                ..
+            } => phase.eval_pdf_prepared(&prepare_fibre(phase, wo, *tangent, *dye), wi),
         }
     }
 
@@ -90,9 +110,14 @@ impl<'a> VertexPhase<'a> {
     pub fn prepare(&self, wo: Vec3) -> PreparedPhase<'a> {
         match *self {
             VertexPhase::Hg(p) => PreparedPhase::Hg { phase: p, wo },
-            VertexPhase::Fibre { phase, tangent } => PreparedPhase::Fibre {
+            VertexPhase::Fibre {
                 phase,
-                prepared: phase.prepare(wo, tangent),
+                tangent,
+                dye,
+                ..
+            } => PreparedPhase::Fibre {
+                phase,
+                prepared: prepare_fibre(phase, wo, tangent, dye),
             },
         }
     }
@@ -108,14 +133,19 @@ impl<'a> VertexPhase<'a> {
                     pdf: s.pdf,
                 })
             }
-            VertexPhase::Fibre { phase, tangent } => {
+            VertexPhase::Fibre {
+                phase,
+                tangent,
+                dye,
+                ..
+            } => {
                 let u = [
                     sampler.next_1d(),
                     sampler.next_1d(),
                     sampler.next_1d(),
                     sampler.next_1d(),
                 ];
-                let s = phase.sample(wo, *tangent, u)?;
+                let s = phase.sample_prepared(&prepare_fibre(phase, wo, *tangent, *dye), u)?;
                 (s.pdf > 0.0).then_some(PhaseDirection {
                     wi: s.wi,
                     weight: s.weight,

@@ -192,6 +192,8 @@ impl HeterogeneousMedium {
                 return VertexPhase::Fibre {
                     phase: look.phase_for_id(fibre.id),
                     tangent: fibre.tangent,
+                    yarn: FabricLook::family_of_id(fibre.id),
+                    dye: None,
                 };
             }
         }

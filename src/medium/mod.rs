@@ -12,9 +12,11 @@
 //! - [`mixture`]: several media in one object;
 //! - [`grids`]: per-vertex albedo and emission grids;
 //! - [`walk`]: interiors resolved once per walk (entry-projected textures, blends);
-//! - [`projected`]: textured interiors read at the closest boundary point of every lookup.
+//! - [`projected`]: textured interiors read at the closest boundary point of every lookup;
+//! - [`dyed`]: fabrics whose yarn colours are textured, read per walk.
 
 pub mod artist;
+pub mod dyed;
 pub mod event;
 pub mod grids;
 pub mod heterogeneous;
@@ -27,6 +29,7 @@ pub use artist::{
     multiple_scattering_albedo, single_scattering_albedo_from_multiple, AlbedoMode, Coefficients,
     MAX_SINGLE_SCATTERING_ALBEDO,
 };
+pub use dyed::{DyedFabric, FabricInterior};
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use grids::{AlbedoGrid, AlbedoSource, EmissionGrid, EmissionKind};
 pub use heterogeneous::{
@@ -97,6 +100,9 @@ pub enum Medium {
     /// A mixture's components with one walk's coefficients (textured components read at the
     /// entry point, docs/textures.md).
     ScaledMixture(ScaledMixture),
+    /// A fabric with one walk's yarn colours (a `fabric` interior with textured colours,
+    /// read at the entry point, docs/textures.md).
+    Dyed(DyedFabric),
 }
 
 /// A shared heterogeneous medium with other coefficients per unit density (its combined base
@@ -141,6 +147,10 @@ impl Medium {
                 .coefficients()
                 .sigma_t_at(f.medium.pyramid.global_bounds().max),
             Medium::ScaledMixture(m) => m.max_sigma_t(),
+            Medium::Dyed(f) => {
+                let h = &f.medium;
+                h.coefficients.sigma_t_at(h.pyramid.global_bounds().max)
+            }
         }
     }
 
@@ -155,6 +165,7 @@ impl Medium {
             Medium::Projected(p) => p.scatters(),
             Medium::Scaled(f) => !f.sigma_s.is_black() || !f.medium.coefficients.base_s.is_black(),
             Medium::ScaledMixture(m) => m.scatters(),
+            Medium::Dyed(f) => !f.medium.coefficients.sigma_s.is_black(),
         }
     }
 
@@ -249,6 +260,9 @@ impl Medium {
             Medium::ScaledMixture(m) => {
                 m.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
             }
+            Medium::Dyed(f) => {
+                f.sample_flight_in_cone(ray, cone, boundary(f32::INFINITY), beta, u, stats)
+            }
         }
     }
 
@@ -286,6 +300,7 @@ impl Medium {
                     .transmittance_with(&f.coefficients(), ray, t_max, u, stats)
             }
             Medium::ScaledMixture(m) => m.transmittance(ray, t_max, u, stats),
+            Medium::Dyed(f) => f.transmittance_in_cone(ray, t_max, cone, u, stats),
         }
     }
 

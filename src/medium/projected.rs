@@ -117,7 +117,10 @@ impl ProjectedMedium {
                 sigma_a,
                 sigma_s: Rgb::ZERO,
             },
-            _ => Coefficients {
+            WalkMedium::Scene(_)
+            | WalkMedium::Field { .. }
+            | WalkMedium::EntryPoint { .. }
+            | WalkMedium::Fabric { .. } => Coefficients {
                 sigma_a: Rgb::ZERO,
                 sigma_s: Rgb::ZERO,
             },

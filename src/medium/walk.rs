@@ -8,13 +8,14 @@
 //! field; only its coefficients per unit density are read at the entry point. A `mixture`
 //! with textured components ([`TexturedMixture`]) keeps its components; their coefficients are
 //! read at the entry point, whose texture coordinates ride on the stack
-//! ([`WalkMedium::EntryPoint`]: four components' coefficients would not fit).
+//! ([`WalkMedium::EntryPoint`]: four components' coefficients would not fit). A `fabric` with
+//! textured yarn colours ([`FabricInterior`]) keeps its fibres; only its colours are read there.
 
 use std::sync::Arc;
 
 use super::artist::{AlbedoMode, Coefficients};
 use super::mixture::TexturedMixture;
-use super::{HeterogeneousMedium, HomogeneousMedium, ScaledField};
+use super::{FabricInterior, HeterogeneousMedium, HomogeneousMedium, ScaledField};
 use crate::math::Vec2;
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
@@ -108,7 +109,7 @@ impl FieldInterior {
 }
 
 /// One look of a blend: an interior of the scene (any type, by index into the scene's
-/// media) or an entry-projected one.
+/// media) or one read at the entry point.
 #[derive(Clone, Debug)]
 pub enum WalkLook {
     /// A medium of the scene.
@@ -119,6 +120,8 @@ pub enum WalkLook {
     Field(FieldInterior),
     /// A mixture with textured components read at the entry point.
     Mixture(TexturedMixture),
+    /// A fabric with textured yarn colours read at the entry point.
+    Fabric(FabricInterior),
 }
 
 impl WalkLook {
@@ -130,6 +133,7 @@ impl WalkLook {
             WalkLook::Medium(i) => WalkMedium::Scene(*i),
             WalkLook::Field(f) => f.at(uv, width_uv, look),
             WalkLook::Mixture(_) => WalkMedium::EntryPoint { uv, width_uv, look },
+            WalkLook::Fabric(f) => f.at(uv, width_uv, look),
             WalkLook::Entry(e) => match e.at(uv, width_uv) {
                 WalkMedium::Homogeneous { coefficients, .. } => {
                     WalkMedium::Homogeneous { coefficients, look }
@@ -152,6 +156,8 @@ pub enum WalkInterior {
     /// base medium (built as a mixture): the components' coefficients read at the entry
     /// point.
     Mixture(TexturedMixture),
+    /// A `fabric` interior with textured yarn colours, read at the entry point.
+    Fabric(FabricInterior),
     /// `type = "blend"`: look `a` with probability mask(uv) at the entry point, else `b`.
     Blend {
         /// The probability of `a`, in [0, 1].
@@ -183,6 +189,7 @@ impl WalkInterior {
                 width_uv,
                 look: 0,
             },
+            WalkInterior::Fabric(f) => f.at(uv, width_uv, 0),
             WalkInterior::Blend { mask, a, b } => {
                 if u < mask.eval(uv, width_uv) {
                     a.at(uv, width_uv, 0)
@@ -199,10 +206,15 @@ impl WalkInterior {
     pub fn phase(&self, look: u8) -> Option<PhaseFunction> {
         let entry = match self {
             WalkInterior::Entry(e) => e,
-            WalkInterior::Field(_) | WalkInterior::Mixture(_) => return None,
+            WalkInterior::Field(_) | WalkInterior::Mixture(_) | WalkInterior::Fabric(_) => {
+                return None
+            }
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Entry(e) => e,
-                WalkLook::Medium(_) | WalkLook::Field(_) | WalkLook::Mixture(_) => return None,
+                WalkLook::Medium(_)
+                | WalkLook::Field(_)
+                | WalkLook::Mixture(_)
+                | WalkLook::Fabric(_) => return None,
             },
         };
         Some(entry.phase)
@@ -216,9 +228,12 @@ impl WalkInterior {
             WalkInterior::Field(f) => Some(&f.medium),
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Field(f) => Some(&f.medium),
-                WalkLook::Medium(_) | WalkLook::Entry(_) | WalkLook::Mixture(_) => None,
+                WalkLook::Medium(_)
+                | WalkLook::Entry(_)
+                | WalkLook::Mixture(_)
+                | WalkLook::Fabric(_) => None,
             },
-            WalkInterior::Entry(_) | WalkInterior::Mixture(_) => None,
+            WalkInterior::Entry(_) | WalkInterior::Mixture(_) | WalkInterior::Fabric(_) => None,
         }
     }
 
@@ -229,9 +244,26 @@ impl WalkInterior {
             WalkInterior::Mixture(m) => Some(m),
             WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
                 WalkLook::Mixture(m) => Some(m),
+                WalkLook::Medium(_)
+                | WalkLook::Entry(_)
+                | WalkLook::Field(_)
+                | WalkLook::Fabric(_) => None,
+            },
+            WalkInterior::Entry(_) | WalkInterior::Field(_) | WalkInterior::Fabric(_) => None,
+        }
+    }
+
+    /// The textured fabric of look `look` (0: the interior itself or `a`, 1: `b`).
+    #[must_use]
+    pub fn fabric(&self, look: u8) -> Option<&FabricInterior> {
+        match self {
+            WalkInterior::Fabric(f) => Some(f),
+            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
+                WalkLook::Fabric(f) => Some(f),
+                WalkLook::Mixture(_) => None,
                 WalkLook::Medium(_) | WalkLook::Entry(_) | WalkLook::Field(_) => None,
             },
-            WalkInterior::Entry(_) | WalkInterior::Field(_) => None,
+            WalkInterior::Entry(_) | WalkInterior::Field(_) | WalkInterior::Mixture(_) => None,
         }
     }
 
@@ -260,6 +292,9 @@ impl WalkInterior {
             // Texture reads at every use: the price of not storing the coefficients.
             WalkMedium::EntryPoint { uv, width_uv, look } => Some(super::Medium::ScaledMixture(
                 self.mixture(look)?.at(uv, width_uv),
+            )),
+            WalkMedium::Fabric { uv, width_uv, look } => Some(super::Medium::Dyed(
+                self.fabric(look)?.medium_at(uv, width_uv),
             )),
         }
     }
@@ -298,6 +333,16 @@ pub enum WalkMedium {
         /// Texture coordinates of the entry point.
         uv: Vec2,
         /// Footprint there (texture units).
+        width_uv: f32,
+        /// Which look.
+        look: u8,
+    },
+    /// A textured fabric look entered at texture coordinates `uv` with a footprint
+    /// `width_uv` wide, where its yarn colours are read; `look` as for `Homogeneous`.
+    Fabric {
+        /// The entry point's texture coordinates.
+        uv: Vec2,
+        /// The entry point's footprint (texture units).
         width_uv: f32,
         /// Which look.
         look: u8,

@@ -108,6 +108,11 @@ impl ObjectList {
                 DensityField::Shell(shell) => Some(shell.boundary_mesh().clone()),
                 _ => None,
             },
+            // A fabric with textured yarn colours.
+            Medium::Dyed(f) => match &f.medium.field {
+                DensityField::Shell(shell) => Some(shell.boundary_mesh().clone()),
+                _ => None,
+            },
             _ => None,
         });
         let (shape, open_mesh) = match (rest, shell_boundary) {

@@ -221,12 +221,12 @@ pub struct FabricDesc {
     pub seed: Option<u64>,
     /// Flyaway fraction: 0 = none, 1 = as fitted (default).
     pub flyaways: Option<f32>,
-    /// Warp yarn colour.
-    pub warp_albedo: Option<ColorValue>,
-    /// Weft yarn colour.
-    pub weft_albedo: Option<ColorValue>,
-    /// Pile (velvet) fibre colour.
-    pub pile_albedo: Option<ColorValue>,
+    /// Warp yarn colour: a constant or a texture read at the entry point.
+    pub warp_albedo: Option<ColorInput>,
+    /// Weft yarn colour: a constant or a texture read at the entry point.
+    pub weft_albedo: Option<ColorInput>,
+    /// Pile (velvet) fibre colour: a constant or a texture read at the entry point.
+    pub pile_albedo: Option<ColorInput>,
     /// Fibre scattering parameters shared by the yarn families.
     pub fibre_phase: Option<FibrePhaseDesc>,
     /// Patch tiles across the unit UV square (shell on a mesh only).

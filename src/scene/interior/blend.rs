@@ -58,6 +58,7 @@ pub(super) fn build(
             Some(WalkInterior::Entry(e)) => (WalkLook::Entry(e), built.medium),
             Some(WalkInterior::Field(f)) => (WalkLook::Field(f), built.medium),
             Some(WalkInterior::Mixture(m)) => (WalkLook::Mixture(m), built.medium),
+            Some(WalkInterior::Fabric(f)) => (WalkLook::Fabric(f), built.medium),
             Some(WalkInterior::Blend { .. }) => unreachable_blend(at)?,
             None => {
                 media.push(built.medium.clone());

@@ -4,46 +4,112 @@
 //! yarn family. Free-standing (`shape = "bounds"`, placed by the object transform) or a shell
 //! tiled over a mesh's texture coordinates (notes §3.3). The level-of-detail choices (mip
 //! level, tiles, extinction normalisation) are the fabric module's ([`crate::fabric::lod`]).
+//! The yarn colours (`warp_albedo`, `weft_albedo`, `pile_albedo`) may be textures on a shell,
+//! read at each walk's entry point ([`crate::medium::FabricInterior`], docs/textures.md).
+
+use std::sync::Arc;
 
 use glam::DAffine3;
 
 use super::fabric_source::{generate, read_file, PatchSource};
-use super::{extinction_and_nee, Placement, Site};
+use super::{extinction_and_nee, BuiltInterior, Placement, Site};
 use crate::fabric::lod::{self, MAX_MIP_LEVEL};
 use crate::fabric::{
     FabricLook, FabricShading, FabricShell, FibreExtinction, FibrePhaseParams, ShellParams,
-    VoxelisedPatch,
+    VoxelisedPatch, YarnColours,
 };
 use crate::geometry::TriangleMesh;
 use crate::majorant::MajorantPyramid;
-use crate::medium::{DensityField, HeterogeneousMedium, Medium, MipChain, NeeStrategy};
+use crate::math::Vec2;
+use crate::medium::{
+    DensityField, DyedFabric, FabricInterior, HeterogeneousMedium, Medium, MipChain, WalkInterior,
+};
 use crate::phase::PhaseFunction;
-use crate::scene::desc::{FabricDesc, FibrePhaseDesc, MipValue, TilesValue};
+use crate::scene::desc::{ColorInput, FabricDesc, FibrePhaseDesc, MipValue, TilesValue};
 use crate::scene::SceneError;
 use crate::spectrum::Rgb;
 use crate::tracking::{DensityCoefficients, TrackingConfig};
 
-/// The medium of a `fabric` interior.
+/// The medium of a `fabric` interior: fixed, or, when a yarn colour is a texture, resolved
+/// per walk (its stand-in the fabric in the textures' mean colours).
 pub(super) fn build(
     at: &Site,
     d: &FabricDesc,
     placement: &Placement<'_>,
-) -> Result<(Medium, NeeStrategy), SceneError> {
+) -> Result<BuiltInterior, SceneError> {
     let (density, attenuation, nee) =
         extinction_and_nee(at, d.density, d.attenuation, d.nee.as_deref())?;
     if placement.rest_mesh.is_none() && placement.rest_bounds.is_some() {
         return Err(at.invalid(format!("{}: a fabric interior needs shape = \"bounds\" (a free-standing patch) or shape = \"mesh\" (a shell tiled over the mesh's texture coordinates)", at.owner)));
     }
-    let medium = build_fabric(at, d, placement, attenuation, density)?;
-    Ok((Medium::Heterogeneous(Box::new(medium)), nee))
+    let (medium, colours) = build_fabric(at, d, placement, attenuation, density)?;
+    if !colours.is_textured() {
+        return Ok(BuiltInterior {
+            medium: Medium::Heterogeneous(Box::new(medium)),
+            nee,
+            walk: None,
+        });
+    }
+    let shared = Arc::new(medium);
+    Ok(BuiltInterior {
+        medium: Medium::Dyed(DyedFabric {
+            medium: Arc::clone(&shared),
+            colours: colours.at(Vec2::ZERO, f32::INFINITY),
+        }),
+        nee,
+        walk: Some(WalkInterior::Fabric(FabricInterior {
+            medium: shared,
+            colours,
+        })),
+    })
+}
+
+/// The yarn colour keys: constants, or (on a shell) textures; `defaults` are the patch's
+/// own colours (generator defaults or the patch file's).
+fn yarn_colours(
+    at: &Site,
+    d: &FabricDesc,
+    placement: &Placement<'_>,
+    defaults: [Rgb; 3],
+    beta_n: f32,
+) -> Result<YarnColours, SceneError> {
+    let p = at.params();
+    let read = |key: &str, input: Option<&ColorInput>, default: Rgb| {
+        if let (Some(ColorInput::Texture(t)), None) = (input, placement.rest_mesh) {
+            return Err(at.invalid(format!(
+                "{}.{key} is a texture ({}) but a free-standing patch (shape = \"bounds\") has no texture coordinates to read it at; use a constant colour, or a shell over a mesh with u, v (shape = \"mesh\")",
+                at.owner, t.texture
+            )));
+        }
+        p.colour(key, input, default, 0.0, 1.0)
+    };
+    Ok(YarnColours {
+        maps: [
+            read("warp_albedo", d.warp_albedo.as_ref(), defaults[0])?,
+            read("weft_albedo", d.weft_albedo.as_ref(), defaults[1])?,
+            read("pile_albedo", d.pile_albedo.as_ref(), defaults[2])?,
+        ],
+        beta_n,
+    })
 }
 
 /// How a fabric interior was built, for the render log (`None` for other media and for a
 /// full-resolution free-standing patch).
 pub(in crate::scene) fn fabric_note(m: &Medium) -> Option<String> {
-    let Medium::Heterogeneous(h) = m else {
-        return None;
+    let (h, dyed) = match m {
+        Medium::Heterogeneous(h) => (&**h, ""),
+        Medium::Dyed(f) => (
+            &*f.medium,
+            "; yarn colours textured, read at each walk's entry point",
+        ),
+        _ => return None,
     };
+    let note = fabric_level_note(h)?;
+    Some(format!("{note}{dyed}"))
+}
+
+/// [`fabric_note`]'s description of the fabric's levels and shape.
+fn fabric_level_note(h: &HeterogeneousMedium) -> Option<String> {
     let look = h.fabric.as_ref()?;
     if let Some(chain) = h.mips.as_ref().filter(|c| !c.levels.is_empty()) {
         return Some(format!(
@@ -188,7 +254,7 @@ fn build_fabric(
     placement: &Placement<'_>,
     attenuation: Rgb,
     density: f32,
-) -> Result<HeterogeneousMedium, SceneError> {
+) -> Result<(HeterogeneousMedium, YarnColours), SceneError> {
     let owner = &at.owner;
     let xf = placement.xf;
     let bad = |e: &dyn std::fmt::Display| at.failed(e);
@@ -206,11 +272,10 @@ fn build_fabric(
             (PatchSource::Generated(vp), albedos)
         }
     };
-    let albedos = [
-        at.unit_colour("warp_albedo", d.warp_albedo, albedos[0])?,
-        at.unit_colour("weft_albedo", d.weft_albedo, albedos[1])?,
-        at.unit_colour("pile_albedo", d.pile_albedo, albedos[2])?,
-    ];
+    let fibre = fibre_phase(at, d.fibre_phase.as_ref())?;
+    // Textured colours build the fabric in their means (its stand-in); walks use their own.
+    let colours = yarn_colours(at, d, placement, albedos, fibre.beta_n)?;
+    let albedos = colours.at(Vec2::ZERO, f32::INFINITY);
     let base = source
         .base()
         .ok_or_else(|| at.invalid(format!("{owner}: the patch has no level 0")))?;
@@ -250,7 +315,6 @@ fn build_fabric(
         vec![l]
     };
     let voxel_width = lod::voxel_footprint(base, xf, shell_mesh.as_ref(), tiles).0;
-    let fibre = fibre_phase(at, d.fibre_phase.as_ref())?;
     let shading = FabricShading::from_albedos(&fibre, albedos).map_err(|e| bad(&e))?;
     let extinction = match d.extinction.as_deref().unwrap_or("fibre") {
         "fibre" => FibreExtinction::Projected,
@@ -302,5 +366,5 @@ fn build_fabric(
             levels: media.collect(),
         }));
     }
-    Ok(medium)
+    Ok((medium, colours))
 }

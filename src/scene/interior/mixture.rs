@@ -176,6 +176,9 @@ pub(super) fn build(
                     emission: None,
                 });
             }
+            Medium::Dyed(_) => {
+                return Err(bad("a fabric cannot be a mixture component (entries of `media` are homogeneous, voxel or fbm)".into()));
+            }
             Medium::Mixture(m) => {
                 for mut c in m.components {
                     if let ComponentDensity::Field(h) = &mut c.density {

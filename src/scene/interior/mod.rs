@@ -65,17 +65,6 @@ pub(super) struct BuiltInterior {
     pub walk: Option<WalkInterior>,
 }
 
-impl BuiltInterior {
-    /// A medium resolved once for the whole scene.
-    fn fixed((medium, nee): (Medium, NeeStrategy)) -> Self {
-        BuiltInterior {
-            medium,
-            nee,
-            walk: None,
-        }
-    }
-}
-
 /// The interior of object `name`. `line` is the line of the interior table; `owner` names
 /// it in messages (`"<name>: interior"`, or a blend's `"<name>: interior.a"`). Media a blend
 /// refers to are added to `media`.
@@ -100,7 +89,7 @@ pub(super) fn build_medium(
         InteriorDesc::Homogeneous(d) => homogeneous::homogeneous(&at, d, placement)?,
         InteriorDesc::Voxel(d) => voxel::build(&at, d, placement)?,
         InteriorDesc::Fbm(d) => fbm::build(&at, d, placement)?,
-        InteriorDesc::Fabric(d) => BuiltInterior::fixed(fabric::build(&at, d, placement)?),
+        InteriorDesc::Fabric(d) => fabric::build(&at, d, placement)?,
         InteriorDesc::Blend(d) => blend::build(&at, d, placement, media)?,
         InteriorDesc::Mixture(d) => mixture::build(&at, d, placement, media)?,
     })
