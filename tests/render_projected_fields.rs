@@ -120,6 +120,8 @@ fn lin(v: u8) -> f32 {
 fn assert_images_agree(a: &Film, b: &Film, what: &str) {
     for ch in 0..3 {
         let (ma, mb) = (image_mean(a, ch), image_mean(b, ch));
+        let z = z_score(ma.0, mb.0, (ma.1 * ma.1 + mb.1 * mb.1).sqrt());
+        eprintln!("{what}, channel {ch}: {ma:?} vs {mb:?}, z = {z:.2}");
         assert_means_agree(ma, mb, &format!("{what}, channel {ch}"));
         // Standard errors small enough for the comparison to mean something.
         assert!(ma.1 < 0.06 * ma.0, "{what}, channel {ch}: {ma:?}");
@@ -209,6 +211,7 @@ fn surface_projection_darkens_white_skin_near_black_skin_over_a_voxel_grid() {
             region_mean(&e, ch, near_white),
         );
         let z = z_score(sw.0, ew.0, (sw.1 * sw.1 + ew.1 * ew.1).sqrt());
+        eprintln!("white side, channel {ch}: surface {sw:?}, entry {ew:?}, z = {z:.2}");
         assert!(
             z < -4.0,
             "white side near the edge, channel {ch}: surface {sw:?} not darker than entry {ew:?} (z = {z:.2})"
@@ -218,6 +221,7 @@ fn surface_projection_darkens_white_skin_near_black_skin_over_a_voxel_grid() {
             region_mean(&e, ch, near_black),
         );
         let z = z_score(sb.0, eb.0, (sb.1 * sb.1 + eb.1 * eb.1).sqrt());
+        eprintln!("black side, channel {ch}: surface {sb:?}, entry {eb:?}, z = {z:.2}");
         assert!(
             z > -4.0,
             "black side near the edge, channel {ch}: surface {sb:?} darker than entry {eb:?} (z = {z:.2})"
