@@ -366,6 +366,12 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
                     Medium::Heterogeneous(h) => v.push((obj.name.clone(), (**h).clone())),
                     // A textured voxel/fbm interior: its field at the textures' means.
                     Medium::Scaled(f) => v.push((obj.name.clone(), (*f.medium).clone())),
+                    // A surface-projected voxel/fbm interior: its field at the textures' means.
+                    Medium::Projected(p) => {
+                        if let Some(f) = &p.field {
+                            v.push((obj.name.clone(), (*f.medium).clone()));
+                        }
+                    }
                     Medium::Mixture(mix) => {
                         for (i, c) in mix.components.iter().enumerate() {
                             if let crate::medium::ComponentDensity::Field(h) = &c.density {
