@@ -5,7 +5,8 @@
 //! - a density texture of two values (¼ and 4 around a stand-in mean near 2) renders, in
 //!   each half of the sphere, like the constant of that half: the majorant follows each
 //!   walk's density up and down;
-//! - bad input: `projection = "surface"`, textures with albedo grids, textures
+//! - bad input: `projection = "surface"` on a sphere (tests/render_projected_fields.rs renders
+//!   it on meshes), textures with albedo grids, textures
 //!   without texture coordinates, bad texels, unknown keys.
 
 mod common;
@@ -300,7 +301,7 @@ fn textured_fields_load_as_per_walk_interiors_and_constants_stay_fixed() {
 }
 
 #[test]
-fn surface_projection_on_density_fields_is_refused() {
+fn surface_projection_of_density_fields_on_a_sphere_is_refused() {
     let dir = TempDir::new("texfield-surface");
     write_voxels(&dir);
     png_rgb8(&dir.join("a.png"), 2, 2, |_, _| [100, 100, 100]);
@@ -311,7 +312,7 @@ fn surface_projection_on_density_fields_is_refused() {
         let e = err(&dir, &sphere_with(&interior));
         assert_mentions(
             &e,
-            &["scene.toml:", "ball: interior.projection", "\"surface\"", "voxel and fbm"],
+            &["scene.toml:", "ball: interior.projection", "\"surface\"", "mesh boundary"],
         );
     }
     let e = err(

@@ -368,6 +368,12 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
                     Medium::Scaled(f) => v.push((obj.name.clone(), (*f.medium).clone())),
                     // A fabric with textured yarn colours: the fabric itself.
                     Medium::Dyed(f) => v.push((obj.name.clone(), (*f.medium).clone())),
+                    // A surface-projected voxel/fbm interior: its field at the textures' means.
+                    Medium::Projected(p) => {
+                        if let Some(f) = &p.field {
+                            v.push((obj.name.clone(), (*f.medium).clone()));
+                        }
+                    }
                     Medium::Mixture(_) | Medium::ScaledMixture(_) => {
                         let mix = match &scene.media[m as usize] {
                             Medium::ScaledMixture(s) => &*s.medium,

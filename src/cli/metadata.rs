@@ -78,8 +78,13 @@ pub fn interior_summary(scene: &Scene) -> Vec<String> {
             Medium::Absorbing { .. } => "absorbing only (no grid)".to_string(),
             Medium::Homogeneous(_) => "no grid".to_string(),
             Medium::Projected(p) => format!(
-                "textures projected to the closest boundary point ({} triangles), majorant {:.4}",
+                "textures projected to the closest boundary point ({} triangles){}, majorant {:.4}",
                 p.boundary.triangle_count(),
+                if p.field.is_some() {
+                    " over a density field (its majorant segments times the textures' bound)"
+                } else {
+                    ""
+                },
                 p.majorant()
             ),
             Medium::Heterogeneous(h) => {

@@ -282,6 +282,19 @@ impl HeterogeneousMedium {
         }
     }
 
+    /// The majorant segments of `[t0, t1]` along `ray` walked at coefficients `c`'s extinction
+    /// under the shadow rays' lookup model: for trackers of this field with coefficients of
+    /// their own (surface-projected textures, [`super::ProjectedMedium`]).
+    pub(super) fn segments_for(
+        &self,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        t0: f32,
+        t1: f32,
+    ) -> MediumSegments<'_> {
+        self.segments_with(c, ray, t0, t1, self.shadow_model())
+    }
+
     /// [`Self::segments_along`] under lookup model `model`, for coefficients `c`.
     fn segments_with(
         &self,

@@ -23,7 +23,7 @@
 //! - [`ray_march_free_flight`]: the biased fixed-step free-flight baseline;
 //! - [`spectral_delta_track`], [`spectral_ratio_transmittance`]: the same two questions for
 //!   media whose RGB coefficients vary per channel independently (surface-projected textures),
-//!   against one scalar majorant.
+//!   against one scalar majorant per segment.
 
 mod channels;
 mod delta;
@@ -44,7 +44,10 @@ pub use march_estimators::{
 };
 pub use mixture::{mixture_track, MixFlight, MixPoint, RateSegment, MAX_COMPONENTS};
 pub use ratio::{transmittance, transmittance_local};
-pub use spectral::{spectral_delta_track, spectral_ratio_transmittance, SPECTRAL_MAX_STEPS};
+pub use spectral::{
+    spectral_delta_track, spectral_delta_track_segments, spectral_ratio_transmittance,
+    spectral_ratio_transmittance_segments, SPECTRAL_MAX_STEPS,
+};
 pub use split::{split_flight, SPLIT_MIN_SCATTER};
 
 use crate::majorant::{MajorantMode, MajorantSegment};

@@ -1,13 +1,18 @@
 //! The texturable keys of `voxel` and `fbm` interiors (`albedo`, `attenuation`, `density`):
-//! constants, or textures read at each walk's entry point that set the walk's coefficients per
-//! unit density over the unchanged density field (docs/textures.md, "Density fields read at
-//! the entry point").
+//! constants, or textures that set the coefficients per unit density over the unchanged
+//! density field, read at each walk's entry point (`projection = "entry"`, docs/textures.md,
+//! "Density fields read at the entry point") or at the boundary point closest to every lookup
+//! (`projection = "surface"`, "Density fields projected to the surface").
 
 use std::sync::Arc;
 
-use super::{textured_extinction_and_nee, BuiltInterior, Site};
+use super::{textured_extinction_and_nee, BuiltInterior, Projection, Site};
+use crate::geometry::ClosestPointMesh;
 use crate::math::Vec2;
-use crate::medium::{AlbedoMode, FieldInterior, Medium, NeeStrategy, ScaledField, WalkInterior};
+use crate::medium::{
+    AlbedoMode, EntryInterior, FieldInterior, Medium, NeeStrategy, ProjectedMedium, ScaledField,
+    WalkInterior,
+};
 use crate::scene::desc::{ColorInput, ColorValue, ScalarInput};
 use crate::scene::validate::color;
 use crate::scene::SceneError;
@@ -15,8 +20,8 @@ use crate::spectrum::Rgb;
 use crate::texture::{ColorParam, ScalarParam};
 
 /// The texturable keys of a `voxel` or `fbm` interior (`albedo`, `attenuation`, `density`),
-/// read at the entry point when textured (docs/textures.md): the constants (or the textures'
-/// means, for the stand-in medium) and the parameters.
+/// read at the entry point or projected to the surface when textured (docs/textures.md): the
+/// constants (or the textures' means, for the stand-in medium) and the parameters.
 pub(super) struct FieldParams {
     /// Artist albedo.
     pub albedo: ColorParam,
@@ -26,11 +31,14 @@ pub(super) struct FieldParams {
     pub density: ScalarParam,
     /// Where NEE happens.
     pub nee: NeeStrategy,
+    /// The mesh textured parameters are projected onto (`projection = "surface"` with a
+    /// texture; `None` when they are read at the entry point, or nothing is textured).
+    pub surface: Option<ClosestPointMesh>,
 }
 
 impl FieldParams {
-    /// Reads the keys; `projection` must be "entry" (or absent): `"surface"` is refused for
-    /// density fields, naming the object and key.
+    /// Reads the keys; `projection` is "entry" (the default) or "surface", which needs a mesh
+    /// boundary with texture coordinates (errors name the object and key).
     pub fn read(
         at: &Site,
         albedo: Option<&ColorInput>,
@@ -39,20 +47,9 @@ impl FieldParams {
         nee: Option<&str>,
         projection: Option<&str>,
     ) -> Result<FieldParams, SceneError> {
+        let projection = at.projection(projection, at.placement)?;
         let (density, attenuation, nee) =
             textured_extinction_and_nee(at, density, attenuation, nee)?;
-        if projection == Some("surface") {
-            return Err(at.invalid(format!(
-                "{}.projection = \"surface\" is not supported on voxel and fbm interiors (their textured parameters are read at the entry point: use \"entry\")",
-                at.owner
-            )));
-        }
-        if let Some(other) = projection.filter(|p| *p != "entry") {
-            return Err(at.invalid(format!(
-                "{}.projection = \"{other}\" is unknown (expected \"entry\"; voxel and fbm interiors read their textures at the entry point)",
-                at.owner
-            )));
-        }
         let albedo = match albedo {
             Some(ColorInput::Texture(_)) => {
                 at.params()
@@ -62,12 +59,24 @@ impl FieldParams {
             Some(ColorInput::Value(v)) => ColorParam::Constant(color(Some(*v), Rgb::splat(0.8))),
             None => ColorParam::Constant(Rgb::splat(0.8)),
         };
-        Ok(FieldParams {
+        let mut params = FieldParams {
             albedo,
             attenuation,
             density,
             nee,
-        })
+            surface: None,
+        };
+        if projection == Projection::Surface && params.is_textured() {
+            let unit = params.density.max() / params.attenuation.min().min_component();
+            if !unit.is_finite() {
+                return Err(at.invalid(format!(
+                    "{}: density/attenuation gives a non-finite extinction per unit density",
+                    at.owner
+                )));
+            }
+            params.surface = Some(at.surface_boundary(at.placement)?);
+        }
+        Ok(params)
     }
 
     /// True when a parameter is a texture.
@@ -94,8 +103,9 @@ impl FieldParams {
     }
 
     /// The interior of `medium` (built with [`Self::look_albedo`] and
-    /// [`Self::look_extinction`]): fixed when nothing is textured, else resolved per walk,
-    /// its stand-in the field at the textures' means.
+    /// [`Self::look_extinction`]): fixed when nothing is textured; else resolved per walk,
+    /// its stand-in the field at the textures' means (`"entry"`), or a [`ProjectedMedium`]
+    /// over the field (`"surface"`).
     pub fn finish(self, medium: Medium, mode: AlbedoMode) -> BuiltInterior {
         let h = match medium {
             Medium::Heterogeneous(h) if self.is_textured() => h,
@@ -109,6 +119,23 @@ impl FieldParams {
         };
         let c = h.coefficients;
         let shared = Arc::new(*h);
+        if let Some(boundary) = self.surface {
+            let params = EntryInterior {
+                albedo: self.albedo,
+                attenuation: self.attenuation,
+                density: self.density,
+                mode,
+                phase: shared.phase,
+                absorbing: false,
+            };
+            return BuiltInterior {
+                medium: Medium::Projected(Box::new(ProjectedMedium::over_field(
+                    params, boundary, shared,
+                ))),
+                nee: self.nee,
+                walk: None,
+            };
+        }
         BuiltInterior {
             medium: Medium::Scaled(ScaledField {
                 medium: Arc::clone(&shared),

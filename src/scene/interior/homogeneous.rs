@@ -5,7 +5,6 @@
 
 use super::scattering::Scattering;
 use super::{textured_extinction_and_nee, BuiltInterior, Placement, Projection, Site};
-use crate::geometry::ClosestPointMesh;
 use crate::math::Vec2;
 use crate::medium::{EntryInterior, HomogeneousMedium, Medium, ProjectedMedium, WalkInterior};
 use crate::phase::PhaseFunction;
@@ -37,15 +36,7 @@ fn projected(
     nee: crate::medium::NeeStrategy,
     placement: &Placement<'_>,
 ) -> Result<BuiltInterior, SceneError> {
-    let mesh = placement.rest_mesh.ok_or_else(|| {
-        at.invalid(format!(
-            "{}.projection = \"surface\" needs a mesh boundary",
-            at.owner
-        ))
-    })?;
-    let world = mesh.transformed(placement.xf);
-    let boundary = ClosestPointMesh::build(&world, &format!("{}.projection", at.owner))
-        .map_err(|e| at.failed(&e))?;
+    let boundary = at.surface_boundary(placement)?;
     let medium = ProjectedMedium::new(e, boundary);
     if !medium.majorant().is_finite() {
         return Err(at.invalid(format!(

@@ -127,9 +127,9 @@ pub(super) fn build(
                 mode: f.mode,
                 mean_cosine: f.medium.phase.mean_cosine(),
             }),
-            Some(WalkInterior::Mixture(_) | WalkInterior::Blend { .. }) => {
+            Some(WalkInterior::Mixture(_) | WalkInterior::Blend { .. } | WalkInterior::Fabric(_)) => {
                 return Err(bad(
-                    "a blend, or a combined interior with a textured base, cannot be a mixture component"
+                    "a blend, a fabric, or a combined interior with a textured base, cannot be a mixture component"
                         .into(),
                 ))
             }

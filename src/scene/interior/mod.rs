@@ -83,6 +83,7 @@ pub(super) fn build_medium(
         name,
         owner,
         has_uvs: placement.has_uvs,
+        placement,
     };
     Ok(match interior {
         InteriorDesc::Absorption(d) => homogeneous::absorption(&at, d, placement)?,
@@ -112,6 +113,8 @@ struct Site<'a> {
     name: &'a str,
     owner: String,
     has_uvs: bool,
+    /// Where the interior sits (for builders that do not take it themselves).
+    placement: &'a Placement<'a>,
 }
 
 impl Site<'_> {
@@ -142,6 +145,23 @@ impl Site<'_> {
             },
             other => Err(self.invalid(format!("{}.projection = \"{other}\" is unknown (expected \"entry\" or \"surface\")", self.owner))),
         }
+    }
+
+    /// The object's mesh placed in the world and prepared for closest-point queries: what
+    /// `projection = "surface"` projects onto (checked by [`Self::projection`]).
+    fn surface_boundary(
+        &self,
+        placement: &Placement<'_>,
+    ) -> Result<crate::geometry::ClosestPointMesh, SceneError> {
+        let mesh = placement.rest_mesh.ok_or_else(|| {
+            self.invalid(format!(
+                "{}.projection = \"surface\" needs a mesh boundary",
+                self.owner
+            ))
+        })?;
+        let world = mesh.transformed(placement.xf);
+        crate::geometry::ClosestPointMesh::build(&world, &format!("{}.projection", self.owner))
+            .map_err(|e| self.failed(&e))
     }
 
     /// An invalid-value error at the interior's line.
