@@ -3,7 +3,7 @@
 # level that pays"): per scene and binary, the free-flight lookups per real collision of a
 # 128x128, 4-spp, one-thread render, and the instructions per sample (valgrind --tool=callgrind,
 # 64x64, one thread: instructions of a 12-spp render minus a 4-spp render, divided by 8, so the
-# load and the pyramid build cancel).
+# load and the pyramid build cancel; no checkpoint is written, however slow the run).
 #
 #   tools/bench_walk.sh BINARY...   # e.g. /tmp/velour-main target/release/velour
 #
@@ -21,12 +21,12 @@ for s in "${scenes[@]}"; do
   for bin in "$@"; do
     bin=$(realpath "$bin")
     line=$("$bin" render "tools/peers/bench/$s.toml" --width 128 --height 128 --spp 4 --seed 1 \
-      --threads 1 -q -o "$dir/$s.exr" 2>&1 | grep 'lookups per real collision')
+      --threads 1 -q --checkpoint-every 100000 -o "$dir/$s.exr" 2>&1 | grep 'lookups per real collision')
     per=$(sed -n 's/.*, \([0-9.]*\) lookups per real collision.*/\1/p' <<<"$line")
     tr=$(sed -n 's/.*collision), \([0-9]*\) transmittance lookups.*/\1/p' <<<"$line")
     count() {
       valgrind --tool=callgrind --callgrind-out-file="$dir/cg" "$bin" render \
-        "tools/peers/bench/$s.toml" --width 64 --height 64 --spp "$1" --seed 1 --threads 1 -q \
+        "tools/peers/bench/$s.toml" --width 64 --height 64 --spp "$1" --seed 1 --threads 1 -q --checkpoint-every 100000 \
         -o "$dir/cg.exr" 2>&1 | sed -n 's/.*Collected : //p'
     }
     n4=$(count 4)
