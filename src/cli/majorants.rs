@@ -8,9 +8,11 @@
 //! - `lookups_per_unit_depth`: expected density lookups of delta/ratio tracking per unit of
 //!   real optical depth, ∫ majorant dt over non-homogeneous segments / ∫ density dt;
 //! - `segments_per_ray`: segments the walk emits per ray (each costs about one lookup);
+//! - `walk %` (level rows): the share of the adaptive walk's length through non-empty cells
+//!   that it covers with whole cells of that level, before merging: the levels it picks;
 //! - the `adaptive` row: the walk renders use ([`MajorantPyramid::segments_adaptive`]), which
-//!   descends only where that saves lookups at the medium's extinction (`--sigma`, or the
-//!   interior's largest σ_t⁰ for a scene);
+//!   opens a cell, at any level, only where that saves lookups at the medium's extinction
+//!   (`--sigma`, or the interior's largest σ_t⁰ for a scene) along the ray's direction;
 //! - the `local Nvx` row (grids; N the cell edge in voxels): the per-point bounds of `tracking.local_bounds`
 //!   ([`crate::majorant::LocalBounds`]; docs/references.md §4.10) sampled at 1,024 points per
 //!   ray: tightness ∫ density / ∫ local majorant, and the free-flight lookups per unit optical
@@ -69,6 +71,9 @@ pub struct LevelFigures {
     pub lookups_per_unit_depth: f64,
     /// Segments emitted per ray.
     pub segments_per_ray: f64,
+    /// Level rows: the share of the adaptive walk's length through non-empty cells covered by
+    /// whole cells of this level (0 for the other rows).
+    pub walk_share: f64,
 }
 
 /// Figures of one volume.
@@ -119,6 +124,7 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
         ));
     }
     let reports = pyramid.level_reports();
+    let mut walk_length = vec![0.0f64; pyramid.level_count()];
     let mut levels = Vec::new();
     for (i, (label, mode, adaptive)) in modes.iter().enumerate() {
         let mut rng = Rng::new(17, 3);
@@ -134,7 +140,17 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
             let ray = Ray::new(centre + offset - d * (2.0 * radius), d);
             segs.clear();
             match adaptive {
-                Some(s) => pyramid.segments_adaptive(&ray, 0.0, 4.0 * radius, *mode, *s, &mut segs),
+                Some(s) => {
+                    pyramid.segments_adaptive(&ray, 0.0, 4.0 * radius, *mode, *s, &mut segs);
+                    pyramid.adaptive_level_lengths(
+                        &ray,
+                        0.0,
+                        4.0 * radius,
+                        *s,
+                        crate::majorant::LookupModel::Majorant,
+                        &mut walk_length,
+                    );
+                }
                 None => pyramid.segments(&ray, 0.0, 4.0 * radius, *mode, &mut segs),
             }
             segment_count += segs.len() as u64;
@@ -179,7 +195,15 @@ pub fn measure(name: &str, medium: &HeterogeneousMedium, rays: u32, samples: u32
                 0.0
             },
             segments_per_ray: segment_count as f64 / f64::from(rays.max(1)),
+            walk_share: 0.0,
         });
+    }
+    // The adaptive row ran last: share its length out to the level rows.
+    let total: f64 = walk_length.iter().sum();
+    if total > 0.0 {
+        for (row, len) in levels.iter_mut().zip(&walk_length) {
+            row.walk_share = len / total;
+        }
     }
     if let Some(row) = local_bounds_row(medium, rays, centre, radius, sigma) {
         levels.push(row);
@@ -264,6 +288,7 @@ fn local_bounds_row(
             0.0
         },
         segments_per_ray: segments as f64 / f64::from(rays.max(1)),
+        walk_share: 0.0,
     })
 }
 
@@ -429,14 +454,15 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
             f.name, f.global_min, f.global_max, f.sigma
         );
         println!(
-            "  {:<9} {:>9} {:>9} {:>11} {:>10} {:>16} {:>13}",
+            "  {:<9} {:>9} {:>9} {:>11} {:>10} {:>16} {:>13} {:>7}",
             "level",
             "cells",
             "occupied",
             "homogeneous",
             "tightness",
             "lookups/depth",
-            "segments/ray"
+            "segments/ray",
+            "walk %"
         );
         for l in &f.levels {
             let (cells, occupied, homogeneous) = if l.cells == 0 {
@@ -448,15 +474,21 @@ pub fn run(args: &MajorantsArgs) -> CliResult {
                     l.homogeneous.to_string(),
                 )
             };
+            let share = if l.level.starts_with("level") {
+                format!("{:.1}", 100.0 * l.walk_share)
+            } else {
+                String::new()
+            };
             println!(
-                "  {:<9} {:>9} {:>9} {:>11} {:>10.4} {:>16.3} {:>13.2}",
+                "  {:<9} {:>9} {:>9} {:>11} {:>10.4} {:>16.3} {:>13.2} {:>7}",
                 l.level,
                 cells,
                 occupied,
                 homogeneous,
                 l.tightness,
                 l.lookups_per_unit_depth,
-                l.segments_per_ray
+                l.segments_per_ray,
+                share
             );
         }
         println!(

@@ -100,13 +100,26 @@ pub enum LookupModel {
 }
 
 impl LookupModel {
-    /// A distinct index per model (for one cached plan each).
+    /// A distinct index per model.
     #[must_use]
     pub fn index(self) -> usize {
         match self {
             LookupModel::Majorant => 0,
             LookupModel::AboveMinorant => 1,
             LookupModel::Probed => 2,
+        }
+    }
+
+    /// Where the adaptive walk finds this model's opening prices (an index into a cell's
+    /// stored prices, [`plan::PRICED_MODELS`]) and by what factor they are scaled: a cell is
+    /// opened when the ray's segment price is below `factor ·` the stored price.
+    pub(crate) fn price_slot(self) -> (usize, f64) {
+        match self {
+            LookupModel::Majorant => (0, 1.0),
+            LookupModel::AboveMinorant => (1, 1.0),
+            // Every lookup density is PROBE_COST times the majorant's, so every cost function
+            // is f_probed(λ) = PROBE_COST · f_majorant(λ / PROBE_COST).
+            LookupModel::Probed => (0, PROBE_COST),
         }
     }
 }
@@ -139,11 +152,9 @@ pub enum MajorantMode {
 struct Level {
     dims: IVec3,
     cells: Vec<Bounds>,
-    /// Per cell, the volume average over its brick cells of their *lookup density*: the
-    /// majorant of a brick that needs lookups, 0 for empty and homogeneous bricks. A walk that
-    /// descends to the bricks makes delta tracking look up σ⁰·(this) per unit length, against
-    /// σ⁰·max when it stops at the cell: the gain the adaptive descent weighs.
-    fine: Vec<f32>,
+    /// Per cell and priced lookup model ([`plan::PRICED_MODELS`]), the segment price below
+    /// which the adaptive walk opens the cell (see [`plan`]; 0: never, and at level 0).
+    open_below: Vec<[f32; 2]>,
 }
 
 impl Level {
@@ -165,9 +176,6 @@ pub struct MajorantPyramid {
     world_to_index: DAffine3,
     /// True when every bound is proven (see [`MajorantSegment::exact`]).
     exact: bool,
-    /// The adaptive walk's plan per lookup model ([`LookupModel::index`]), for the first
-    /// extinction scale it was asked for.
-    plan: [std::sync::OnceLock<plan::WalkPlan>; 3],
     /// Per-point bounds over the grid's dual lattice, when attached
     /// ([`Self::with_local_bounds`]).
     local: Option<LocalBounds>,
@@ -266,7 +274,6 @@ impl MajorantPyramid {
             background,
             world_to_index,
             exact: true,
-            plan: Default::default(),
             local: None,
         }
     }
@@ -313,14 +320,12 @@ impl MajorantPyramid {
         )
     }
 
-    /// The adaptive walk's plan for extinction `sigma` per unit density under `model`: made on
-    /// the first request and kept (a medium has one extinction scale, and one model for free
-    /// flights and one for shadow rays); `None` for another `sigma`, which then walks by the
-    /// single-threshold rule.
-    pub(crate) fn plan_for(&self, sigma: f32, model: LookupModel) -> Option<&plan::WalkPlan> {
-        let plan = self.plan.get(model.index())?;
-        let plan = plan.get_or_init(|| plan::WalkPlan::new(self, sigma, model));
-        (plan.sigma == sigma && plan.model == model).then_some(plan)
+    /// The segment price of a ray whose index-space direction per unit of world distance is
+    /// `d`, in a medium of extinction `sigma` per unit density: [`SEGMENT_COST`] lookups per
+    /// level-0 cell boundary crossed, `|d|₁ / w` per unit length, over σ (density units; see
+    /// [`plan`]).
+    pub(crate) fn segment_price(&self, d: DVec3, sigma: f64) -> f64 {
+        SEGMENT_COST * d.abs().element_sum() / (f64::from(self.finest_cell_voxels()) * sigma)
     }
 
     /// True when every bound of the pyramid is proven.
@@ -361,8 +366,6 @@ impl MajorantPyramid {
         exact: bool,
         mut bounds_of: impl FnMut(IVec3) -> Bounds,
     ) -> Result<Self, MajorantError> {
-        let lookup_density =
-            |b: &Bounds| Self::lookup_density_of(b.min, b.max, exact, LookupModel::Majorant);
         let dims = key_hi - key_lo + IVec3::ONE;
         let cells = dims.x as usize * dims.y as usize * dims.z as usize;
         if dims.min_element() <= 0 || cells > MAX_LEVEL0_CELLS {
@@ -374,7 +377,7 @@ impl MajorantPyramid {
         let mut level0 = Level {
             dims,
             cells: vec![Bounds::constant(0.0); cells],
-            fine: Vec::new(),
+            open_below: Vec::new(),
         };
         for z in 0..dims.z {
             for y in 0..dims.y {
@@ -399,7 +402,6 @@ impl MajorantPyramid {
                 }
             }
         }
-        level0.fine = level0.cells.iter().map(lookup_density).collect();
         let mut levels = vec![level0];
         while levels.last().is_some_and(|l| l.dims.max_element() > 1) {
             let Some(child) = levels.last() else { break };
@@ -407,7 +409,7 @@ impl MajorantPyramid {
             let mut parent = Level {
                 dims: pd,
                 cells: vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize],
-                fine: vec![0.0; (pd.x * pd.y * pd.z) as usize],
+                open_below: Vec::new(),
             };
             for z in 0..pd.z {
                 for y in 0..pd.y {
@@ -418,7 +420,6 @@ impl MajorantPyramid {
                             mean: 0.0,
                         };
                         let mut n = 0.0f32;
-                        let mut fine = 0.0f32;
                         for dz in 0..2 {
                             for dy in 0..2 {
                                 for dx in 0..2 {
@@ -430,9 +431,6 @@ impl MajorantPyramid {
                                     } else {
                                         Bounds::constant(background)
                                     };
-                                    if inside {
-                                        fine += child.fine[child.index(c)];
-                                    }
                                     b.min = b.min.min(cb.min);
                                     b.max = b.max.max(cb.max);
                                     b.mean += cb.mean;
@@ -443,22 +441,27 @@ impl MajorantPyramid {
                         b.mean = (b.mean / n).clamp(b.min, b.max);
                         let i = parent.index(IVec3::new(x, y, z));
                         parent.cells[i] = b;
-                        parent.fine[i] = (fine / n).min(lookup_density(&b));
                     }
                 }
             }
             levels.push(parent);
         }
-        Ok(MajorantPyramid {
+        let mut pyramid = MajorantPyramid {
             origin: key_lo << cell_log2,
             cell_log2,
             levels,
             background,
             world_to_index,
             exact,
-            plan: Default::default(),
             local: None,
-        })
+        };
+        let prices = plan::PRICED_MODELS.map(|m| plan::open_prices(&pyramid, m));
+        for (l, level) in pyramid.levels.iter_mut().enumerate() {
+            level.open_below = (0..level.cells.len())
+                .map(|i| [prices[0][l][i], prices[1][l][i]])
+                .collect();
+        }
+        Ok(pyramid)
     }
 
     /// Attaches the local bounds of channel `channel` of `grid` (the grid this pyramid was

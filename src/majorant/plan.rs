@@ -1,102 +1,161 @@
-//! Which pyramid cells the adaptive walk opens, decided once per medium extinction by dynamic
-//! programming over every level (not root against bricks only).
+//! Which pyramid cells the adaptive walk opens: per cell, the *segment price* below which
+//! descending pays, computed once at build time by dynamic programming over every level (not
+//! root against bricks only), for every extinction and ray direction at once.
 //!
-//! Cost model, in lookups per unit of ray length, divided by the medium's extinction scale σ
+//! Cost model, in lookups per unit of ray length divided by the medium's extinction scale σ
 //! (so in density units): a segment whose bounds need lookups costs its *lookup density* `L`
 //! (its majorant, or 0 when it is empty or of proven constant density), and every segment
-//! boundary costs [`SEGMENT_COST`] lookups. A ray crosses about `|d|₁ / (w·2^ℓ)` boundaries of
-//! level-ℓ cells per unit length (`d` its index-space direction, level-0 cells `w` voxels
-//! wide); with `λ = SEGMENT_COST · ⟨|d|₁⟩ / (wσ)` (⟨·⟩ over directions) that is `λ/2^ℓ` in
-//! density units. Opening a level-ℓ cell adds the child boundaries inside it, `λ/2^ℓ`, and replaces its
-//! lookup density by the mean of its children's best costs:
+//! boundary costs [`super::SEGMENT_COST`] lookups. A ray of unit world direction whose
+//! index-space direction is `d` crosses `|d|₁ / (w·2^ℓ)` boundaries of level-ℓ cells per unit
+//! length (level-0 cells `w` voxels wide): with the ray's *segment price*
+//! `λ = SEGMENT_COST · |d|₁ / (w σ)` that is `λ/2^ℓ` in density units. Opening a level-ℓ cell
+//! adds the child boundaries inside it, `λ/2^ℓ`, and replaces its lookup density by the
+//! volume mean of its children's best costs (for rays of a fixed direction at uniformly
+//! distributed offsets, the expected length inside each child is proportional to its volume):
 //!
-//! `best(c) = min(L(c), mean over children of best(child) + λ/2^ℓ)`, `best = L` at level 0,
+//! `f_c(λ) = min(L(c), mean over children of f_child(λ) + λ/2^ℓ)`, `f = L` at level 0.
 //!
-//! and the walk opens `c` exactly where the second term is smaller. A finer grid of the same
-//! field only adds levels whose cells the plan leaves closed where they do not pay, so the
+//! Each `f_c` is continuous, piecewise linear and non-decreasing in λ, so the descent term
+//! minus `L(c)` is strictly increasing (slope at least `1/2^ℓ`) and crosses zero once: the cell
+//! is opened exactly when `λ < λ*(c)`. [`open_prices`] computes every `λ*(c)` exactly, bottom
+//! up: a cell's descent term starts at the volume mean of its level-0 lookup densities and its
+//! slope drops at the prices where open descendants close (each descendant contributes one such
+//! event, so a level holds at most as many events as there are cells below it). A finer grid
+//! of the same field only adds levels whose cells stay closed where they do not pay, so the
 //! lookups per unit optical depth do not grow with the voxel resolution.
 
-use glam::{DAffine3, DVec3, IVec3};
+use glam::IVec3;
 
-use super::{LookupModel, MajorantPyramid, SEGMENT_COST};
+use super::{Level, LookupModel, MajorantPyramid};
 
-/// The cells the adaptive walk opens for one extinction scale.
-#[derive(Clone, Debug)]
-pub(crate) struct WalkPlan {
-    /// The extinction per unit density the plan was made for.
-    pub sigma: f32,
-    /// The tracker's lookup cost the plan was made for.
-    pub model: LookupModel,
-    /// Per level, per cell: open it (descend) or emit it whole.
-    pub open: Vec<Vec<bool>>,
+/// The lookup models whose prices are stored per cell ([`LookupModel::Probed`] is
+/// [`super::PROBE_COST`] times [`LookupModel::Majorant`]: its prices are that multiple).
+pub(super) const PRICED_MODELS: [LookupModel; 2] =
+    [LookupModel::Majorant, LookupModel::AboveMinorant];
+
+/// One cell's best cost as a function of the segment price λ: `f(λ) = f0 + ∫₀^λ s(u) du`, the
+/// slope `s` starting at `s0` and dropping by `drop` at each event's `price` (to 0 after the
+/// last one, where the cell closes).
+#[derive(Clone, Copy, Debug, Default)]
+struct Cost {
+    f0: f64,
+    s0: f64,
 }
 
-/// Mean of `|M d|₁` over unit directions `d` (a Fibonacci sphere of 256 points): the index-space
-/// length of the ray parameter's unit step, summed over the axes.
-fn mean_l1_step(world_to_index: &DAffine3) -> f64 {
-    let n = 256;
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let mut sum = 0.0;
-    for k in 0..n {
-        let z = 1.0 - (2.0 * k as f64 + 1.0) / n as f64;
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        let phi = golden * k as f64;
-        let d = DVec3::new(r * phi.cos(), r * phi.sin(), z);
-        sum += world_to_index.transform_vector3(d).abs().element_sum();
-    }
-    sum / n as f64
+/// A slope drop of a cost function at a price.
+#[derive(Clone, Copy, Debug)]
+struct Event {
+    price: f64,
+    drop: f64,
 }
 
-impl WalkPlan {
-    /// The plan for a medium whose extinction is `sigma` per unit density.
-    pub(crate) fn new(pyramid: &MajorantPyramid, sigma: f32, model: LookupModel) -> Self {
-        let lambda = SEGMENT_COST * mean_l1_step(&pyramid.world_to_index)
-            / (f64::from(pyramid.finest_cell_voxels()) * f64::from(sigma));
-        let mut open: Vec<Vec<bool>> = Vec::with_capacity(pyramid.levels.len());
-        let mut best_below: Vec<f64> = Vec::new();
-        for (level, lv) in pyramid.levels.iter().enumerate() {
-            let whole: Vec<f64> = lv
-                .cells
-                .iter()
-                .map(|b| f64::from(pyramid.lookup_density(b, model)))
-                .collect();
-            if level == 0 {
-                open.push(vec![false; whole.len()]);
-                best_below = whole;
-                continue;
-            }
-            let child = &pyramid.levels[level - 1];
-            let split = lambda / f64::from(1u32 << level.min(31));
-            let mut best = vec![0.0; whole.len()];
-            let mut opens = vec![false; whole.len()];
-            for z in 0..lv.dims.z {
-                for y in 0..lv.dims.y {
-                    for x in 0..lv.dims.x {
-                        let c = IVec3::new(x, y, z);
-                        let i = lv.index(c);
-                        let mut sum = 0.0;
-                        for k in 0..8 {
-                            let cc = c * 2 + IVec3::new(k >> 2, (k >> 1) & 1, k & 1);
-                            // Children beyond the child level's box hold the background, which
-                            // needs no lookups.
-                            if cc.cmplt(child.dims).all() {
-                                sum += best_below[child.index(cc)];
+/// One level's cost functions: per cell, [`Cost`] and its events (`events[first[i]..first[i + 1]]`,
+/// sorted by price).
+struct LevelCosts {
+    costs: Vec<Cost>,
+    first: Vec<usize>,
+    events: Vec<Event>,
+}
+
+/// Per level and cell, the price below which the cell is opened under `model`
+/// (`out[level][cell]`; 0 at level 0 and for cells never worth opening).
+pub(super) fn open_prices(pyramid: &MajorantPyramid, model: LookupModel) -> Vec<Vec<f32>> {
+    let levels = &pyramid.levels;
+    let mut out = Vec::with_capacity(levels.len());
+    let Some(level0) = levels.first() else {
+        return out;
+    };
+    out.push(vec![0.0f32; level0.cells.len()]);
+    let mut below = LevelCosts {
+        costs: level0
+            .cells
+            .iter()
+            .map(|b| Cost {
+                f0: f64::from(pyramid.lookup_density(b, model)),
+                s0: 0.0,
+            })
+            .collect(),
+        first: vec![0; level0.cells.len() + 1],
+        events: Vec::new(),
+    };
+    let mut merged: Vec<Event> = Vec::new();
+    for (level, lv) in levels.iter().enumerate().skip(1) {
+        let child = &levels[level - 1];
+        let own = 1.0 / f64::from(1u32 << level.min(31));
+        let n = lv.cells.len();
+        let mut prices = vec![0.0f32; n];
+        let mut here = LevelCosts {
+            costs: vec![Cost::default(); n],
+            first: Vec::with_capacity(n + 1),
+            events: Vec::new(),
+        };
+        here.first.push(0);
+        for z in 0..lv.dims.z {
+            for y in 0..lv.dims.y {
+                for x in 0..lv.dims.x {
+                    let c = IVec3::new(x, y, z);
+                    let i = lv.index(c);
+                    let whole = f64::from(pyramid.lookup_density(&lv.cells[i], model));
+                    let (mut f0, mut s0) = (0.0, own);
+                    merged.clear();
+                    for_children(child, c, |j| {
+                        let cc = below.costs[j];
+                        f0 += cc.f0 / 8.0;
+                        s0 += cc.s0 / 8.0;
+                        merged.extend(below.events[below.first[j]..below.first[j + 1]].iter().map(
+                            |e| Event {
+                                price: e.price,
+                                drop: e.drop / 8.0,
+                            },
+                        ));
+                    });
+                    if f0 < whole {
+                        merged.sort_unstable_by(|a, b| a.price.total_cmp(&b.price));
+                        // Sweep the descent term up to its crossing with `whole`.
+                        let (mut price, mut f, mut s) = (0.0f64, f0, s0);
+                        let mut kept = 0;
+                        for e in &merged {
+                            let at = f + s * (e.price - price);
+                            if at >= whole {
+                                break;
                             }
+                            f = at;
+                            price = e.price;
+                            s -= e.drop;
+                            kept += 1;
                         }
-                        let descend = sum / 8.0 + split;
-                        if descend < whole[i] {
-                            best[i] = descend;
-                            opens[i] = true;
-                        } else {
-                            best[i] = whole[i];
-                        }
+                        // The cell's own boundaries keep the slope at least `own` > 0.
+                        let s = s.max(own);
+                        let crossing = price + (whole - f) / s;
+                        prices[i] = crossing as f32;
+                        here.costs[i] = Cost { f0, s0 };
+                        here.events.extend_from_slice(&merged[..kept]);
+                        here.events.push(Event {
+                            price: crossing,
+                            drop: s,
+                        });
+                    } else {
+                        here.costs[i] = Cost { f0: whole, s0: 0.0 };
                     }
+                    here.first.push(here.events.len());
                 }
             }
-            open.push(opens);
-            best_below = best;
         }
-        WalkPlan { sigma, model, open }
+        // Cells were visited in index order (x fastest), so `first` is indexed by cell.
+        out.push(prices);
+        below = here;
+    }
+    out
+}
+
+/// Calls `f` with the index of each child of level-(ℓ+1) cell `c` inside `child`'s box
+/// (children beyond it hold the background, which needs no lookups).
+fn for_children(child: &Level, c: IVec3, mut f: impl FnMut(usize)) {
+    for k in 0..8 {
+        let cc = c * 2 + IVec3::new(k & 1, (k >> 1) & 1, k >> 2);
+        if cc.cmplt(child.dims).all() {
+            f(child.index(cc));
+        }
     }
 }
 
@@ -105,47 +164,139 @@ mod tests {
     use super::*;
     use crate::grid::BRICK_DIM;
     use crate::majorant::Bounds;
+    use crate::sampling::Rng;
+    use glam::{DAffine3, DVec3};
 
-    /// A pyramid over `n`³ bricks whose brick majorants are `field(brick centre)`.
-    fn pyramid(n: i32, field: impl Fn(DVec3) -> f32) -> MajorantPyramid {
+    /// A pyramid over `n`³ bricks with bounds `field(brick key)`.
+    fn pyramid(n: i32, field: impl Fn(IVec3) -> Bounds) -> MajorantPyramid {
         let scale = DAffine3::from_scale(DVec3::splat(f64::from(n * BRICK_DIM)));
-        MajorantPyramid::from_brick_bounds(IVec3::ZERO, IVec3::splat(n - 1), 0.0, scale, |k| {
-            let c = (k.as_dvec3() + 0.5) / f64::from(n);
-            let v = field(c);
-            Bounds {
-                min: 0.0,
-                max: v,
-                mean: 0.5 * v,
+        MajorantPyramid::from_brick_bounds(IVec3::ZERO, IVec3::splat(n - 1), 0.0, scale, field)
+            .unwrap_or_else(|e| unreachable!("{e}"))
+    }
+
+    /// The dynamic programme at one price, by brute force: per level, per cell, open or not.
+    fn brute_force(p: &MajorantPyramid, price: f64, model: LookupModel) -> Vec<Vec<bool>> {
+        let mut open = Vec::new();
+        let mut best: Vec<f64> = Vec::new();
+        for (level, lv) in p.levels.iter().enumerate() {
+            let whole: Vec<f64> = lv
+                .cells
+                .iter()
+                .map(|b| f64::from(p.lookup_density(b, model)))
+                .collect();
+            if level == 0 {
+                open.push(vec![false; whole.len()]);
+                best = whole;
+                continue;
             }
-        })
-        .unwrap_or_else(|e| unreachable!("{e}"))
+            let child = &p.levels[level - 1];
+            let mut here = whole.clone();
+            let mut opens = vec![false; whole.len()];
+            for z in 0..lv.dims.z {
+                for y in 0..lv.dims.y {
+                    for x in 0..lv.dims.x {
+                        let c = IVec3::new(x, y, z);
+                        let i = lv.index(c);
+                        let mut sum = 0.0;
+                        for_children(child, c, |j| sum += best[j]);
+                        let descend = sum / 8.0 + price / f64::from(1u32 << level);
+                        if descend < whole[i] {
+                            here[i] = descend;
+                            opens[i] = true;
+                        }
+                    }
+                }
+            }
+            open.push(opens);
+            best = here;
+        }
+        open
     }
 
     #[test]
-    fn optically_thin_media_stay_at_the_root_and_thick_ones_descend() {
-        // One dense blob in a sparse box: at σ = 1e-3 no split pays, at σ = 1e4 the empty
-        // and thin cells are separated from the blob.
-        let p = pyramid(16, |c| {
-            if (c - 0.5).length() < 0.15 {
-                10.0
-            } else {
-                0.01
+    fn prices_reproduce_the_dynamic_programme_at_every_price() {
+        // Random bounds with empty and constant bricks, over 12³ bricks (5 levels, ragged
+        // boxes at the coarser ones).
+        let mut rng = Rng::new(11, 2);
+        let mut table = Vec::new();
+        for _ in 0..12 * 12 * 12 {
+            let kind = rng.next_u32() % 5;
+            let hi = rng.next_f32() * 4.0;
+            let lo = hi * rng.next_f32();
+            table.push(match kind {
+                0 => Bounds::constant(0.0),
+                1 => Bounds::constant(hi),
+                _ => Bounds {
+                    min: lo,
+                    max: hi,
+                    mean: 0.5 * (lo + hi),
+                },
+            });
+        }
+        let p = pyramid(12, |k| table[((k.z * 12 + k.y) * 12 + k.x) as usize]);
+        for model in PRICED_MODELS {
+            let prices = open_prices(&p, model);
+            let (mut opened, mut checked) = (0usize, 0usize);
+            for price in [1e-4, 1e-2, 0.05, 0.1, 0.3, 0.7, 1.5, 4.0, 10.0, 100.0] {
+                let open = brute_force(&p, price, model);
+                for (level, cells) in open.iter().enumerate() {
+                    for (i, &o) in cells.iter().enumerate() {
+                        let star = f64::from(prices[level][i]);
+                        // Skip near-ties (the price is stored in f32).
+                        if (star - price).abs() <= 1e-5 * price {
+                            continue;
+                        }
+                        assert_eq!(
+                            o,
+                            price < star,
+                            "{model:?} level {level} cell {i}: price {price}, λ* {star}"
+                        );
+                        opened += usize::from(o);
+                        checked += 1;
+                    }
+                }
             }
-        });
-        let top = p.levels.len() - 1;
-        let thin = WalkPlan::new(&p, 1e-3, LookupModel::Majorant);
-        assert!(!thin.open[top][0], "a thin medium should not open the root");
-        let thick = WalkPlan::new(&p, 1e4, LookupModel::Majorant);
-        assert!(thick.open[top][0], "a thick medium should open the root");
-        let opened: usize = thick.open.iter().flatten().filter(|&&o| o).count();
-        assert!(opened > 8, "{opened} cells opened");
+            assert!(opened > 100 && opened < checked, "{opened} of {checked}");
+        }
     }
 
     #[test]
     fn a_uniform_field_is_never_split() {
         // Equal majorants everywhere: splitting only adds boundaries.
-        let p = pyramid(8, |_| 3.0);
-        let plan = WalkPlan::new(&p, 1e6, LookupModel::Majorant);
-        assert!(plan.open.iter().flatten().all(|&o| !o));
+        let p = pyramid(8, |_| Bounds {
+            min: 0.0,
+            max: 3.0,
+            mean: 1.0,
+        });
+        for prices in open_prices(&p, LookupModel::Majorant) {
+            assert!(prices.iter().all(|&x| x == 0.0));
+        }
+    }
+
+    #[test]
+    fn a_blob_opens_the_root_only_when_segments_are_cheap() {
+        // One dense blob in a sparse box: the root pays to open at a low price (thick
+        // medium), not at a high one (thin medium).
+        let p = pyramid(16, |k| {
+            let c = (k.as_dvec3() + 0.5) / 16.0;
+            let v = if (c - 0.5).length() < 0.15 {
+                10.0
+            } else {
+                0.01
+            };
+            Bounds {
+                min: 0.0,
+                max: v,
+                mean: 0.5 * v,
+            }
+        });
+        let prices = open_prices(&p, LookupModel::Majorant);
+        let root = prices.last().map_or(0.0, |l| l[0]);
+        assert!(root > 1e-3 && root < 1e3, "root price {root}");
+        let opened_at_small = prices.iter().flatten().filter(|&&x| x > 1e-3).count();
+        assert!(
+            opened_at_small > 8,
+            "{opened_at_small} cells open at price 1e-3"
+        );
     }
 }

@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 
-use super::walk::{root_step, RootStep, Walk, WalkCell};
+use super::walk::{root_step, Descent, RootStep, Walk, WalkCell};
 use super::{Bounds, LookupModel, MajorantMode, MajorantPyramid, SEGMENT_COST};
 use crate::math::Ray;
 
@@ -212,11 +212,12 @@ impl MajorantPyramid {
     ///
     /// `sigma_scale` is the medium's largest extinction per unit density (the largest channel
     /// of σ_t⁰). Given (finite and positive), [`MajorantMode::Hierarchical`] walks adaptively:
-    /// a tentative collision (a density lookup) and a segment cost about the same, so a cell
-    /// crossed over `Δt` is split only where the lookups it saves, σ·Δt·(max − the brick-level
-    /// lookup density below it), exceed [`SEGMENT_COST`] per extra segment, and adjacent
-    /// segments are merged where the merge costs fewer than [`SEGMENT_COST`] extra lookups.
-    /// Optically thin cells (σ·max·Δt ≪ 1) are therefore emitted whole. Merged and undivided
+    /// a tentative collision (a density lookup) and a segment cost about the same, so a cell is
+    /// opened only where the lookups its descendants save at this extinction exceed
+    /// [`SEGMENT_COST`] per extra segment along this ray's direction (decided at every level
+    /// from prices stored per cell, [`super::plan`]), and adjacent segments are merged where
+    /// the merge costs fewer than [`SEGMENT_COST`] extra lookups. Optically thin cells
+    /// (σ·max·Δt ≪ 1) are therefore emitted whole. Merged and undivided
     /// segments take the max of the maxima and the min of the minima they cover (0 across
     /// skipped empty cells), so the bounds stay conservative. `None` gives the exhaustive walk:
     /// it descends to its finest level wherever a cell is neither empty nor homogeneous,
@@ -265,11 +266,12 @@ impl MajorantPyramid {
                 out.before = self.background_segment(t_min, a);
                 let top = self.levels.len() - 1;
                 let finest = (finest as usize).min(top);
-                let sigma_scale = sigma_scale.filter(|s| s.is_finite() && *s > 0.0);
-                let plan = sigma_scale.and_then(|s| self.plan_for(s, model));
-                let sigma = sigma_scale.map(f64::from);
+                let sigma = sigma_scale
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .map(f64::from);
+                let descent = Descent::new(self, d, sigma, model);
                 let (t0, t1) = (f64::from(a), f64::from(c));
-                match root_step(self, t0, t1, d, finest, sigma, plan, model) {
+                match root_step(self, t0, t1, finest, descent, model) {
                     RootStep::Empty => {}
                     // What the merge adapter makes of a walk that emits only its root.
                     RootStep::Whole(cell) => {
@@ -281,7 +283,7 @@ impl MajorantPyramid {
                         ));
                     }
                     RootStep::Open => {
-                        let walk = Walk::new(self, t0, t1, o, d, finest, sigma, plan, model);
+                        let walk = Walk::new(self, t0, t1, o, d, finest, descent, model);
                         out.walk = Some(Merged::new(walk, sigma, self.exact, model));
                     }
                 }
@@ -323,6 +325,38 @@ impl MajorantPyramid {
             Some(sigma_scale),
             LookupModel::Majorant,
         ));
+    }
+
+    /// Adds to `length[ℓ]` the length of `[t_min, t_max]` along `ray` that the adaptive walk
+    /// (extinction `sigma_scale` per unit density, lookup model `model`) covers with whole
+    /// cells of level ℓ, before adjacent segments are merged: which levels the walk picks (for
+    /// `velour majorants`). Empty cells are not counted, nor levels beyond `length`.
+    pub fn adaptive_level_lengths(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        sigma_scale: f32,
+        model: LookupModel,
+        length: &mut [f64],
+    ) {
+        let (o, d) = self.ray_to_index(ray);
+        let Some((a, c)) = self.clip_index(o, d, t_min, t_max) else {
+            return;
+        };
+        let sigma = Some(f64::from(sigma_scale)).filter(|s| s.is_finite() && *s > 0.0);
+        let descent = Descent::new(self, d, sigma, model);
+        let (t0, t1) = (f64::from(a), f64::from(c));
+        let mut add = |cell: WalkCell| {
+            if let Some(l) = length.get_mut(usize::from(cell.level)) {
+                *l += cell.t1 - cell.t0;
+            }
+        };
+        match root_step(self, t0, t1, 0, descent, model) {
+            RootStep::Empty => {}
+            RootStep::Whole(cell) => add(cell),
+            RootStep::Open => Walk::new(self, t0, t1, o, d, 0, descent, model).for_each(add),
+        }
     }
 
     fn background_segment(&self, t0: f32, t1: f32) -> Option<MajorantSegment> {

@@ -1,7 +1,8 @@
 //! The hierarchical DDA over a [`MajorantPyramid`]: an iterator over the cells a ray crosses,
 //! skipping empty cells at the coarsest level that is empty, emitting homogeneous cells whole,
 //! and descending elsewhere (towards a finest level, and in the adaptive walk only where the
-//! descent pays in optical depth).
+//! descent pays in optical depth: where the ray's segment price is below the cell's opening
+//! price, [`super::plan`]).
 //!
 //! The walk is iterative with one DDA state per level on a fixed stack inside the iterator (no
 //! heap allocation per ray); a child's state comes from its parent's exit distances and the
@@ -9,8 +10,7 @@
 
 use glam::{DVec3, IVec3};
 
-use super::plan::WalkPlan;
-use super::{Bounds, LookupModel, MajorantPyramid, SEGMENT_COST};
+use super::{Bounds, Level, LookupModel, MajorantPyramid};
 
 /// Levels the iterative walk keeps a DDA state for. A cubic grid within
 /// [`super::MAX_LEVEL0_CELLS`] has at most 9 levels; only grids more than 2^11 bricks (16,384
@@ -19,14 +19,67 @@ use super::{Bounds, LookupModel, MajorantPyramid, SEGMENT_COST};
 pub(super) const MAX_LEVELS: usize = 12;
 
 /// One cell the walk emits: a ray interval (index-space ray parameter, which equals the world
-/// distance) with the cell's bounds and its lookup density (see
+/// distance) with the cell's level, bounds and lookup density (see
 /// [`MajorantPyramid::lookup_density`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct WalkCell {
     pub t0: f64,
     pub t1: f64,
+    pub level: u8,
     pub bounds: Bounds,
     pub lookup: f32,
+}
+
+/// How the walk decides to open a cell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Descent {
+    /// Open every cell that is neither empty nor of constant bounds (the exhaustive walk).
+    Always,
+    /// Open a cell where `price` is below its stored opening price in `slot` (the adaptive
+    /// walk; `price` is the ray's segment price divided by the model's price factor, see
+    /// [`LookupModel::price_slot`]).
+    BelowPrice {
+        /// The ray's segment price, in the units of the stored prices.
+        price: f32,
+        /// Index of the stored prices.
+        slot: usize,
+    },
+}
+
+impl Descent {
+    /// The adaptive descent of a ray of index-space direction `d` per unit of world distance
+    /// in a medium of extinction `sigma` per unit density under `model`; the exhaustive one
+    /// without `sigma`.
+    pub(super) fn new(
+        pyramid: &MajorantPyramid,
+        d: DVec3,
+        sigma: Option<f64>,
+        model: LookupModel,
+    ) -> Self {
+        match sigma {
+            None => Descent::Always,
+            Some(s) => {
+                let (slot, factor) = model.price_slot();
+                Descent::BelowPrice {
+                    price: (pyramid.segment_price(d, s) / factor) as f32,
+                    slot,
+                }
+            }
+        }
+    }
+
+    /// True when cell `i` of `level` (bounds `b`, not empty) is opened.
+    #[inline(always)]
+    fn opens(self, level: &Level, i: usize, b: &Bounds) -> bool {
+        match self {
+            Descent::Always => b.min != b.max,
+            Descent::BelowPrice { price, slot } => level
+                .open_below
+                .get(i)
+                .and_then(|p| p.get(slot))
+                .is_some_and(|&p| price < p),
+        }
+    }
 }
 
 /// One level's DDA state (48 bytes: the walk is moved by value, so the stack is kept small).
@@ -128,11 +181,8 @@ pub(super) struct Walk<'a> {
     pyramid: &'a MajorantPyramid,
     ray: RaySetup,
     finest: usize,
-    /// Descend where `max − fine > threshold` (one threshold per ray; −∞ = always), unless a
-    /// plan decides.
-    threshold: f32,
-    /// The cells to open, decided per medium (the adaptive walk).
-    plan: Option<&'a WalkPlan>,
+    /// Which cells to open.
+    descent: Descent,
     /// The lookup cost of emitted cells.
     model: LookupModel,
     stack: [Frame; MAX_LEVELS],
@@ -153,49 +203,29 @@ pub(super) enum RootStep {
     Open,
 }
 
-/// The per-ray descent threshold of the adaptive walk: descending to the finest cells saves
-/// σ·Δt·(max − fine) lookups and costs one more segment per finest-cell boundary crossed,
-/// Δt·|d|₁/cell; both scale with Δt, so the test is `max − fine > threshold` with one threshold
-/// per ray (−∞ without `sigma`: the exhaustive walk always descends).
-fn descent_threshold(d: DVec3, cell0: f64, sigma: Option<f64>) -> f32 {
-    match sigma {
-        None => f32::NEG_INFINITY,
-        Some(s) => (SEGMENT_COST * d.abs().element_sum() / (cell0 * s)) as f32,
-    }
-}
-
-/// Decides the root of `pyramid` for the index-space direction `d` over `[t0, t1]`, as
-/// [`Walk::new`] does, without preparing the walk: callers emit a whole root directly.
-#[allow(clippy::too_many_arguments)]
+/// Decides the root of `pyramid` over `[t0, t1]`, as [`Walk::new`] does, without preparing
+/// the walk: callers emit a whole root directly.
 pub(super) fn root_step(
     pyramid: &MajorantPyramid,
     t0: f64,
     t1: f64,
-    d: DVec3,
     finest: usize,
-    sigma: Option<f64>,
-    plan: Option<&WalkPlan>,
+    descent: Descent,
     model: LookupModel,
 ) -> RootStep {
     let Some(top) = pyramid.levels.len().checked_sub(1) else {
         return RootStep::Empty;
     };
     let root = &pyramid.levels[top];
-    let (rb, rf) = (root.cells[0], root.fine[0]);
+    let rb = root.cells[0];
     if rb.is_empty() {
         return RootStep::Empty;
     }
-    let open_root = match plan {
-        Some(p) => p.open[top][0],
-        None => {
-            let cell0 = f64::from(pyramid.finest_cell_voxels());
-            rb.min != rb.max && rb.max - rf > descent_threshold(d, cell0, sigma)
-        }
-    };
-    if top <= finest || !open_root {
+    if top <= finest || !descent.opens(root, 0, &rb) {
         return RootStep::Whole(WalkCell {
             t0,
             t1,
+            level: top.min(u8::MAX as usize) as u8,
             bounds: rb,
             lookup: pyramid.lookup_density(&rb, model),
         });
@@ -205,9 +235,8 @@ pub(super) fn root_step(
 
 impl<'a> Walk<'a> {
     /// Prepares the walk of the index-space ray `o + t d` over `[t0, t1]` below an opened root
-    /// (the caller asked [`root_step`] first, and emits a whole or empty root itself). `sigma`
-    /// is the medium's extinction per unit density for the adaptive walk (`None`:
-    /// exhaustive), `plan` its cells to open (else a single threshold per ray decides).
+    /// (the caller asked [`root_step`] first, and emits a whole or empty root itself), opening
+    /// cells as `descent` decides.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     pub(super) fn new(
@@ -217,8 +246,7 @@ impl<'a> Walk<'a> {
         o: DVec3,
         d: DVec3,
         finest: usize,
-        sigma: Option<f64>,
-        plan: Option<&'a WalkPlan>,
+        descent: Descent,
         model: LookupModel,
     ) -> Self {
         let base = pyramid.origin.as_dvec3() - DVec3::splat(0.5);
@@ -227,12 +255,7 @@ impl<'a> Walk<'a> {
             pyramid,
             ray: RaySetup::new(o, d, base, cell0),
             finest,
-            // Only consulted without a plan.
-            threshold: match plan {
-                Some(_) => f32::NEG_INFINITY,
-                None => descent_threshold(d, cell0, sigma),
-            },
-            plan,
+            descent,
             model,
             stack: [Frame::default(); MAX_LEVELS],
             depth: 0,
@@ -313,11 +336,7 @@ impl Iterator for Walk<'_> {
                 self.t = t_exit;
                 continue;
             }
-            let open = match self.plan {
-                Some(p) => p.open[level][i],
-                None => b.min != b.max && b.max - lv.fine[i] > self.threshold,
-            };
-            if level > self.finest && open {
+            if level > self.finest && self.descent.opens(lv, i, &b) {
                 let child = &self.pyramid.levels[level - 1];
                 let (c, c_next) = self.ray.child_state(level, cell, exits, t);
                 let lo = cell * 2;
@@ -336,6 +355,7 @@ impl Iterator for Walk<'_> {
             let out = WalkCell {
                 t0: t,
                 t1: t_exit,
+                level: level.min(u8::MAX as usize) as u8,
                 bounds: b,
                 lookup: self.pyramid.lookup_density(&b, self.model),
             };
