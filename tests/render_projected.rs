@@ -8,7 +8,11 @@
 //! - with an albedo texture white on one side of a plane and black on the other, paths that
 //!   enter on the white side near the edge and wander under the black side are absorbed with
 //!   surface projection but not with entry projection: the white side near the edge is darker
-//!   (and the black side near it not darker).
+//!   (and the black side near it not darker);
+//! - surface projection filters the textures with the ray's footprint: a one-texel checker of
+//!   albedos 0.05 and 0.95, far finer than a pixel, renders like the constant albedo 0.5 (its
+//!   mip mean); reading the finest level instead, every vertex would see 0.05 or 0.95, whose
+//!   inverted single-scattering albedos average far below that of 0.5 (a darker image).
 
 mod common;
 
@@ -172,6 +176,49 @@ fn surface_projection_darkens_white_skin_near_black_skin() {
         assert!(
             z > -4.0,
             "black side near the edge, channel {ch}: surface {sb:?} darker than entry {eb:?} (z = {z:.2})"
+        );
+    }
+}
+
+#[test]
+fn surface_projection_filters_a_fine_checker_to_its_mean() {
+    let dir = TempDir::new("render-proj-checker");
+    write_ball(&dir.join("ball.ply"));
+    // 512 texels across the ball's two units: a camera pixel covers about 25 texels, so every
+    // lookup reads a level where the checker has averaged to 0.5 exactly.
+    exr_grey(&dir.join("checker.exr"), 512, 512, |x, y| {
+        if (x + y) % 2 == 0 {
+            0.05
+        } else {
+            0.95
+        }
+    });
+    let clear = r#"{ type = "dielectric", ior = 1.0 }"#;
+    let checker = render_text(
+        &lit_scene(
+            r#"{ type = "homogeneous", albedo = { texture = "checker.exr" }, attenuation = 0.15, projection = "surface" }"#,
+            256,
+            21,
+            clear,
+            "",
+        ),
+        dir.path(),
+    );
+    let constant = render_text(
+        &lit_scene(
+            r#"{ type = "homogeneous", albedo = 0.5, attenuation = 0.15 }"#,
+            256,
+            22,
+            clear,
+            "",
+        ),
+        dir.path(),
+    );
+    for ch in 0..3 {
+        assert_means_agree(
+            image_mean(&checker, ch),
+            image_mean(&constant, ch),
+            &format!("fine checker under surface projection against its mean, channel {ch}"),
         );
     }
 }

@@ -183,6 +183,23 @@ impl ClosestPointMesh {
     pub fn triangle_count(&self) -> usize {
         self.tris.len()
     }
+
+    /// The mesh's mean texture scale, texture units per world unit: √(Σ UV area / Σ world
+    /// area) over its triangles (0 for a mesh whose UVs or triangles span no area).
+    #[must_use]
+    pub fn mean_uv_scale(&self) -> f32 {
+        let (mut uv_area, mut area) = (0.0f64, 0.0f64);
+        for (t, uv) in self.tris.iter().zip(&self.uvs) {
+            area += f64::from((t[1] - t[0]).cross(t[2] - t[0]).length());
+            let (a, b) = (uv[1] - uv[0], uv[2] - uv[0]);
+            uv_area += f64::from((a.x * b.y - a.y * b.x).abs());
+        }
+        if area > 0.0 && uv_area > 0.0 {
+            (uv_area / area).sqrt() as f32
+        } else {
+            0.0
+        }
+    }
 }
 
 /// Builds node `index` over `order[first..]` (its slice is `order`), splitting at the median
@@ -443,5 +460,19 @@ mod tests {
             .unwrap()
             .nearest(Vec3::NAN)
             .is_none());
+    }
+
+    /// The box's UVs span the two y faces only (u from x, v from z: the x and z faces map
+    /// to lines), each face onto the whole unit square: UV area 2 against a world area of
+    /// 2·(2·4) + 2·(1·4) + 2·(2·1) = 28.
+    #[test]
+    fn mean_uv_scale_is_the_root_of_the_area_ratio() {
+        let mesh = ClosestPointMesh::build(&box_mesh(), "b").unwrap();
+        let expected = (2.0f32 / 28.0).sqrt();
+        let got = mesh.mean_uv_scale();
+        assert!(
+            (got - expected).abs() < 1e-6 * expected,
+            "{got} against {expected}"
+        );
     }
 }

@@ -251,7 +251,14 @@ impl Medium {
                     .sample_flight(ray, boundary(f32::INFINITY), beta, u, stats)
             }
             Medium::Mixture(m) => m.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
-            Medium::Projected(p) => p.sample_flight(ray, boundary(f32::INFINITY), beta, u, stats),
+            Medium::Projected(p) => p.sample_flight(
+                ray,
+                boundary(f32::INFINITY),
+                p.footprint_uv(cone),
+                beta,
+                u,
+                stats,
+            ),
             Medium::Scaled(f) => {
                 let c = f.coefficients();
                 f.medium
@@ -294,7 +301,7 @@ impl Medium {
             }
             Medium::Heterogeneous(h) => h.for_ray(ray, cone).transmittance(ray, t_max, u, stats),
             Medium::Mixture(m) => m.transmittance(ray, t_max, u, stats),
-            Medium::Projected(p) => p.transmittance(ray, t_max, u, stats),
+            Medium::Projected(p) => p.transmittance(ray, t_max, p.footprint_uv(cone), u, stats),
             Medium::Scaled(f) => {
                 f.medium
                     .transmittance_with(&f.coefficients(), ray, t_max, u, stats)

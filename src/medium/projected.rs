@@ -22,7 +22,7 @@ use std::sync::Arc;
 
 use super::artist::Coefficients;
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
-use super::heterogeneous::HeterogeneousMedium;
+use super::heterogeneous::{HeterogeneousMedium, RayFootprint};
 use super::walk::{EntryInterior, WalkMedium};
 use crate::geometry::ClosestPointMesh;
 use crate::math::{Ray, Vec2, Vec3};
@@ -92,6 +92,9 @@ pub struct ProjectedMedium {
     pub mean_albedo: Rgb,
     /// The density field of a `voxel` or `fbm` interior (`None`: homogeneous or absorbing).
     pub field: Option<ProjectedDensity>,
+    /// The boundary's mean texture scale (texture units per world unit): turns a ray cone's
+    /// width into the footprint the textures are filtered with (0 reads level 0).
+    pub uv_scale: f32,
 }
 
 impl ProjectedMedium {
@@ -113,12 +116,14 @@ impl ProjectedMedium {
             }
             _ => Rgb::ZERO,
         };
+        let uv_scale = boundary.mean_uv_scale();
         ProjectedMedium {
             params,
             boundary,
             sigma_t_max,
             mean_albedo,
             field: None,
+            uv_scale,
         }
     }
 
@@ -163,8 +168,19 @@ impl ProjectedMedium {
         !self.params.absorbing && (!self.mean_albedo.is_black() || base)
     }
 
-    /// The texture coordinates of the boundary point closest to `p` (level 0 is read: the
-    /// projected point has no footprint of its own).
+    /// The footprint (texture units) the textures are read with along a ray whose cone is
+    /// `cone` at its origin: the cone's width there times the boundary's mean texture scale.
+    /// Inside the object a ray starts at the entry point or at a scattering vertex, so this
+    /// is the entry point's footprint for the first flight and the widened cone's after
+    /// scattering (docs/textures.md). Mip levels average texels, so the majorant (the
+    /// finest level's extremes) stays conservative at every level.
+    #[inline]
+    #[must_use]
+    pub fn footprint_uv(&self, cone: RayFootprint) -> f32 {
+        (cone.width * self.uv_scale).max(0.0)
+    }
+
+    /// The texture coordinates of the boundary point closest to `p`.
     #[inline]
     #[must_use]
     pub fn uv_at(&self, p: Vec3) -> Vec2 {
@@ -186,23 +202,22 @@ impl ProjectedMedium {
 
     /// σ_t at texture coordinates `uv` (density / attenuation per channel).
     #[inline]
-    fn sigma_t_at(&self, uv: Vec2) -> Rgb {
-        let density = self.params.density.eval(uv, 0.0);
-        self.params.attenuation.eval(uv, 0.0).map(
-            |d| {
-                if d.is_infinite() {
-                    0.0
-                } else {
-                    density / d
-                }
-            },
-        )
+    fn sigma_t_at(&self, uv: Vec2, width_uv: f32) -> Rgb {
+        let density = self.params.density.eval(uv, width_uv);
+        self.params.attenuation.eval(uv, width_uv).map(|d| {
+            if d.is_infinite() {
+                0.0
+            } else {
+                density / d
+            }
+        })
     }
 
-    /// The coefficients at texture coordinates `uv` (the artist albedo inverted there).
+    /// The coefficients at texture coordinates `uv`, read with a footprint `width_uv` wide
+    /// (texture units; the artist albedo inverted there).
     #[must_use]
-    pub fn coefficients_at(&self, uv: Vec2) -> Coefficients {
-        match self.params.at(uv, 0.0) {
+    pub fn coefficients_at(&self, uv: Vec2, width_uv: f32) -> Coefficients {
+        match self.params.at(uv, width_uv) {
             WalkMedium::Homogeneous { coefficients, .. } => coefficients,
             WalkMedium::Absorbing(sigma_a) => Coefficients {
                 sigma_a,
@@ -218,22 +233,24 @@ impl ProjectedMedium {
         }
     }
 
-    /// A free flight along `ray` over `[0, t_max]`: delta tracking with the hero channel
+    /// A free flight along `ray` over `[0, t_max]`, the textures read with a footprint
+    /// `width_uv` wide ([`Self::footprint_uv`]): delta tracking with the hero channel
     /// against the medium's majorant; an absorbing interior passes with the ratio-tracked
     /// transmittance.
     pub fn sample_flight<U: FnMut() -> f32>(
         &self,
         ray: &Ray,
         t_max: f32,
+        width_uv: f32,
         beta: Rgb,
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
         if !self.scatters() {
-            return MediumEvent::pass(self.transmittance(ray, t_max, u, stats));
+            return MediumEvent::pass(self.transmittance(ray, t_max, width_uv, u, stats));
         }
         if let Some(field) = &self.field {
-            return self.field_flight(field, ray, t_max, beta, u, stats);
+            return self.field_flight(field, ray, t_max, width_uv, beta, u, stats);
         }
         // The uv of the last σ_t lookup: σ_s is asked for at the same point.
         let last_uv = Cell::new(Vec2::ZERO);
@@ -245,10 +262,10 @@ impl ProjectedMedium {
             |t| {
                 let uv = self.uv_near(ray.at(t), &hint);
                 last_uv.set(uv);
-                self.sigma_t_at(uv)
+                self.sigma_t_at(uv, width_uv)
             },
             |_| {
-                let c = self.coefficients_at(last_uv.get());
+                let c = self.coefficients_at(last_uv.get(), width_uv);
                 scattered.set(c.sigma_s.safe_div(c.sigma_t()));
                 c.sigma_s
             },
@@ -272,11 +289,13 @@ impl ProjectedMedium {
         }
     }
 
-    /// Transmittance along `ray` over `[0, t_max]`: ratio tracking against the majorant.
+    /// Transmittance along `ray` over `[0, t_max]`, the textures read with a footprint
+    /// `width_uv` wide: ratio tracking against the majorant.
     pub fn transmittance<U: FnMut() -> f32>(
         &self,
         ray: &Ray,
         t_max: f32,
+        width_uv: f32,
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> Rgb {
@@ -286,7 +305,7 @@ impl ProjectedMedium {
             let last = Cell::new(FieldPoint::EMPTY);
             return spectral_ratio_transmittance_segments(
                 field.rate_segments(ray, t_max),
-                |t| self.field_sigma_t(field, lookup.at(t), ray.at(t), &hint, &last),
+                |t| self.field_sigma_t(field, lookup.at(t), ray.at(t), width_uv, &hint, &last),
                 u,
                 stats,
             );
@@ -294,7 +313,7 @@ impl ProjectedMedium {
         spectral_ratio_transmittance(
             self.majorant(),
             t_max,
-            |t| self.sigma_t_at(self.uv_near(ray.at(t), &hint)),
+            |t| self.sigma_t_at(self.uv_near(ray.at(t), &hint), width_uv),
             u,
             stats,
         )
@@ -309,6 +328,7 @@ impl ProjectedMedium {
         field: &ProjectedDensity,
         density: f32,
         p: Vec3,
+        width_uv: f32,
         hint: &Cell<u32>,
         last: &Cell<FieldPoint>,
     ) -> Rgb {
@@ -322,7 +342,7 @@ impl ProjectedMedium {
             return base;
         }
         let uv = self.uv_near(p, hint);
-        let sigma_t = base + self.sigma_t_at(uv) * density;
+        let sigma_t = base + self.sigma_t_at(uv, width_uv) * density;
         last.set(FieldPoint {
             density,
             uv,
@@ -333,12 +353,12 @@ impl ProjectedMedium {
 
     /// σ_s of a projected field at the point `last` describes: the base medium plus the
     /// density times σ_s⁰ at the projected point.
-    fn field_sigma_s(&self, field: &ProjectedDensity, last: FieldPoint) -> Rgb {
+    fn field_sigma_s(&self, field: &ProjectedDensity, last: FieldPoint, width_uv: f32) -> Rgb {
         let base = field.bound.base_s;
         if last.density == 0.0 {
             return base;
         }
-        base + self.coefficients_at(last.uv).sigma_s * last.density
+        base + self.coefficients_at(last.uv, width_uv).sigma_s * last.density
     }
 
     /// A free flight through a projected field: spectral delta tracking over the field's
@@ -348,6 +368,7 @@ impl ProjectedMedium {
         field: &'a ProjectedDensity,
         ray: &Ray,
         t_max: f32,
+        width_uv: f32,
         beta: Rgb,
         u: &mut U,
         stats: &mut TrackingStats,
@@ -358,10 +379,10 @@ impl ProjectedMedium {
         let mut lookup = field.medium.density_along(ray);
         let flight = spectral_delta_track_segments(
             field.rate_segments(ray, t_max),
-            |t| self.field_sigma_t(field, lookup.at(t), ray.at(t), &hint, &last),
+            |t| self.field_sigma_t(field, lookup.at(t), ray.at(t), width_uv, &hint, &last),
             |_| {
                 let at = last.get();
-                let sigma_s = self.field_sigma_s(field, at);
+                let sigma_s = self.field_sigma_s(field, at, width_uv);
                 scattered.set(sigma_s.safe_div(at.sigma_t));
                 sigma_s
             },
