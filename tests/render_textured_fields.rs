@@ -16,93 +16,11 @@ use common::render::{
     image_mean, region_mean, render_finite, render_text, scene_from_text, unit_sphere_hit_x,
 };
 use common::stats::{assert_means_agree, z_score};
+use common::textured::{
+    assert_images_agree, assert_mentions, ball, err, lin, load, sphere_with, write_voxels, FBM, FOV,
+};
 use common::textures::{exr_grey, exr_rgb, png_rgb8};
-use glam::{DAffine3, DVec3, IVec3, Vec3};
-use velour::film::Film;
-use velour::grid::{ChannelKind, SparseGridBuilder, Storage};
 use velour::medium::{Medium, WalkInterior};
-use velour::scene::load_scene_str;
-use velour::texture::srgb_to_linear;
-use velour::vdb::{write_vdb, GridToWrite, WriteOptions};
-
-const FOV: f32 = 36.0;
-
-fn head(spp: u32, seed: u32) -> String {
-    format!(
-        r#"
-[camera]
-eye = [0, 0, 4]
-look_at = [0, 0, 0]
-fov = {FOV}
-[film]
-width = 16
-height = 16
-spp = {spp}
-seed = {seed}
-max_depth = 100000
-[[light]]
-type = "environment"
-radiance = 1.0
-[[light]]
-type = "distant"
-direction = [0.5, 0.6, 0.6]
-irradiance = 2.0
-"#
-    )
-}
-
-/// A unit sphere (no boundary surface: index-matched) filled with `interior`.
-fn ball(interior: &str, spp: u32, seed: u32) -> String {
-    format!(
-        "{}[[object]]\nname = \"ball\"\nshape = \"sphere\"\ninterior = {interior}\n",
-        head(spp, seed)
-    )
-}
-
-/// `density.vdb`: a 16³ grid over [−1.5, 1.5]³ whose density steps between 0.3, 0.65 and 1
-/// (so tracking meets real heterogeneity).
-fn write_voxels(dir: &TempDir) {
-    let n = 16;
-    let mut b = SparseGridBuilder::new(Storage::F32);
-    let c = b.add_channel("v", ChannelKind::Scalar, Vec3::ZERO);
-    let voxel = 3.0 / f64::from(n - 1);
-    b.set_index_to_world(
-        DAffine3::from_translation(DVec3::splat(-1.5)) * DAffine3::from_scale(DVec3::splat(voxel)),
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
-    for z in 0..n {
-        for y in 0..n {
-            for x in 0..n {
-                let v = 0.3 + 0.35 * ((x + 2 * y + z) % 3) as f32;
-                b.set_value(c, IVec3::new(x, y, z), v)
-                    .unwrap_or_else(|e| panic!("{e}"));
-            }
-        }
-    }
-    let grid = b.build();
-    let list = [GridToWrite {
-        class: "fog volume",
-        ..GridToWrite::new("density", &grid)
-    }];
-    write_vdb(&dir.join("density.vdb"), &list, &WriteOptions::default())
-        .unwrap_or_else(|e| panic!("{e}"));
-}
-
-const FBM: &str = r#"type = "fbm", noise = { frequency = 3.0, offset = 0.4, amplitude = 1.0 }, voxel_size = 0.05"#;
-
-fn lin(v: u8) -> f32 {
-    srgb_to_linear(f32::from(v) / 255.0)
-}
-
-fn assert_images_agree(t: &Film, c: &Film, what: &str) {
-    for ch in 0..3 {
-        assert_means_agree(
-            image_mean(t, ch),
-            image_mean(c, ch),
-            &format!("{what}, channel {ch}"),
-        );
-    }
-}
 
 #[test]
 fn a_one_value_texture_on_a_voxel_interior_renders_like_the_constant() {
@@ -231,30 +149,6 @@ fn a_textured_voxel_look_in_a_blend_is_weighted_by_the_mask() {
             &format!("blend with a textured voxel look, channel {c}"),
         );
     }
-}
-
-const HEAD: &str =
-    "[camera]\neye = [0, 0, 4]\nlook_at = [0, 0, 0]\n\n[film]\nwidth = 8\nheight = 8\n";
-
-fn load(dir: &TempDir, body: &str) -> Result<velour::scene::Scene, String> {
-    load_scene_str(&format!("{HEAD}{body}"), &dir.join("scene.toml")).map_err(|e| e.to_string())
-}
-
-fn err(dir: &TempDir, body: &str) -> String {
-    match load(dir, body) {
-        Ok(_) => panic!("scene loaded but should fail:\n{body}"),
-        Err(e) => e,
-    }
-}
-
-fn assert_mentions(e: &str, needles: &[&str]) {
-    for n in needles {
-        assert!(e.contains(n), "error does not mention {n:?}: {e}");
-    }
-}
-
-fn sphere_with(interior: &str) -> String {
-    format!("[[object]]\nname = \"ball\"\nshape = \"sphere\"\ninterior = {interior}\n")
 }
 
 #[test]

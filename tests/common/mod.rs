@@ -10,6 +10,8 @@
 //!   `VELOUR_REQUIRE_EXTERNAL=1`, when missing.
 //! - [`levelset`]: level-set spheres written as OpenVDB files.
 //! - [`render`]: rendering inline scene text, image and region means with standard errors.
+//! - [`textured`]: the scene text, density grid and loading helpers of the textured-interior
+//!   render tests.
 //! - [`textures`]: small PNG/EXR texture files written into temporary directories.
 //! - [`vdb_figures`]: OpenVDB's figures of a grid (JSON) against ours.
 
@@ -24,5 +26,6 @@ pub mod levelset;
 pub mod render;
 pub mod sphere;
 pub mod stats;
+pub mod textured;
 pub mod textures;
 pub mod vdb_figures;
