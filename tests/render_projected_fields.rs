@@ -334,4 +334,36 @@ fn surface_projection_of_fields_needs_a_mesh_with_texture_coordinates() {
         &format!(r#"{{ {FBM}, albedo = {{ texture = "a.png" }}, projection = "closest" }}"#),
     ));
     assert_mentions(&e, &["ball: interior.projection = \"closest\"", "unknown"]);
+    // Tracking keys a projected field does not use are refused, not ignored.
+    for (key, value) in [
+        ("free_flight", "\"decomposition\""),
+        ("transmittance", "\"ratio\""),
+        ("local_bounds", "true"),
+    ] {
+        let e = err(&object(
+            MESH,
+            &format!(
+                r#"{{ {FBM}, albedo = {{ texture = "a.png" }}, projection = "surface", tracking = {{ {key} = {value} }} }}"#
+            ),
+        ));
+        assert_mentions(
+            &e,
+            &[
+                "scene.toml:",
+                &format!("ball: interior.tracking.{key}"),
+                "projection = \"surface\"",
+            ],
+        );
+    }
+    // `majorant` still applies.
+    load_scene_str(
+        &object(
+            MESH,
+            &format!(
+                r#"{{ {FBM}, albedo = {{ texture = "a.png" }}, projection = "surface", tracking = {{ majorant = "global" }} }}"#
+            ),
+        ),
+        &dir.join("scene.toml"),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
 }

@@ -31,6 +31,7 @@ pub(super) fn build(
         d.nee.as_deref(),
         d.projection.as_deref(),
     )?;
+    params.refuse_unused_tracking(at, d.tracking.as_ref())?;
     let base = BaseParams::read(at, d.base_albedo.as_ref(), d.base_attenuation.as_ref())?;
     let (density, attenuation) = params.look_extinction();
     let keys = DensityKeys {

@@ -13,7 +13,7 @@ use crate::medium::{
     AlbedoMode, EntryInterior, FieldInterior, Medium, NeeStrategy, ProjectedMedium, ScaledField,
     WalkInterior,
 };
-use crate::scene::desc::{ColorInput, ColorValue, ScalarInput};
+use crate::scene::desc::{ColorInput, ColorValue, ScalarInput, TrackingDesc};
 use crate::scene::validate::color;
 use crate::scene::SceneError;
 use crate::spectrum::Rgb;
@@ -100,6 +100,34 @@ impl FieldParams {
             self.density.eval(Vec2::ZERO, f32::INFINITY),
             mean(&self.attenuation),
         )
+    }
+
+    /// Refuses the `tracking` keys a surface-projected field does not use (`free_flight`,
+    /// `transmittance`, `control`, `step`, `local_bounds`: its flights and shadow rays are the
+    /// per-channel delta and ratio trackers over the field's majorant segments), naming the
+    /// object and key; `majorant` and `level` still shape those segments.
+    pub fn refuse_unused_tracking(
+        &self,
+        at: &Site,
+        tracking: Option<&TrackingDesc>,
+    ) -> Result<(), SceneError> {
+        let (Some(_), Some(t)) = (&self.surface, tracking) else {
+            return Ok(());
+        };
+        let unused = [
+            ("free_flight", t.free_flight.is_some()),
+            ("transmittance", t.transmittance.is_some()),
+            ("control", t.control.is_some()),
+            ("step", t.step.is_some()),
+            ("local_bounds", t.local_bounds.is_some()),
+        ];
+        match unused.iter().find(|(_, set)| *set) {
+            Some((key, _)) => Err(at.invalid(format!(
+                "{}.tracking.{key} does not apply with projection = \"surface\" (projected fields are tracked per channel by delta and ratio tracking over the field's majorant segments; only `majorant` and `level` apply)",
+                at.owner
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// The interior of `medium` (built with [`Self::look_albedo`] and
