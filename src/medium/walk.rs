@@ -200,70 +200,58 @@ impl WalkInterior {
         }
     }
 
+    /// Look `look` (0: the interior itself or a blend's `a`, 1: `b`), borrowed.
+    fn look_ref(&self, look: u8) -> LookRef<'_> {
+        match self {
+            WalkInterior::Entry(e) => LookRef::Entry(e),
+            WalkInterior::Field(f) => LookRef::Field(f),
+            WalkInterior::Mixture(m) => LookRef::Mixture(m),
+            WalkInterior::Fabric(f) => LookRef::Fabric(f),
+            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
+                WalkLook::Medium(_) => LookRef::Scene,
+                WalkLook::Entry(e) => LookRef::Entry(e),
+                WalkLook::Field(f) => LookRef::Field(f),
+                WalkLook::Mixture(m) => LookRef::Mixture(m),
+                WalkLook::Fabric(f) => LookRef::Fabric(f),
+            },
+        }
+    }
+
     /// The phase function of look `look` (0: the entry interior or `a`, 1: `b`) when it is
     /// an entry-projected scattering interior.
     #[must_use]
     pub fn phase(&self, look: u8) -> Option<PhaseFunction> {
-        let entry = match self {
-            WalkInterior::Entry(e) => e,
-            WalkInterior::Field(_) | WalkInterior::Mixture(_) | WalkInterior::Fabric(_) => {
-                return None
-            }
-            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
-                WalkLook::Entry(e) => e,
-                WalkLook::Medium(_)
-                | WalkLook::Field(_)
-                | WalkLook::Mixture(_)
-                | WalkLook::Fabric(_) => return None,
-            },
-        };
-        Some(entry.phase)
+        match self.look_ref(look) {
+            LookRef::Entry(e) => Some(e.phase),
+            _ => None,
+        }
     }
 
     /// The density field of look `look` (0: the interior itself or `a`, 1: `b`) when it is a
     /// textured `voxel` or `fbm` interior.
     #[must_use]
     pub fn field(&self, look: u8) -> Option<&Arc<HeterogeneousMedium>> {
-        match self {
-            WalkInterior::Field(f) => Some(&f.medium),
-            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
-                WalkLook::Field(f) => Some(&f.medium),
-                WalkLook::Medium(_)
-                | WalkLook::Entry(_)
-                | WalkLook::Mixture(_)
-                | WalkLook::Fabric(_) => None,
-            },
-            WalkInterior::Entry(_) | WalkInterior::Mixture(_) | WalkInterior::Fabric(_) => None,
+        match self.look_ref(look) {
+            LookRef::Field(f) => Some(&f.medium),
+            _ => None,
         }
     }
 
     /// The textured mixture of look `look` (0: the interior itself or `a`, 1: `b`).
     #[must_use]
     pub fn mixture(&self, look: u8) -> Option<&TexturedMixture> {
-        match self {
-            WalkInterior::Mixture(m) => Some(m),
-            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
-                WalkLook::Mixture(m) => Some(m),
-                WalkLook::Medium(_)
-                | WalkLook::Entry(_)
-                | WalkLook::Field(_)
-                | WalkLook::Fabric(_) => None,
-            },
-            WalkInterior::Entry(_) | WalkInterior::Field(_) | WalkInterior::Fabric(_) => None,
+        match self.look_ref(look) {
+            LookRef::Mixture(m) => Some(m),
+            _ => None,
         }
     }
 
     /// The textured fabric of look `look` (0: the interior itself or `a`, 1: `b`).
     #[must_use]
     pub fn fabric(&self, look: u8) -> Option<&FabricInterior> {
-        match self {
-            WalkInterior::Fabric(f) => Some(f),
-            WalkInterior::Blend { a, b, .. } => match if look == 0 { a } else { b } {
-                WalkLook::Fabric(f) => Some(f),
-                WalkLook::Mixture(_) => None,
-                WalkLook::Medium(_) | WalkLook::Entry(_) | WalkLook::Field(_) => None,
-            },
-            WalkInterior::Entry(_) | WalkInterior::Field(_) | WalkInterior::Mixture(_) => None,
+        match self.look_ref(look) {
+            LookRef::Fabric(f) => Some(f),
+            _ => None,
         }
     }
 
@@ -298,6 +286,17 @@ impl WalkInterior {
             )),
         }
     }
+}
+
+/// One look of a [`WalkInterior`], borrowed: what [`WalkInterior::phase`],
+/// [`WalkInterior::field`], [`WalkInterior::mixture`] and [`WalkInterior::fabric`] pick from.
+enum LookRef<'a> {
+    /// A medium of the scene (nothing resolved per walk).
+    Scene,
+    Entry(&'a EntryInterior),
+    Field(&'a FieldInterior),
+    Mixture(&'a TexturedMixture),
+    Fabric(&'a FabricInterior),
 }
 
 /// The medium one walk uses inside an object with a [`WalkInterior`]: small and `Copy`, so
