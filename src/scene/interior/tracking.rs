@@ -65,9 +65,11 @@ pub(super) fn build_tracking(
     cfg.behind = match t.behind.as_deref().unwrap_or("survive") {
         "transmittance" => BehindMode::Transmittance,
         "survive" => BehindMode::Survive,
-        other => return Err(at.invalid(format!(
+        other => {
+            return Err(at.invalid(format!(
             "{owner}.behind = \"{other}\" is unknown (expected \"survive\" or \"transmittance\")"
-        ))),
+        )))
+        }
     };
     Ok(cfg)
 }
