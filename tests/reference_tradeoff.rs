@@ -75,6 +75,7 @@ fn heterogeneous_scenes_get_every_estimator_and_all_edits_load() {
             "scene file",
             "delta + ratio",
             "local bounds",
+            "transmittance behind",
             "global majorant",
             "pyramid L1",
             "ray marching",

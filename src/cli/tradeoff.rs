@@ -172,6 +172,10 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
             edits: vec![tracking(&[("free_flight", s("split"))])],
         });
         out.push(Configuration {
+            name: "delta + residual ratio (novak), transmittance behind".into(),
+            edits: vec![tracking(&[("behind", s("transmittance"))])],
+        });
+        out.push(Configuration {
             name: "delta + unbiased ray marching".into(),
             edits: vec![tracking(&[("transmittance", s("unbiased_ray_march"))])],
         });

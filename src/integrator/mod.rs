@@ -325,15 +325,30 @@ impl PathState {
         };
         let mut hit = None;
         let ray = self.ray;
+        // What lies behind a thin medium, estimated by transmittance: the boundary is needed
+        // first, and the flight below then only samples collisions.
+        let mut behind_estimated = false;
+        let mut known_boundary = None;
+        if medium.estimates_behind() {
+            hit = scene.geometry.intersect(&ray, f32::INFINITY);
+            if let Some(h) = &hit {
+                known_boundary = Some(h.t);
+                behind_estimated = self.add_light_behind(scene, medium, h, sampler, stats);
+            }
+        }
         let event = medium.sample_flight_in_cone(
             &ray,
             self.cone.footprint(),
             self.beta,
             &mut || sampler.next_1d(),
             &mut stats.tracking,
-            |limit| {
-                hit = scene.geometry.intersect(&ray, limit);
-                hit.as_ref().map_or(f32::INFINITY, |h| h.t)
+            |limit| match known_boundary {
+                Some(t) if t <= limit => t,
+                Some(_) => f32::INFINITY,
+                None => {
+                    hit = scene.geometry.intersect(&ray, limit);
+                    hit.as_ref().map_or(f32::INFINITY, |h| h.t)
+                }
             },
         );
         if !event.emitted.is_black() {
@@ -348,7 +363,7 @@ impl PathState {
                 self.cone.widen();
                 self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats)
             }
-            None if self.beta.is_black() => Step::Stop,
+            None if self.beta.is_black() || behind_estimated => Step::Stop,
             None => {
                 if let Some(h) = &hit {
                     self.cone.advance(h.t);
@@ -357,6 +372,71 @@ impl PathState {
             }
         };
         (step, hit)
+    }
+
+    /// The light behind the current medium along the ray, estimated by transmittance
+    /// ([`crate::tracking::BehindMode::Transmittance`]): where the ray leaves the medium at
+    /// `exit` through a boundary it crosses unchanged (a null or false boundary) into vacuum,
+    /// and then reaches the environment or a sphere light with nothing in between, adds what
+    /// the path would see there had it survived the free flight (with the same MIS weight),
+    /// times the interior's transmittance estimate to `exit`, and returns true: the flight's
+    /// escape then adds nothing. Returns false (nothing added) where something else lies
+    /// behind; the path then survives or dies as in plain delta tracking.
+    fn add_light_behind(
+        &mut self,
+        scene: &Scene,
+        medium: &Medium,
+        exit: &Hit,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+    ) -> bool {
+        let ShapeOwner::Object(oi) = scene.shape_owner[exit.shape as usize] else {
+            return false;
+        };
+        let obj = &scene.objects[oi as usize];
+        let entering = self.ray.d.dot(exit.ng) < 0.0;
+        let passes = obj.surface.transmits()
+            && (matches!(obj.surface, ObjectSurface::Null)
+                || is_false_intersection(scene, &self.stack, oi, entering));
+        if entering || !passes {
+            return false;
+        }
+        let mut outside = self.stack;
+        outside.remove(oi);
+        if !outside.entries().is_empty() {
+            return false;
+        }
+        let d = self.ray.d;
+        let beyond = Ray::new(exit.spawn_origin(d), d);
+        stats.rays += 1;
+        let light = match scene.geometry.intersect(&beyond, f32::INFINITY) {
+            None => None,
+            Some(h) => match scene.shape_owner[h.shape as usize] {
+                ShapeOwner::Light(li) => Some((li as usize, h)),
+                ShapeOwner::Object(_) => return false,
+            },
+        };
+        let through = self.manifold_leg == ManifoldLeg::Through;
+        let mut layers = [Rgb::ZERO; MAX_LIGHT_LAYERS];
+        let e = match light {
+            None => emitted(scene, d, &self.prev, None, through, &mut layers),
+            // Seen from behind, a sphere light's surface emits nothing and stops the path.
+            Some((_, h)) if d.dot(h.ng) >= 0.0 => return true,
+            Some((li, h)) => emitted(scene, d, &self.prev, Some((li, h.p)), through, &mut layers),
+        };
+        if e.is_black() && layers.iter().all(|l| l.is_black()) {
+            return true;
+        }
+        let tr = medium.transmittance_in_cone(
+            &self.ray,
+            exit.t,
+            self.cone.footprint(),
+            &mut || sampler.next_1d(),
+            &mut stats.tracking,
+        );
+        let layers = layers.map(|l| l * tr);
+        self.add_emitted(scene, e * tr, &layers);
+        true
     }
 
     /// A real collision inside an interior: NEE at the vertex if the interior does it there,

@@ -46,7 +46,7 @@ pub use walk::{EntryInterior, FieldInterior, WalkInterior, WalkLook, WalkMedium}
 use crate::math::Ray;
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
-use crate::tracking::{Flight, HomogeneousFlight, TrackingStats};
+use crate::tracking::{BehindMode, Flight, HomogeneousFlight, TrackingStats};
 
 /// Where next event estimation happens for paths inside an interior (notes §2.3.3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -166,6 +166,19 @@ impl Medium {
             Medium::Scaled(f) => !f.sigma_s.is_black() || !f.medium.coefficients.base_s.is_black(),
             Medium::ScaledMixture(m) => m.scatters(),
             Medium::Dyed(f) => !f.medium.coefficients.sigma_s.is_black(),
+        }
+    }
+
+    /// Whether a ray crossing this medium estimates the light behind it by transmittance
+    /// instead of letting its path survive the free flight ([`crate::tracking::BehindMode`]):
+    /// for `voxel` and `fbm` interiors (also textured ones read at the entry point) by their
+    /// `tracking.behind`; never for other media.
+    #[must_use]
+    pub fn estimates_behind(&self) -> bool {
+        match self {
+            Medium::Heterogeneous(h) => h.tracking.behind == BehindMode::Transmittance,
+            Medium::Scaled(f) => f.medium.tracking.behind == BehindMode::Transmittance,
+            _ => false,
         }
     }
 

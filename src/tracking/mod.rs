@@ -212,6 +212,29 @@ pub struct TrackingConfig {
     /// up (where the density field has them: grids and baked procedurals), and let the walk
     /// stay at coarser segments accordingly (docs/references.md §4.10).
     pub local_bounds: bool,
+    /// How a ray's light from behind the medium (the environment or an emitter seen through
+    /// it) is estimated: by the path surviving the free flight, or by a transmittance estimate.
+    pub behind: BehindMode,
+}
+
+/// How the light behind a medium reaches a ray that crosses it (docs/choosing-estimators.md,
+/// "What lies behind a medium"). The radiance along a ray through a medium is
+/// `T(0, d) L_b + ∫₀^d T(0, t) σ_s(t) L_s(t) dt`. Delta tracking estimates the first term by
+/// letting the path survive the free flight or not; [`BehindMode::Transmittance`] estimates it
+/// with the interior's transmittance estimator instead and keeps delta tracking for the second
+/// term only (an escaped flight then adds nothing). Both are unbiased. Which has less variance
+/// depends on the scene: surviving is better where the in-scattered light `L_s` is about as
+/// bright as `L_b` (a bright, high-albedo cloud against the sky: the two outcomes then give
+/// similar values), the transmittance estimate where `L_s` is much darker than `L_b` (dark
+/// smoke against a bright sky).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BehindMode {
+    /// The path survives the free flight or dies (plain delta tracking).
+    Survive,
+    /// The light behind is weighted by a transmittance estimate where the ray, once out of
+    /// the medium, reaches the environment or a sphere light with nothing in between;
+    /// elsewhere as [`BehindMode::Survive`].
+    Transmittance,
 }
 
 impl Default for TrackingConfig {
@@ -223,6 +246,7 @@ impl Default for TrackingConfig {
             transmittance: TransmittanceMode::ResidualRatio(ControlVariate::Novak),
             majorant: MajorantMode::Hierarchical { finest: 0 },
             local_bounds: false,
+            behind: BehindMode::Survive,
         }
     }
 }

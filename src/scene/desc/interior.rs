@@ -279,6 +279,8 @@ pub struct TrackingDesc {
     pub step: Option<f32>,
     /// Decide tentative collisions from per-point local bounds before looking the density up.
     pub local_bounds: Option<bool>,
+    /// The light behind the medium: "survive" (default) or "transmittance".
+    pub behind: Option<String>,
 }
 
 /// `noise = { ... }`: procedural fBm density.

@@ -103,7 +103,7 @@ impl FieldParams {
     }
 
     /// Refuses the `tracking` keys a surface-projected field does not use (`free_flight`,
-    /// `transmittance`, `control`, `step`, `local_bounds`: its flights and shadow rays are the
+    /// `transmittance`, `control`, `step`, `local_bounds`, `behind`: its flights and shadow rays are the
     /// per-channel delta and ratio trackers over the field's majorant segments), naming the
     /// object and key; `majorant` and `level` still shape those segments.
     pub fn refuse_unused_tracking(
@@ -120,6 +120,7 @@ impl FieldParams {
             ("control", t.control.is_some()),
             ("step", t.step.is_some()),
             ("local_bounds", t.local_bounds.is_some()),
+            ("behind", t.behind.is_some()),
         ];
         match unused.iter().find(|(_, set)| *set) {
             Some((key, _)) => Err(at.invalid(format!(

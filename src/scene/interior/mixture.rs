@@ -33,6 +33,11 @@ pub(super) fn check_mixture_tracking(
                 t.free_flight.as_deref().unwrap_or("delta")
             )));
         }
+        if t.behind.is_some() {
+            return Err(at.invalid(format!(
+                "{owner}.behind does not apply to media with several components or with albedo or emission grids (their escaped paths survive or die)"
+            )));
+        }
         if t.local_bounds == Some(true) {
             return Err(at.invalid(format!(
                 "{owner}.local_bounds does not apply to media with several components or with albedo or emission grids"

@@ -4,7 +4,7 @@ use super::Site;
 use crate::majorant::MajorantMode;
 use crate::scene::desc::TrackingDesc;
 use crate::scene::SceneError;
-use crate::tracking::{ControlVariate, TransmittanceMode};
+use crate::tracking::{BehindMode, ControlVariate, TransmittanceMode};
 use crate::tracking::{FreeFlightMethod, TrackingConfig};
 
 /// The tracking configuration: the defaults (delta tracking, residual ratio tracking with
@@ -62,5 +62,14 @@ pub(super) fn build_tracking(
         }
     };
     cfg.local_bounds = t.local_bounds.unwrap_or(cfg.local_bounds);
+    cfg.behind = match t.behind.as_deref().unwrap_or("survive") {
+        "transmittance" => BehindMode::Transmittance,
+        "survive" => BehindMode::Survive,
+        other => {
+            return Err(at.invalid(format!(
+            "{owner}.behind = \"{other}\" is unknown (expected \"survive\" or \"transmittance\")"
+        )))
+        }
+    };
     Ok(cfg)
 }
