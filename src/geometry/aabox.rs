@@ -17,31 +17,50 @@ pub struct BoxHit {
     pub uv: Vec2,
 }
 
+/// One slab of the slab test: the ray's entry and exit distances across the planes
+/// `lo`, `hi` of axis `k` narrow `near` and `far` (distance, axis). False when the ray runs
+/// parallel to the slab outside it.
+#[inline(always)]
+fn slab(
+    o: f32,
+    d: f32,
+    lo: f32,
+    hi: f32,
+    k: usize,
+    near: &mut (f32, usize),
+    far: &mut (f32, usize),
+) -> bool {
+    if d == 0.0 {
+        return !(o < lo || o > hi);
+    }
+    let (a, b) = ((lo - o) / d, (hi - o) / d);
+    let (enter, leave) = if a <= b { (a, b) } else { (b, a) };
+    if enter > near.0 {
+        *near = (enter, k);
+    }
+    if leave < far.0 {
+        *far = (leave, k);
+    }
+    true
+}
+
 /// Intersects `ray` with the box `[min, max]`, returning the nearest hit with `0 < t < t_max`:
 /// the entry face from outside, the exit face from inside.
 #[must_use]
+#[inline]
 pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxHit> {
-    let (mut t_near, mut near_axis) = (f32::NEG_INFINITY, 0usize);
-    let (mut t_far, mut far_axis) = (f32::INFINITY, 0usize);
-    for k in 0..3 {
-        let (o, d) = (ray.o[k], ray.d[k]);
-        if d == 0.0 {
-            if o < min[k] || o > max[k] {
-                return None;
-            }
-            continue;
-        }
-        let (a, b) = ((min[k] - o) / d, (max[k] - o) / d);
-        let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
-        if lo > t_near {
-            t_near = lo;
-            near_axis = k;
-        }
-        if hi < t_far {
-            t_far = hi;
-            far_axis = k;
-        }
+    // The three slabs written out by axis (indexing a `Vec3` by a loop variable compiles to
+    // a branch per access); the same operations in the same order as a loop over the axes.
+    let mut near = (f32::NEG_INFINITY, 0usize);
+    let mut far = (f32::INFINITY, 0usize);
+    let (o, d) = (ray.o, ray.d);
+    if !(slab(o.x, d.x, min.x, max.x, 0, &mut near, &mut far)
+        && slab(o.y, d.y, min.y, max.y, 1, &mut near, &mut far)
+        && slab(o.z, d.z, min.z, max.z, 2, &mut near, &mut far))
+    {
+        return None;
     }
+    let ((t_near, near_axis), (t_far, far_axis)) = (near, far);
     if !(t_near <= t_far) {
         return None;
     }
@@ -52,14 +71,31 @@ pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxH
     } else {
         return None;
     };
-    let d = ray.d[axis];
+    let d_axis = match axis {
+        0 => d.x,
+        1 => d.y,
+        _ => d.z,
+    };
     // Entering through the face the ray moves towards, leaving through the opposite one.
-    let at_max = (d > 0.0) != entering;
+    let at_max = (d_axis > 0.0) != entering;
+    let face = if at_max { max } else { min };
+    let sign = if at_max { 1.0 } else { -1.0 };
     let mut p = ray.at(t);
-    p[axis] = if at_max { max[axis] } else { min[axis] };
+    let n = match axis {
+        0 => {
+            p.x = face.x;
+            Vec3::new(sign, 0.0, 0.0)
+        }
+        1 => {
+            p.y = face.y;
+            Vec3::new(0.0, sign, 0.0)
+        }
+        _ => {
+            p.z = face.z;
+            Vec3::new(0.0, 0.0, sign)
+        }
+    };
     let p = p.clamp(min, max);
-    let mut n = Vec3::ZERO;
-    n[axis] = if at_max { 1.0 } else { -1.0 };
     let extent = (max - min).max(Vec3::splat(f32::MIN_POSITIVE));
     let rel = (p - min) / extent;
     let (u, v) = match axis {
@@ -73,4 +109,111 @@ pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxH
         n,
         uv: Vec2::new(u, v),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+
+    /// The slab test as a loop over the axes (the form before the axes were written out).
+    fn by_loop(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxHit> {
+        let (mut t_near, mut near_axis) = (f32::NEG_INFINITY, 0usize);
+        let (mut t_far, mut far_axis) = (f32::INFINITY, 0usize);
+        for k in 0..3 {
+            let (o, d) = (ray.o[k], ray.d[k]);
+            if d == 0.0 {
+                if o < min[k] || o > max[k] {
+                    return None;
+                }
+                continue;
+            }
+            let (a, b) = ((min[k] - o) / d, (max[k] - o) / d);
+            let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+            if lo > t_near {
+                t_near = lo;
+                near_axis = k;
+            }
+            if hi < t_far {
+                t_far = hi;
+                far_axis = k;
+            }
+        }
+        if !(t_near <= t_far) {
+            return None;
+        }
+        let (t, axis, entering) = if t_near > 0.0 && t_near < t_max {
+            (t_near, near_axis, true)
+        } else if t_far > 0.0 && t_far < t_max {
+            (t_far, far_axis, false)
+        } else {
+            return None;
+        };
+        let at_max = (ray.d[axis] > 0.0) != entering;
+        let mut p = ray.at(t);
+        p[axis] = if at_max { max[axis] } else { min[axis] };
+        let p = p.clamp(min, max);
+        let mut n = Vec3::ZERO;
+        n[axis] = if at_max { 1.0 } else { -1.0 };
+        let rel = (p - min) / (max - min).max(Vec3::splat(f32::MIN_POSITIVE));
+        let (u, v) = match axis {
+            0 => (rel.y, rel.z),
+            1 => (rel.x, rel.z),
+            _ => (rel.x, rel.y),
+        };
+        Some(BoxHit {
+            t,
+            p,
+            n,
+            uv: Vec2::new(u, v),
+        })
+    }
+
+    fn bits(h: Option<BoxHit>) -> Option<[u32; 9]> {
+        h.map(|h| {
+            [
+                h.t, h.p.x, h.p.y, h.p.z, h.n.x, h.n.y, h.n.z, h.uv.x, h.uv.y,
+            ]
+            .map(f32::to_bits)
+        })
+    }
+
+    #[test]
+    fn written_out_slabs_match_the_loop_bit_for_bit() {
+        let mut rng = Rng::new(11, 5);
+        let (min, max) = (Vec3::new(-0.5, -0.25, -1.0), Vec3::new(0.5, 0.75, 0.3));
+        let mut hits = [0usize; 2];
+        for n in 0..200_000 {
+            let mut o =
+                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0 - Vec3::splat(2.0);
+            let mut d = crate::sampling::sample_uniform_sphere(rng.next_2d());
+            // Axis-parallel rays, rays from the faces and from the corners.
+            match n % 8 {
+                0 => d[(n / 8) % 3] = 0.0,
+                1 => {
+                    o[(n / 8) % 3] = if n % 16 == 1 {
+                        min[(n / 8) % 3]
+                    } else {
+                        max[(n / 8) % 3]
+                    }
+                }
+                2 => o = if n % 16 == 2 { min } else { max },
+                _ => {}
+            }
+            let d = d.normalize_or_zero();
+            let ray = Ray::new(o, d);
+            let t_max = if n % 5 == 0 { 1.0 } else { f32::INFINITY };
+            let want = by_loop(&ray, min, max, t_max);
+            assert_eq!(
+                bits(intersect_box(&ray, min, max, t_max)),
+                bits(want),
+                "ray {n}"
+            );
+            if let Some(h) = want {
+                hits[usize::from(h.n.dot(d) > 0.0)] += 1;
+            }
+        }
+        // Both entry and exit faces were tested.
+        assert!(hits[0] > 5_000 && hits[1] > 5_000, "{hits:?}");
+    }
 }
