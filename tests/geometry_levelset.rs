@@ -367,7 +367,7 @@ angular_radius = 6.0
 name = "ball"
 {shape}
 surface = {{ type = "dielectric", ior = 1.4, roughness = 0.3 }}
-interior = {{ type = "homogeneous", albedo = [0.95, 0.85, 0.7], albedo_mode = "single", density = 2.0, attenuation = [1.0, 0.8, 0.6], phase = {{ g = 0.3 }} }}
+interior = {{ type = "homogeneous", albedo = [0.95, 0.85, 0.7], albedo_mode = "single", density = 2.0, attenuation = [1.0, 0.8, 0.6], phase = {{ g = 0.3 }}, nee = "exit" }}
 "#
         )
     };

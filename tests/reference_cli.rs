@@ -33,7 +33,7 @@ irradiance = 2
 shape = "sphere"
 radius = 1
 surface = { type = "dielectric", ior = 1.33, roughness = 0.3 }
-interior = { type = "homogeneous", albedo = [0.9, 0.7, 0.5], albedo_mode = "single", attenuation = 0.4, phase = { g = 0.4 } }
+interior = { type = "homogeneous", albedo = [0.9, 0.7, 0.5], albedo_mode = "single", attenuation = 0.4, phase = { g = 0.4 }, nee = "exit" }
 "#;
 
 #[test]

@@ -38,9 +38,18 @@ fn write_ball(path: &Path) {
     write_ply(path, &mesh, false).unwrap();
 }
 
+/// `interior` (an inline table) with `nee = "exit"` spelled out: the comparisons here are about
+/// the interior, not about next event estimation, and keep the exit-point NEE they were
+/// written with (the default behind this rough boundary under a sun is "exit_guided").
+fn with_exit_nee(interior: &str) -> String {
+    let body = interior.trim_end();
+    let body = body.strip_suffix('}').unwrap_or(body);
+    format!("{body}, nee = \"exit\" }}")
+}
+
 fn scene(interior: &str, spp: u32, seed: u32) -> String {
     lit_scene(
-        interior,
+        &with_exit_nee(interior),
         spp,
         seed,
         r#"{ type = "dielectric", ior = 1.33, roughness = 0.3 }"#,

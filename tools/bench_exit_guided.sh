@@ -39,7 +39,11 @@ interior = { type = "homogeneous", albedo = 0.95, albedo_mode = "single", densit
 TOML
 sed "s#meshes/#$PWD/scenes/meshes/#" scenes/skin_sphere.toml >"$out/skin_exit.toml"
 python3 tools/peers/make_icosphere.py --subdivisions 5 "$out/ico.ply" >/dev/null
-sed "s#../generated/icosphere_20k.ply#$out/ico.ply#" tools/peers/bench/skin_icosphere.toml >"$out/ico_exit.toml"
+# skin_icosphere.toml leaves nee to the default (exit_guided there): spell out "exit".
+sed -e "s#../generated/icosphere_20k.ply#$out/ico.ply#" \
+  -e 's/attenuation = \[2.25, 1.5, 1.0\] }/attenuation = [2.25, 1.5, 1.0], nee = "exit" }/' \
+  tools/peers/bench/skin_icosphere.toml >"$out/ico_exit.toml"
+grep -q 'nee = "exit"' "$out/ico_exit.toml"
 python3 tools/make_texture.py veins "$out/veins.png" >/dev/null
 sed -e "s#roughness = 0.3 }#roughness = { texture = \"$out/veins.png\", channel = \"r\", scale = 0.5 }, tint = { texture = \"$out/veins.png\" } }#" \
   "$out/repro_exit.toml" >"$out/tex_exit.toml"

@@ -62,6 +62,7 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         }
         lights.push(light);
     }
+    super::nee::resolve_defaults(&mut built.objects, &built.auto_guided, &lights);
     if !lights
         .iter()
         .any(|l| matches!(l, Light::Sphere { .. } | Light::Distant { .. }))

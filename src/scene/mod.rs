@@ -5,7 +5,8 @@
 //! One file per job: `read` turns the text into the descriptions of [`desc`]; `validate`
 //! holds the shared checks; `camera` builds the film and camera, `lights` the lights,
 //! `objects` the shapes, transforms and object list, `surface` the boundaries and `interior`
-//! the media (a file per kind of interior); `build` puts them together. The fabric
+//! the media (a file per kind of interior); `nee` resolves the default next event estimation
+//! of each interior from its boundary and the lights; `build` puts them together. The fabric
 //! level-of-detail policy the interiors apply is [`crate::fabric::lod`].
 
 mod build;
@@ -14,6 +15,7 @@ mod context;
 pub mod desc;
 mod interior;
 mod lights;
+mod nee;
 mod objects;
 mod read;
 mod surface;

@@ -26,6 +26,11 @@ pub(super) struct ObjectList {
     /// object has no surface (its interface is an enclosing object's): the scene checks that a
     /// light they can connect to, and such an enclosing interface, exist.
     pub manifold: Vec<(String, usize, bool)>,
+    /// Objects (indices into [`Self::objects`]) whose interiors leave `nee` to the default
+    /// behind a rough dielectric boundary ([`super::nee::guided_boundary`]): built with
+    /// `"exit"`, turned to `"exit_guided"` by [`super::nee::resolve_defaults`] once the
+    /// scene's lights are known.
+    pub auto_guided: Vec<usize>,
 }
 
 impl ObjectList {
@@ -179,15 +184,15 @@ impl ObjectList {
             ObjectSurface::Blend(b) => matches!(&b.a, ObjectSurface::Dielectric(d) if d.ior == 1.0),
             ObjectSurface::Fixed(_) | ObjectSurface::Textured(_) => false,
         };
+        let auto_nee = desc
+            .interior
+            .as_ref()
+            .is_some_and(|i| super::nee::is_auto(i.get_ref().nee()));
         let nee = if medium.is_some()
             && index_matched
             && !matches!(nee, NeeStrategy::Interior | NeeStrategy::Manifold)
         {
-            if desc
-                .interior
-                .as_ref()
-                .is_some_and(|i| i.get_ref().nee().is_some())
-            {
+            if !auto_nee {
                 warnings.push(format!(
                     "{}:{line}: {name}: nee = \"exit\" behind an index-matched boundary finds no exit vertices; using \"interior\"",
                     ctx.path.display()
@@ -217,6 +222,13 @@ impl ObjectList {
         } else {
             (0.0, Vec::new())
         };
+        if medium.is_some()
+            && auto_nee
+            && nee == NeeStrategy::ExitPoint
+            && super::nee::guided_boundary(&surface)
+        {
+            self.auto_guided.push(self.objects.len());
+        }
         self.objects.push(Object {
             name,
             surface,

@@ -205,7 +205,9 @@ impl Site<'_> {
 }
 
 /// The keys every interior type has: `density` (≥ 0, default 1) and `attenuation` (a
-/// distance > 0 per channel, default 1), and `nee`.
+/// distance > 0 per channel, default 1), and `nee`. `nee` absent or `"auto"` gives
+/// `"exit"` here; the object builder resolves that default once the surface and the lights
+/// are known ([`super::nee`]).
 fn extinction_and_nee(
     at: &Site,
     density: Option<f32>,
@@ -219,14 +221,14 @@ fn extinction_and_nee(
             return Err(at.invalid(format!("{}.attenuation = {:?}: every channel must be a distance > 0 (use a large value for no attenuation)", at.owner, attenuation.0)));
         }
     }
-    let nee = match nee.unwrap_or("exit") {
-        "exit" => NeeStrategy::ExitPoint,
+    let nee = match nee.unwrap_or(super::nee::AUTO) {
+        "exit" | super::nee::AUTO => NeeStrategy::ExitPoint,
         "interior" => NeeStrategy::Interior,
         "exit_guided" => NeeStrategy::ExitGuided,
         "manifold" => NeeStrategy::Manifold,
         other => {
             return Err(at.invalid(format!(
-                "{}: interior.nee = \"{other}\" is unknown (expected \"exit\", \"exit_guided\", \"interior\" or \"manifold\")",
+                "{}: interior.nee = \"{other}\" is unknown (expected \"auto\", \"exit\", \"exit_guided\", \"interior\" or \"manifold\")",
                 at.name
             )))
         }
