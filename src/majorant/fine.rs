@@ -94,40 +94,24 @@ impl LocalBounds {
         }
         let s = 1i32 << log2;
         let plane = dims.x as usize * dims.y as usize;
-        // Exact f32 bounds first, one z-layer of cells per task: the range over the layer's
-        // s + 1 voxel planes per voxel column (each voxel read about (s + 1)/s times, not
-        // ((s + 1)/s)³), then over each cell's (s + 1)² columns.
+        // Exact f32 bounds first, one z-layer of cells per task.
         let mut exact = vec![[0.0f32; 2]; count];
-        let (nx, ny) = (dims.x * s + 1, dims.y * s + 1);
         exact
             .par_chunks_mut(plane)
             .enumerate()
             .for_each(|(z, layer)| {
                 let mut acc = grid.accessor(channel);
-                let z0 = first.z + z as i32 * s;
-                let mut columns = vec![[f32::INFINITY, f32::NEG_INFINITY]; (nx * ny) as usize];
-                for vy in 0..ny {
-                    for vx in 0..nx {
-                        let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
-                        for vz in 0..=s {
-                            let v = acc.value(IVec3::new(first.x + vx, first.y + vy, z0 + vz));
-                            mn = mn.min(v);
-                            mx = mx.max(v);
-                        }
-                        if let Some(c) = columns.get_mut((vy * nx + vx) as usize) {
-                            *c = [mn, mx];
-                        }
-                    }
-                }
                 for y in 0..dims.y {
                     for x in 0..dims.x {
+                        let c0 = first + IVec3::new(x, y, z as i32) * s;
                         let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
-                        for vy in y * s..=y * s + s {
-                            let row = (vy * nx) as usize;
-                            let cols = row + (x * s) as usize..=row + (x * s + s) as usize;
-                            for &[a, b] in columns.get(cols).unwrap_or(&[]) {
-                                mn = mn.min(a);
-                                mx = mx.max(b);
+                        for vx in 0..=s {
+                            for vy in 0..=s {
+                                for vz in 0..=s {
+                                    let v = acc.value(c0 + IVec3::new(vx, vy, vz));
+                                    mn = mn.min(v);
+                                    mx = mx.max(v);
+                                }
                             }
                         }
                         if let Some(cell) = layer.get_mut(y as usize * dims.x as usize + x as usize)
