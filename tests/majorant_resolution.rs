@@ -250,3 +250,34 @@ fn the_walk_does_not_depend_on_earlier_extinctions() {
     // The walk does descend at σ = 40 (it is not the root on every ray).
     assert!(opened > 250, "{opened} of 500 rays split");
 }
+
+/// Free-flight lookups per real collision of the cloud at `n`³ voxels, σ_t = 40 per unit
+/// density, with `tracking` and its local-bounds table attached as the scene loader does.
+fn lookups_per_real_collision(n: i32, tracking: TrackingConfig) -> f64 {
+    let g = grid(n, DVec3::ZERO);
+    let pyramid = MajorantPyramid::from_grid(&g, 0).unwrap_or_else(|e| panic!("{e}"));
+    let mut h = medium(g, pyramid, 40.0);
+    h.tracking = tracking;
+    h.attach_local_bounds().unwrap_or_else(|e| panic!("{e}"));
+    let s = flights(&Medium::Heterogeneous(Box::new(h)), 10_000);
+    assert!(s.real_collisions > 4_000, "{s:?}");
+    s.lookups as f64 / s.real_collisions as f64
+}
+
+#[test]
+fn default_tracking_takes_at_most_two_free_flight_lookups_per_real_collision() {
+    // Issue 12: with the default settings (local bounds on), at every resolution.
+    let mut off = TrackingConfig::default();
+    off.local_bounds = false;
+    for n in [128, 256, 512] {
+        let default = lookups_per_real_collision(n, TrackingConfig::default());
+        let without = lookups_per_real_collision(n, off);
+        eprintln!(
+            "{n}³: free-flight lookups per real collision {default:.2} by default, {without:.2} with local_bounds = false"
+        );
+        assert!(
+            default <= 2.0,
+            "{n}³: {default:.2} free-flight lookups per real collision with the default tracking"
+        );
+    }
+}

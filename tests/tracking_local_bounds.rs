@@ -10,7 +10,9 @@
 //!   bounds), and media with local bounds against the same media without (z-tests of the
 //!   difference, tolerance from the estimators' variance);
 //! - on a dense fBm grid (σ_t = 40 per unit density over a unit cube, as the peer cloud) free
-//!   flights need at most 2 lookups per real collision at 32³ and 64³ voxels of the same field.
+//!   flights need at most 2 lookups per real collision at 32³ and 64³ voxels of the same field;
+//! - a `voxel` interior loaded without a `tracking` table uses them when its extinction is grey
+//!   (at most 2 lookups per real collision), not when it is chromatic.
 
 mod common;
 
@@ -504,4 +506,69 @@ fn at_most_two_lookups_per_real_collision_on_a_dense_fbm_grid_at_two_resolutions
         with[1] <= 1.1 * with[0],
         "lookups per real collision grow with the resolution: {with:?}"
     );
+}
+
+/// The 32³ fBm cloud as `cloud.vdb` in `dir`, and a scene text with it as a `voxel` interior
+/// (albedo 0.9) with the further keys `keys` (`attenuation`, `tracking`).
+fn cloud_scene(dir: &common::files::TempDir, keys: &str) -> String {
+    use velour::vdb::{write_vdb, GridToWrite, WriteOptions};
+    let g = grid(32, fbm_cloud);
+    let list = [GridToWrite {
+        class: "fog volume",
+        ..GridToWrite::new("density", &g)
+    }];
+    write_vdb(&dir.join("cloud.vdb"), &list, &WriteOptions::default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    format!(
+        r#"
+[camera]
+eye = [0.5, 0.5, 3.0]
+look_at = [0.5, 0.5, 0.5]
+fov = 30
+[film]
+width = 24
+height = 24
+spp = 4
+seed = 1
+max_depth = 1000
+[[light]]
+type = "environment"
+radiance = 1.0
+[[object]]
+name = "cloud"
+shape = "bounds"
+interior = {{ type = "voxel", file = "cloud.vdb", grid = "density", albedo = 0.9, albedo_mode = "single", nee = "interior"{keys} }}
+"#
+    )
+}
+
+#[test]
+fn a_voxel_interior_uses_local_bounds_by_default() {
+    // The scene loader's default (no `tracking` key) decides tentative collisions against the
+    // local bounds where σ_t is grey (σ_t = 40 per unit density); `local_bounds = false`
+    // switches them off. Chromatic extinction is tracked without them unless asked for.
+    let dir = common::files::TempDir::new("local_bounds_default");
+    let path = dir.join("scene.toml");
+    let render = |keys: &str| {
+        let scene = common::render::scene_from_text(&cloud_scene(&dir, keys), &path);
+        common::render::render_scene(&scene, 1).1.tracking
+    };
+    let default = render(", attenuation = 0.025");
+    let off = render(", attenuation = 0.025, tracking = { local_bounds = false }");
+    // Chromatic extinction: off unless asked for.
+    let chromatic = render(", attenuation = [0.025, 0.03, 0.04]");
+    let forced = render(", attenuation = [0.025, 0.03, 0.04], tracking = { local_bounds = true }");
+    assert!(
+        chromatic.probed == 0 && forced.probed > 0,
+        "{chromatic:?} {forced:?}"
+    );
+    let per = |s: &TrackingStats| s.lookups as f64 / s.real_collisions.max(1) as f64;
+    eprintln!(
+        "free-flight lookups per real collision: {:.2} by default, {:.2} with local_bounds = false",
+        per(&default),
+        per(&off)
+    );
+    assert!(default.real_collisions > 1_000, "{default:?}");
+    assert!(default.probed > 0 && off.probed == 0, "{default:?} {off:?}");
+    assert!(per(&default) <= 2.0, "{default:?}");
 }

@@ -9,7 +9,8 @@
 //! the scene format gains can be added here as one more [`Configuration`]:
 //! - heterogeneous (`voxel`, `fbm`) interiors: delta tracking with residual ratio tracking
 //!   (Novák control, the default), with ratio tracking, with the mean-density control; delta and
-//!   decomposition tracking with local bounds (`local_bounds = true`); the
+//!   decomposition tracking with local bounds (the default) and without (`local_bounds =
+//!   false`); the
 //!   global majorant against each level of the majorant pyramid; ray marching (free flight and
 //!   transmittance) at several step sizes (fractions of the medium's bounding-box diagonal);
 //!   baked against exact procedural (`fbm`) density;
@@ -145,12 +146,15 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
             }
         }
         out.push(Configuration {
-            name: "delta + residual ratio (novak), pyramid L0".into(),
-            edits: vec![tracking(&[])],
+            name: "delta + residual ratio (novak), pyramid L0, no local bounds".into(),
+            edits: vec![tracking(&[("local_bounds", toml::Value::Boolean(false))])],
         });
         out.push(Configuration {
-            name: "decomposition + residual ratio (novak), pyramid L0".into(),
-            edits: vec![tracking(&[("free_flight", s("decomposition"))])],
+            name: "decomposition + residual ratio (novak), pyramid L0, no local bounds".into(),
+            edits: vec![tracking(&[
+                ("free_flight", s("decomposition")),
+                ("local_bounds", toml::Value::Boolean(false)),
+            ])],
         });
         out.push(Configuration {
             name: "delta + residual ratio (novak), local bounds".into(),

@@ -206,9 +206,15 @@ impl HeterogeneousMedium {
     }
 
     /// Builds the pyramid's local bounds ([`crate::majorant::LocalBounds`]) when the tracking
-    /// configuration asks for them and the field is a grid (other fields track without them).
+    /// configuration uses them (`local_bounds` with delta or decomposition tracking) and the
+    /// field is a grid (other fields track without them, and build no table).
     pub fn attach_local_bounds(&mut self) -> Result<(), crate::majorant::MajorantError> {
-        if !self.tracking.local_bounds || self.pyramid.local_bounds().is_some() {
+        let used = self.tracking.local_bounds
+            && matches!(
+                self.tracking.free_flight,
+                FreeFlightMethod::DeltaTracking | FreeFlightMethod::Decomposition
+            );
+        if !used || self.pyramid.local_bounds().is_some() {
             return Ok(());
         }
         if let DensityField::Grid { grid, channel } = &self.field {

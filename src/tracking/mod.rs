@@ -210,7 +210,9 @@ pub struct TrackingConfig {
     pub majorant: MajorantMode,
     /// Test tentative collisions against per-point local bounds before looking the density
     /// up (where the density field has them: grids and baked procedurals), and let the walk
-    /// stay at coarser segments accordingly (docs/references.md §4.10).
+    /// stay at coarser segments accordingly (docs/references.md §4.10). On by default: for
+    /// grey media the free flights' events are those without, at fewer lookups; only delta
+    /// and decomposition tracking use them.
     pub local_bounds: bool,
     /// How a ray's light from behind the medium (the environment or an emitter seen through
     /// it) is estimated: by the path surviving the free flight, or by a transmittance estimate.
@@ -238,14 +240,14 @@ pub enum BehindMode {
 }
 
 impl Default for TrackingConfig {
-    /// Delta tracking, residual ratio tracking with Novák's control, hierarchical majorants
-    /// down to the brick level.
+    /// Delta tracking with local bounds (where the field has them), residual ratio tracking
+    /// with Novák's control, hierarchical majorants down to the brick level.
     fn default() -> Self {
         TrackingConfig {
             free_flight: FreeFlightMethod::DeltaTracking,
             transmittance: TransmittanceMode::ResidualRatio(ControlVariate::Novak),
             majorant: MajorantMode::Hierarchical { finest: 0 },
-            local_bounds: false,
+            local_bounds: true,
             behind: BehindMode::Survive,
         }
     }

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use glam::DAffine3;
 
 use super::fabric_source::{generate, read_file, PatchSource};
+use super::tracking::grey_extinction;
 use super::{extinction_and_nee, BuiltInterior, Placement, Site};
 use crate::fabric::lod::{self, MAX_MIP_LEVEL};
 use crate::fabric::{
@@ -226,7 +227,10 @@ fn level_medium(
         pyramid,
         coefficients: DensityCoefficients::new(s.sigma_t, s.sigma_t),
         phase: PhaseFunction::henyey_greenstein(0.0).map_err(|e| bad(&e))?,
-        tracking: TrackingConfig::default(),
+        tracking: TrackingConfig {
+            local_bounds: grey_extinction(&DensityCoefficients::new(s.sigma_t, s.sigma_t)),
+            ..TrackingConfig::default()
+        },
         fabric: Some(Box::new(FabricLook {
             tangent_channel: crate::fabric::voxelise::TANGENT,
             id_channel: crate::fabric::voxelise::ID,

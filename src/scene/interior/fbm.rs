@@ -42,7 +42,10 @@ pub(super) fn build(
         base_attenuation: base.attenuation(),
         tracking: d.tracking.as_ref(),
     };
-    let look = DensityLook::read(at, &keys, density, attenuation)?;
+    let mut look = DensityLook::read(at, &keys, density, attenuation)?;
+    if params.surface.is_some() {
+        look = look.without_local_bounds();
+    }
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let rest_bounds = placement.rest_bounds.ok_or_else(|| {
         at.invalid(format!(

@@ -3,7 +3,7 @@
 //! function and the estimator choices.
 
 use super::scattering::Scattering;
-use super::tracking::build_tracking;
+use super::tracking::{build_tracking, default_local_bounds};
 use super::Site;
 use crate::majorant::MajorantPyramid;
 use crate::math::Vec2;
@@ -185,7 +185,8 @@ impl DensityLook {
             coefficients.base_t = base.sigma_t();
             coefficients.base_s = base.sigma_s;
         }
-        let tracking = build_tracking(at, keys.tracking)?;
+        let mut tracking = build_tracking(at, keys.tracking)?;
+        default_local_bounds(&mut tracking, keys.tracking, &coefficients);
         Ok(DensityLook {
             coefficients,
             phase: scattering.phase,
@@ -219,6 +220,13 @@ impl DensityLook {
 }
 
 impl DensityLook {
+    /// The look without local bounds: for surface-projected fields, whose per-channel
+    /// trackers do not read them (no table is built).
+    pub fn without_local_bounds(mut self) -> Self {
+        self.tracking.local_bounds = false;
+        self
+    }
+
     /// The phase function's mean cosine (for albedo-grid inversions).
     pub fn mean_cosine(&self) -> f32 {
         self.phase.mean_cosine()

@@ -4,11 +4,12 @@ use super::Site;
 use crate::majorant::MajorantMode;
 use crate::scene::desc::TrackingDesc;
 use crate::scene::SceneError;
-use crate::tracking::{BehindMode, ControlVariate, TransmittanceMode};
+use crate::tracking::{BehindMode, ControlVariate, DensityCoefficients, TransmittanceMode};
 use crate::tracking::{FreeFlightMethod, TrackingConfig};
 
 /// The tracking configuration: the defaults (delta tracking, residual ratio tracking with
-/// Novák's control, the majorant pyramid from the bricks up) for every absent key.
+/// Novák's control, the majorant pyramid from the bricks up, local bounds) for every absent
+/// key; [`default_local_bounds`] then decides an absent `local_bounds` by the extinction.
 pub(super) fn build_tracking(
     at: &Site,
     t: Option<&TrackingDesc>,
@@ -72,4 +73,29 @@ pub(super) fn build_tracking(
         }
     };
     Ok(cfg)
+}
+
+/// The interior's `local_bounds` when its `tracking` table leaves the key out: on where the
+/// extinction is grey (σ_t per unit density and the constant part the same in every channel),
+/// off for chromatic extinction. With grey extinction the free flights' events are those
+/// without local bounds, at a third of the lookups; with chromatic extinction the one-sample
+/// MIS over channels weighs the null collisions at the tighter local majorant, and the image's
+/// variance rose more than the lookups saved (the fbm creature, σ_t ratio 3.75 between
+/// channels: docs/BENCHMARKS.md, "Local bounds by default").
+pub(super) fn default_local_bounds(
+    cfg: &mut TrackingConfig,
+    t: Option<&TrackingDesc>,
+    c: &DensityCoefficients,
+) {
+    if t.and_then(|t| t.local_bounds).is_none() {
+        cfg.local_bounds = grey_extinction(c);
+    }
+}
+
+/// True when σ_t per unit density and the constant part are the same in every channel: where
+/// local bounds are on by default ([`default_local_bounds`]; fabric interiors, which have no
+/// `tracking` table, follow the same rule).
+pub(super) fn grey_extinction(c: &DensityCoefficients) -> bool {
+    let grey = |v: crate::spectrum::Rgb| v.max_component() == v.min_component();
+    grey(c.sigma_t) && grey(c.base_t)
 }

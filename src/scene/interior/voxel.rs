@@ -37,7 +37,10 @@ pub(super) fn build(
         base_attenuation: base.attenuation(),
         tracking: d.tracking.as_ref(),
     };
-    let look = DensityLook::read(at, &keys, density, attenuation)?;
+    let mut look = DensityLook::read(at, &keys, density, attenuation)?;
+    if params.surface.is_some() {
+        look = look.without_local_bounds();
+    }
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let (field, pyramid, density_ref) = voxel_field(at, d, xf)?;
     let mode = look.mode;
