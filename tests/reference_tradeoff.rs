@@ -109,7 +109,10 @@ fn heterogeneous_scenes_get_every_estimator_and_all_edits_load() {
 fn homogeneous_scenes_only_vary_nee() {
     let (_, configs) = configs_of(SKIN);
     let names: Vec<&str> = configs.iter().map(|c| c.name.as_str()).collect();
-    assert_eq!(names, ["scene file", "NEE exit", "NEE interior"]);
+    assert_eq!(
+        names,
+        ["scene file", "NEE exit", "NEE exit_guided", "NEE interior"]
+    );
 }
 
 #[test]
@@ -236,7 +239,8 @@ fn manifold_nee_is_offered_exactly_where_the_scene_accepts_it() {
     load_scene_str(&text, Path::new(EYE)).expect("the edited eye loads");
 
     // A smooth ball gets it beside exit and interior NEE; a rough one (roughness 0.3, and the
-    // shipped skin sphere's 0.6, see homogeneous_scenes_only_vary_nee) does not.
+    // shipped skin sphere's 0.6, see homogeneous_scenes_only_vary_nee) does not, and gets the
+    // guided connections instead, which behind the smooth ball would be exit-point NEE.
     let dir = TempDir::new("tradeoff-manifold");
     for (roughness, offered) in [(0.0, true), (0.3, false)] {
         let path = dir.join(format!("ball_{roughness}.toml"));
@@ -248,7 +252,7 @@ fn manifold_nee_is_offered_exactly_where_the_scene_accepts_it() {
         let want: &[&str] = if offered {
             &["scene file", "NEE exit", "NEE interior", "NEE manifold"]
         } else {
-            &["scene file", "NEE exit", "NEE interior"]
+            &["scene file", "NEE exit", "NEE exit_guided", "NEE interior"]
         };
         assert_eq!(names(&configs), want, "roughness {roughness}");
     }

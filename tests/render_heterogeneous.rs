@@ -54,8 +54,17 @@ fn run(text: &str, seed: u64) -> (velour::image_io::ExrImage, RenderSummary) {
 
 #[test]
 fn pyramid_and_global_majorants_agree_and_the_pyramid_saves_lookups() {
-    let (a, sa) = run(&cloud_scene(r#"majorant = "pyramid""#), 1);
-    let (b, sb) = run(&cloud_scene(r#"majorant = "global""#), 2);
+    // Without local bounds: with them (the default for this grey cloud) the free flights'
+    // lookups no longer depend on the majorant's tightness (1.29 per real collision under
+    // either majorant).
+    let (a, sa) = run(
+        &cloud_scene(r#"majorant = "pyramid", local_bounds = false"#),
+        1,
+    );
+    let (b, sb) = run(
+        &cloud_scene(r#"majorant = "global", local_bounds = false"#),
+        2,
+    );
     let cmp = compare(&a, &b).expect("compare");
     let z = cmp.z_test.expect("variance layers");
     assert!(z.consistent, "pyramid vs global renders disagree: {z:?}");

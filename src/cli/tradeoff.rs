@@ -14,8 +14,9 @@
 //!   global majorant against each level of the majorant pyramid; ray marching (free flight and
 //!   transmittance) at several step sizes (fractions of the medium's bounding-box diagonal);
 //!   baked against exact procedural (`fbm`) density;
-//! - every scattering interior: next event estimation at exit points against at interior
-//!   vertices;
+//! - every scattering interior: next event estimation at exit points, with guided connections
+//!   (`exit_guided`, offered where an interior has a rough dielectric boundary), and at
+//!   interior vertices;
 //! - manifold next event estimation (`nee = "manifold"`, "NEE manifold") on every scattering
 //!   interior where the scene loader accepts it (a smooth dielectric boundary, its own or an
 //!   enclosing one, and a sphere or distant light: see [`manifold_objects`]); the other
@@ -228,7 +229,17 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
         });
     }
     if scattering {
-        for nee in ["exit", "interior"] {
+        // Guided connections only differ from exit-point NEE behind a rough dielectric.
+        let guided = scene
+            .objects
+            .iter()
+            .any(|o| o.medium.is_some() && crate::scene::guided_boundary(&o.surface));
+        let strategies: &[&str] = if guided {
+            &["exit", "exit_guided", "interior"]
+        } else {
+            &["exit", "interior"]
+        };
+        for &nee in strategies {
             out.push(Configuration {
                 name: format!("NEE {nee}"),
                 edits: vec![Edit {

@@ -32,6 +32,7 @@ use crate::medium::{Medium, NeeStrategy, WalkInterior};
 use crate::texture::{ColorParam, ScalarParam};
 
 pub use build::{load_scene, load_scene_str, DEFAULT_SCENE_NAME, DEFAULT_SCENE_TEXT};
+pub use nee::guided_boundary;
 
 /// Errors while reading or validating a scene.
 #[derive(Debug, thiserror::Error)]

@@ -32,7 +32,7 @@ pub(super) fn is_auto(nee: Option<&str>) -> bool {
 /// roughness is not treated as smooth (roughness² ≥ [`SMOOTH_ALPHA`]) and has no coat, or a
 /// blend of two such looks (behind a blend with a smooth look the smooth parts' fireflies
 /// dominate and the connection's cost did not pay).
-pub(super) fn guided_boundary(surface: &ObjectSurface) -> bool {
+pub fn guided_boundary(surface: &ObjectSurface) -> bool {
     fn rough(s: &ObjectSurface) -> bool {
         match s {
             ObjectSurface::Dielectric(d) => {
