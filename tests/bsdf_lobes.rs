@@ -580,3 +580,39 @@ fn random_stress_never_returns_nan() {
         }
     }
 }
+
+/// Surfaces built at every hit take a coat prepared once ([`velour::bsdf::Coat::new`]): it must
+/// give the very surface that [`Surface::with_coat`] builds in place (same albedo table, so the
+/// same values, pdfs and samples), for rough and smooth coats, and validate the weight.
+#[test]
+fn a_prepared_coat_gives_the_surface_built_in_place() {
+    use velour::bsdf::Coat;
+    let bases = [
+        Surface::dielectric(1.4, 0.3, GGX, Rgb::ONE).unwrap(),
+        Surface::diffuse_transmission(Rgb::splat(0.15), Rgb::new(0.85, 0.55, 0.4)).unwrap(),
+        Surface::lambertian(Rgb::splat(0.6)).unwrap(),
+    ];
+    for base in &bases {
+        for &(ior, roughness) in &[(1.5f32, 0.1f32), (1.4, 0.35), (1.8, 0.0), (1.0, 1.0)] {
+            let coat = Coat::new(ior, roughness).unwrap();
+            for &weight in &[0.0f32, 0.37, 1.0] {
+                let in_place = base.clone().with_coat(ior, roughness, weight).unwrap();
+                let prepared = base.clone().with_prepared_coat(&coat, weight).unwrap();
+                assert_eq!(
+                    in_place, prepared,
+                    "ior {ior} roughness {roughness} weight {weight}"
+                );
+            }
+        }
+    }
+    let coat = Coat::new(1.5, 0.2).unwrap();
+    for bad in [-0.1f32, 1.5, f32::NAN] {
+        assert!(
+            bases[0].clone().with_prepared_coat(&coat, bad).is_err(),
+            "weight {bad}"
+        );
+    }
+    assert!(Coat::new(0.9, 0.2).is_err());
+    assert!(Coat::new(f32::NAN, 0.2).is_err());
+    assert!(Coat::new(1.5, 1.2).is_err());
+}

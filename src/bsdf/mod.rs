@@ -689,6 +689,30 @@ fn sample_smooth_dielectric(eta: f32, tint: Rgb, wo: Vec3, uc: f32) -> Option<Bs
 }
 
 impl Coat {
+    /// A coat of relative index `ior` (≥ 1) and `roughness` in [0, 1] (α = roughness², smooth
+    /// below α = 1e-3) at weight 1, its directional albedo `E_c(μ)` tabulated here by
+    /// quadrature (32 cosines, 24² visible-normal samples each). Errors on parameters out of
+    /// range.
+    pub fn new(ior: f32, roughness: f32) -> Result<Coat, BsdfError> {
+        if ior.is_nan() {
+            return Err(invalid("coat ior", ior, "is NaN"));
+        }
+        if !(ior >= 1.0) || !ior.is_finite() {
+            return Err(invalid("coat ior", ior, "must be finite and >= 1"));
+        }
+        check_unit("coat roughness", roughness)?;
+        let mut coat = Coat {
+            ior,
+            alpha: roughness * roughness,
+            weight: 1.0,
+            albedo_table: [0.0; COAT_TABLE_SIZE],
+        };
+        if !coat.is_smooth() {
+            coat.tabulate();
+        }
+        Ok(coat)
+    }
+
     fn is_smooth(&self) -> bool {
         self.alpha < SMOOTH_ALPHA
     }
@@ -902,23 +926,18 @@ impl Surface {
     /// bouncing between coat and base is ignored (slight darkening). Sampling picks the coat
     /// with probability `w E_c(μ_o) / (w E_c(μ_o) + a(wo) · base albedo estimate)`.
     pub fn with_coat(self, ior: f32, roughness: f32, weight: f32) -> Result<Surface, BsdfError> {
-        if ior.is_nan() {
-            return Err(invalid("coat ior", ior, "is NaN"));
-        }
-        if !(ior >= 1.0) || !ior.is_finite() {
-            return Err(invalid("coat ior", ior, "must be finite and >= 1"));
-        }
-        check_unit("coat roughness", roughness)?;
+        let coat = Coat::new(ior, roughness)?;
+        self.with_prepared_coat(&coat, weight)
+    }
+
+    /// [`Surface::with_coat`] with a coat built beforehand by [`Coat::new`] (its albedo table is
+    /// tabulated once there), at `weight` in [0, 1]. Surfaces built at every hit (textured
+    /// parameters, dielectrics whose relative index depends on the neighbouring media) use
+    /// this so that the quadrature is not repeated per hit.
+    pub fn with_prepared_coat(self, coat: &Coat, weight: f32) -> Result<Surface, BsdfError> {
         check_unit("coat weight", weight)?;
-        let mut coat = Coat {
-            ior,
-            alpha: roughness * roughness,
-            weight,
-            albedo_table: [0.0; COAT_TABLE_SIZE],
-        };
-        if !coat.is_smooth() {
-            coat.tabulate();
-        }
+        let mut coat = coat.clone();
+        coat.weight = weight;
         Ok(Surface {
             base: self.base,
             coat: Some(coat),

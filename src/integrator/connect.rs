@@ -100,9 +100,9 @@ fn may_be_rough(obj: &Object, outside_ior: f32) -> bool {
                     return false;
                 };
                 match &d.coat {
-                    Some((ior, r, w)) => {
-                        s.with_coat(*ior, *r, w.max()).is_ok_and(|s| !s.is_delta())
-                    }
+                    Some(c) => s
+                        .with_prepared_coat(&c.coat, c.weight.max())
+                        .is_ok_and(|s| !s.is_delta()),
                     None => !s.is_delta(),
                 }
             }

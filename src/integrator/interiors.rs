@@ -304,7 +304,7 @@ pub(super) fn boundary_surface_at(
             )
             .ok()?;
             match &d.coat {
-                Some((ior, r, w)) => s.with_coat(*ior, *r, w.eval(uv, width_uv)).ok(),
+                Some(c) => c.over(s, uv, width_uv),
                 None => Some(s),
             }
         }

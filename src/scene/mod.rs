@@ -24,7 +24,7 @@ mod validate;
 
 use std::path::{Path, PathBuf};
 
-use crate::bsdf::{MicrofacetDistribution, Surface};
+use crate::bsdf::{Coat, MicrofacetDistribution, Surface};
 use crate::camera::Camera;
 use crate::geometry::SceneGeometry;
 use crate::light::{Light, LightSampler};
@@ -99,8 +99,30 @@ pub struct DielectricParams {
     pub distribution: MicrofacetDistribution,
     /// Transmission tint.
     pub tint: ColorParam,
-    /// Optional coat (ior, roughness, weight).
-    pub coat: Option<(f32, f32, ScalarParam)>,
+    /// Optional coat.
+    pub coat: Option<CoatParams>,
+}
+
+/// A coat over a boundary whose [`Surface`] is built at each hit: the coat itself, with its
+/// albedo table tabulated once when the scene is loaded, and its weight, which may be a
+/// texture.
+#[derive(Clone, Debug)]
+pub struct CoatParams {
+    /// The coat at weight 1 (relative index and roughness fixed for the object).
+    pub coat: Coat,
+    /// The coat weight in [0, 1].
+    pub weight: ScalarParam,
+}
+
+impl CoatParams {
+    /// `surface` under this coat at the weight read at texture coordinates `uv` (footprint
+    /// `width_uv`); `None` where the weight read is out of range.
+    #[must_use]
+    pub fn over(&self, surface: Surface, uv: crate::math::Vec2, width_uv: f32) -> Option<Surface> {
+        surface
+            .with_prepared_coat(&self.coat, self.weight.eval(uv, width_uv))
+            .ok()
+    }
 }
 
 impl DielectricParams {
@@ -109,7 +131,7 @@ impl DielectricParams {
     pub fn is_textured(&self) -> bool {
         self.roughness.is_textured()
             || self.tint.is_textured()
-            || self.coat.as_ref().is_some_and(|c| c.2.is_textured())
+            || self.coat.as_ref().is_some_and(|c| c.weight.is_textured())
     }
 }
 
@@ -120,8 +142,8 @@ impl DielectricParams {
 pub struct TexturedSurface {
     /// The scattering model and its parameters.
     pub kind: TexturedKind,
-    /// Optional coat (ior, roughness, weight).
-    pub coat: Option<(f32, f32, ScalarParam)>,
+    /// Optional coat.
+    pub coat: Option<CoatParams>,
 }
 
 /// The scattering models of a [`TexturedSurface`].
@@ -179,7 +201,7 @@ impl TexturedSurface {
             .ok()?,
         };
         match &self.coat {
-            Some((ior, r, w)) => s.with_coat(*ior, *r, w.eval(uv, width_uv)).ok(),
+            Some(c) => c.over(s, uv, width_uv),
             None => Some(s),
         }
     }

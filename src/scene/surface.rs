@@ -5,9 +5,10 @@ use super::desc::{CoatDesc, ColorInput, SurfaceBlendDesc, SurfaceDesc};
 use super::textures::ParamSite;
 use super::validate::check_range;
 use super::{
-    DielectricParams, ObjectSurface, SceneError, SurfaceBlend, TexturedKind, TexturedSurface,
+    CoatParams, DielectricParams, ObjectSurface, SceneError, SurfaceBlend, TexturedKind,
+    TexturedSurface,
 };
-use crate::bsdf::{MicrofacetDistribution, Surface};
+use crate::bsdf::{Coat, MicrofacetDistribution, Surface};
 use crate::spectrum::Rgb;
 use crate::texture::{ColorParam, ScalarParam};
 
@@ -30,9 +31,9 @@ fn distribution(
     }
 }
 
-/// The coat as (IOR, roughness, weight), with defaults 1.5, 0.1 and 1; the weight may be a
-/// texture.
-fn coat(p: &ParamSite, c: &CoatDesc) -> Result<(f32, f32, ScalarParam), SceneError> {
+/// The coat (IOR, roughness, weight, with defaults 1.5, 0.1 and 1), its albedo table built
+/// here once; the weight may be a texture.
+fn coat(p: &ParamSite, c: &CoatDesc) -> Result<CoatParams, SceneError> {
     let (ctx, line, owner) = (p.ctx, p.line, p.owner);
     let ior = check_range(
         ctx,
@@ -50,8 +51,9 @@ fn coat(p: &ParamSite, c: &CoatDesc) -> Result<(f32, f32, ScalarParam), SceneErr
         0.0,
         1.0,
     )?;
-    let w = p.scalar("coat.weight", c.weight.as_ref(), 1.0, 0.0, 1.0)?;
-    Ok((ior, r, w))
+    let weight = p.scalar("coat.weight", c.weight.as_ref(), 1.0, 0.0, 1.0)?;
+    let coat = Coat::new(ior, r).map_err(|e| ctx.invalid(line, format!("{owner}.coat: {e}")))?;
+    Ok(CoatParams { coat, weight })
 }
 
 /// The constant of a parameter known to be untextured.
@@ -112,18 +114,18 @@ fn build_named(
     let coat = s.coat().map(|c| coat(&p, c)).transpose()?;
     let with_coat = |surf: Surface| -> Result<Surface, SceneError> {
         match &coat {
-            Some((ior, r, w)) => surf
-                .with_coat(*ior, *r, constant_scalar(w))
+            Some(c) => surf
+                .with_prepared_coat(&c.coat, constant_scalar(&c.weight))
                 .map_err(|e| bad(&e)),
             None => Ok(surf),
         }
     };
     let colour = |what: &str, v: Option<&ColorInput>, default| p.colour(what, v, default, 0.0, 1.0);
     // A surface with a textured parameter is built at each hit; the constant one once.
-    let textured = |kind: TexturedKind, coat: Option<(f32, f32, ScalarParam)>| {
+    let textured = |kind: TexturedKind, coat: Option<CoatParams>| {
         ObjectSurface::Textured(Box::new(TexturedSurface { kind, coat }))
     };
-    let coat_textured = coat.as_ref().is_some_and(|c| c.2.is_textured());
+    let coat_textured = coat.as_ref().is_some_and(|c| c.weight.is_textured());
     match s {
         SurfaceDesc::Dielectric(d) => {
             let ior = check_range(
