@@ -1,9 +1,9 @@
 //! The default `nee` of an interior (absent, or `nee = "auto"`), resolved per object from its
 //! surface and the scene's lights (docs/scene-format.md, docs/choosing-estimators.md):
-//! `"exit_guided"` behind a rough dielectric boundary without a coat (constant or textured
+//! `"exit_guided"` behind a rough dielectric boundary, coated or not (constant or textured
 //! roughness, or a blend of two such looks) when the scene has a distant or sphere light;
-//! `"exit"` behind smooth, coated or diffuse-transmission boundaries, blends with a smooth or
-//! coated look, and under environments alone; `"interior"` behind an index-matched boundary. Explicit values are kept. The render
+//! `"exit"` behind smooth or diffuse-transmission boundaries, blends with a smooth look, and
+//! under environments alone; `"interior"` behind an index-matched boundary. Explicit values are kept. The render
 //! uses the resolved value: the default renders bit for bit as the explicit strategy does.
 
 mod common;
@@ -103,7 +103,7 @@ fn rough_dielectric_under_a_small_light_defaults_to_exit_guided() {
 }
 
 #[test]
-fn environment_only_smooth_coated_and_diffuse_boundaries_default_to_exit() {
+fn environment_only_smooth_and_diffuse_boundaries_default_to_exit() {
     let cases = [
         (ROUGH, SKY, "rough dielectric under an environment alone"),
         (
@@ -115,11 +115,6 @@ fn environment_only_smooth_coated_and_diffuse_boundaries_default_to_exit() {
             r#"{ type = "dielectric", ior = 1.4, roughness = 0.03 }"#,
             SUN,
             "dielectric below the smooth threshold",
-        ),
-        (
-            r#"{ type = "dielectric", ior = 1.4, roughness = 0.3, coat = { ior = 1.5, roughness = 0.1 } }"#,
-            SUN,
-            "coated rough dielectric",
         ),
         (
             r#"{ type = "diffuse_transmission", transmittance = 0.8 }"#,
@@ -220,8 +215,21 @@ fn textured_and_blended_rough_boundaries_default_to_exit_guided() {
     );
     assert_eq!(
         nee(&blend(ROUGH, coated), SUN),
-        NeeStrategy::ExitPoint,
+        NeeStrategy::ExitGuided,
         "blend with a coated look"
+    );
+    assert_eq!(
+        nee(coated, SUN),
+        NeeStrategy::ExitGuided,
+        "coated rough dielectric"
+    );
+    assert_eq!(nee(coated, SKY), NeeStrategy::ExitPoint, "coated, sky");
+    let smooth_coated =
+        r#"{ type = "dielectric", ior = 1.4, coat = { ior = 1.5, roughness = 0.1 } }"#;
+    assert_eq!(
+        nee(smooth_coated, SUN),
+        NeeStrategy::ExitPoint,
+        "coated smooth dielectric"
     );
 }
 

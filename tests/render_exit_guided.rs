@@ -88,6 +88,16 @@ fn exit_guided_agrees_with_exit_point_nee_in_a_furnace() {
 /// A dense sphere behind a rough dielectric with an opaque core, lit by a sphere light (the
 /// area-measure Jacobian of the connection), a delta sun (no MIS) and a small disc sun.
 fn lit_sphere(nee: &str, roughness: f32, spp: u32, seed: u32) -> String {
+    lit_sphere_behind(
+        nee,
+        &format!("{{ type = \"dielectric\", ior = 1.4, roughness = {roughness} }}"),
+        spp,
+        seed,
+    )
+}
+
+/// [`lit_sphere`] behind any `surface` (a scene-file inline table).
+fn lit_sphere_behind(nee: &str, surface: &str, spp: u32, seed: u32) -> String {
     format!(
         r#"
 [camera]
@@ -119,7 +129,7 @@ name = "skin"
 shape = "sphere"
 radius = 1.0
 priority = 1
-surface = {{ type = "dielectric", ior = 1.4, roughness = {roughness} }}
+surface = {surface}
 interior = {{ type = "homogeneous", albedo = [0.97, 0.9, 0.7], albedo_mode = "single", density = 8.0, attenuation = [1.0, 0.8, 0.6], phase = {{ g = 0.3 }}, nee = "{nee}" }}
 [[object]]
 name = "core"
@@ -139,6 +149,25 @@ fn exit_guided_agrees_with_exit_point_nee() {
         let exit = render(&lit_sphere("exit", roughness, 512, 11));
         let guided = render(&lit_sphere("exit_guided", roughness, 128, 12));
         assert_agree(&exit, &guided, &format!("roughness {roughness}"));
+    }
+}
+
+/// The same behind a rough dielectric under a specular coat (the connection evaluates the
+/// coated boundary; the default `nee` picks `"exit_guided"` there too). The first coat is
+/// strong (IOR 2.2): a connection that ignored it would be off by z ≈ 7 in blue.
+#[test]
+fn exit_guided_agrees_with_exit_point_nee_behind_a_coat() {
+    for (roughness, coat_ior, coat) in [(0.45, 2.2, 0.1), (0.8, 1.5, 0.5)] {
+        let surface = format!(
+            "{{ type = \"dielectric\", ior = 1.4, roughness = {roughness}, coat = {{ ior = {coat_ior}, roughness = {coat} }} }}"
+        );
+        let exit = render(&lit_sphere_behind("exit", &surface, 512, 13));
+        let guided = render(&lit_sphere_behind("exit_guided", &surface, 128, 14));
+        assert_agree(
+            &exit,
+            &guided,
+            &format!("roughness {roughness}, coat IOR {coat_ior}, roughness {coat}"),
+        );
     }
 }
 

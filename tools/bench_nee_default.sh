@@ -21,6 +21,8 @@
 #   blend      a blend of two rough looks (0.3 and 0.7) under a veins mask, 16 spp
 #   blend_sm   a blend of a smooth and a rough (0.3) look under the veins mask, 16 spp
 #   coat       the reproducer's boundary with a coat (ior 1.5, roughness 0.1), 16 spp
+#   coat_sph   the same under the sphere light, 16 spp
+#   blend_coat a blend of the rough look and the coated look under the veins mask, 16 spp
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=$(realpath "${1:-target/release/velour}")
@@ -83,11 +85,14 @@ repro "$SUN" "$R03" 2.0 >"$out/thin.toml"
 repro "$SUN" "{ type = \"dielectric\", ior = 1.4, roughness = { texture = \"$V\", channel = \"r\", scale = 0.5 }, tint = { texture = \"$V\" } }" >"$out/tex.toml"
 repro "$SUN" "{ type = \"blend\", mask = { texture = \"$V\", channel = \"r\" }, a = { type = \"dielectric\", ior = 1.4, roughness = 0.3 }, b = { type = \"dielectric\", ior = 1.4, roughness = 0.7, tint = [0.9, 0.6, 0.5] } }" >"$out/blend.toml"
 repro "$SUN" "{ type = \"blend\", mask = { texture = \"$V\", channel = \"r\" }, a = { type = \"dielectric\", ior = 1.4 }, b = { type = \"dielectric\", ior = 1.4, roughness = 0.3 } }" >"$out/blend_sm.toml"
-repro "$SUN" '{ type = "dielectric", ior = 1.4, roughness = 0.3, coat = { ior = 1.5, roughness = 0.1 } }' >"$out/coat.toml"
+COATED='{ type = "dielectric", ior = 1.4, roughness = 0.3, coat = { ior = 1.5, roughness = 0.1 } }'
+repro "$SUN" "$COATED" >"$out/coat.toml"
+repro "$SPHERE" "$COATED" >"$out/coat_sph.toml"
+repro "$SUN" "{ type = \"blend\", mask = { texture = \"$V\", channel = \"r\" }, a = $R03, b = $COATED }" >"$out/blend_coat.toml"
 cat /proc/loadavg
-for row in "ico 4" "ico_sky 4" "peer_skin 16" "skin 8" "sun 16" "sphere 16" "sky 16" "thin 16" "tex 16" "blend 16" "blend_sm 16" "coat 16"; do
+for row in "ico 4" "ico_sky 4" "peer_skin 16" "skin 8" "sun 16" "sphere 16" "sky 16" "thin 16" "tex 16" "blend 16" "blend_sm 16" "coat 16" "coat_sph 16" "blend_coat 16"; do
   set -- $row
-  case " ${ROWS:-ico ico_sky peer_skin skin sun sphere sky thin tex blend blend_sm coat} " in *" $1 "*) ;; *) continue ;; esac
+  case " ${ROWS:-ico ico_sky peer_skin skin sun sphere sky thin tex blend blend_sm coat coat_sph blend_coat} " in *" $1 "*) ;; *) continue ;; esac
   for nee in exit exit_guided; do
     sed "s/nee = \"NEE\"/nee = \"$nee\"/" "$out/$1.toml" >"$out/run.toml"
     grep -q "nee = \"$nee\"" "$out/run.toml"

@@ -5,14 +5,13 @@
 //!
 //! * Behind an index-matched boundary (no surface, or a dielectric of IOR 1): `"interior"`
 //!   (there are no exit vertices; decided by the object builder).
-//! * Behind a rough dielectric boundary without a coat (a constant or textured roughness, or a
+//! * Behind a rough dielectric boundary, coated or not (a constant or textured roughness, or a
 //!   blend of two such looks), in a scene with a light the guided
 //!   connection samples better than the walk does (a distant light, delta or disc, or a sphere
 //!   light): `"exit_guided"`.
 //! * Otherwise `"exit"`: behind a smooth boundary `"exit_guided"` is `"exit"`, behind a
-//!   diffuse-transmission boundary it mostly adds cost, behind a coat it rebuilds the coat at
-//!   every interior vertex, and behind a blend with a smooth look and under environments alone
-//!   it was measured to lose.
+//!   diffuse-transmission boundary it mostly adds cost, and behind a blend with a smooth look
+//!   and under environments alone it was measured to lose.
 
 use super::{Object, ObjectSurface};
 use crate::bsdf::microfacet::SMOOTH_ALPHA;
@@ -29,15 +28,15 @@ pub(super) fn is_auto(nee: Option<&str>) -> bool {
 
 /// True when `surface` is a boundary behind which `"exit_guided"` is the default (given a
 /// light it pays for, [`guided_lights`]): a refracting dielectric (IOR ≠ 1) whose largest
-/// roughness is not treated as smooth (roughness² ≥ [`SMOOTH_ALPHA`]) and has no coat, or a
-/// blend of two such looks (behind a blend with a smooth look the smooth parts' fireflies
+/// roughness is not treated as smooth (roughness² ≥ [`SMOOTH_ALPHA`]), with or without a coat
+/// (×22–500 measured behind a coat), or a blend of two such looks (behind a blend with a smooth look the smooth parts' fireflies
 /// dominate and the connection's cost did not pay).
 pub fn guided_boundary(surface: &ObjectSurface) -> bool {
     fn rough(s: &ObjectSurface) -> bool {
         match s {
             ObjectSurface::Dielectric(d) => {
                 let r = d.roughness.max();
-                d.ior != 1.0 && d.coat.is_none() && r * r >= SMOOTH_ALPHA
+                d.ior != 1.0 && r * r >= SMOOTH_ALPHA
             }
             _ => false,
         }
