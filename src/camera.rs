@@ -43,6 +43,8 @@ pub struct Camera {
     height: u32,
     aperture_radius: f32,
     focus_distance: f32,
+    /// [`Camera::pixel_spread_angle`], computed once (an `atan` per camera path otherwise).
+    pixel_spread: f32,
 }
 
 impl Camera {
@@ -102,16 +104,18 @@ impl Camera {
             return Err(CameraError::DegenerateUp);
         }
         let up = right.cross(forward);
+        let tan_half_vfov = (vfov_deg.to_radians() * 0.5).tan();
         Ok(Camera {
             eye,
             forward,
             right,
             up,
-            tan_half_vfov: (vfov_deg.to_radians() * 0.5).tan(),
+            tan_half_vfov,
             width,
             height,
             aperture_radius,
             focus_distance,
+            pixel_spread: (2.0 * tan_half_vfov / height as f32).atan(),
         })
     }
 
@@ -168,8 +172,9 @@ impl Camera {
     /// The spread angle of a ray cone through one pixel (Akenine-Möller et al. 2019;
     /// docs/references.md §14.2): atan(2 tan(fov/2) / height), radians.
     #[must_use]
+    #[inline]
     pub fn pixel_spread_angle(&self) -> f32 {
-        (2.0 * self.tan_half_vfov / self.height.max(1) as f32).atan()
+        self.pixel_spread
     }
 
     /// The film position a world point projects to through the lens centre, or `None` when

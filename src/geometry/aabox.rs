@@ -47,7 +47,7 @@ fn slab(
 /// Intersects `ray` with the box `[min, max]`, returning the nearest hit with `0 < t < t_max`:
 /// the entry face from outside, the exit face from inside.
 #[must_use]
-#[inline]
+#[inline(always)]
 pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxHit> {
     // The three slabs written out by axis (indexing a `Vec3` by a loop variable compiles to
     // a branch per access); the same operations in the same order as a loop over the axes.

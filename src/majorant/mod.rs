@@ -19,7 +19,7 @@ mod segments;
 mod walk;
 
 pub use fine::{LocalBounds, MAX_LOCAL_CELLS};
-pub use segments::{MajorantSegment, Segments};
+pub use segments::{FewSegments, MajorantSegment, OpenWalk, Segments, SegmentsStart};
 
 use glam::{DAffine3, DVec3, IVec3};
 

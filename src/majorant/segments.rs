@@ -177,11 +177,121 @@ impl<I: Iterator<Item = WalkCell>> Iterator for Merged<I> {
     }
 }
 
+/// At most three segments known without the walk (the background before and after the
+/// pyramid's box and the root emitted whole, or the global bounds), in ray order: a small
+/// iterator, cheap to build and to move.
+#[derive(Clone, Copy, Debug)]
+pub struct FewSegments {
+    segs: [MajorantSegment; 3],
+    next: u8,
+    len: u8,
+}
+
+impl FewSegments {
+    const NONE: MajorantSegment = MajorantSegment {
+        t0: 0.0,
+        t1: 0.0,
+        max: 0.0,
+        min: 0.0,
+        mean: 0.0,
+        exact: true,
+    };
+
+    fn empty() -> Self {
+        FewSegments {
+            segs: [Self::NONE; 3],
+            next: 0,
+            len: 0,
+        }
+    }
+
+    #[inline]
+    fn push(&mut self, s: Option<MajorantSegment>) {
+        if let Some(s) = s {
+            if let Some(slot) = self.segs.get_mut(usize::from(self.len)) {
+                *slot = s;
+                self.len += 1;
+            }
+        }
+    }
+}
+
+impl Iterator for FewSegments {
+    type Item = MajorantSegment;
+
+    #[inline]
+    fn next(&mut self) -> Option<MajorantSegment> {
+        if self.next < self.len {
+            let s = self.segs.get(usize::from(self.next)).copied();
+            self.next += 1;
+            s
+        } else {
+            None
+        }
+    }
+}
+
+/// A walk below an opened root, not yet prepared: what [`OpenWalk::segments`] needs to build
+/// the walk's iterator (whose DDA stack is large) where it is consumed.
+#[derive(Clone, Copy, Debug)]
+pub struct OpenWalk<'a> {
+    pyramid: &'a MajorantPyramid,
+    before: Option<MajorantSegment>,
+    after: Option<MajorantSegment>,
+    o: DVec3,
+    d: DVec3,
+    t0: f64,
+    t1: f64,
+    finest: usize,
+    descent: Descent,
+    sigma: Option<f64>,
+    model: LookupModel,
+}
+
+impl<'a> OpenWalk<'a> {
+    /// The segments: the background before the box, the walk's merged cells, the background
+    /// after it.
+    #[inline]
+    #[must_use]
+    pub fn segments(self) -> Segments<'a> {
+        let mut before = FewSegments::empty();
+        before.push(self.before);
+        let walk = Walk::new(
+            self.pyramid,
+            self.t0,
+            self.t1,
+            self.o,
+            self.d,
+            self.finest,
+            self.descent,
+            self.model,
+        );
+        Segments {
+            before,
+            walk: Some(Merged::new(
+                walk,
+                self.sigma,
+                self.pyramid.exact,
+                self.model,
+            )),
+            after: self.after,
+        }
+    }
+}
+
+/// How a ray's segments start ([`MajorantPyramid::segments_start`]).
+#[derive(Clone, Copy, Debug)]
+pub enum SegmentsStart<'a> {
+    /// All of them, known without the walk.
+    Few(FewSegments),
+    /// The root is opened: the walk is needed.
+    Open(OpenWalk<'a>),
+}
+
 /// The segments of one ray interval, in ray order: see [`MajorantPyramid::segments_along`].
 pub struct Segments<'a> {
-    before: Option<MajorantSegment>,
-    /// The pyramid's root emitted whole: the walk is not prepared at all.
-    whole: Option<MajorantSegment>,
+    /// The segments before the walk's (all of them when the walk is not needed).
+    before: FewSegments,
     walk: Option<Merged<Walk<'a>>>,
     after: Option<MajorantSegment>,
 }
@@ -190,10 +300,7 @@ impl Iterator for Segments<'_> {
     type Item = MajorantSegment;
 
     fn next(&mut self) -> Option<MajorantSegment> {
-        if let Some(s) = self.before.take() {
-            return Some(s);
-        }
-        if let Some(s) = self.whole.take() {
+        if let Some(s) = self.before.next() {
             return Some(s);
         }
         if let Some(walk) = self.walk.as_mut() {
@@ -203,6 +310,16 @@ impl Iterator for Segments<'_> {
             self.walk = None;
         }
         self.after.take()
+    }
+}
+
+impl From<FewSegments> for Segments<'_> {
+    fn from(before: FewSegments) -> Self {
+        Segments {
+            before,
+            walk: None,
+            after: None,
+        }
     }
 }
 
@@ -237,33 +354,51 @@ impl MajorantPyramid {
         sigma_scale: Option<f32>,
         model: LookupModel,
     ) -> Segments<'_> {
-        let mut out = Segments {
-            before: None,
-            whole: None,
-            walk: None,
-            after: None,
-        };
+        match self.segments_start(ray, t_min, t_max, mode, sigma_scale, model) {
+            SegmentsStart::Few(few) => few.into(),
+            SegmentsStart::Open(walk) => walk.segments(),
+        }
+    }
+
+    /// The segments of [`Self::segments_along`], split by whether the walk is needed: where
+    /// it is not (the root emitted whole or empty, the global bounds, a ray that misses the
+    /// box) they are all known at once and come as a small iterator; otherwise the walk is
+    /// described, to be prepared by [`OpenWalk::segments`] where it is consumed.
+    #[must_use]
+    #[inline]
+    pub fn segments_start(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        mode: MajorantMode,
+        sigma_scale: Option<f32>,
+        model: LookupModel,
+    ) -> SegmentsStart<'_> {
+        let mut few = FewSegments::empty();
         if !(t_max > t_min) {
-            return out;
+            return SegmentsStart::Few(few);
         }
         match mode {
             MajorantMode::Global => {
                 let b = self.global_bounds();
                 if !b.is_empty() {
                     if t_max.is_finite() || self.background != 0.0 {
-                        out.before = Some(MajorantSegment::new(t_min, t_max, b, self.exact));
+                        few.push(Some(MajorantSegment::new(t_min, t_max, b, self.exact)));
                     } else if let Some((a, c)) = self.clip(ray, t_min, t_max) {
-                        out.before = Some(MajorantSegment::new(a, c, b, self.exact));
+                        few.push(Some(MajorantSegment::new(a, c, b, self.exact)));
                     }
                 }
+                SegmentsStart::Few(few)
             }
             MajorantMode::Hierarchical { finest } => {
                 let (o, d) = self.ray_to_index(ray);
                 let Some((a, c)) = self.clip_index(o, d, t_min, t_max) else {
-                    out.before = self.background_segment(t_min, t_max);
-                    return out;
+                    few.push(self.background_segment(t_min, t_max));
+                    return SegmentsStart::Few(few);
                 };
-                out.before = self.background_segment(t_min, a);
+                let before = self.background_segment(t_min, a);
+                let after = self.background_segment(c, t_max);
                 let top = self.levels.len() - 1;
                 let finest = (finest as usize).min(top);
                 let sigma = sigma_scale
@@ -275,22 +410,37 @@ impl MajorantPyramid {
                     RootStep::Empty => {}
                     // What the merge adapter makes of a walk that emits only its root.
                     RootStep::Whole(cell) => {
-                        out.whole = Some(MajorantSegment::new(
+                        few.push(before);
+                        few.push(Some(MajorantSegment::new(
                             cell.t0 as f32,
                             cell.t1 as f32,
                             cell.bounds,
                             self.exact,
-                        ));
+                        )));
+                        few.push(after);
+                        return SegmentsStart::Few(few);
                     }
                     RootStep::Open => {
-                        let walk = Walk::new(self, t0, t1, o, d, finest, descent, model);
-                        out.walk = Some(Merged::new(walk, sigma, self.exact, model));
+                        return SegmentsStart::Open(OpenWalk {
+                            pyramid: self,
+                            before,
+                            after,
+                            o,
+                            d,
+                            t0,
+                            t1,
+                            finest,
+                            descent,
+                            sigma,
+                            model,
+                        });
                     }
                 }
-                out.after = self.background_segment(c, t_max);
+                few.push(before);
+                few.push(after);
+                SegmentsStart::Few(few)
             }
         }
-        out
     }
 
     /// Appends to `out` the segments of the exhaustive walk over `[t_min, t_max]` of `ray`
@@ -377,6 +527,65 @@ impl MajorantPyramid {
         let l0 = self.levels.first()?;
         let lo = self.origin.as_dvec3() - DVec3::splat(0.5);
         let hi = lo + (l0.dims * self.finest_cell_voxels()).as_dvec3();
+        clip_box(o, d, lo, hi, t_min, t_max)
+    }
+}
+
+/// `[t_min, t_max]` of the ray `o + t d` clipped to the box `[lo, hi)` (index space).
+#[inline]
+fn clip_box(
+    o: DVec3,
+    d: DVec3,
+    lo: DVec3,
+    hi: DVec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32)> {
+    let mut t0 = t_min as f64;
+    let mut t1 = t_max as f64;
+    // The three slabs written out by axis (indexing a `DVec3` by a loop variable compiles to
+    // a branch per access); the same operations in the same order as a loop over the axes.
+    if !(clip_slab(o.x, d.x, lo.x, hi.x, &mut t0, &mut t1)
+        && clip_slab(o.y, d.y, lo.y, hi.y, &mut t0, &mut t1)
+        && clip_slab(o.z, d.z, lo.z, hi.z, &mut t0, &mut t1))
+    {
+        return None;
+    }
+    (t0 < t1).then_some((t0 as f32, t1 as f32))
+}
+
+/// One slab of [`clip_box`]: narrows `[t0, t1]` to where the ray
+/// `o + t d` lies within `[lo, hi)` on one axis. False when the ray runs parallel to the slab
+/// outside it.
+#[inline(always)]
+fn clip_slab(o: f64, d: f64, lo: f64, hi: f64, t0: &mut f64, t1: &mut f64) -> bool {
+    if d == 0.0 {
+        return !(o < lo || o >= hi);
+    }
+    let inv = 1.0 / d;
+    let (mut a, mut b) = ((lo - o) * inv, (hi - o) * inv);
+    if a > b {
+        std::mem::swap(&mut a, &mut b);
+    }
+    *t0 = t0.max(a);
+    *t1 = t1.min(b);
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+
+    /// The clip as a loop over the axes (the form before the axes were written out).
+    fn by_loop(
+        o: DVec3,
+        d: DVec3,
+        lo: DVec3,
+        hi: DVec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(f32, f32)> {
         let mut t0 = t_min as f64;
         let mut t1 = t_max as f64;
         for k in 0..3 {
@@ -395,5 +604,50 @@ impl MajorantPyramid {
             t1 = t1.min(b);
         }
         (t0 < t1).then_some((t0 as f32, t1 as f32))
+    }
+
+    #[test]
+    fn written_out_clip_matches_the_loop_bit_for_bit() {
+        let mut rng = Rng::new(17, 0);
+        let lo = DVec3::new(-0.5, 3.5, -8.5);
+        let hi = DVec3::new(127.5, 67.5, 23.5);
+        let mut hits = 0;
+        for i in 0..200_000 {
+            let mut u = || f64::from(rng.next_f32());
+            // Origins inside, outside and on faces; directions with zero components.
+            let mut o = DVec3::new(
+                -40.0 + 210.0 * u(),
+                -40.0 + 150.0 * u(),
+                -40.0 + 100.0 * u(),
+            );
+            match i % 5 {
+                1 => o.x = lo.x,
+                2 => o.y = hi.y,
+                _ => {}
+            }
+            let mut d = DVec3::new(u() - 0.5, u() - 0.5, u() - 0.5);
+            match i % 7 {
+                1 => d.x = 0.0,
+                2 => (d.y, d.z) = (0.0, 0.0),
+                3 => d = DVec3::ZERO,
+                _ => {}
+            }
+            let t_min = if i % 3 == 0 { 0.0 } else { (20.0 * u()) as f32 };
+            let t_max = if i % 4 == 0 {
+                f32::INFINITY
+            } else {
+                t_min + (400.0 * u()) as f32
+            };
+            let a = clip_box(o, d, lo, hi, t_min, t_max);
+            let b = by_loop(o, d, lo, hi, t_min, t_max);
+            let bits = |c: Option<(f32, f32)>| c.map(|(x, y)| (x.to_bits(), y.to_bits()));
+            assert_eq!(
+                bits(a),
+                bits(b),
+                "ray {i}: o {o:?} d {d:?} [{t_min}, {t_max}]"
+            );
+            hits += usize::from(a.is_some());
+        }
+        assert!(hits > 20_000, "{hits} of the rays hit the box");
     }
 }

@@ -6,10 +6,10 @@
 use glam::Vec3;
 
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
-use super::lookup::{DensityLookup, GridLookup, LocalProbe};
+use super::lookup::{index_ray, DensityLookup, GridLookup, LocalProbe};
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
-use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments};
+use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments, SegmentsStart};
 use crate::math::{Aabb, Ray};
 use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
@@ -318,16 +318,50 @@ impl HeterogeneousMedium {
             Some(c.max_sigma_t()),
             model,
         );
+        self.medium_segments(c, inner, t0, t1)
+    }
+
+    /// The pyramid's segments `inner` of `[t0, t1]` with the fibre-projected and
+    /// combined-interior adjustments for coefficients `c`.
+    #[inline]
+    fn medium_segments<I>(
+        &self,
+        c: &DensityCoefficients,
+        inner: I,
+        t0: f32,
+        t1: f32,
+    ) -> MediumSegmentsOf<I> {
         let fill = (!c.base_t.is_black() && t1.is_finite()).then_some(GapFill {
             t: t0,
             end: t1,
             held: None,
         });
-        MediumSegments {
+        MediumSegmentsOf {
             inner,
             zero_min: self.projected_fibres().is_some(),
             fill,
         }
+    }
+
+    /// The density lookup along `ray` and, when the interior uses them, its point bounds
+    /// ([`Self::density_along`] and [`Self::local_probe`], the grid's index-space ray
+    /// computed once for both).
+    #[inline]
+    fn lookups_along(&self, ray: &Ray) -> (DensityLookup<'_>, Option<LocalProbe<'_>>) {
+        if let (DensityField::Grid { grid, channel }, true, None) = (
+            &self.field,
+            self.uses_local_bounds(),
+            self.projected_fibres(),
+        ) {
+            if let Some(table) = self.pyramid.local_bounds() {
+                let (o, d) = index_ray(grid, ray);
+                return (
+                    DensityLookup::Grid(GridLookup::from_index_ray(grid, *channel, o, d)),
+                    Some(LocalProbe::from_index_ray(table, o, d, false)),
+                );
+            }
+        }
+        (self.density_along(ray), self.local_probe(ray))
     }
 
     /// A density lookup along `ray`, by distance.
@@ -387,46 +421,39 @@ impl HeterogeneousMedium {
         } else {
             self.shadow_model()
         };
-        // Made only where used, and passed by reference: the segment iterator holds the walk's
-        // DDA stack, which a move would copy.
-        let segments = || self.segments_with(c, ray, 0.0, t_max, model);
-        let mut lookup = self.density_along(ray);
-        let probe = self.local_probe(ray);
-        let flight = match (self.tracking.free_flight, probe) {
-            (FreeFlightMethod::DeltaTracking, Some(probe)) => {
-                delta_track_local(&mut segments(), c, |t| lookup.at(t), probe, beta, u, stats)
+        let flight = match self.tracking.free_flight {
+            FreeFlightMethod::Split if t_max.is_finite() => {
+                let mut lookup = self.density_along(ray);
+                split_flight(
+                    |a, b| self.segments_with(c, ray, a, b, model),
+                    c,
+                    |t| lookup.at(t),
+                    self.tracking.transmittance,
+                    t_max,
+                    u,
+                    stats,
+                )
             }
-            (FreeFlightMethod::Decomposition, Some(probe)) => decomposition_track_local(
-                &mut segments(),
-                c,
-                |t| lookup.at(t),
-                probe,
-                beta,
-                u,
-                stats,
-            ),
-            (FreeFlightMethod::DeltaTracking, _) => {
-                delta_track(&mut segments(), c, |t| lookup.at(t), beta, u, stats)
-            }
-            (FreeFlightMethod::Split, _) if t_max.is_finite() => split_flight(
-                |a, b| self.segments_with(c, ray, a, b, model),
-                c,
-                |t| lookup.at(t),
-                self.tracking.transmittance,
+            // The segments are made where they are consumed, and passed by reference: the
+            // walk's iterator holds its DDA stack, which a move would copy. Where the walk is
+            // not needed (the root emitted whole, as in thin media) it is not prepared at all.
+            _ => match self.pyramid.segments_start(
+                ray,
+                0.0,
                 t_max,
-                u,
-                stats,
-            ),
-            // An open interior (no boundary ahead): delta tracking.
-            (FreeFlightMethod::Split, _) => {
-                delta_track(&mut segments(), c, |t| lookup.at(t), beta, u, stats)
-            }
-            (FreeFlightMethod::Decomposition, _) => {
-                decomposition_track(&mut segments(), c, |t| lookup.at(t), beta, u, stats)
-            }
-            (FreeFlightMethod::RayMarch { step }, _) => {
-                ray_march_free_flight(&mut segments(), c, |t| lookup.at(t), step, beta, u, stats)
-            }
+                self.tracking.majorant,
+                Some(c.max_sigma_t()),
+                model,
+            ) {
+                SegmentsStart::Few(few) => {
+                    let mut segments = self.medium_segments(c, few, 0.0, t_max);
+                    self.track_flight(&mut segments, c, ray, beta, u, stats)
+                }
+                SegmentsStart::Open(walk) => {
+                    let mut segments = self.medium_segments(c, walk.segments(), 0.0, t_max);
+                    self.track_flight(&mut segments, c, ray, beta, u, stats)
+                }
+            },
         };
         match flight {
             Flight::Escape { weight } => MediumEvent::pass(weight),
@@ -442,6 +469,42 @@ impl HeterogeneousMedium {
                         phase: self.phase_at(p),
                     }),
                 }
+            }
+        }
+    }
+
+    /// A free flight over `segments` along `ray` with the interior's free-flight estimator
+    /// (split flights excepted, which make their own segments).
+    fn track_flight<S, U>(
+        &self,
+        segments: &mut S,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Flight
+    where
+        S: Iterator<Item = MajorantSegment>,
+        U: FnMut() -> f32,
+    {
+        let (mut lookup, probe) = self.lookups_along(ray);
+        match (self.tracking.free_flight, probe) {
+            (FreeFlightMethod::DeltaTracking, Some(probe)) => {
+                delta_track_local(segments, c, |t| lookup.at(t), probe, beta, u, stats)
+            }
+            (FreeFlightMethod::Decomposition, Some(probe)) => {
+                decomposition_track_local(segments, c, |t| lookup.at(t), probe, beta, u, stats)
+            }
+            // An open interior (no boundary ahead) under `Split`: delta tracking.
+            (FreeFlightMethod::DeltaTracking | FreeFlightMethod::Split, _) => {
+                delta_track(segments, c, |t| lookup.at(t), beta, u, stats)
+            }
+            (FreeFlightMethod::Decomposition, _) => {
+                decomposition_track(segments, c, |t| lookup.at(t), beta, u, stats)
+            }
+            (FreeFlightMethod::RayMarch { step }, _) => {
+                ray_march_free_flight(segments, c, |t| lookup.at(t), step, beta, u, stats)
             }
         }
     }
@@ -499,13 +562,17 @@ struct GapFill {
 /// the maxima still bound it, the minima do not, and no segment is homogeneous), and, in a
 /// combined interior, zero-density segments over the empty space the pyramid skipped (the
 /// homogeneous part fills it).
-pub struct MediumSegments<'a> {
-    inner: Segments<'a>,
+pub struct MediumSegmentsOf<I> {
+    inner: I,
     zero_min: bool,
     fill: Option<GapFill>,
 }
 
-impl MediumSegments<'_> {
+/// The majorant segments of a heterogeneous medium along a ray, from the pyramid's iterator.
+pub type MediumSegments<'a> = MediumSegmentsOf<Segments<'a>>;
+
+impl<I: Iterator<Item = MajorantSegment>> MediumSegmentsOf<I> {
+    #[inline]
     fn next_inner(&mut self) -> Option<MajorantSegment> {
         let mut s = self.inner.next()?;
         if self.zero_min {
@@ -515,9 +582,10 @@ impl MediumSegments<'_> {
     }
 }
 
-impl Iterator for MediumSegments<'_> {
+impl<I: Iterator<Item = MajorantSegment>> Iterator for MediumSegmentsOf<I> {
     type Item = MajorantSegment;
 
+    #[inline]
     fn next(&mut self) -> Option<MajorantSegment> {
         let Some(mut fill) = self.fill else {
             return self.next_inner();

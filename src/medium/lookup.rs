@@ -50,6 +50,19 @@ impl DensityLookup<'_> {
     }
 }
 
+/// `ray` (world space) in `grid`'s index space: origin and direction, transformed in double
+/// precision and rounded to single (what [`GridLookup`] and [`LocalProbe`] step along, so
+/// that both see the same points).
+#[inline]
+#[must_use]
+pub fn index_ray(grid: &SparseGrid, ray: &Ray) -> (Vec3, Vec3) {
+    let w2i = grid.world_to_index();
+    (
+        w2i.transform_point3(ray.o.as_dvec3()).as_vec3(),
+        w2i.transform_vector3(ray.d.as_dvec3()).as_vec3(),
+    )
+}
+
 /// A trilinear density lookup along a ray in a grid's index space (coherent accessor).
 pub struct GridLookup<'a> {
     accessor: Accessor<'a>,
@@ -61,9 +74,15 @@ impl<'a> GridLookup<'a> {
     /// Prepares lookups along `ray` (world space) in channel `channel` of `grid`.
     #[must_use]
     pub fn new(grid: &'a SparseGrid, channel: usize, ray: &Ray) -> Self {
-        let w2i = grid.world_to_index();
-        let o = w2i.transform_point3(ray.o.as_dvec3()).as_vec3();
-        let d = w2i.transform_vector3(ray.d.as_dvec3()).as_vec3();
+        let (o, d) = index_ray(grid, ray);
+        Self::from_index_ray(grid, channel, o, d)
+    }
+
+    /// Prepares lookups along the index-space ray `o + t d` ([`index_ray`]) in channel
+    /// `channel` of `grid`.
+    #[inline]
+    #[must_use]
+    pub fn from_index_ray(grid: &'a SparseGrid, channel: usize, o: Vec3, d: Vec3) -> Self {
         GridLookup {
             accessor: grid.accessor(channel),
             o,
@@ -93,11 +112,19 @@ impl<'a> LocalProbe<'a> {
     /// Point bounds along `ray` (world space) from `table`, built over `grid`.
     #[must_use]
     pub fn new(table: &'a LocalBounds, grid: &SparseGrid, ray: &Ray, zero_min: bool) -> Self {
-        let w2i = grid.world_to_index();
+        let (o, d) = index_ray(grid, ray);
+        Self::from_index_ray(table, o, d, zero_min)
+    }
+
+    /// Point bounds along the index-space ray `o + t d` ([`index_ray`] of the grid `table`
+    /// was built over).
+    #[inline]
+    #[must_use]
+    pub fn from_index_ray(table: &'a LocalBounds, o: Vec3, d: Vec3, zero_min: bool) -> Self {
         LocalProbe {
             table,
-            o: w2i.transform_point3(ray.o.as_dvec3()).as_vec3(),
-            d: w2i.transform_vector3(ray.d.as_dvec3()).as_vec3(),
+            o,
+            d,
             zero_min,
         }
     }

@@ -33,7 +33,7 @@ pub use dyed::{DyedFabric, FabricInterior};
 pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
 pub use grids::{AlbedoGrid, AlbedoSource, EmissionGrid, EmissionKind};
 pub use heterogeneous::{
-    DensityField, HeterogeneousMedium, MediumSegments, MipChain, RayFootprint,
+    DensityField, HeterogeneousMedium, MediumSegments, MediumSegmentsOf, MipChain, RayFootprint,
 };
 pub use lookup::{DensityLookup, GridLookup, LocalProbe};
 pub use mixture::{
