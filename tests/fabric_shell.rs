@@ -651,3 +651,71 @@ fn tilings_too_fine_for_f32_are_refused() {
     )
     .is_ok());
 }
+
+/// Point bounds of a shell (the per-voxel maxima that let free flights reject tentative
+/// collisions without a lookup): at random points of a curved twill shell, plain and
+/// fibre-projected lookups never exceed the bound, and the bound is much tighter than the
+/// patch's maximum where it matters.
+#[test]
+fn shell_point_bounds_bound_every_lookup_and_are_tight() {
+    let vp = patch(WeavePattern::from_name("twill").unwrap(), 32);
+    let (nu, nv) = (48u32, 6u32);
+    let r = 1.0f32;
+    let mut positions = Vec::new();
+    let mut uvs = Vec::new();
+    for j in 0..=nv {
+        for i in 0..=nu {
+            let a = std::f32::consts::PI * i as f32 / nu as f32;
+            positions.push(Vec3::new(r * a.cos(), r * a.sin(), j as f32 / nv as f32));
+            uvs.push(Vec2::new(i as f32 / nu as f32, j as f32 / nv as f32));
+        }
+    }
+    let mesh = TriangleMesh {
+        positions,
+        normals: None,
+        uvs: Some(uvs),
+        indices: grid_triangles(nu, nv),
+    };
+    let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [6.0, 2.0] }).unwrap();
+    let b = shell.boundary_mesh().bounds();
+    let mut acc = shell.density_accessor();
+    let mut tangents = shell.tangent_accessor();
+    let mut rng = Rng::new(17, 0);
+    let (mut inside, mut sum_bound, mut sum_density) = (0u32, 0.0f64, 0.0f64);
+    let global = shell.density_bounds().max;
+    for _ in 0..200_000 {
+        let p = b.min + (b.max - b.min) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let dir = Vec3::new(
+            rng.next_f32() - 0.5,
+            rng.next_f32() - 0.5,
+            rng.next_f32() - 0.5,
+        )
+        .normalize_or_zero();
+        let bound = shell.point_bound(p, &mut u32::MAX.clone());
+        let d = shell.density(&mut acc, p, &mut u32::MAX.clone());
+        let projected =
+            shell.projected_density(&mut acc, &mut tangents, p, dir, &mut u32::MAX.clone());
+        assert!(
+            d <= bound && projected <= bound,
+            "at {p}: density {d}, projected {projected} above the point bound {bound}"
+        );
+        assert!(
+            bound <= global,
+            "bound {bound} above the patch maximum {global}"
+        );
+        if shell.patch_coordinates(p, &mut u32::MAX.clone()).is_some() {
+            inside += 1;
+            sum_bound += f64::from(bound);
+            sum_density += f64::from(d);
+        }
+    }
+    assert!(inside > 10_000, "{inside} points inside the shell");
+    let mean_bound = sum_bound / f64::from(inside);
+    let mean_density = sum_density / f64::from(inside);
+    // The layer maxima bound a point by up to `global`; the voxel maxima sit far closer to
+    // the density (measured: 0.30 of the patch maximum on average, 1.8× the mean density).
+    assert!(
+        mean_bound < 0.5 * f64::from(global) && mean_bound < 3.0 * mean_density,
+        "mean point bound {mean_bound}, mean density {mean_density}, patch maximum {global}"
+    );
+}

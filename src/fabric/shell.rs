@@ -137,6 +137,10 @@ pub struct FabricShell {
     /// Per patch layer from `layer_lo`: (max, mean) of the density over the layer.
     layers: Vec<(f32, f32)>,
     tiles: [f32; 2],
+    /// Point bounds of trilinear lookups ([`FabricShell::point_bound`]): per patch voxel `v`
+    /// of layers `layer_lo − 1 ..= layer_lo + dims.z` (x fastest), the largest density of
+    /// the eight voxels `v .. v + 1` (wrapped in x, y) a lookup in the cell above `v` reads.
+    support_max: Vec<f32>,
 }
 
 /// The fibre frame of a voxel: world tangent and yarn-family id (0 warp, 1 weft, 2 pile).
@@ -304,8 +308,10 @@ impl FabricShell {
             layer_lo,
             layers,
             tiles: params.tiles,
+            support_max: Vec::new(),
         };
         shell.build_cells();
+        shell.support_max = support_max(&shell.patch, dims, layer_lo);
         Ok(shell)
     }
 
@@ -503,6 +509,28 @@ impl FabricShell {
         }
         let local = super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
         density * super::look::projected_width(dir, t.tangent_to_world * local)
+    }
+
+    /// An upper bound on the density (plain or fibre-projected) a lookup at world point `p`
+    /// returns: the largest of the eight voxels its trilinear filter reads, one table read
+    /// after point location (0 outside the shell). `hint` as in [`FabricShell::density`].
+    /// Where `p` lies on a face shared by two tetrahedra, the lookup may find the other one
+    /// and round into the neighbouring cell; the trackers stay unbiased where a bound is
+    /// exceeded (weighted tracking) and count it as a violation.
+    #[inline]
+    pub fn point_bound(&self, p: Vec3, hint: &mut u32) -> f32 {
+        let Some((i, l)) = self.find(p, hint) else {
+            return 0.0;
+        };
+        let t = &self.tets[i];
+        let q = t.q0 + t.bary_to_q * l;
+        let v = self.wrap(super::floor_ivec3(q));
+        let z = v.z - (self.layer_lo - 1);
+        if z < 0 || z > self.dims.z + 1 {
+            return 0.0;
+        }
+        let k = ((z * self.dims.y + v.y) * self.dims.x + v.x) as usize;
+        self.support_max.get(k).copied().unwrap_or(0.0)
     }
 
     /// Fibre tangent (world space) and yarn id of the voxel nearest to world point `p`.
@@ -810,6 +838,41 @@ fn shell_boundary(
     };
     m.make_outward();
     m
+}
+
+/// The table of [`FabricShell::point_bound`]: per voxel of layers `layer_lo − 1 ..=
+/// layer_lo + dims.z` (x fastest, then y, then z; `dims.x × dims.y` voxels per layer), the
+/// largest density of the voxel and its seven upper neighbours (x and y wrapped).
+fn support_max(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> Vec<f32> {
+    let (nx, ny, nz) = (dims.x, dims.y, dims.z + 3);
+    let idx = |x: i32, y: i32, z: i32| ((z * ny + y) * nx + x) as usize;
+    let mut value = vec![0.0f32; (nx * ny * (nz + 1)) as usize];
+    for b in 0..grid.brick_count() {
+        let data = grid.brick_data(DENSITY, b);
+        let o = grid.brick_origin(b);
+        for v in 0..crate::grid::BRICK_VOXELS {
+            let p = o + IVec3::new((v >> 6) as i32, ((v >> 3) & 7) as i32, (v & 7) as i32);
+            let z = p.z - (layer_lo - 1);
+            if (0..=nz).contains(&z) {
+                let k = idx(p.x.rem_euclid(nx), p.y.rem_euclid(ny), z);
+                value[k] = value[k].max(data.get(v, 1, 0));
+            }
+        }
+    }
+    let mut out = vec![0.0f32; (nx * ny * nz) as usize];
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let mut m = 0.0f32;
+                for d in 0..8 {
+                    let (dx, dy, dz) = (d & 1, (d >> 1) & 1, d >> 2);
+                    m = m.max(value[idx((x + dx) % nx, (y + dy) % ny, z + dz)]);
+                }
+                out[idx(x, y, z)] = m;
+            }
+        }
+    }
+    out
 }
 
 /// Per layer `z = layer_lo + k` (`k < dims.z + 1`, the last one past the shell's top for

@@ -6,7 +6,7 @@
 use glam::Vec3;
 
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
-use super::lookup::{index_ray, DensityLookup, GridLookup, LocalProbe};
+use super::lookup::{index_ray, DensityLookup, GridLookup, LocalProbe, ShellProbe};
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
 use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments, SegmentsStart};
@@ -228,24 +228,20 @@ impl HeterogeneousMedium {
     }
 
     /// Point bounds along `ray` when the interior uses them (`tracking.local_bounds` with delta
-    /// or decomposition tracking, and a grid field whose pyramid carries local bounds).
+    /// or decomposition tracking): a grid field whose pyramid carries local bounds, or a
+    /// fabric shell (its per-voxel maxima).
     fn local_probe(&self, ray: &Ray) -> Option<LocalProbe<'_>> {
-        if !self.tracking.local_bounds
-            || !matches!(
-                self.tracking.free_flight,
-                FreeFlightMethod::DeltaTracking | FreeFlightMethod::Decomposition
-            )
-        {
+        if !self.uses_local_bounds() {
             return None;
         }
-        let table = self.pyramid.local_bounds()?;
         match &self.field {
             DensityField::Grid { grid, .. } => Some(LocalProbe::new(
-                table,
+                self.pyramid.local_bounds()?,
                 grid,
                 ray,
                 self.projected_fibres().is_some(),
             )),
+            DensityField::Shell(shell) => Some(LocalProbe::Shell(ShellProbe::new(shell, ray))),
             _ => None,
         }
     }
@@ -257,8 +253,11 @@ impl HeterogeneousMedium {
                 self.tracking.free_flight,
                 FreeFlightMethod::DeltaTracking | FreeFlightMethod::Decomposition
             )
-            && self.pyramid.local_bounds().is_some()
-            && matches!(self.field, DensityField::Grid { .. })
+            && match self.field {
+                DensityField::Grid { .. } => self.pyramid.local_bounds().is_some(),
+                DensityField::Shell(_) => true,
+                _ => false,
+            }
     }
 
     /// The majorant segments of `[t0, t1]` along `ray` for free flights, lazily: the pyramid's

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::fabric::{FibreGridLookup, ShellLookup};
+use crate::fabric::{FabricShell, FibreGridLookup, ShellLookup};
 use crate::grid::{Accessor, SparseGrid};
 use crate::majorant::LocalBounds;
 use crate::math::Ray;
@@ -97,9 +97,44 @@ impl<'a> GridLookup<'a> {
     }
 }
 
+/// Point bounds along a ray: from a grid's local-bounds table, or from a fabric shell's
+/// per-voxel maxima.
+pub enum LocalProbe<'a> {
+    /// A grid's local-bounds table ([`GridProbe`]).
+    Grid(GridProbe<'a>),
+    /// A fabric shell's point bounds ([`FabricShell::point_bound`]).
+    Shell(ShellProbe<'a>),
+}
+
+impl<'a> LocalProbe<'a> {
+    /// Point bounds along `ray` (world space) from `table`, built over `grid`.
+    #[must_use]
+    pub fn new(table: &'a LocalBounds, grid: &SparseGrid, ray: &Ray, zero_min: bool) -> Self {
+        LocalProbe::Grid(GridProbe::new(table, grid, ray, zero_min))
+    }
+
+    /// Point bounds along the index-space ray `o + t d` ([`index_ray`] of the grid `table`
+    /// was built over).
+    #[inline]
+    #[must_use]
+    pub fn from_index_ray(table: &'a LocalBounds, o: Vec3, d: Vec3, zero_min: bool) -> Self {
+        LocalProbe::Grid(GridProbe::from_index_ray(table, o, d, zero_min))
+    }
+}
+
+impl PointBounds for LocalProbe<'_> {
+    #[inline]
+    fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+        match self {
+            LocalProbe::Grid(g) => g.at(t),
+            LocalProbe::Shell(s) => s.at(t),
+        }
+    }
+}
+
 /// Point bounds along a ray from a grid's local-bounds table ([`LocalBounds`]), at the
 /// index-space points the grid's lookups along the same ray compute.
-pub struct LocalProbe<'a> {
+pub struct GridProbe<'a> {
     table: &'a LocalBounds,
     o: Vec3,
     d: Vec3,
@@ -108,7 +143,7 @@ pub struct LocalProbe<'a> {
     zero_min: bool,
 }
 
-impl<'a> LocalProbe<'a> {
+impl<'a> GridProbe<'a> {
     /// Point bounds along `ray` (world space) from `table`, built over `grid`.
     #[must_use]
     pub fn new(table: &'a LocalBounds, grid: &SparseGrid, ray: &Ray, zero_min: bool) -> Self {
@@ -121,7 +156,7 @@ impl<'a> LocalProbe<'a> {
     #[inline]
     #[must_use]
     pub fn from_index_ray(table: &'a LocalBounds, o: Vec3, d: Vec3, zero_min: bool) -> Self {
-        LocalProbe {
+        GridProbe {
             table,
             o,
             d,
@@ -130,7 +165,7 @@ impl<'a> LocalProbe<'a> {
     }
 }
 
-impl PointBounds for LocalProbe<'_> {
+impl PointBounds for GridProbe<'_> {
     #[inline]
     fn at(&mut self, t: f32) -> Option<(f32, f32)> {
         let (a, b) = self.table.at(self.o + self.d * t);
@@ -139,5 +174,33 @@ impl PointBounds for LocalProbe<'_> {
         } else {
             (a, b)
         })
+    }
+}
+
+/// Point bounds along a ray through a fabric shell: `(0, the largest voxel the lookup's
+/// trilinear filter reads)`, which bounds the fibre-projected density too.
+pub struct ShellProbe<'a> {
+    shell: &'a FabricShell,
+    ray: Ray,
+    /// The last tetrahedron found.
+    hint: u32,
+}
+
+impl<'a> ShellProbe<'a> {
+    /// Point bounds along `ray` (world space) through `shell`.
+    #[must_use]
+    pub fn new(shell: &'a FabricShell, ray: &Ray) -> Self {
+        ShellProbe {
+            shell,
+            ray: *ray,
+            hint: u32::MAX,
+        }
+    }
+}
+
+impl PointBounds for ShellProbe<'_> {
+    #[inline]
+    fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+        Some((0.0, self.shell.point_bound(self.ray.at(t), &mut self.hint)))
     }
 }
