@@ -344,7 +344,20 @@ impl Light {
     }
 }
 
-/// Picks one light per NEE query with probability proportional to [`Light::power_estimate`].
+/// The factor on a constant environment's share of next event estimation when the scene has
+/// other lights ([`LightSampler::for_nee`]). Under a constant environment the radiance arriving
+/// from any direction differs only by its transmittance, so the phase function's (or BSDF's)
+/// own sampling, MIS-weighted on escape, already samples it as well as it can be sampled; a
+/// shadow ray towards a random sky direction mostly duplicates that work, while one towards a
+/// small light (the sun) finds light the phase sampling rarely hits. Measured on the peer
+/// clouds and `scenes/cloud.toml` (docs/BENCHMARKS.md, "Shadow rays: where the lookups go,
+/// and the sky's share of NEE"): the image's efficiency rises as the sky's share falls, up to
+/// 1.3× (dense cloud), 1.6× (thin cloud) and 1.25× (`scenes/cloud.toml`) at 0; a tenth of its
+/// power share is kept so that a sky whose other lights are dim is still sampled.
+pub const CONSTANT_ENVIRONMENT_NEE_SHARE: f32 = 0.1;
+
+/// Picks one light per NEE query with probability proportional to [`Light::power_estimate`]
+/// (or, for next event estimation, [`LightSampler::for_nee`]'s shares).
 #[derive(Clone, Debug)]
 pub struct LightSampler {
     cdf: Vec<f32>,
@@ -364,8 +377,41 @@ impl LightSampler {
             w = vec![1.0; lights.len()];
         }
         let sum: f32 = w.iter().sum();
-        let probabilities: Vec<f32> = w.iter().map(|x| x / sum).collect();
-        let mut cdf = Vec::with_capacity(lights.len());
+        Self::from_probabilities(w.iter().map(|x| x / sum).collect())
+    }
+
+    /// The distribution next event estimation picks its light from: [`LightSampler::new`]'s
+    /// power shares with every constant environment's share scaled by
+    /// [`CONSTANT_ENVIRONMENT_NEE_SHARE`] and renormalised, when the scene has another light
+    /// with a share (otherwise the power shares unchanged). Built once per scene.
+    #[must_use]
+    pub fn for_nee(lights: &[Light], scene_radius: f32) -> Self {
+        let power = Self::new(lights, scene_radius);
+        let factor = |l: &Light| match l {
+            Light::ConstantEnvironment { .. } => CONSTANT_ENVIRONMENT_NEE_SHARE,
+            _ => 1.0,
+        };
+        let other: f32 = lights
+            .iter()
+            .zip(&power.probabilities)
+            .filter(|(l, _)| factor(l) == 1.0)
+            .map(|(_, p)| p)
+            .sum();
+        let w: Vec<f32> = lights
+            .iter()
+            .zip(&power.probabilities)
+            .map(|(l, p)| p * factor(l))
+            .collect();
+        let z: f32 = w.iter().sum();
+        if !(other > 0.0) || !(z > 0.0) {
+            return power;
+        }
+        Self::from_probabilities(w.iter().map(|x| x / z).collect())
+    }
+
+    /// The sampler of normalised `probabilities`.
+    fn from_probabilities(probabilities: Vec<f32>) -> Self {
+        let mut cdf = Vec::with_capacity(probabilities.len());
         let mut acc = 0.0;
         for p in &probabilities {
             acc += p;
@@ -380,11 +426,12 @@ impl LightSampler {
         if self.cdf.is_empty() {
             return None;
         }
+        // Past the last step of the CDF (rounding): the last light that can be chosen.
         let i = self
             .cdf
             .iter()
             .position(|&c| u < c)
-            .unwrap_or(self.cdf.len() - 1);
+            .or_else(|| self.probabilities.iter().rposition(|&p| p > 0.0))?;
         Some((i, self.probabilities[i]))
     }
 

@@ -141,83 +141,6 @@ pub(super) struct GuidedPrev {
     pub reverse_pdf: f32,
 }
 
-/// The factor on a constant environment's share of [`estimate_direct`]'s light choice when the
-/// scene has other lights. Under a constant environment the radiance arriving from any
-/// direction differs only by its transmittance, so the phase function's (or BSDF's) own
-/// sampling, MIS-weighted on escape, already importance-samples it as well as it can be
-/// sampled; a shadow ray towards a random sky direction mostly duplicates that work, while a
-/// shadow ray towards a small light (the sun) finds light the phase sampling rarely hits.
-/// Measured on the peer clouds and `scenes/cloud.toml` (docs/BENCHMARKS.md, "Shadow rays:
-/// where the lookups go, and the sky's share of NEE"): the image's efficiency rises as the
-/// sky's share falls, up to 1.3× (dense cloud), 1.6× (thin cloud) and 1.25× (scenes/cloud.toml)
-/// at 0; a tenth of its power share is kept so that a sky whose other lights are dim is still
-/// sampled.
-pub(super) const CONSTANT_ENVIRONMENT_NEE_SHARE: f32 = 0.1;
-
-/// The weight of light `i` in [`estimate_direct`]'s choice, relative to the scene's
-/// power-proportional light sampler: [`CONSTANT_ENVIRONMENT_NEE_SHARE`] for a constant
-/// environment, 1 otherwise.
-fn nee_factor(scene: &Scene, i: usize) -> f32 {
-    match scene.lights.get(i) {
-        Some(crate::light::Light::ConstantEnvironment { .. }) => CONSTANT_ENVIRONMENT_NEE_SHARE,
-        _ => 1.0,
-    }
-}
-
-/// The sum over lights of the power share times [`nee_factor`]: the normaliser of
-/// [`estimate_direct`]'s choice (1 without constant environments). Falls back to 1 (the power
-/// shares unchanged) when every light with a share is a constant environment.
-fn nee_normaliser(scene: &Scene) -> f32 {
-    let n = scene.lights.len();
-    let z: f32 = (0..n)
-        .map(|i| scene.light_sampler.probability(i) * nee_factor(scene, i))
-        .sum();
-    let other: f32 = (0..n)
-        .filter(|&i| nee_factor(scene, i) == 1.0)
-        .map(|i| scene.light_sampler.probability(i))
-        .sum();
-    if other > 0.0 && z > 0.0 {
-        z
-    } else {
-        1.0
-    }
-}
-
-/// The probability that [`estimate_direct`] picks light `i` ([`select_nee_light`]).
-fn nee_light_probability(scene: &Scene, i: usize) -> f32 {
-    let z = nee_normaliser(scene);
-    if z == 1.0 {
-        return scene.light_sampler.probability(i);
-    }
-    scene.light_sampler.probability(i) * nee_factor(scene, i) / z
-}
-
-/// Picks [`estimate_direct`]'s light for uniform `u`: the scene's power-proportional choice
-/// with every constant environment's share scaled by [`CONSTANT_ENVIRONMENT_NEE_SHARE`] (when
-/// the scene has other lights), renormalised. Returns the light and its probability. O(number
-/// of lights) when the scene has a constant environment and other lights.
-fn select_nee_light(scene: &Scene, u: f32) -> Option<(usize, f32)> {
-    let z = nee_normaliser(scene);
-    if z == 1.0 {
-        return scene.light_sampler.sample(u);
-    }
-    let target = u * z;
-    let mut acc = 0.0;
-    let mut last = None;
-    for i in 0..scene.lights.len() {
-        let w = scene.light_sampler.probability(i) * nee_factor(scene, i);
-        if w <= 0.0 {
-            continue;
-        }
-        acc += w;
-        last = Some((i, w / z));
-        if target < acc {
-            return last;
-        }
-    }
-    last
-}
-
 /// Next event estimation from a point: picks a light, traces a shadow ray, returns the
 /// MIS-weighted contribution (without the path throughput). `eval` gives (f·|cos| or phase
 /// value, pdf of the scattering strategy) for a world direction. `cone`: the path's
@@ -236,7 +159,7 @@ pub(super) fn estimate_direct(
 ) -> Rgb {
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
-    let Some((li, p_sel)) = select_nee_light(scene, u_light) else {
+    let Some((li, p_sel)) = scene.nee_light_sampler.sample(u_light) else {
         return Rgb::ZERO;
     };
     *chosen = Some(li);
@@ -314,7 +237,7 @@ pub(super) fn emitted(
         let light = &scene.lights[li];
         match prev.guided {
             None => {
-                let light_pdf = nee_light_probability(scene, li) * light.pdf_li(prev.p, dir);
+                let light_pdf = scene.nee_light_sampler.probability(li) * light.pdf_li(prev.p, dir);
                 power_heuristic(prev.pdf, light_pdf)
             }
             Some(g) => {

@@ -100,12 +100,14 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         1.0
     };
     let light_sampler = LightSampler::new(&lights, radius);
+    let nee_light_sampler = LightSampler::for_nee(&lights, radius);
     Ok(Scene {
         camera,
         camera_params,
         film,
         lights,
         light_sampler,
+        nee_light_sampler,
         geometry,
         objects: built.objects,
         media: built.media,

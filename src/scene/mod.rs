@@ -383,8 +383,11 @@ pub struct Scene {
     pub film: FilmSettings,
     /// Lights.
     pub lights: Vec<Light>,
-    /// Light selection for NEE.
+    /// Light selection by power (the guided and manifold connections' choice).
     pub light_sampler: LightSampler,
+    /// Light selection for next event estimation from path vertices
+    /// ([`LightSampler::for_nee`]: a constant sky beside other lights at a tenth of its share).
+    pub nee_light_sampler: LightSampler,
     /// All geometry.
     pub geometry: SceneGeometry,
     /// Objects.
