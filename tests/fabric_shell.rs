@@ -64,6 +64,30 @@ fn grid_triangles(nu: u32, nv: u32) -> Vec<[u32; 3]> {
     indices
 }
 
+/// A half cylinder of radius `r` and length `length` along z, `nu × nv` cells (u around, v
+/// along the axis), with texture coordinates in [0, 1]².
+fn half_cylinder(r: f32, length: f32, nu: u32, nv: u32) -> TriangleMesh {
+    let mut positions = Vec::new();
+    let mut uvs = Vec::new();
+    for j in 0..=nv {
+        for i in 0..=nu {
+            let a = std::f32::consts::PI * i as f32 / nu as f32;
+            positions.push(Vec3::new(
+                r * a.cos(),
+                r * a.sin(),
+                length * j as f32 / nv as f32,
+            ));
+            uvs.push(Vec2::new(i as f32 / nu as f32, j as f32 / nv as f32));
+        }
+    }
+    TriangleMesh {
+        positions,
+        normals: None,
+        uvs: Some(uvs),
+        indices: grid_triangles(nu, nv),
+    }
+}
+
 /// The patch's occupied z layers.
 fn z_layers(vp: &VoxelisedPatch) -> (i32, i32) {
     let (lo, hi) = vp.grid.active_bbox().unwrap();
@@ -225,26 +249,7 @@ fn shell_conserves_the_fibre_volume_on_flat_and_curved_meshes() {
 
     // Curved: a half cylinder of radius 20 thicknesses, u around, v along the axis.
     let r = 20.0 * t;
-    let (nu, nv) = (96u32, 4u32);
-    let mut positions = Vec::new();
-    let mut uvs = Vec::new();
-    for j in 0..=nv {
-        for i in 0..=nu {
-            let a = std::f32::consts::PI * i as f32 / nu as f32;
-            positions.push(Vec3::new(
-                r * a.cos(),
-                r * a.sin(),
-                2.0 * j as f32 / nv as f32,
-            ));
-            uvs.push(Vec2::new(i as f32 / nu as f32, j as f32 / nv as f32));
-        }
-    }
-    let mesh = TriangleMesh {
-        positions,
-        normals: None,
-        uvs: Some(uvs),
-        indices: grid_triangles(nu, nv),
-    };
+    let mesh = half_cylinder(r, 2.0, 96, 4);
     let area = mesh.area();
     let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [5.0, 3.0] }).unwrap();
     let b = shell.boundary_mesh().bounds();
@@ -659,23 +664,7 @@ fn tilings_too_fine_for_f32_are_refused() {
 #[test]
 fn shell_point_bounds_bound_every_lookup_and_are_tight() {
     let vp = patch(WeavePattern::from_name("twill").unwrap(), 32);
-    let (nu, nv) = (48u32, 6u32);
-    let r = 1.0f32;
-    let mut positions = Vec::new();
-    let mut uvs = Vec::new();
-    for j in 0..=nv {
-        for i in 0..=nu {
-            let a = std::f32::consts::PI * i as f32 / nu as f32;
-            positions.push(Vec3::new(r * a.cos(), r * a.sin(), j as f32 / nv as f32));
-            uvs.push(Vec2::new(i as f32 / nu as f32, j as f32 / nv as f32));
-        }
-    }
-    let mesh = TriangleMesh {
-        positions,
-        normals: None,
-        uvs: Some(uvs),
-        indices: grid_triangles(nu, nv),
-    };
+    let mesh = half_cylinder(1.0, 1.0, 48, 6);
     let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [6.0, 2.0] }).unwrap();
     let b = shell.boundary_mesh().bounds();
     let mut acc = shell.density_accessor();
