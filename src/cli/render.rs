@@ -44,6 +44,10 @@ pub struct RenderArgs {
     /// Maximum scattering events per path (overrides film.max_depth).
     #[arg(long)]
     pub max_depth: Option<u32>,
+    /// Path throughput below which Russian roulette plays, in (0, 1] (overrides
+    /// film.roulette_threshold).
+    #[arg(long)]
+    pub roulette_threshold: Option<f32>,
     /// Seconds between checkpoints (OUT.partial.exr, with the exact film state).
     #[arg(
         long = "checkpoint-every",
@@ -124,6 +128,12 @@ fn load_frame(
         }
     };
     super::reference::apply_overrides(&mut scene, &overrides)?;
+    if let Some(t) = args.roulette_threshold {
+        if !(t > 0.0 && t <= 1.0) {
+            return Err(format!("--roulette-threshold {t} is outside (0, 1]").into());
+        }
+        scene.film.roulette.threshold = t;
+    }
     if let Some(spp) = args.spp {
         if spp == 0 || spp > 1 << 24 {
             return Err(format!("--spp {spp} is outside [1, 16777216]").into());

@@ -27,12 +27,9 @@ use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
 use crate::medium::{Medium, NeeStrategy, ScatterVertex};
 use crate::sampling::PixelSampler;
-use crate::scene::{Object, ObjectSurface, Scene, ShapeOwner};
+use crate::scene::{Object, ObjectSurface, Roulette, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
 use crate::tracking::TrackingStats;
-
-/// Depth at which Russian roulette starts.
-const RR_START_DEPTH: u32 = 5;
 
 /// The spread angle (radians) a ray cone takes at least after a non-specular event (rough
 /// or diffuse surface scattering, volume scattering): a widening policy for texture
@@ -512,7 +509,7 @@ impl PathState {
             guided: None,
         };
         self.ray = Ray::new(p, s.wi);
-        self.continue_with_roulette(sampler)
+        self.continue_with_roulette(scene.film.roulette, sampler)
     }
 
     /// 2. An escaped ray sees the infinite lights.
@@ -761,7 +758,7 @@ impl PathState {
             self.prev.did_nee = false;
         }
         self.ray = Ray::new(hit.spawn_origin(wi), wi);
-        self.continue_with_roulette(sampler)
+        self.continue_with_roulette(scene.film.roulette, sampler)
     }
 
     /// The ray cone's footprint at `hit` on `obj` in texture units (0, unused, for objects
@@ -777,8 +774,8 @@ impl PathState {
     }
 
     /// Russian roulette after a scattering event: [`Step::Trace`] if the path survives.
-    fn continue_with_roulette(&mut self, sampler: &mut PixelSampler) -> Step {
-        if russian_roulette(&mut self.beta, self.eta_scale, self.depth, sampler) {
+    fn continue_with_roulette(&mut self, roulette: Roulette, sampler: &mut PixelSampler) -> Step {
+        if russian_roulette(&mut self.beta, self.eta_scale, self.depth, roulette, sampler) {
             Step::Trace
         } else {
             Step::Stop
@@ -874,23 +871,25 @@ impl SurfaceVertex<'_> {
     }
 }
 
-/// Russian roulette with survival probability min(1, max_c β_c · η-scale) after
-/// [`RR_START_DEPTH`] events (pbrt-v4's rule; the η-scale undoes the radiance compression of
-/// refraction so that entering skin does not trigger spurious termination). Returns false
-/// when the path is terminated.
+/// Russian roulette after a scattering event ([`Roulette`]): from `roulette.start_depth`
+/// events on, a path whose throughput m = max_c β_c · η-scale is below `roulette.threshold`
+/// survives with probability m / threshold and is reweighted by its inverse. The η-scale undoes
+/// the radiance compression of refraction so that entering skin does not trigger spurious
+/// termination (as in pbrt-v4). Returns false when the path is terminated.
 fn russian_roulette(
     beta: &mut Rgb,
     eta_scale: f32,
     depth: u32,
+    roulette: Roulette,
     sampler: &mut PixelSampler,
 ) -> bool {
     if beta.is_black() || !beta.is_finite() {
         return false;
     }
-    if depth < RR_START_DEPTH {
+    if depth < roulette.start_depth {
         return true;
     }
-    let q = (beta.max_component() * eta_scale).min(1.0);
+    let q = (beta.max_component() * eta_scale / roulette.threshold).min(1.0);
     if q >= 1.0 {
         return true;
     }

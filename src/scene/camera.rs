@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use super::context::Ctx;
 use super::desc::{CameraDesc, FilmDesc};
 use super::validate::{check_range, reject_unused, vec3};
-use super::{CameraParams, FilmSettings, SceneError};
+use super::{CameraParams, FilmSettings, Roulette, SceneError};
 use crate::camera::Camera;
 
 /// Largest accepted image side, pixels.
@@ -41,6 +41,20 @@ pub(super) fn build_film(ctx: &Ctx, film: Option<&FilmDesc>) -> Result<FilmSetti
             format!("film.max_depth = {max_depth} is outside [1, 1000000]"),
         ));
     }
+    let roulette_depth = f.roulette_depth.unwrap_or(Roulette::DEFAULT.start_depth);
+    if roulette_depth > 1_000_000 {
+        return Err(ctx.invalid(
+            line,
+            format!("film.roulette_depth = {roulette_depth} is outside [0, 1000000]"),
+        ));
+    }
+    let roulette_threshold = f.roulette_threshold.unwrap_or(Roulette::DEFAULT.threshold);
+    if !(roulette_threshold > 0.0 && roulette_threshold <= 1.0) {
+        return Err(ctx.invalid(
+            line,
+            format!("film.roulette_threshold = {roulette_threshold} is outside (0, 1]"),
+        ));
+    }
     let exposure = check_range(
         ctx,
         line,
@@ -68,6 +82,10 @@ pub(super) fn build_film(ctx: &Ctx, film: Option<&FilmDesc>) -> Result<FilmSetti
         spp,
         seed: f.seed.unwrap_or(0),
         max_depth,
+        roulette: Roulette {
+            start_depth: roulette_depth,
+            threshold: roulette_threshold,
+        },
         output,
         exposure,
     })

@@ -80,10 +80,36 @@ pub struct FilmSettings {
     pub seed: u64,
     /// Maximum number of scattering events (surface and volume) per path.
     pub max_depth: u32,
+    /// When and how Russian roulette ends paths.
+    pub roulette: Roulette,
     /// Output EXR path; the PNG preview goes next to it.
     pub output: PathBuf,
     /// PNG exposure, stops.
     pub exposure: f32,
+}
+
+/// Russian roulette on path throughput: after [`Roulette::start_depth`] scattering events, a
+/// path whose largest throughput component β (times the η-scale of its refractions) is below
+/// [`Roulette::threshold`] survives with probability β / threshold and then carries
+/// throughput `threshold`. A threshold of 1 is pbrt-v4's and Mitsuba 3's rule (survival
+/// probability β); a lower threshold lets paths keep going at lower weight, which pays where
+/// high scattering orders carry much of the image (dense, bright media; docs/scene-format.md,
+/// `[film]`). Unbiased for any setting: it only trades variance against cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Roulette {
+    /// Scattering events (surface and volume) before roulette may play.
+    pub start_depth: u32,
+    /// Throughput below which roulette plays, in (0, 1].
+    pub threshold: f32,
+}
+
+impl Roulette {
+    /// The default: from depth 5, threshold 0.5 (measured in docs/BENCHMARKS.md, "Russian
+    /// roulette's threshold").
+    pub const DEFAULT: Roulette = Roulette {
+        start_depth: 5,
+        threshold: 0.5,
+    };
 }
 
 /// Parameters of a dielectric boundary, turned into a [`Surface`] at each hit once the media

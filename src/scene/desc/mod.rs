@@ -118,6 +118,10 @@ pub struct FilmDesc {
     pub seed: Option<u64>,
     /// Maximum number of scattering events per path.
     pub max_depth: Option<u32>,
+    /// Scattering events before Russian roulette may end a path.
+    pub roulette_depth: Option<u32>,
+    /// Path throughput below which Russian roulette plays (survivors carry this throughput).
+    pub roulette_threshold: Option<f32>,
     /// Output EXR path (relative to the working directory).
     pub output: Option<String>,
     /// Exposure of the PNG preview, stops.
