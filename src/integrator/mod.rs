@@ -209,7 +209,7 @@ struct PathState {
     /// Balance-heuristic weight of this vertex-to-be's sun NEE against the sun-leaned
     /// second-vertex estimate made at the previous vertex ([`direct::SunLean`]); `None` when
     /// none was made or a boundary was met since.
-    lean_weight: Option<f32>,
+    lean_weight: Option<(f32, usize)>,
 }
 
 /// The unidirectional counterpart of a manifold connection (`src/integrator/manifold`): a
@@ -489,7 +489,7 @@ impl PathState {
                 &mut li,
             );
             let c = match lean_weight {
-                Some(w) if li.is_some() && li == lean.map(|l| l.light) => c * w,
+                Some((w, light)) if li == Some(light) => c * w,
                 _ => c,
             };
             self.add_light(scene, li, self.beta * c);
@@ -527,7 +527,7 @@ impl PathState {
         };
         self.beta *= s.weight;
         if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
-            self.lean_weight = Some(l.main_weight(hg, *wo, s.wi));
+            self.lean_weight = Some((l.main_weight(hg, *wo, s.wi), l.light));
         }
         self.prev = PrevVertex {
             p,
