@@ -7,6 +7,7 @@ use crate::bsdf::fresnel::fresnel_dielectric;
 use crate::film::MAX_LIGHT_LAYERS;
 use crate::math::{Ray, Vec3};
 use crate::medium::RayFootprint;
+use crate::phase::PhaseFunction;
 use crate::sampling::{power_heuristic, PixelSampler};
 use crate::scene::{ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -281,5 +282,82 @@ pub(super) fn emitted(
             }
             l
         }
+    }
+}
+
+/// The sun-leaned estimate of second-vertex sun light (`sun_lean` in a medium's `tracking`
+/// table). In an optically thin, forward-scattering medium under a sun, most of the image's
+/// noise is the sun's NEE at the vertex *after* a medium vertex: it is large only where the
+/// ray between the two runs towards the sun (the sun then lies in the second vertex's forward
+/// peak), a direction the phase sampling rarely picks. So at each medium vertex one extra
+/// direction is drawn from a Henyey–Greenstein lobe of the vertex's own `g` centred on the
+/// sun, a free flight follows it to the interior's boundary, and where it collides the sun's
+/// NEE there is added; that path and the main path's own next vertex both estimate the
+/// same sun light, and the two are combined with the balance heuristic over the direction
+/// between the vertices (Veach 1997, §9.2): weight q/(q + p) for the leaned ray, p/(p + q)
+/// for the main path's sun NEE at its next vertex when reached in the same interior, where p
+/// is the phase pdf and q the leaned lobe's. Unbiased; it costs one extra free flight per
+/// medium vertex and a shadow ray where that flight collides.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SunLean {
+    /// Unit direction from the scene towards the light.
+    to_light: Vec3,
+    /// The light's index in the scene.
+    pub light: usize,
+}
+
+impl SunLean {
+    /// The lean towards the delta distant light of greatest irradiance (summed over RGB);
+    /// `None` when the scene has none.
+    pub(super) fn for_scene(scene: &Scene) -> Option<SunLean> {
+        let mut best: Option<(f32, SunLean)> = None;
+        for (li, light) in scene.lights.iter().enumerate() {
+            if let crate::light::Light::Distant {
+                to_light,
+                irradiance,
+                cos_radius,
+            } = light
+            {
+                let power = irradiance[0] + irradiance[1] + irradiance[2];
+                if *cos_radius >= 1.0 && best.is_none_or(|(b, _)| power > b) {
+                    best = Some((
+                        power,
+                        SunLean {
+                            to_light: *to_light,
+                            light: li,
+                        },
+                    ));
+                }
+            }
+        }
+        best.map(|(_, l)| l)
+    }
+
+    /// Balance weight p/(p + q) of the main path's direction `wi` (sampled from `phase` at a
+    /// vertex with outgoing direction `wo`).
+    #[inline]
+    pub(super) fn main_weight(&self, phase: &PhaseFunction, wo: Vec3, wi: Vec3) -> f32 {
+        let p = phase.pdf(wo, wi);
+        let q = phase.pdf(-self.to_light, wi);
+        if p + q > 0.0 {
+            p / (p + q)
+        } else {
+            1.0
+        }
+    }
+
+    /// Draws the leaned direction at a vertex with outgoing direction `wo`: returns
+    /// (direction, phase value / q, balance weight q/(p + q)), or `None` for a zero pdf.
+    pub(super) fn sample(
+        &self,
+        phase: &PhaseFunction,
+        wo: Vec3,
+        sampler: &mut PixelSampler,
+    ) -> Option<(Vec3, f32, f32)> {
+        let wi = phase.sample(-self.to_light, sampler.next_2d()).wi;
+        let q = phase.pdf(-self.to_light, wi);
+        let p = phase.pdf(wo, wi);
+        let value = phase.eval(wo, wi);
+        (q > 0.0 && q.is_finite()).then_some((wi, value / q, q / (p + q)))
     }
 }

@@ -18,14 +18,14 @@ pub mod manifold;
 
 pub use interiors::{InteriorStack, MAX_NESTING};
 
-use direct::{emitted, estimate_direct, PrevVertex, ShadowMode};
+use direct::{emitted, estimate_direct, PrevVertex, ShadowMode, SunLean};
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
 use crate::film::MAX_LIGHT_LAYERS;
 use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
-use crate::medium::{Medium, NeeStrategy, ScatterVertex};
+use crate::medium::{Medium, NeeStrategy, PreparedPhase, ScatterVertex};
 use crate::sampling::PixelSampler;
 use crate::scene::{Object, ObjectSurface, Roulette, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -203,6 +203,10 @@ struct PathState {
     manifold_leg: ManifoldLeg,
     /// The part of `radiance` from each named light, by layer slot.
     lights: [Rgb; MAX_LIGHT_LAYERS],
+    /// Balance-heuristic weight of this vertex-to-be's sun NEE against the sun-leaned
+    /// second-vertex estimate made at the previous vertex ([`direct::SunLean`]); `None` when
+    /// none was made or a boundary was met since.
+    lean_weight: Option<(f32, usize)>,
 }
 
 /// The unidirectional counterpart of a manifold connection (`src/integrator/manifold`): a
@@ -235,7 +239,7 @@ fn radiance(
         match step {
             Step::Trace => continue,
             Step::Stop => break,
-            Step::Boundary => {}
+            Step::Boundary => path.lean_weight = None,
         }
         let Some(hit) = hit else {
             path.escape(scene);
@@ -298,6 +302,7 @@ impl PathState {
             cone: RayCone { width: 0.0, spread },
             manifold_leg: ManifoldLeg::None,
             lights: [Rgb::ZERO; MAX_LIGHT_LAYERS],
+            lean_weight: None,
         }
     }
 
@@ -460,6 +465,12 @@ impl PathState {
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
         let phase = vertex.phase.prepare(wo);
+        let lean = if interior_nee && medium.sun_lean() {
+            SunLean::for_scene(scene)
+        } else {
+            None
+        };
+        let lean_weight = self.lean_weight.take();
         if interior_nee {
             let st = self.stack;
             let mut li = None;
@@ -474,7 +485,17 @@ impl PathState {
                 stats,
                 &mut li,
             );
+            let c = match lean_weight {
+                Some((w, light)) if li == Some(light) => c * w,
+                _ => c,
+            };
             self.add_light(scene, li, self.beta * c);
+        }
+        if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
+            if self.depth + 1 < scene.film.max_depth {
+                let c = self.lean_estimate(scene, medium, &l, hg, *wo, p, sampler, stats);
+                self.add_light(scene, Some(l.light), c);
+            }
         }
         self.guided_from = None;
         if obj.nee == NeeStrategy::ExitGuided && self.depth + 1 < scene.film.max_depth {
@@ -502,6 +523,9 @@ impl PathState {
             return Step::Stop;
         };
         self.beta *= s.weight;
+        if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
+            self.lean_weight = Some((l.main_weight(hg, *wo, s.wi), l.light));
+        }
         self.prev = PrevVertex {
             p,
             pdf: s.pdf,
@@ -510,6 +534,70 @@ impl PathState {
         };
         self.ray = Ray::new(p, s.wi);
         self.continue_with_roulette(scene.film.roulette, sampler)
+    }
+
+    /// The sun-leaned estimate of the sun's light scattered at the *next* vertex
+    /// ([`direct::SunLean`]): a direction from the lobe centred on the sun, a free flight
+    /// along it up to the interior's next boundary, and where it collides the sun's NEE there,
+    /// balance-weighted against the main path's own sun NEE at its next vertex. Returns the
+    /// contribution with the path throughput included.
+    #[allow(clippy::too_many_arguments)]
+    fn lean_estimate(
+        &self,
+        scene: &Scene,
+        medium: &Medium,
+        lean: &SunLean,
+        hg: &crate::phase::PhaseFunction,
+        wo: Vec3,
+        p: Vec3,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+    ) -> Rgb {
+        let Some((d, f_over_q, w)) = lean.sample(hg, wo, sampler) else {
+            return Rgb::ZERO;
+        };
+        let ray = Ray::new(p, d);
+        stats.rays += 1;
+        let event = medium.sample_flight_in_cone(
+            &ray,
+            self.cone.footprint(),
+            self.beta,
+            &mut || sampler.next_1d(),
+            &mut stats.tracking,
+            |limit| {
+                scene
+                    .geometry
+                    .intersect(&ray, limit)
+                    .map_or(f32::INFINITY, |h| h.t)
+            },
+        );
+        let Some(v2) = event.scatter else {
+            return Rgb::ZERO;
+        };
+        let beta = self.beta * event.weight * (f_over_q * w);
+        if beta.is_black() {
+            return Rgb::ZERO;
+        }
+        let phase2 = v2.phase.prepare(-d);
+        let st = self.stack;
+        let p2 = v2.p;
+        let mut li = None;
+        let c = estimate_direct(
+            scene,
+            p2,
+            |_| (p2, st),
+            |wi| phase2.eval(wi),
+            ShadowMode::Transparent,
+            self.cone.footprint(),
+            sampler,
+            stats,
+            &mut li,
+        );
+        if li == Some(lean.light) {
+            beta * c
+        } else {
+            Rgb::ZERO
+        }
     }
 
     /// 2. An escaped ray sees the infinite lights.

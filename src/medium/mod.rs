@@ -182,6 +182,19 @@ impl Medium {
         }
     }
 
+    /// Whether medium vertices with NEE also make the sun-leaned estimate of the next vertex's
+    /// sun light ([`crate::tracking::TrackingConfig::sun_lean`]): for `voxel` and `fbm`
+    /// interiors (also textured ones read at the entry point) by their `tracking.sun_lean`;
+    /// never for other media.
+    #[must_use]
+    pub fn sun_lean(&self) -> bool {
+        match self {
+            Medium::Heterogeneous(h) => h.tracking.sun_lean,
+            Medium::Scaled(f) => f.medium.tracking.sun_lean,
+            _ => false,
+        }
+    }
+
     /// Samples a free flight along `ray` over `[0, t_max]` (`t_max` is where the ray leaves
     /// the interior; the course notes' Algorithm 1, lines 3–11): the channel is chosen by the
     /// path throughput `beta` with one-sample MIS over channels (docs/references.md §4.6).

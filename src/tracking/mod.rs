@@ -217,6 +217,12 @@ pub struct TrackingConfig {
     /// How a ray's light from behind the medium (the environment or an emitter seen through
     /// it) is estimated: by the path surviving the free flight, or by a transmittance estimate.
     pub behind: BehindMode,
+    /// At each medium vertex with NEE at the vertex (`nee = "interior"`) and a
+    /// Henyey–Greenstein phase function, also estimate the brightest delta distant light's
+    /// light scattered at the *next* vertex along one extra direction drawn from a lobe centred
+    /// on that light, balance-weighted against the path's own next vertex (unbiased; the
+    /// integrator's `SunLean`, docs/choosing-estimators.md). On by default.
+    pub sun_lean: bool,
 }
 
 /// How the light behind a medium reaches a ray that crosses it (docs/choosing-estimators.md,
@@ -249,6 +255,7 @@ impl Default for TrackingConfig {
             majorant: MajorantMode::Hierarchical { finest: 0 },
             local_bounds: true,
             behind: BehindMode::Survive,
+            sun_lean: true,
         }
     }
 }

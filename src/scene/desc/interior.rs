@@ -281,6 +281,8 @@ pub struct TrackingDesc {
     pub local_bounds: Option<bool>,
     /// The light behind the medium: "survive" (default) or "transmittance".
     pub behind: Option<String>,
+    /// The sun-leaned estimate of light scattered at the next vertex (default true).
+    pub sun_lean: Option<bool>,
 }
 
 /// `noise = { ... }`: procedural fBm density.

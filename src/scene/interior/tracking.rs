@@ -63,6 +63,7 @@ pub(super) fn build_tracking(
         }
     };
     cfg.local_bounds = t.local_bounds.unwrap_or(cfg.local_bounds);
+    cfg.sun_lean = t.sun_lean.unwrap_or(cfg.sun_lean);
     cfg.behind = match t.behind.as_deref().unwrap_or("survive") {
         "transmittance" => BehindMode::Transmittance,
         "survive" => BehindMode::Survive,
