@@ -338,11 +338,12 @@ impl PathState {
                 behind_estimated = self.add_light_behind(scene, medium, h, sampler, stats);
             }
         }
-        let event = medium.sample_flight_in_cone(
+        let event = medium.sample_flight_rewinding(
             &ray,
             self.cone.footprint(),
             self.beta,
-            &mut || sampler.next_1d(),
+            sampler,
+            PixelSampler::next_1d,
             &mut stats.tracking,
             |limit| match known_boundary {
                 Some(t) if t <= limit => t,

@@ -298,6 +298,27 @@ impl Iterator for MixSegments<'_> {
     }
 }
 
+/// A stream of segments cut at `end`: the segments before it, the one that crosses it
+/// shortened to end there.
+struct ClippedSegments<I> {
+    inner: I,
+    end: f32,
+}
+
+impl<I: Iterator<Item = RateSegment>> Iterator for ClippedSegments<I> {
+    type Item = RateSegment;
+
+    #[inline]
+    fn next(&mut self) -> Option<RateSegment> {
+        let mut seg = self.inner.next()?;
+        if !(seg.t0 < self.end) {
+            return None;
+        }
+        seg.t1 = seg.t1.min(self.end);
+        Some(seg)
+    }
+}
+
 impl MixtureMedium {
     /// The components' own coefficients.
     #[must_use]
@@ -397,7 +418,15 @@ impl MixtureMedium {
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
         let emits = self.emits();
-        let segments = MixSegments::new(self, k, ray, 0.0, t_max);
+        // The merged walk of the whole ray, cut at `t_max`: a flight over `[0, t_max]` draws
+        // the same numbers and makes the same decisions before `t_max` as one over `[0, ∞)`
+        // (the walks' cells do not depend on where the ray ends), which is what lets a caller
+        // sample the flight first and search the boundary only up to the collision
+        // ([`super::Medium::flight_before_boundary`]).
+        let segments = ClippedSegments {
+            inner: MixSegments::new(self, k, ray, 0.0, f32::INFINITY),
+            end: t_max,
+        };
         let mut state = MixRay::new(self, k, ray, emits);
         let probs = channel_probabilities(beta, Rgb::ONE);
         let none = ComponentCoefficients::ZERO;

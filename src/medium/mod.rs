@@ -195,6 +195,65 @@ impl Medium {
         }
     }
 
+    /// True when a free flight through this medium draws the same numbers and makes the same
+    /// decisions before any distance `t` whether the ray ends at `t_max ≥ t` or runs on:
+    /// mixtures, whose merged walk is cut at `t_max` rather than built for it (homogeneous
+    /// media clip their boundary search by themselves, [`Self::sample_flight_in_cone`]).
+    #[must_use]
+    pub fn flight_before_boundary(&self) -> bool {
+        matches!(self, Medium::Mixture(_) | Medium::ScaledMixture(_))
+    }
+
+    /// [`Self::sample_flight_in_cone`] with the random numbers drawn from a state that can be
+    /// rewound (`draw(state)` returns the next uniform number in [0, 1)); the same event, and
+    /// `state` left where it would be, but the boundary is searched only as far as needed also
+    /// for media whose flight does not depend on where the ray ends
+    /// ([`Self::flight_before_boundary`]): the flight over `[0, ∞)` is sampled first and
+    /// `boundary` asked up to its collision; where the boundary comes first, `state` is
+    /// rewound and the flight sampled again to the boundary from the same numbers. Costs a
+    /// second flight to the boundary where the ray leaves the interior, saves searching the
+    /// boundary beyond the collision where it does not (a closed mesh around a large
+    /// interior: the ocean's 91,840-triangle water body).
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample_flight_rewinding<S, D, B>(
+        &self,
+        ray: &Ray,
+        cone: RayFootprint,
+        beta: Rgb,
+        state: &mut S,
+        mut draw: D,
+        stats: &mut TrackingStats,
+        mut boundary: B,
+    ) -> MediumEvent<'_>
+    where
+        S: Clone,
+        D: FnMut(&mut S) -> f32,
+        B: FnMut(f32) -> f32,
+    {
+        if !self.flight_before_boundary() {
+            return self.sample_flight_in_cone(
+                ray,
+                cone,
+                beta,
+                &mut || draw(state),
+                stats,
+                boundary,
+            );
+        }
+        let start = state.clone();
+        let flight =
+            self.sample_flight_in_cone(ray, cone, beta, &mut || draw(state), stats, |_| {
+                f32::INFINITY
+            });
+        let t_collision = flight.scatter.as_ref().map_or(f32::INFINITY, |v| v.t);
+        let t_boundary = boundary(t_collision);
+        if !(t_boundary < t_collision) {
+            return flight;
+        }
+        *state = start;
+        self.sample_flight_in_cone(ray, cone, beta, &mut || draw(state), stats, |_| t_boundary)
+    }
+
     /// Samples a free flight along `ray` over `[0, t_max]` (`t_max` is where the ray leaves
     /// the interior; the course notes' Algorithm 1, lines 3–11): the channel is chosen by the
     /// path throughput `beta` with one-sample MIS over channels (docs/references.md §4.6).
