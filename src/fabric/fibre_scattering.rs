@@ -686,7 +686,7 @@ impl FibrePhase {
     }
 
     /// Samples `wi` given `wo` and the unit fibre tangent. `u[0]` picks the offset node and
-    /// the lobe (∝ RGB-averaged lobe weight), `u[1], u[2]` the longitudinal angle (or the
+    /// the lobe (∝ the lobe weight's largest channel), `u[1], u[2]` the longitudinal angle (or the
     /// cosine-hemisphere point of the diffuse lobe), `u[3]` the azimuth (or the diffuse
     /// surface normal). `None` when every lobe is black or the direction is degenerate.
     #[must_use]

@@ -25,7 +25,8 @@
 //!
 //! # Lookups
 //! A uniform grid over the shell's box lists the tetrahedra overlapping each cell; a lookup
-//! tests the last tetrahedron first (tracking steps are short), then the cell's list.
+//! tests the last tetrahedron first (tracking steps are short), then walks a few tetrahedra
+//! across the faces the point lies beyond, then searches the cell's list.
 //! Points in no tetrahedron have zero density. Majorants come from a world-space pyramid of
 //! bricks that overlap the shell, bounded by the patch's maximum density.
 
@@ -44,8 +45,9 @@ pub const MAX_SHELL_TETS: usize = 30_000_000;
 pub const MAX_TET_SPAN_VOXELS: f32 = 262_144.0;
 /// Largest number of point-location cells.
 const MAX_CELLS: usize = 1 << 22;
-/// Point-location cells per tetrahedron (before the cap): on the draped cloth, eight give
-/// cells about as wide as a triangle, whose lists hold about ten tetrahedra.
+/// Point-location cells per tetrahedron (before the cap). On the draped cloth, eight instead
+/// of one half saved 1–2 % of the render's CPU time (lookups that miss the last
+/// tetrahedron and its neighbours scan shorter lists).
 const CELLS_PER_TET: usize = 8;
 /// Largest number of level-0 majorant bricks.
 const MAX_MAJORANT_BRICKS: f64 = 4.0e6;
