@@ -552,3 +552,41 @@ fn tangent_sign_and_degenerate_tangents() {
     assert_eq!(ph.pdf(Vec3::X, Vec3::Y, Vec3::NAN), 0.0);
     assert!(ph.sample(Vec3::X, Vec3::ZERO, [0.5; 4]).is_none());
 }
+
+/// Lobes are chosen by their largest channel, so a sample's weight (value over pdf) stays at
+/// most 1 in every channel of a saturated yarn colour: paths that scatter many times in a
+/// red yarn keep even weights instead of gaining up to 3× on the lobes that carry red (as
+/// choosing by the channels' average did) and losing as much on the others.
+#[test]
+fn saturated_colours_sample_with_weights_at_most_one() {
+    let mut rng = Rng::new(11, 0);
+    for colour in [
+        Rgb::new(0.72, 0.1, 0.09),
+        Rgb::new(0.1, 0.8, 0.2),
+        Rgb::new(0.86, 0.82, 0.72),
+    ] {
+        let ph = phase(FibrePhaseParams::default().with_colour(colour));
+        let mut largest = 0.0f32;
+        for _ in 0..20_000 {
+            let t = velour::sampling::sample_uniform_sphere(rng.next_2d());
+            let wo = velour::sampling::sample_uniform_sphere(rng.next_2d());
+            let u = [
+                rng.next_f32(),
+                rng.next_f32(),
+                rng.next_f32(),
+                rng.next_f32(),
+            ];
+            if let Some(s) = ph.sample(wo, t, u) {
+                largest = largest.max(s.weight.max_component());
+            }
+        }
+        assert!(
+            largest <= 1.0 + 1e-4,
+            "colour {colour:?}: largest sample weight {largest}"
+        );
+        assert!(
+            largest > 0.5,
+            "colour {colour:?}: largest sample weight {largest}"
+        );
+    }
+}

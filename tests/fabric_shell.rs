@@ -708,3 +708,87 @@ fn shell_point_bounds_bound_every_lookup_and_are_tight() {
         "mean point bound {mean_bound}, mean density {mean_density}, patch maximum {global}"
     );
 }
+
+/// The shell's tetrahedra know their face neighbours, which point location walks across
+/// from the last tetrahedron a ray found: on a curved shell every link is mutual and joins
+/// two faces with the same three corners, the only unlinked faces are the shell's boundary
+/// (bottom and top of every triangle, two per side quad on the mesh's rim), and lookups that
+/// carry their last tetrahedron along a ray find the same patch point as a fresh search.
+#[test]
+fn shell_tetrahedra_are_linked_across_their_faces() {
+    let vp = patch(WeavePattern::from_name("twill").unwrap(), 32);
+    let (nu, nv) = (48u32, 6u32);
+    let mesh = half_cylinder(1.0, 1.0, nu, nv);
+    let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [6.0, 2.0] }).unwrap();
+    assert_eq!(shell.tet_count(), 3 * mesh.indices.len());
+    let face = |c: [Vec3; 4], opp: usize| -> Vec<Vec3> {
+        (0..4).filter(|&k| k != opp).map(|k| c[k]).collect()
+    };
+    let mut unlinked = 0usize;
+    for i in 0..shell.tet_count() {
+        let ci = shell.tet_corners(i).unwrap();
+        for (k, n) in shell.face_neighbours(i).unwrap().into_iter().enumerate() {
+            let Some(j) = n else {
+                unlinked += 1;
+                continue;
+            };
+            assert_ne!(i, j, "tetrahedron {i} is its own neighbour");
+            let back = shell.face_neighbours(j).unwrap();
+            let kj = back
+                .iter()
+                .position(|&b| b == Some(i))
+                .unwrap_or_else(|| panic!("{i} → {j} across face {k}, but not {j} → {i}"));
+            let (fi, fj) = (face(ci, k), face(shell.tet_corners(j).unwrap(), kj));
+            for a in &fi {
+                assert!(
+                    fj.iter().any(|b| a.distance(*b) < 1e-4),
+                    "faces of {i} and {j} differ: {fi:?} against {fj:?}"
+                );
+            }
+        }
+    }
+    let rim_edges = 2 * (nu + nv) as usize;
+    assert_eq!(unlinked, 2 * mesh.indices.len() + 2 * rim_edges);
+    assert!(shell.face_neighbours(shell.tet_count()).is_none());
+
+    // Rays in small steps through the shell, with and without the last tetrahedron.
+    let b = shell.boundary_mesh().bounds();
+    let mut rng = Rng::new(5, 0);
+    let mut found = 0u32;
+    for _ in 0..2_000 {
+        let o = b.min + (b.max - b.min) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let d = Vec3::new(
+            rng.next_f32() - 0.5,
+            rng.next_f32() - 0.5,
+            rng.next_f32() - 0.5,
+        )
+        .normalize_or_zero();
+        let mut hint = u32::MAX;
+        for s in 0..100 {
+            let p = o + d * (0.004 * s as f32);
+            let walked = shell.patch_coordinates(p, &mut hint);
+            let fresh = shell.patch_coordinates(p, &mut u32::MAX.clone());
+            match (walked, fresh) {
+                (Some(a), Some(f)) => {
+                    found += 1;
+                    let (a, f) = (a.to_array(), f.to_array());
+                    // x and y may differ by whole tiles (32 voxels) across a UV seam.
+                    let dz = (a[2] - f[2]).abs();
+                    let dx = (a[0] - f[0])
+                        .rem_euclid(32.0)
+                        .min((f[0] - a[0]).rem_euclid(32.0));
+                    let dy = (a[1] - f[1])
+                        .rem_euclid(32.0)
+                        .min((f[1] - a[1]).rem_euclid(32.0));
+                    assert!(
+                        dx < 1e-2 && dy < 1e-2 && dz < 1e-2,
+                        "at {p}: {a:?} against {f:?}"
+                    );
+                }
+                (None, None) => {}
+                (w, f) => panic!("at {p}: walked {w:?}, fresh search {f:?}"),
+            }
+        }
+    }
+    assert!(found > 10_000, "{found} points inside the shell");
+}

@@ -237,6 +237,17 @@ fn sample_trimmed_logistic(u: f32, s: f32) -> f32 {
     x.clamp(-PI, PI)
 }
 
+/// The weight by which a lobe (or the diffuse term) of attenuation `a` is chosen, here and
+/// in the pdf: its largest channel. The sample weight `value/pdf` of a channel is then at
+/// most about the node's total lobe weight (≤ 1 without gain), whatever the yarn's colour;
+/// with the channels' average, a saturated yarn's own channel gained up to 3× per bounce on
+/// the lobes that carry it and lost as much on the others, and deep walks in one colour
+/// drew very uneven weights.
+#[inline]
+fn lobe_weight(a: Rgb) -> f32 {
+    a.max_component()
+}
+
 /// Wraps an angle into `[−π, π]`.
 fn wrap(mut x: f32) -> f32 {
     while x > PI {
@@ -550,7 +561,7 @@ impl FibrePhase {
     /// The terms of unique node `k` for the outgoing angles `o`.
     fn terms(&self, k: usize, o: &Angles, wd: f32, sigma_a: Rgb) -> NodeTerms {
         let node = self.node(k, o.sin_t, o.cos_t, sigma_a);
-        let w: [f32; 4] = std::array::from_fn(|p| node.a[p].average());
+        let w: [f32; 4] = std::array::from_fn(|p| lobe_weight(node.a[p]));
         let total: f32 = w.iter().sum::<f32>() + wd;
         NodeTerms {
             a: node.a,
@@ -577,7 +588,7 @@ impl FibrePhase {
     /// [`FibrePhase::prepare`] with absorption `sigma_a` and diffuse albedo `albedo`.
     fn prepare_with(&self, wo: Vec3, tangent: Vec3, sigma_a: Rgb, albedo: Rgb) -> PreparedFibre {
         let ad = albedo * self.params.diffuse_weight;
-        let wd = ad.average();
+        let wd = lobe_weight(ad);
         let mut prepared = PreparedFibre {
             sigma_a,
             frame: tangent_frame(tangent),
@@ -675,7 +686,7 @@ impl FibrePhase {
     }
 
     /// Samples `wi` given `wo` and the unit fibre tangent. `u[0]` picks the offset node and
-    /// the lobe (∝ RGB-averaged lobe weight), `u[1], u[2]` the longitudinal angle (or the
+    /// the lobe (∝ the lobe weight's largest channel), `u[1], u[2]` the longitudinal angle (or the
     /// cosine-hemisphere point of the diffuse lobe), `u[3]` the azimuth (or the diffuse
     /// surface normal). `None` when every lobe is black or the direction is degenerate.
     #[must_use]
@@ -694,7 +705,7 @@ impl FibrePhase {
         let mut u0 = (u[0] * n_nodes as f32 - k as f32).clamp(0.0, 1.0);
         let node = self.node(k, o.sin_t, o.cos_t, prepared.sigma_a);
         let wd = prepared.wd;
-        let w: [f32; 5] = std::array::from_fn(|p| if p < 4 { node.a[p].average() } else { wd });
+        let w: [f32; 5] = std::array::from_fn(|p| if p < 4 { lobe_weight(node.a[p]) } else { wd });
         let total: f32 = w.iter().sum();
         if total <= 0.0 {
             return None;
