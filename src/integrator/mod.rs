@@ -864,7 +864,13 @@ impl PathState {
 
     /// Russian roulette after a scattering event: [`Step::Trace`] if the path survives.
     fn continue_with_roulette(&mut self, roulette: Roulette, sampler: &mut PixelSampler) -> Step {
-        if russian_roulette(&mut self.beta, self.eta_scale, self.depth, roulette, sampler) {
+        if russian_roulette(
+            &mut self.beta,
+            self.eta_scale,
+            self.depth,
+            roulette,
+            sampler,
+        ) {
             Step::Trace
         } else {
             Step::Stop
