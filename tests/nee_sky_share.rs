@@ -7,12 +7,9 @@
 
 mod common;
 
-use std::collections::BTreeMap;
-
 use common::files::TempDir;
-use common::render::{region_mean, render_finite, scene_from_text};
+use common::render::{assert_images_agree, render_finite, scene_from_text};
 use velour::film::Film;
-use velour::image_io::compare::compare;
 use velour::image_io::{write_exr, ExrImage};
 
 const SKY: [f32; 3] = [0.25, 0.35, 0.55];
@@ -78,30 +75,11 @@ fn write_sky(dir: &TempDir) {
     write_exr(&dir.join("sky.exr"), &img).expect("write sky.exr");
 }
 
-/// Both renders agree per pixel (z-test) and in their image means per channel (|z| < 4).
-fn assert_agree(a: &Film, b: &Film) {
-    let cmp = compare(
-        &a.to_exr_image(&BTreeMap::new()),
-        &b.to_exr_image(&BTreeMap::new()),
-    )
-    .expect("compare");
-    let z = cmp.z_test.expect("variance layers");
-    eprintln!("per-pixel z-test: {z:?}");
-    assert!(z.consistent, "per-pixel z-test fails: {z:?}");
-    for c in 0..3 {
-        let (ma, sa) = region_mean(a, c, |_, _| true);
-        let (mb, sb) = region_mean(b, c, |_, _| true);
-        let zc = (ma - mb) / (sa * sa + sb * sb).sqrt();
-        eprintln!("channel {c}: {ma:.5} ± {sa:.5} against {mb:.5} ± {sb:.5} (z = {zc:.2})");
-        assert!(zc.abs() < 4.0, "channel {c} means differ: z = {zc:.2}");
-    }
-}
-
 #[test]
 fn a_constant_sky_with_a_smaller_nee_share_renders_the_same_image() {
     let dir = TempDir::new("nee_sky_share");
     write_sky(&dir);
     let constant = render(&dir, &scene(&constant_sky(), 512, 1));
     let map = render(&dir, &scene(map_sky(), 512, 2));
-    assert_agree(&constant, &map);
+    assert_images_agree(&constant, &map);
 }

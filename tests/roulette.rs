@@ -5,12 +5,9 @@
 
 mod common;
 
-use std::collections::BTreeMap;
-
 use common::files::TempDir;
-use common::render::{region_mean, render_finite, scene_from_text};
+use common::render::{assert_images_agree, render_finite, scene_from_text};
 use velour::film::Film;
-use velour::image_io::compare::compare;
 use velour::render::RenderSummary;
 use velour::scene::load_scene_str;
 
@@ -52,25 +49,6 @@ fn render(dir: &TempDir, text: &str) -> (Film, RenderSummary) {
     render_finite(&scene, 0)
 }
 
-/// Both renders agree per pixel (z-test) and in their image means per channel (|z| < 4).
-fn assert_agree(a: &Film, b: &Film) {
-    let cmp = compare(
-        &a.to_exr_image(&BTreeMap::new()),
-        &b.to_exr_image(&BTreeMap::new()),
-    )
-    .expect("compare");
-    let z = cmp.z_test.expect("variance layers");
-    eprintln!("per-pixel z-test: {z:?}");
-    assert!(z.consistent, "per-pixel z-test fails: {z:?}");
-    for c in 0..3 {
-        let (ma, sa) = region_mean(a, c, |_, _| true);
-        let (mb, sb) = region_mean(b, c, |_, _| true);
-        let zc = (ma - mb) / (sa * sa + sb * sb).sqrt();
-        eprintln!("channel {c}: {ma:.5} ± {sa:.5} against {mb:.5} ± {sb:.5} (z = {zc:.2})");
-        assert!(zc.abs() < 4.0, "channel {c} means differ: z = {zc:.2}");
-    }
-}
-
 #[test]
 fn any_roulette_threshold_renders_the_same_image_and_lower_ones_trace_longer_paths() {
     let dir = TempDir::new("roulette");
@@ -84,8 +62,8 @@ fn any_roulette_threshold_renders_the_same_image_and_lower_ones_trace_longer_pat
         "mean path length: threshold 1 {:.3}, threshold 0.2 {:.3}, depth 40 {:.3}",
         s_strict.mean_path_length, s_lenient.mean_path_length, s_late.mean_path_length
     );
-    assert_agree(&strict, &lenient);
-    assert_agree(&strict, &late);
+    assert_images_agree(&strict, &lenient);
+    assert_images_agree(&strict, &late);
     // Roulette at threshold 1 ends paths from depth 5 on; the others let them run on.
     assert!(s_lenient.mean_path_length > 1.05 * s_strict.mean_path_length);
     assert!(s_late.mean_path_length > 1.05 * s_strict.mean_path_length);

@@ -383,15 +383,7 @@ impl FabricShell {
             std::collections::HashMap::with_capacity(keys.len() * 2);
         for (i, k) in keys.iter().enumerate() {
             for opp in 0..4u8 {
-                let mut f = [0u32; 3];
-                let mut n = 0;
-                for (c, &v) in k.iter().enumerate() {
-                    if c != usize::from(opp) {
-                        f[n] = v;
-                        n += 1;
-                    }
-                }
-                f.sort_unstable();
+                let f = face_key(k, opp);
                 faces
                     .entry(f)
                     .and_modify(|e| e.2 += 1)
@@ -400,15 +392,7 @@ impl FabricShell {
         }
         for (i, k) in keys.iter().enumerate() {
             for opp in 0..4u8 {
-                let mut f = [0u32; 3];
-                let mut n = 0;
-                for (c, &v) in k.iter().enumerate() {
-                    if c != usize::from(opp) {
-                        f[n] = v;
-                        n += 1;
-                    }
-                }
-                f.sort_unstable();
+                let f = face_key(k, opp);
                 let Some(&(first, _, count)) = faces.get(&f) else {
                     continue;
                 };
@@ -1058,4 +1042,19 @@ fn bounds_over_layers(layers: &[(f32, f32)], k0: usize, k1: usize) -> Bounds {
         max,
         mean: mean.clamp(0.0, max),
     }
+}
+
+/// The sorted corner keys of the face of tetrahedron `k` opposite its corner `opp` (shared
+/// faces of neighbouring tetrahedra get the same key).
+fn face_key(k: &[u32; 4], opp: u8) -> [u32; 3] {
+    let mut f = [0u32; 3];
+    let mut n = 0;
+    for (c, &v) in k.iter().enumerate() {
+        if c != usize::from(opp) {
+            f[n] = v;
+            n += 1;
+        }
+    }
+    f.sort_unstable();
+    f
 }

@@ -58,6 +58,26 @@ pub fn region_mean(film: &Film, c: usize, keep: impl Fn(u32, u32) -> bool) -> (f
     (sum / n, var.sqrt() / n)
 }
 
+/// Two renders of the same expected image agree: the per-pixel z-test is consistent and each
+/// channel's image mean differs by |z| < 4 (the standard errors from the pixels' variances).
+pub fn assert_images_agree(a: &Film, b: &Film) {
+    let cmp = velour::image_io::compare::compare(
+        &a.to_exr_image(&std::collections::BTreeMap::new()),
+        &b.to_exr_image(&std::collections::BTreeMap::new()),
+    )
+    .expect("compare");
+    let z = cmp.z_test.expect("variance layers");
+    eprintln!("per-pixel z-test: {z:?}");
+    assert!(z.consistent, "per-pixel z-test fails: {z:?}");
+    for c in 0..3 {
+        let (ma, sa) = region_mean(a, c, |_, _| true);
+        let (mb, sb) = region_mean(b, c, |_, _| true);
+        let zc = (ma - mb) / (sa * sa + sb * sb).sqrt();
+        eprintln!("channel {c}: {ma:.5} ± {sa:.5} against {mb:.5} ± {sb:.5} (z = {zc:.2})");
+        assert!(zc.abs() < 4.0, "channel {c} means differ: z = {zc:.2}");
+    }
+}
+
 /// [`region_mean`] over the whole image.
 pub fn image_mean(film: &Film, c: usize) -> (f64, f64) {
     region_mean(film, c, |_, _| true)
