@@ -76,6 +76,7 @@ fn heterogeneous_scenes_get_every_estimator_and_all_edits_load() {
             "delta + ratio",
             "local bounds",
             "transmittance behind",
+            "no sun lean",
             "global majorant",
             "pyramid L1",
             "ray marching",

@@ -10,7 +10,7 @@
 //! - heterogeneous (`voxel`, `fbm`) interiors: delta tracking with residual ratio tracking
 //!   (Novák control, the default), with ratio tracking, with the mean-density control; delta and
 //!   decomposition tracking with local bounds (the default) and without (`local_bounds =
-//!   false`); the
+//!   false`); without the sun-leaned estimate (`sun_lean = false`); the
 //!   global majorant against each level of the majorant pyramid; ray marching (free flight and
 //!   transmittance) at several step sizes (fractions of the medium's bounding-box diagonal);
 //!   baked against exact procedural (`fbm`) density;
@@ -179,6 +179,10 @@ pub fn configurations(doc: &toml::Table, scene: &Scene, steps: &[f64]) -> Vec<Co
         out.push(Configuration {
             name: "delta + residual ratio (novak), transmittance behind".into(),
             edits: vec![tracking(&[("behind", s("transmittance"))])],
+        });
+        out.push(Configuration {
+            name: "delta + residual ratio (novak), no sun lean".into(),
+            edits: vec![tracking(&[("sun_lean", toml::Value::Boolean(false))])],
         });
         out.push(Configuration {
             name: "delta + unbiased ray marching".into(),
