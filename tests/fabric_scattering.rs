@@ -95,6 +95,20 @@ fn longitudinal_lobe_is_normalised() {
     assert!(longitudinal_variance(0.3) > 0.0);
 }
 
+/// A random sampling query: a fibre tangent and an outgoing direction, uniform on the sphere,
+/// and the four uniform numbers a phase sample takes.
+fn sampling_query(rng: &mut Rng) -> (Vec3, Vec3, [f32; 4]) {
+    let t = velour::sampling::sample_uniform_sphere(rng.next_2d());
+    let wo = velour::sampling::sample_uniform_sphere(rng.next_2d());
+    let u = [
+        rng.next_f32(),
+        rng.next_f32(),
+        rng.next_f32(),
+        rng.next_f32(),
+    ];
+    (t, wo, u)
+}
+
 fn phase(p: FibrePhaseParams) -> FibrePhase {
     FibrePhase::new(p).unwrap()
 }
@@ -196,14 +210,7 @@ fn sample_weight_is_eval_over_pdf() {
         let white = params.sigma_a == Rgb::ZERO && params.diffuse_albedo == Rgb::ONE;
         let ph = phase(params);
         for _ in 0..4000 {
-            let t = velour::sampling::sample_uniform_sphere(rng.next_2d());
-            let wo = velour::sampling::sample_uniform_sphere(rng.next_2d());
-            let u = [
-                rng.next_f32(),
-                rng.next_f32(),
-                rng.next_f32(),
-                rng.next_f32(),
-            ];
+            let (t, wo, u) = sampling_query(&mut rng);
             let Some(s) = ph.sample(wo, t, u) else {
                 continue;
             };
@@ -568,14 +575,7 @@ fn saturated_colours_sample_with_weights_at_most_one() {
         let ph = phase(FibrePhaseParams::default().with_colour(colour));
         let mut largest = 0.0f32;
         for _ in 0..20_000 {
-            let t = velour::sampling::sample_uniform_sphere(rng.next_2d());
-            let wo = velour::sampling::sample_uniform_sphere(rng.next_2d());
-            let u = [
-                rng.next_f32(),
-                rng.next_f32(),
-                rng.next_f32(),
-                rng.next_f32(),
-            ];
+            let (t, wo, u) = sampling_query(&mut rng);
             if let Some(s) = ph.sample(wo, t, u) {
                 largest = largest.max(s.weight.max_component());
             }
