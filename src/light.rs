@@ -364,6 +364,27 @@ pub struct LightSampler {
     probabilities: Vec<f32>,
 }
 
+/// The index of the delta distant light (a sun with no angular radius) of greatest
+/// irradiance summed over RGB, the first of equals; `None` when `lights` has none.
+#[must_use]
+pub fn brightest_delta_sun(lights: &[Light]) -> Option<usize> {
+    let mut best: Option<(f32, usize)> = None;
+    for (li, light) in lights.iter().enumerate() {
+        if let Light::Distant {
+            irradiance,
+            cos_radius,
+            ..
+        } = light
+        {
+            let power = irradiance[0] + irradiance[1] + irradiance[2];
+            if *cos_radius >= 1.0 && best.is_none_or(|(b, _)| power > b) {
+                best = Some((power, li));
+            }
+        }
+    }
+    best.map(|(_, li)| li)
+}
+
 impl LightSampler {
     /// Builds the selection distribution (uniform when every estimate is zero).
     #[must_use]

@@ -3,7 +3,7 @@
 //! without power, it keeps its share; the sampler picks each light with the probability it
 //! reports.
 
-use velour::light::{Light, LightSampler, CONSTANT_ENVIRONMENT_NEE_SHARE};
+use velour::light::{brightest_delta_sun, Light, LightSampler, CONSTANT_ENVIRONMENT_NEE_SHARE};
 use velour::math::Vec3;
 use velour::spectrum::Rgb;
 
@@ -59,4 +59,21 @@ fn a_sky_alone_or_beside_dark_lights_keeps_its_share() {
         assert_eq!(nee.sample(0.999_999).map(|s| s.0), Some(0));
     }
     assert!(LightSampler::for_nee(&[], 1.0).sample(0.5).is_none());
+}
+
+#[test]
+fn sun_lean_leans_towards_the_brightest_delta_sun() {
+    let d = Vec3::new(0.0, 1.0, 0.0);
+    let dim = Light::distant(d, Rgb::new(1.0, 1.0, 1.0), 0.0);
+    let bright = Light::distant(d, Rgb::new(3.0, 3.0, 3.0), 0.0);
+    let twin = Light::distant(d, Rgb::new(3.0, 3.0, 3.0), 0.0);
+    // Brighter still, but a disc (0.5 degrees): not a delta sun.
+    let disc = Light::distant(d, Rgb::new(9.0, 9.0, 9.0), 0.5);
+    assert_eq!(
+        brightest_delta_sun(&[sky(), dim.clone(), bright, twin, disc.clone()]),
+        Some(2)
+    );
+    assert_eq!(brightest_delta_sun(&[sky(), disc]), None);
+    assert_eq!(brightest_delta_sun(&[sky()]), None);
+    assert_eq!(brightest_delta_sun(&[dim]), Some(0));
 }

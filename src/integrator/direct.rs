@@ -307,30 +307,17 @@ pub(super) struct SunLean {
 }
 
 impl SunLean {
-    /// The lean towards the delta distant light of greatest irradiance (summed over RGB);
-    /// `None` when the scene has none.
+    /// The lean towards the scene's brightest delta sun (found at load,
+    /// [`Scene::brightest_delta_sun`]); `None` when the scene has none.
     pub(super) fn for_scene(scene: &Scene) -> Option<SunLean> {
-        let mut best: Option<(f32, SunLean)> = None;
-        for (li, light) in scene.lights.iter().enumerate() {
-            if let crate::light::Light::Distant {
-                to_light,
-                irradiance,
-                cos_radius,
-            } = light
-            {
-                let power = irradiance[0] + irradiance[1] + irradiance[2];
-                if *cos_radius >= 1.0 && best.is_none_or(|(b, _)| power > b) {
-                    best = Some((
-                        power,
-                        SunLean {
-                            to_light: *to_light,
-                            light: li,
-                        },
-                    ));
-                }
-            }
+        let li = scene.brightest_delta_sun?;
+        match scene.lights.get(li) {
+            Some(crate::light::Light::Distant { to_light, .. }) => Some(SunLean {
+                to_light: *to_light,
+                light: li,
+            }),
+            _ => None,
         }
-        best.map(|(_, l)| l)
     }
 
     /// Balance weight p/(p + q) of the main path's direction `wi` (sampled from `phase` at a

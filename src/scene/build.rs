@@ -101,6 +101,7 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
     };
     let light_sampler = LightSampler::new(&lights, radius);
     let nee_light_sampler = LightSampler::for_nee(&lights, radius);
+    let brightest_delta_sun = crate::light::brightest_delta_sun(&lights);
     Ok(Scene {
         camera,
         camera_params,
@@ -108,6 +109,7 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         lights,
         light_sampler,
         nee_light_sampler,
+        brightest_delta_sun,
         geometry,
         objects: built.objects,
         media: built.media,

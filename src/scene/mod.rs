@@ -414,6 +414,9 @@ pub struct Scene {
     /// Light selection for next event estimation from path vertices
     /// ([`LightSampler::for_nee`]: a constant sky beside other lights at a tenth of its share).
     pub nee_light_sampler: LightSampler,
+    /// The delta sun a medium's `sun_lean` estimate leans towards
+    /// ([`crate::light::brightest_delta_sun`]), found once at load.
+    pub brightest_delta_sun: Option<usize>,
     /// All geometry.
     pub geometry: SceneGeometry,
     /// Objects.
