@@ -482,6 +482,224 @@ impl WideBvh {
     }
 }
 
+/// One ray's traversal between node steps, for [`WideBvh::traverse_batch`]: the node to
+/// visit next, the ray's current `t_max` and the waiting nodes.
+struct Walk {
+    stack: Stack,
+    current: u32,
+    t_max: f32,
+    /// Index of the ray in the batch (`usize::MAX`: slot unused).
+    ray: usize,
+}
+
+impl WideBvh {
+    /// Traverses several rays with their loads interleaved: up to [`BATCH_IN_FLIGHT`] rays
+    /// are walked round-robin, one node step each, so that the memory accesses of different
+    /// rays overlap; a finished ray's slot takes the next ray of `rays`. Each ray visits
+    /// exactly the nodes and leaves, in exactly the order, that [`WideBvh::traverse`] visits
+    /// (the same step, the same state), so hits are bit-identical. `primitive(ray, position,
+    /// t_max)` is as in [`WideBvh::traverse`], with the index of the ray in `rays`.
+    pub fn traverse_batch(
+        &self,
+        rays: &[(Ray, f32)],
+        mut primitive: impl FnMut(usize, u32, f32) -> f32,
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let k = std::env::var("VELOUR_BATCH_K")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(BATCH_IN_FLIGHT);
+        let pf = std::env::var_os("VELOUR_BATCH_NOPF").is_none();
+        match (k, pf) {
+            (2, true) => self.traverse_batch_k::<2, true>(rays, &mut primitive),
+            (8, true) => self.traverse_batch_k::<8, true>(rays, &mut primitive),
+            (16, true) => self.traverse_batch_k::<16, true>(rays, &mut primitive),
+            (2, false) => self.traverse_batch_k::<2, false>(rays, &mut primitive),
+            (8, false) => self.traverse_batch_k::<8, false>(rays, &mut primitive),
+            (16, false) => self.traverse_batch_k::<16, false>(rays, &mut primitive),
+            (_, false) => self.traverse_batch_k::<4, false>(rays, &mut primitive),
+            _ => self.traverse_batch_k::<4, true>(rays, &mut primitive),
+        }
+    }
+
+    fn traverse_batch_k<const K: usize, const PF: bool>(
+        &self,
+        rays: &[(Ray, f32)],
+        primitive: &mut impl FnMut(usize, u32, f32) -> f32,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only when the CPU reported AVX2.
+            unsafe { self.traverse_batch_avx2::<K, PF>(rays, primitive) };
+            return;
+        }
+        self.traverse_batch_with::<K, PF, _>(rays, |r| SlabRay::new(r), primitive);
+    }
+
+    /// [`Self::traverse_batch`] compiled for AVX2, with the 8-wide node test.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn traverse_batch_avx2<const K: usize, const PF: bool>(
+        &self,
+        rays: &[(Ray, f32)],
+        primitive: &mut impl FnMut(usize, u32, f32) -> f32,
+    ) {
+        self.traverse_batch_with::<K, PF, _>(
+            rays,
+            // SAFETY: this function runs only with AVX2.
+            |r| unsafe { avx2::AvxSlab::new(&SlabRay::new(r)) },
+            primitive,
+        );
+    }
+
+    #[inline(always)]
+    fn traverse_batch_with<const K: usize, const PF: bool, T: NodeTest>(
+        &self,
+        rays: &[(Ray, f32)],
+        make: impl Fn(&Ray) -> T,
+        primitive: &mut impl FnMut(usize, u32, f32) -> f32,
+    ) {
+        let mut walks: [Walk; K] = std::array::from_fn(|_| Walk {
+            stack: Stack::new(),
+            current: 0,
+            t_max: 0.0,
+            ray: usize::MAX,
+        });
+        let mut slabs: [Option<T>; K] = std::array::from_fn(|_| None);
+        let mut next = 0;
+        let mut live = 0;
+        // Fill the slots.
+        for (w, s) in walks.iter_mut().zip(slabs.iter_mut()) {
+            if next < rays.len() {
+                w.ray = next;
+                w.current = 0;
+                w.t_max = rays[next].1;
+                *s = Some(make(&rays[next].0));
+                next += 1;
+                live += 1;
+            }
+        }
+        while live > 0 {
+            for (w, s) in walks.iter_mut().zip(slabs.iter_mut()) {
+                let Some(slab) = s.as_ref() else { continue };
+                let ray = w.ray;
+                if self.step(slab, w, &mut |pos, t| primitive(ray, pos, t)) {
+                    if PF {
+                        prefetch_node(&self.nodes[w.current as usize]);
+                    }
+                } else {
+                    if next < rays.len() {
+                        w.ray = next;
+                        w.current = 0;
+                        w.t_max = rays[next].1;
+                        w.stack.len = 0;
+                        w.stack.spill.clear();
+                        *s = Some(make(&rays[next].0));
+                        next += 1;
+                    } else {
+                        *s = None;
+                        live -= 1;
+                    }
+                }
+            }
+        }
+    }
+
+    /// One node of [`Self::traverse_with`]'s loop for the walk `w`: false when the ray is
+    /// done.
+    #[inline(always)]
+    fn step<T: NodeTest>(
+        &self,
+        slab: &T,
+        w: &mut Walk,
+        primitive: &mut impl FnMut(u32, f32) -> f32,
+    ) -> bool {
+        let node = &self.nodes[w.current as usize];
+        let (near, mut mask) = slab.test(node, w.t_max);
+        let mut order = [(0usize, 0.0f32); WIDTH];
+        let mut inner = [Entry::default(); WIDTH];
+        let mut n = 0;
+        while mask != 0 {
+            let slot = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let t = near[slot];
+            let mut j = n;
+            while j > 0 && order[j - 1].1 > t {
+                order[j] = order[j - 1];
+                j -= 1;
+            }
+            order[j] = (slot, t);
+            n += 1;
+        }
+        let mut m = 0;
+        for &(slot, t) in &order[..n] {
+            if t > w.t_max {
+                break;
+            }
+            let count = node.count[slot];
+            if count > 0 {
+                let first = node.child[slot];
+                for i in first..first + count {
+                    w.t_max = primitive(i, w.t_max);
+                    if w.t_max <= 0.0 {
+                        return false;
+                    }
+                }
+            } else {
+                inner[m] = Entry {
+                    node: node.child[slot],
+                    t,
+                };
+                m += 1;
+            }
+        }
+        if m > 0 {
+            for e in inner[1..m].iter().rev() {
+                w.stack.push(*e);
+            }
+            if !(inner[0].t > w.t_max) {
+                w.current = inner[0].node;
+                return true;
+            }
+        }
+        loop {
+            match w.stack.pop() {
+                None => return false,
+                Some(e) if !(e.t > w.t_max) => {
+                    w.current = e.node;
+                    return true;
+                }
+                Some(_) => {}
+            }
+        }
+    }
+}
+
+/// Asks for the four cache lines of `node` (a hint; no effect on results).
+#[inline(always)]
+fn prefetch_node(node: &Node8) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = (node as *const Node8).cast::<i8>();
+        // SAFETY: prefetching is a hint and never faults; the addresses lie inside `node`.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.add(64));
+            _mm_prefetch::<_MM_HINT_T0>(p.add(128));
+            _mm_prefetch::<_MM_HINT_T0>(p.add(192));
+        }
+    }
+}
+
+/// Rays in flight in [`WideBvh::traverse_batch`].
+pub const BATCH_IN_FLIGHT: usize = 4;
+
 /// True when the CPU runs AVX2 (the 8-wide node test) and the environment variable
 /// `VELOUR_NO_AVX2` is not set (it forces the 4-wide test, for A/B measurements in one
 /// binary; the hits are the same either way).
