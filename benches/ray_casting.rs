@@ -7,9 +7,7 @@
 //! sphere's bounding box, rays from inside in random directions (what a walk inside the skin
 //! traces to find the boundary), and short rays from inside (a walk's free flight in a dense
 //! medium, traced only up to the sampled distance). Times are on-CPU times of the thread, best
-//! of five passes. "velour batched" traces each whole set through
-//! `SceneGeometry::intersect_batch` (several rays' traversals interleaved; the renderer does
-//! not use it). `RAY_CASTING_SUBDIV=n` changes the icosphere's subdivision level (default 5).
+//! of five passes. `RAY_CASTING_SUBDIV=n` changes the icosphere's subdivision level (default 5).
 
 use std::time::Duration;
 
@@ -99,22 +97,6 @@ fn rate(rays: &[(Ray, f32)], repeats: usize, mut f: impl FnMut(&Ray, f32) -> boo
     (rays.len() as f64 / best, hits)
 }
 
-/// Rays per second of [`SceneGeometry::intersect_batch`] over all of `rays` at once, best of
-/// `repeats` passes (on-CPU time), and the hits.
-fn batch_rate(geometry: &SceneGeometry, rays: &[(Ray, f32)], repeats: usize) -> (f64, usize) {
-    let mut best = f64::INFINITY;
-    let mut hits = Vec::new();
-    for _ in 0..repeats {
-        let t0 = thread_cpu();
-        geometry.intersect_batch(rays, &mut hits);
-        best = best.min(thread_cpu() - t0);
-    }
-    (
-        rays.len() as f64 / best,
-        hits.iter().filter(|h| h.is_some()).count(),
-    )
-}
-
 fn main() {
     let subdiv = std::env::var("RAY_CASTING_SUBDIV")
         .ok()
@@ -142,8 +124,8 @@ fn main() {
     );
     let n = 200_000;
     println!(
-        "{:<28} {:>14} {:>14} {:>14} {:>10} {:>14}",
-        "rays", "velour closest", "velour occl.", "obvhs closest", "velour/obvhs", "velour batched"
+        "{:<28} {:>14} {:>14} {:>14} {:>10}",
+        "rays", "velour closest", "velour occl.", "obvhs closest", "velour/obvhs"
     );
     for set in ray_sets(n) {
         let (v, hv) = rate(&set.rays, 5, |r, t| geometry.intersect(r, t).is_some());
@@ -155,15 +137,13 @@ fn main() {
                 triangles[stock.primitive_indices[id] as usize].intersect(ray)
             })
         });
-        let (b, hb) = batch_rate(&geometry, &set.rays, 5);
         println!(
-            "{:<28} {:>12.2} M {:>12.2} M {:>12.2} M {:>10.2} {:>12.2} M   (hits {hv} / {hs} / {hb})",
+            "{:<28} {:>12.2} M {:>12.2} M {:>12.2} M {:>10.2}   (hits {hv} / {hs})",
             set.name,
             v / 1e6,
             o / 1e6,
             s / 1e6,
-            v / s,
-            b / 1e6
+            v / s
         );
     }
 }

@@ -232,63 +232,6 @@ impl SceneGeometry {
         if !valid_query(ray, t_max) {
             return None;
         }
-        let (closest, mut best) = self.intersect_analytic(ray, t_max);
-        if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
-            let sr = ShearedRay::new(ray);
-            self.bvh.traverse(ray, closest, |slot, t_max| {
-                match sr.intersect(&self.triangle(slot as usize), t_max) {
-                    Some(h) => {
-                        best = Some(Best::Tri(slot as usize, h));
-                        h.t
-                    }
-                    None => t_max,
-                }
-            });
-        }
-        best.map(|b| self.make_hit(ray, b))
-    }
-
-    /// [`SceneGeometry::intersect`] for each of `rays` (ray, `t_max`), bit for bit, with the
-    /// triangle hierarchy's traversals of several rays interleaved
-    /// ([`WideBvh::traverse_batch`]) so that their memory accesses overlap. `hits` gets one
-    /// entry per ray. (Measured by the ray-casting benchmark; the renderer traces its rays
-    /// one at a time and does not call this.)
-    pub fn intersect_batch(&self, rays: &[(Ray, f32)], hits: &mut Vec<Option<Hit>>) {
-        let mut best: Vec<Option<Best>> = Vec::with_capacity(rays.len());
-        let mut queue: Vec<(Ray, f32)> = Vec::with_capacity(rays.len());
-        let mut owner: Vec<usize> = Vec::with_capacity(rays.len());
-        for (i, (ray, t_max)) in rays.iter().enumerate() {
-            if !valid_query(ray, *t_max) {
-                best.push(None);
-                continue;
-            }
-            let (closest, b) = self.intersect_analytic(ray, *t_max);
-            best.push(b);
-            if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
-                queue.push((*ray, closest));
-                owner.push(i);
-            }
-        }
-        let sheared: Vec<ShearedRay> = queue.iter().map(|(r, _)| ShearedRay::new(r)).collect();
-        self.bvh.traverse_batch(&queue, |q, slot, t_max| {
-            match sheared[q].intersect(&self.triangle(slot as usize), t_max) {
-                Some(h) => {
-                    best[owner[q]] = Some(Best::Tri(slot as usize, h));
-                    h.t
-                }
-                None => t_max,
-            }
-        });
-        hits.clear();
-        hits.extend(
-            best.into_iter()
-                .zip(rays)
-                .map(|(b, (ray, _))| b.map(|b| self.make_hit(ray, b))),
-        );
-    }
-
-    /// The closest analytic shape along `ray` before `t_max`: the new `t_max` and the hit.
-    fn intersect_analytic(&self, ray: &Ray, t_max: f32) -> (f32, Option<Best>) {
         let mut closest = t_max;
         let mut best: Option<Best> = None;
         for a in &self.analytic {
@@ -319,7 +262,19 @@ impl SceneGeometry {
                 }
             }
         }
-        (closest, best)
+        if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
+            let sr = ShearedRay::new(ray);
+            self.bvh.traverse(ray, closest, |slot, t_max| {
+                match sr.intersect(&self.triangle(slot as usize), t_max) {
+                    Some(h) => {
+                        best = Some(Best::Tri(slot as usize, h));
+                        h.t
+                    }
+                    None => t_max,
+                }
+            });
+        }
+        best.map(|b| self.make_hit(ray, b))
     }
 
     /// True when anything is hit with `0 < t < t_max` (shadow rays; stops at the first hit).
@@ -685,42 +640,6 @@ mod tests {
                 hits += usize::from(found);
             }
             assert!((100_000..190_000).contains(&hits), "{hits} hits");
-        }
-    }
-
-    #[test]
-    fn batched_closest_hits_are_those_of_single_rays_bit_for_bit() {
-        let geometry = skin_icosphere();
-        for avx2 in [true, false] {
-            let mut g = geometry.clone();
-            if !avx2 {
-                g.bvh = g.bvh.without_avx2();
-            }
-            let mut rng = Rng::new(41, 2);
-            let mut rays: Vec<(Ray, f32)> =
-                (0..100_000).map(|i| icosphere_ray(&mut rng, i)).collect();
-            // Queries that hit nothing by definition, among the others.
-            rays[7].1 = 0.0;
-            rays[11].1 = f32::NAN;
-            let mut hits = Vec::new();
-            // Batches shorter and longer than the rays in flight.
-            for chunk in [1usize, 3, 1000, 100_000] {
-                let mut n = 0;
-                for (c, part) in rays.chunks(chunk).enumerate() {
-                    g.intersect_batch(part, &mut hits);
-                    assert_eq!(hits.len(), part.len());
-                    for (k, ((ray, t_max), h)) in part.iter().zip(&hits).enumerate() {
-                        let i = c * chunk + k;
-                        assert_eq!(
-                            hit_bits(*h),
-                            hit_bits(g.intersect(ray, *t_max)),
-                            "ray {i} (avx2 {avx2}, batches of {chunk})"
-                        );
-                        n += usize::from(h.is_some());
-                    }
-                }
-                assert!(n > 50_000, "{n} hits");
-            }
         }
     }
 
