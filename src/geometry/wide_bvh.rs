@@ -33,130 +33,35 @@ const STACK_INLINE: usize = 48;
 /// Children per node.
 const WIDTH: usize = 8;
 
-/// One node in two cache lines: the boxes of up to eight children quantised to 8 bits per
-/// plane on a per-axis grid (Ylitie, Karras & Laine 2017, "Efficient Incoherent Ray Traversal
-/// on GPUs Using Compressed Wide BVHs"), and what each child is.
-///
-/// A plane decodes as `q · scale + origin` (one f32 product, exact since `scale` is a power of
-/// two, and one rounded sum, the same operations in every node test); the builder picks each
-/// byte so that the decoded box contains the child's box: minima rounded down, maxima up.
+/// One node: the boxes of up to eight children, per axis in two 4-wide halves, and what each
+/// child is.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node8 {
-    /// Quantised planes of the children: minima x, y, z, then maxima x, y, z, one byte per
-    /// child (empty slots hold 255 for the minima and 0 for the maxima). One array, so that a
-    /// ray picks its near and far plane per axis by index instead of by a branch.
-    q: [[u8; WIDTH]; 6],
-    /// The grid's origin per axis (world units).
-    origin: [f32; 3],
-    /// The grid's step per axis (world units, a power of two).
-    scale: [f32; 3],
-    /// What each child is ([`leaf_ref`] for a leaf, else the child node's index; 0 for an
-    /// empty slot, which the ray never enters).
-    refs: [u32; WIDTH],
+    /// Box planes of the children: minima x, y, z (empty slots hold +∞), then maxima x, y, z
+    /// (empty slots hold −∞). One array, so that a ray picks its near and far plane per axis
+    /// by index instead of by a branch.
+    planes: [[Vec4; 2]; 6],
+    /// Child node index, or the first primitive of a leaf.
+    child: [u32; WIDTH],
+    /// Primitives of a leaf child (0 for an inner child or an empty slot).
+    count: [u32; WIDTH],
 }
 
 impl Node8 {
-    /// The node over `boxes` (min, max; at most [`WIDTH`], finite) with children `refs`.
-    fn new(boxes: &[(Vec3A, Vec3A)], refs: [u32; WIDTH]) -> Self {
-        let mut node = Node8 {
-            q: [
-                [255; WIDTH],
-                [255; WIDTH],
-                [255; WIDTH],
-                [0; WIDTH],
-                [0; WIDTH],
-                [0; WIDTH],
+    fn empty() -> Self {
+        Node8 {
+            planes: [
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
             ],
-            origin: [0.0; 3],
-            scale: [1.0; 3],
-            refs,
-        };
-        for k in 0..3 {
-            let lo: Vec<f32> = boxes.iter().map(|b| b.0[k]).collect();
-            let hi: Vec<f32> = boxes.iter().map(|b| b.1[k]).collect();
-            let (origin, scale, qlo, qhi) = quantise_axis(&lo, &hi);
-            node.origin[k] = origin;
-            node.scale[k] = scale;
-            for (slot, (a, b)) in qlo.into_iter().zip(qhi).enumerate() {
-                node.q[k][slot] = a;
-                node.q[k + 3][slot] = b;
-            }
+            child: [0; WIDTH],
+            count: [0; WIDTH],
         }
-        node
-    }
-
-    /// Plane `p` (index in [`Node8::q`]) of child `slot`, decoded (world units).
-    #[inline(always)]
-    fn plane(&self, p: usize, slot: usize) -> f32 {
-        decode(self.q[p][slot], self.scale[p % 3], self.origin[p % 3])
-    }
-
-    /// Bit `i` set when slot `i` holds a child.
-    #[inline(always)]
-    fn occupied(&self) -> u32 {
-        let mut mask = 0;
-        for (i, r) in self.refs.iter().enumerate() {
-            mask |= u32::from(*r != 0) << i;
-        }
-        mask
-    }
-}
-
-/// A quantised plane's value: `q · scale + origin`, a product then a sum (never fused), as in
-/// every node test.
-#[inline(always)]
-fn decode(q: u8, scale: f32, origin: f32) -> f32 {
-    f32::from(q) * scale + origin
-}
-
-/// One axis of a node's grid over children spanning `[lo[i], hi[i]]`: the origin (the lowest
-/// minimum), the smallest power-of-two step for which every maximum is reached within 255
-/// steps, and per child the largest byte whose plane is ≤ its minimum and the smallest byte
-/// whose plane is ≥ its maximum (checked on the decoded values, so the rounding of the sum
-/// can only widen a box).
-fn quantise_axis(lo: &[f32], hi: &[f32]) -> (f32, f32, Vec<u8>, Vec<u8>) {
-    if lo.is_empty() {
-        return (0.0, 1.0, Vec::new(), Vec::new());
-    }
-    let origin = lo.iter().copied().fold(f32::INFINITY, f32::min);
-    let top = hi.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-    let mut scale = f32::MIN_POSITIVE;
-    while scale * 255.0 < top - origin {
-        scale *= 2.0;
-    }
-    loop {
-        let qlo: Vec<u8> = lo
-            .iter()
-            .map(|&l| {
-                // `as u8` saturates (and maps NaN to 0).
-                let mut q = ((l - origin) / scale).floor() as u8;
-                while q > 0 && decode(q, scale, origin) > l {
-                    q -= 1;
-                }
-                q
-            })
-            .collect();
-        let qhi: Vec<u8> = hi
-            .iter()
-            .map(|&h| {
-                let mut q = ((h - origin) / scale).ceil() as u8;
-                while q < 255 && decode(q, scale, origin) < h {
-                    q += 1;
-                }
-                q
-            })
-            .collect();
-        // Coordinates are bounded (the geometry rejects larger ones), so the step stays
-        // finite: a coarser grid always reaches the maxima eventually.
-        let fits = qhi
-            .iter()
-            .zip(hi)
-            .all(|(&q, &h)| decode(q, scale, origin) >= h);
-        if fits || !(scale * 2.0).is_finite() {
-            return (origin, scale, qlo, qhi);
-        }
-        scale *= 2.0;
     }
 }
 
@@ -186,7 +91,7 @@ struct SlabRay {
     o: [Vec4; 3],
     /// Capped reciprocal direction, splatted per axis.
     inv: [Vec4; 3],
-    /// Per axis: index in [`Node8::q`] of the plane the ray enters by (the maximum
+    /// Per axis: index in [`Node8::planes`] of the plane the ray enters by (the maximum
     /// when the direction is negative) and of the one it leaves by.
     near: [usize; 3],
     far: [usize; 3],
@@ -227,25 +132,15 @@ impl SlabRay {
 
     #[inline(always)]
     fn test_half(&self, node: &Node8, h: usize, t_max: f32) -> (Vec4, u32) {
-        let plane = |p: usize| {
-            let s = 4 * h;
-            Vec4::new(
-                node.plane(p, s),
-                node.plane(p, s + 1),
-                node.plane(p, s + 2),
-                node.plane(p, s + 3),
-            )
-        };
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
         for k in 0..3 {
-            let n = plane(self.near[k]);
-            let f = plane(self.far[k]);
+            let n = node.planes[self.near[k]][h];
+            let f = node.planes[self.far[k]][h];
             near = near.max((n - self.o[k]) * self.inv[k]);
             far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
         }
-        let occupied = (node.occupied() >> (4 * h)) & 0xF;
-        (near, near.cmple(far).bitmask() & occupied)
+        (near, near.cmple(far).bitmask())
     }
 }
 
@@ -274,11 +169,9 @@ impl NodeTest for SlabRay {
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m128i, __m256, __m256i, _mm256_add_ps, _mm256_andnot_si256, _mm256_castps_si256,
-        _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32, _mm256_cvtepi32_ps,
-        _mm256_cvtepu8_epi32, _mm256_loadu_si256, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
-        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_setzero_si256, _mm256_storeu_ps,
-        _mm256_sub_ps, _mm_loadl_epi64, _CMP_LE_OS,
+        __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
+        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        _CMP_LE_OS,
     };
 
     use super::{Node8, NodeTest, SlabRay, FAR_SCALE, WIDTH};
@@ -306,32 +199,18 @@ mod avx2 {
         }
     }
 
-    /// The eight bytes of a quantised plane, decoded: `q · scale + origin` as in
-    /// [`super::decode`].
-    #[inline(always)]
-    unsafe fn decode_plane(q: &[u8; WIDTH], scale: __m256, origin: __m256) -> __m256 {
-        // SAFETY: the caller runs with AVX2; the load reads the 8 bytes of `q`.
-        unsafe {
-            let q = _mm_loadl_epi64(q.as_ptr().cast::<__m128i>());
-            let q = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(q));
-            _mm256_add_ps(_mm256_mul_ps(q, scale), origin)
-        }
-    }
-
     impl NodeTest for AvxSlab {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
             // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
-            // it); the loads read the 8 bytes of a plane and the 8 refs, the store writes the
-            // 8 floats of `out`.
+            // it); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
+            // writes the 8 floats of `out`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
                 for k in 0..3 {
-                    let scale = _mm256_set1_ps(node.scale[k]);
-                    let origin = _mm256_set1_ps(node.origin[k]);
-                    let n = decode_plane(&node.q[self.near[k]], scale, origin);
-                    let f = decode_plane(&node.q[self.far[k]], scale, origin);
+                    let n = _mm256_loadu_ps(node.planes[self.near[k]].as_ptr().cast::<f32>());
+                    let f = _mm256_loadu_ps(node.planes[self.far[k]].as_ptr().cast::<f32>());
                     near = _mm256_max_ps(
                         near,
                         _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
@@ -344,13 +223,7 @@ mod avx2 {
                         ),
                     );
                 }
-                let children = _mm256_loadu_si256(node.refs.as_ptr().cast::<__m256i>());
-                let empty = _mm256_cmpeq_epi32(children, _mm256_setzero_si256());
-                let hit = _mm256_andnot_si256(
-                    empty,
-                    _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)),
-                );
-                let mask = _mm256_movemask_ps(_mm256_castsi256_ps(hit)) as u32;
+                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)) as u32;
                 let mut out = [0.0f32; WIDTH];
                 _mm256_storeu_ps(out.as_mut_ptr(), near);
                 (out, mask)
@@ -433,36 +306,43 @@ impl WideBvh {
         if counts[0] <= MAX_LEAF_PRIMITIVES {
             let first = out.order.len() as u32;
             collect_primitives(&bvh2, 0, &mut out.order);
-            // One node with one leaf child.
-            let mut refs = [0; WIDTH];
-            refs[0] = leaf_ref(first, out.order.len() as u32 - first);
-            let bb = bvh2.nodes[0].aabb;
-            out.nodes.push(Node8::new(&[(bb.min, bb.max)], refs));
+            // One node with one leaf child whose box is all of space (always entered).
+            let mut node = Node8::empty();
+            for k in 0..3 {
+                node.planes[k][0][0] = f32::NEG_INFINITY;
+                node.planes[k + 3][0][0] = f32::INFINITY;
+            }
+            node.child[0] = first;
+            node.count[0] = out.order.len() as u32 - first;
+            out.nodes.push(node);
             out.depth = 1;
             return out;
         }
-        out.nodes.push(Node8::new(&[], [0; WIDTH]));
+        out.nodes.push(Node8::empty());
         let mut work = vec![(0usize, 0usize, 1usize)]; // (bvh2 node, wide node, depth)
         while let Some((b, w, depth)) = work.pop() {
             out.depth = out.depth.max(depth);
             let children = open_children(&bvh2, b, &counts);
-            let mut refs = [0; WIDTH];
-            let mut boxes = Vec::with_capacity(WIDTH);
+            let mut node = Node8::empty();
             for (slot, &c) in children.iter().enumerate() {
                 let bb = bvh2.nodes[c].aabb;
-                boxes.push((bb.min, bb.max));
+                for k in 0..3 {
+                    node.planes[k][slot / 4][slot % 4] = bb.min[k];
+                    node.planes[k + 3][slot / 4][slot % 4] = bb.max[k];
+                }
                 if counts[c] <= MAX_LEAF_PRIMITIVES {
                     let first = out.order.len() as u32;
                     collect_primitives(&bvh2, c, &mut out.order);
-                    refs[slot] = leaf_ref(first, out.order.len() as u32 - first);
+                    node.child[slot] = first;
+                    node.count[slot] = out.order.len() as u32 - first;
                 } else {
                     let index = out.nodes.len();
-                    out.nodes.push(Node8::new(&[], [0; WIDTH]));
-                    refs[slot] = index as u32;
+                    out.nodes.push(Node8::empty());
+                    node.child[slot] = index as u32;
                     work.push((c, index, depth + 1));
                 }
             }
-            out.nodes[w] = Node8::new(&boxes, refs);
+            out.nodes[w] = node;
         }
         out
     }
@@ -560,17 +440,20 @@ impl WideBvh {
                 if t > t_max {
                     break;
                 }
-                let r = node.refs[slot];
-                if r & LEAF != 0 {
-                    let first = (r & !LEAF) >> 2;
-                    for i in first..=first + (r & 3) {
+                let count = node.count[slot];
+                if count > 0 {
+                    let first = node.child[slot];
+                    for i in first..first + count {
                         t_max = primitive(i, t_max);
                         if t_max <= 0.0 {
                             return;
                         }
                     }
                 } else {
-                    inner[m] = Entry { node: r, t };
+                    inner[m] = Entry {
+                        node: node.child[slot],
+                        t,
+                    };
                     m += 1;
                 }
             }
@@ -598,15 +481,6 @@ impl WideBvh {
         }
     }
 }
-
-/// The [`Node8::refs`] entry of a leaf: the leaf flag, its first primitive position and its
-/// primitive count less one in the low two bits.
-fn leaf_ref(first: u32, count: u32) -> u32 {
-    LEAF | (first << 2) | (count - 1)
-}
-
-/// The flag of a leaf in [`Node8::refs`].
-const LEAF: u32 = 1 << 31;
 
 /// True when the CPU runs AVX2 (the 8-wide node test) and the environment variable
 /// `VELOUR_NO_AVX2` is not set (it forces the 4-wide test, for A/B measurements in one
@@ -774,70 +648,6 @@ mod tests {
                 shorten(pos, t)
             });
             assert_eq!(seen.0, seen.1, "ray {i}");
-        }
-    }
-
-    #[test]
-    fn quantised_boxes_contain_every_primitive_box_below_them() {
-        let mut rng = Lcg(9);
-        // Boxes of very different sizes, far from the origin and near it, and thin ones.
-        for (n, offset, size) in [
-            (5000usize, 1000.0f32, 0.01f32),
-            (3000, 0.0, 0.3),
-            (2, 7.0, 1e-6),
-        ] {
-            let boxes: Vec<(Vec3, Vec3)> = (0..n)
-                .map(|i| {
-                    let c = rng.vec() + Vec3::splat(offset);
-                    let mut e = Vec3::new(rng.next(), rng.next(), rng.next()) * size;
-                    e[i % 3] *= 1e-3;
-                    (c - e, c + e)
-                })
-                .collect();
-            let bvh = WideBvh::build(&boxes);
-            let decoded = |node: &Node8, slot: usize| {
-                let lo = Vec3::new(
-                    node.plane(0, slot),
-                    node.plane(1, slot),
-                    node.plane(2, slot),
-                );
-                let hi = Vec3::new(
-                    node.plane(3, slot),
-                    node.plane(4, slot),
-                    node.plane(5, slot),
-                );
-                (lo, hi)
-            };
-            // Depth-first with the decoded boxes of the slots on the path.
-            let mut work = vec![(0u32, Vec::<(Vec3, Vec3)>::new())];
-            let mut seen = 0;
-            while let Some((index, path)) = work.pop() {
-                let node = &bvh.nodes[index as usize];
-                for slot in 0..WIDTH {
-                    let r = node.refs[slot];
-                    if r == 0 {
-                        continue;
-                    }
-                    let mut path = path.clone();
-                    path.push(decoded(node, slot));
-                    if r & LEAF == 0 {
-                        work.push((r, path));
-                        continue;
-                    }
-                    let first = (r & !LEAF) >> 2;
-                    for i in first..=first + (r & 3) {
-                        let b = boxes[bvh.order()[i as usize] as usize];
-                        for (lo, hi) in &path {
-                            assert!(
-                                lo.cmple(b.0).all() && hi.cmpge(b.1).all(),
-                                "{n} boxes: box {i} {b:?} outside {lo:?} {hi:?}"
-                            );
-                        }
-                        seen += 1;
-                    }
-                }
-            }
-            assert_eq!(seen, n);
         }
     }
 
