@@ -2,6 +2,8 @@
 //! node test, our watertight triangle test), and the analytic shapes (spheres, boxes) and
 //! level sets tested directly, outside the triangle hierarchy.
 
+use glam::Vec4;
+
 use crate::math::{Aabb, Ray, Vec2, Vec3};
 
 use super::aabox::{intersect_box, BoxHit};
@@ -12,12 +14,9 @@ use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
-/// A triangle `(a, b, c)` in BVH order.
+/// Which shape and which of its triangles a BVH position is.
 #[derive(Clone, Copy, Debug)]
 struct Prim {
-    a: Vec3,
-    b: Vec3,
-    c: Vec3,
     shape: u32,
     prim: u32,
 }
@@ -26,10 +25,15 @@ struct Prim {
 #[derive(Clone, Debug)]
 pub struct SceneGeometry {
     bvh: WideBvh,
-    /// Triangles in BVH order.
+    /// The shape and triangle of each BVH position.
     prims: Vec<Prim>,
-    /// The same triangles transposed for the traversal's triangle test (BVH order).
-    tris: Vec<TriangleSoa>,
+    /// The vertices of each triangle (BVH order): indices into `verts`.
+    tris: Vec<[u32; 3]>,
+    /// Every triangle vertex once, as `(x, y, z, 0)`, numbered in the order the BVH's
+    /// positions first use them. With `tris` this is the compact layout (16 bytes per vertex
+    /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
+    /// icosphere's hierarchy, nodes and triangles, fits in a 1 MB L2 cache.
+    verts: Vec<Vec4>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
     /// Analytic shapes, tested directly.
@@ -126,19 +130,28 @@ impl SceneGeometry {
                 }
             }
         }
+        // Triangles (shape order) with their vertices as indices into `positions`, the
+        // vertices of every mesh one after the other.
         let mut prims = Vec::new();
+        let mut corners: Vec<[u32; 3]> = Vec::new();
+        let mut positions: Vec<Vec3> = Vec::new();
         let mut analytic = Vec::new();
         let mut bounds = Aabb::EMPTY;
         for (si, s) in shapes.iter().enumerate() {
             bounds = bounds.union(s.bounds());
             match s {
                 Shape::Mesh(m) => {
+                    let base = positions.len();
+                    if base + m.positions.len() > u32::MAX as usize {
+                        return Err(GeometryError::InvalidShape {
+                            shape: si,
+                            message: "too many vertices".to_string(),
+                        });
+                    }
+                    positions.extend_from_slice(&m.positions);
                     for (ti, t) in m.indices.iter().enumerate() {
-                        let [a, b, c] = t.map(|i| m.positions[i as usize]);
+                        corners.push(t.map(|i| (base + i as usize) as u32));
                         prims.push(Prim {
-                            a,
-                            b,
-                            c,
                             shape: si as u32,
                             prim: ti as u32,
                         });
@@ -171,21 +184,39 @@ impl SceneGeometry {
             .max_element()
             .max(bounds.extent().max_element());
         let pad = Vec3::splat(16.0 * f32::EPSILON * mag);
-        let boxes: Vec<(Vec3, Vec3)> = prims
+        let boxes: Vec<(Vec3, Vec3)> = corners
             .iter()
-            .map(|p| (p.a.min(p.b).min(p.c) - pad, p.a.max(p.b).max(p.c) + pad))
+            .map(|t| {
+                let [a, b, c] = t.map(|i| positions[i as usize]);
+                (a.min(b).min(c) - pad, a.max(b).max(c) + pad)
+            })
             .collect();
         let bvh = WideBvh::build(&boxes);
         let empty = EmptyCells::build(&boxes, pad.x);
         let ordered: Vec<Prim> = bvh.order().iter().map(|&i| prims[i as usize]).collect();
-        let tris = ordered
+        // Vertices renumbered by first use in BVH order, so that a leaf's vertices lie
+        // together; vertices no triangle uses are dropped.
+        let mut renumber = vec![u32::MAX; positions.len()];
+        let mut verts = Vec::new();
+        let tris = bvh
+            .order()
             .iter()
-            .map(|p| TriangleSoa::new(p.a, p.b, p.c))
+            .map(|&i| {
+                corners[i as usize].map(|v| {
+                    let slot = &mut renumber[v as usize];
+                    if *slot == u32::MAX {
+                        *slot = verts.len() as u32;
+                        verts.push(positions[v as usize].extend(0.0));
+                    }
+                    *slot
+                })
+            })
             .collect();
         Ok(SceneGeometry {
             bvh,
             prims: ordered,
             tris,
+            verts,
             empty,
             analytic,
             shapes,
@@ -198,12 +229,7 @@ impl SceneGeometry {
     /// leave a surface must start at [`crate::math::offset_ray_origin`]; `t_min` is 0.
     #[must_use]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        if !ray.o.is_finite()
-            || !ray.d.is_finite()
-            || ray.d == Vec3::ZERO
-            || t_max.is_nan()
-            || t_max <= 0.0
-        {
+        if !valid_query(ray, t_max) {
             return None;
         }
         let mut closest = t_max;
@@ -239,7 +265,7 @@ impl SceneGeometry {
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, closest, |slot, t_max| {
-                match sr.intersect(&self.tris[slot as usize], t_max) {
+                match sr.intersect(&self.triangle(slot as usize), t_max) {
                     Some(h) => {
                         best = Some(Best::Tri(slot as usize, h));
                         h.t
@@ -254,12 +280,7 @@ impl SceneGeometry {
     /// True when anything is hit with `0 < t < t_max` (shadow rays; stops at the first hit).
     #[must_use]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        if !ray.o.is_finite()
-            || !ray.d.is_finite()
-            || ray.d == Vec3::ZERO
-            || t_max.is_nan()
-            || t_max <= 0.0
-        {
+        if !valid_query(ray, t_max) {
             return false;
         }
         if self.analytic.iter().any(|a| match *a {
@@ -278,7 +299,7 @@ impl SceneGeometry {
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, t_max, |slot, t| {
-                if sr.intersect(&self.tris[slot as usize], t).is_some() {
+                if sr.intersect(&self.triangle(slot as usize), t).is_some() {
                     found = true;
                     0.0
                 } else {
@@ -287,6 +308,22 @@ impl SceneGeometry {
             });
         }
         found
+    }
+
+    /// The triangle at BVH position `slot`, transposed for the triangle test.
+    #[inline(always)]
+    fn triangle(&self, slot: usize) -> TriangleSoa {
+        let [a, b, c] = self.tris[slot];
+        TriangleSoa::from_vertices(
+            self.verts[a as usize],
+            self.verts[b as usize],
+            self.verts[c as usize],
+        )
+    }
+
+    /// The corners of the triangle at BVH position `slot`.
+    fn corners(&self, slot: usize) -> [Vec3; 3] {
+        self.tris[slot].map(|i| self.verts[i as usize].truncate())
     }
 
     /// True when the segment `(0, t_max)` of `ray` provably hits no triangle: it is short
@@ -357,8 +394,9 @@ impl SceneGeometry {
             },
             Best::Tri(slot, h) => {
                 let p = &self.prims[slot];
-                let pos = p.a * h.b0 + p.b * h.b1 + p.c * h.b2;
-                let ng = (p.b - p.a).cross(p.c - p.a).normalize_or(-ray.d);
+                let [a, b, c] = self.corners(slot);
+                let pos = a * h.b0 + b * h.b1 + c * h.b2;
+                let ng = (b - a).cross(c - a).normalize_or(-ray.d);
                 let mut ns = ng;
                 let mut uv = Vec2::new(h.b1, h.b2);
                 if let Some(Shape::Mesh(m)) = self.shapes.get(p.shape as usize) {
@@ -374,7 +412,7 @@ impl SceneGeometry {
                 }
                 // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
                 let p_error = crate::math::gamma(7)
-                    * (p.a.abs() * h.b0.abs() + p.b.abs() * h.b1.abs() + p.c.abs() * h.b2.abs())
+                    * (a.abs() * h.b0.abs() + b.abs() * h.b1.abs() + c.abs() * h.b2.abs())
                         .max_element();
                 Hit {
                     t: h.t,
@@ -439,6 +477,12 @@ impl SceneGeometry {
     }
 }
 
+/// A query the hierarchy answers: finite origin and direction, a nonzero direction, and
+/// `t_max > 0` (other queries hit nothing).
+fn valid_query(ray: &Ray, t_max: f32) -> bool {
+    ray.o.is_finite() && ray.d.is_finite() && ray.d != Vec3::ZERO && !t_max.is_nan() && t_max > 0.0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -458,13 +502,30 @@ mod tests {
         })
     }
 
+    /// Each BVH position's triangle read from its mesh's own vertex and index arrays and
+    /// transposed by [`TriangleSoa::new`] (the layout before the compact one), so that the
+    /// brute force below does not share the compact layout's indexing or transposition.
+    fn triangles_from_meshes(geometry: &SceneGeometry) -> Vec<TriangleSoa> {
+        geometry
+            .prims
+            .iter()
+            .map(|p| match geometry.shapes.get(p.shape as usize) {
+                Some(Shape::Mesh(m)) => {
+                    let [a, b, c] = m.indices[p.prim as usize].map(|i| m.positions[i as usize]);
+                    TriangleSoa::new(a, b, c)
+                }
+                _ => panic!("position of a non-mesh shape"),
+            })
+            .collect()
+    }
+
     /// Closest hit by brute force over every triangle (the first of equal distances in BVH
     /// order): (t, triangle position, barycentrics) as bits.
-    fn brute_force_hit(geometry: &SceneGeometry, ray: &Ray, t_max: f32) -> Option<[u32; 5]> {
+    fn brute_force_hit(triangles: &[TriangleSoa], ray: &Ray, t_max: f32) -> Option<[u32; 5]> {
         let sr = ShearedRay::new(ray);
         let mut best = None;
         let mut t = t_max;
-        for (slot, tri) in geometry.tris.iter().enumerate() {
+        for (slot, tri) in triangles.iter().enumerate() {
             if let Some(h) = sr.intersect(tri, t) {
                 best = Some((slot as u32, h));
                 t = h.t;
@@ -486,7 +547,7 @@ mod tests {
         let sr = ShearedRay::new(ray);
         let mut best = None;
         geometry.bvh.traverse(ray, t_max, |slot, t| {
-            match sr.intersect(&geometry.tris[slot as usize], t) {
+            match sr.intersect(&geometry.triangle(slot as usize), t) {
                 Some(h) => {
                     best = Some((slot, h));
                     h.t
@@ -566,7 +627,7 @@ mod tests {
                 let sr = ShearedRay::new(&ray);
                 g.bvh.traverse(&ray, t_max, |slot, t| {
                     calls_after_hit += usize::from(found);
-                    if sr.intersect(&g.tris[slot as usize], t).is_some() {
+                    if sr.intersect(&g.triangle(slot as usize), t).is_some() {
                         found = true;
                         0.0
                     } else {
@@ -585,11 +646,12 @@ mod tests {
     #[test]
     fn traversal_hits_are_those_of_brute_force_bit_for_bit() {
         let geometry = skin_icosphere();
+        let triangles = triangles_from_meshes(&geometry);
         let mut rng = Rng::new(35, 2);
         let mut hits = 0;
         for i in 0..20_000 {
             let (ray, t_max) = icosphere_ray(&mut rng, i);
-            let expected = brute_force_hit(&geometry, &ray, t_max);
+            let expected = brute_force_hit(&triangles, &ray, t_max);
             assert_eq!(traversal_hit(&geometry, &ray, t_max), expected, "ray {i}");
             hits += usize::from(expected.is_some());
         }

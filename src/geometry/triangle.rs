@@ -34,6 +34,45 @@ impl TriangleSoa {
             v: [lane(0), lane(1), lane(2)],
         }
     }
+
+    /// The same triangle from three vertices stored as `(x, y, z, _)` (the compact layout:
+    /// shared vertices and indices), transposed in registers. Lanes 0–2 hold exactly the
+    /// values [`TriangleSoa::new`] stores, so the test gives bit-identical hits; lane 3 is
+    /// never read by [`ShearedRay::intersect`].
+    #[inline(always)]
+    pub(crate) fn from_vertices(a: Vec4, b: Vec4, c: Vec4) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{
+                __m128, _mm_movehl_ps, _mm_movelh_ps, _mm_unpackhi_ps, _mm_unpacklo_ps,
+            };
+            let (a, b, c) = (__m128::from(a), __m128::from(b), __m128::from(c));
+            // SAFETY: SSE is part of the x86-64 baseline; these are register shuffles.
+            unsafe {
+                let ab_lo = _mm_unpacklo_ps(a, b); // ax bx ay by
+                let ab_hi = _mm_unpackhi_ps(a, b); // az bz aw bw
+                let ca_lo = _mm_unpacklo_ps(c, a); // cx ax cy ay
+                let ca_hi = _mm_unpackhi_ps(c, a); // cz az cw aw
+                TriangleSoa {
+                    v: [
+                        Vec4::from(_mm_movelh_ps(ab_lo, ca_lo)), // ax bx cx ax
+                        Vec4::from(_mm_movehl_ps(ca_lo, ab_lo)), // ay by cy ay
+                        Vec4::from(_mm_movelh_ps(ab_hi, ca_hi)), // az bz cz az
+                    ],
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            TriangleSoa {
+                v: [
+                    Vec4::new(a.x, b.x, c.x, a.x),
+                    Vec4::new(a.y, b.y, c.y, a.y),
+                    Vec4::new(a.z, b.z, c.z, a.z),
+                ],
+            }
+        }
+    }
 }
 
 /// Per-ray constants of the watertight test: the dominant axis `kz`, the two others in an
