@@ -15,6 +15,12 @@ use velour::film::Film;
 /// An optically thin fBm cloud (σ_t ≤ 2 per unit, albedo 0.9, HG g = 0.6) in an index-matched
 /// sphere with NEE at every vertex, under a dim constant sky and a bright sun.
 fn scene(sun_lean: bool, spp: u32, seed: u64) -> String {
+    cloud(sun_lean, 0.5, spp, seed)
+}
+
+/// The same cloud with `attenuation` (1 / σ_t at density 1): 0.5 is the thin cloud, 0.025 a
+/// dense one (σ_t ≤ 40 per unit, as the dense peer cloud).
+fn cloud(sun_lean: bool, attenuation: f32, spp: u32, seed: u64) -> String {
     format!(
         r#"
 [camera]
@@ -38,7 +44,7 @@ irradiance = [5.0, 4.6, 4.1]
 name = "cloud"
 shape = "sphere"
 radius = 0.9
-interior = {{ type = "fbm", voxel_size = 0.05, noise = {{ frequency = 1.5, octaves = 3, seed = 4 }}, albedo = 0.9, albedo_mode = "single", attenuation = 0.5, phase = {{ g = 0.6 }}, nee = "interior", tracking = {{ sun_lean = {sun_lean} }} }}
+interior = {{ type = "fbm", voxel_size = 0.05, noise = {{ frequency = 1.5, octaves = 3, seed = 4 }}, albedo = 0.9, albedo_mode = "single", attenuation = {attenuation}, phase = {{ g = 0.6 }}, nee = "interior", tracking = {{ sun_lean = {sun_lean} }} }}
 "#
     )
 }
@@ -69,4 +75,18 @@ fn the_sun_leaned_estimate_renders_the_same_image_with_less_variance() {
     let (vl, vp) = (total_variance(&lean), total_variance(&plain));
     eprintln!("variance of the pixel means: lean {vl:.4e}, plain {vp:.4e}");
     assert!(vl < 0.8 * vp, "no less variance: {vl:.4e} against {vp:.4e}");
+}
+
+/// In a dense cloud most vertices lie where the sun is hidden: there the lean is played only
+/// with a probability below 1 (from the vertex's own sun shadow-ray estimate) and its estimate
+/// is divided by it, and the balance weights use that probability times the lobe's pdf. Same
+/// image as without the lean (per pixel and in the means).
+#[test]
+fn the_lean_played_by_chance_in_a_dense_cloud_renders_the_same_image() {
+    let dir = TempDir::new("sun_lean_dense");
+    let lean = render(&dir, &cloud(true, 0.025, 256, 3));
+    let plain = render(&dir, &cloud(false, 0.025, 256, 4));
+    assert_images_agree(&lean, &plain);
+    let (vl, vp) = (total_variance(&lean), total_variance(&plain));
+    eprintln!("dense: variance of the pixel means: lean {vl:.4e}, plain {vp:.4e}");
 }

@@ -158,9 +158,48 @@ pub(super) fn estimate_direct(
     stats: &mut TraceStats,
     chosen: &mut Option<usize>,
 ) -> Rgb {
+    let mut tr = None;
+    estimate_direct_seen(
+        scene,
+        p,
+        shadow_origin,
+        eval,
+        mode,
+        cone,
+        sampler,
+        stats,
+        chosen,
+        None,
+        &mut tr,
+    )
+}
+
+/// [`estimate_direct`] that also reports the shadow ray's transmittance estimate (its largest
+/// channel) in `seen` when a shadow ray was traced (`None` otherwise). With `only` = `Some(li)`
+/// light `li` is taken with probability 1 instead of being drawn from the scene's NEE
+/// distribution: an estimate of that light's part alone.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn estimate_direct_seen(
+    scene: &Scene,
+    p: Vec3,
+    shadow_origin: impl Fn(Vec3) -> (Vec3, InteriorStack),
+    eval: impl Fn(Vec3) -> (Rgb, f32),
+    mode: ShadowMode,
+    cone: RayFootprint,
+    sampler: &mut PixelSampler,
+    stats: &mut TraceStats,
+    chosen: &mut Option<usize>,
+    only: Option<usize>,
+    seen: &mut Option<f32>,
+) -> Rgb {
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
-    let Some((li, p_sel)) = scene.nee_light_sampler.sample(u_light) else {
+    let picked = match only {
+        Some(li) if li < scene.lights.len() => Some((li, 1.0)),
+        Some(_) => None,
+        None => scene.nee_light_sampler.sample(u_light),
+    };
+    let Some((li, p_sel)) = picked else {
         return Rgb::ZERO;
     };
     *chosen = Some(li);
@@ -198,6 +237,7 @@ pub(super) fn estimate_direct(
         sampler,
         stats,
     );
+    *seen = Some(tr.max_component());
     if tr.is_black() {
         return Rgb::ZERO;
     }
@@ -285,6 +325,15 @@ pub(super) fn emitted(
     }
 }
 
+/// The lean's play probability per unit of the vertex's sun transmittance estimate
+/// ([`SunLean::play_probability`]): chosen on the dense peer cloud (docs/BENCHMARKS.md, "The
+/// sun lean played by chance").
+const LEAN_PLAY_PER_TRANSMITTANCE: f32 = 5.0;
+
+/// The lean's smallest play probability ([`SunLean::play_probability`]): where the vertex's
+/// own sun shadow ray came back black (mostly ended by its Russian roulette).
+const LEAN_PLAY_FLOOR: f32 = 0.3;
+
 /// The sun-leaned estimate of second-vertex sun light (`sun_lean` in a medium's `tracking`
 /// table). In an optically thin, forward-scattering medium under a sun, most of the image's
 /// noise is the sun's NEE at the vertex *after* a medium vertex: it is large only where the
@@ -297,7 +346,10 @@ pub(super) fn emitted(
 /// between the vertices (Veach 1997, §9.2): weight q/(q + p) for the leaned ray, p/(p + q)
 /// for the main path's sun NEE at its next vertex when reached in the same interior, where p
 /// is the phase pdf and q the leaned lobe's. Unbiased; it costs one extra free flight per
-/// medium vertex and a shadow ray where that flight collides.
+/// medium vertex and a shadow ray where that flight collides. The lean is played only with a
+/// probability P ([`SunLean::play_probability`]) and its estimate divided by P; q is then
+/// replaced by P·q in both weights. The NEE at the leaned collision takes the sun with
+/// probability 1 (it estimates the sun's part alone).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct SunLean {
     /// Unit direction from the scene towards the light.
@@ -320,12 +372,13 @@ impl SunLean {
         }
     }
 
-    /// Balance weight p/(p + q) of the main path's direction `wi` (sampled from `phase` at a
-    /// vertex with outgoing direction `wo`).
+    /// Balance weight p/(p + P·q) of the main path's direction `wi` (sampled from `phase` at
+    /// a vertex with outgoing direction `wo`), where the lean was played with probability
+    /// `play` = P.
     #[inline]
-    pub(super) fn main_weight(&self, phase: &PhaseFunction, wo: Vec3, wi: Vec3) -> f32 {
+    pub(super) fn main_weight(&self, phase: &PhaseFunction, wo: Vec3, wi: Vec3, play: f32) -> f32 {
         let p = phase.pdf(wo, wi);
-        let q = phase.pdf(-self.to_light, wi);
+        let q = play * phase.pdf(-self.to_light, wi);
         if p + q > 0.0 {
             p / (p + q)
         } else {
@@ -333,18 +386,40 @@ impl SunLean {
         }
     }
 
-    /// Draws the leaned direction at a vertex with outgoing direction `wo`: returns
-    /// (direction, phase value / q, balance weight q/(p + q)), or `None` for a zero pdf.
+    /// Draws the leaned direction at a vertex with outgoing direction `wo`, the lean played
+    /// with probability `play` = P: returns (direction, phase value / q, balance weight
+    /// P·q/(p + P·q)), or `None` for a zero pdf (the caller divides by P).
     pub(super) fn sample(
         &self,
         phase: &PhaseFunction,
         wo: Vec3,
+        play: f32,
         sampler: &mut PixelSampler,
     ) -> Option<(Vec3, f32, f32)> {
         let wi = phase.sample(-self.to_light, sampler.next_2d()).wi;
         let q = phase.pdf(-self.to_light, wi);
         let p = phase.pdf(wo, wi);
         let value = phase.eval(wo, wi);
-        (q > 0.0 && q.is_finite()).then_some((wi, value / q, q / (p + q)))
+        (q > 0.0 && q.is_finite()).then_some((wi, value / q, play * q / (p + play * q)))
+    }
+
+    /// The probability with which the lean is played at a vertex whose own sun NEE estimated
+    /// the transmittance to the sun as `seen` (its largest channel; `None` when that NEE
+    /// picked another light): `LEAN_PLAY_PER_TRANSMITTANCE · seen` clamped to
+    /// [`LEAN_PLAY_FLOOR`, 1], and 1 for `None`. Where the sun is hidden from the vertex it
+    /// is mostly hidden from the leaned collision a mean free path away as well, and the lean
+    /// pays little for its flight and shadow ray. The played estimate is divided by this
+    /// probability, and the balance heuristic weighs the lean's pdf by it (the expected number
+    /// of leaned samples), at the vertex and at the path's next vertex alike: unbiased for any
+    /// probability in (0, 1] that does not depend on the two directions.
+    #[inline]
+    pub(super) fn play_probability(seen: Option<f32>) -> f32 {
+        match seen {
+            Some(t) if t * LEAN_PLAY_PER_TRANSMITTANCE >= LEAN_PLAY_FLOOR => {
+                (t * LEAN_PLAY_PER_TRANSMITTANCE).min(1.0)
+            }
+            Some(_) => LEAN_PLAY_FLOOR,
+            None => 1.0,
+        }
     }
 }

@@ -18,7 +18,7 @@ pub mod manifold;
 
 pub use interiors::{InteriorStack, MAX_NESTING};
 
-use direct::{emitted, estimate_direct, PrevVertex, ShadowMode, SunLean};
+use direct::{emitted, estimate_direct, estimate_direct_seen, PrevVertex, ShadowMode, SunLean};
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
@@ -472,10 +472,11 @@ impl PathState {
             None
         };
         let lean_weight = self.lean_weight.take();
+        let mut seen = None;
         if interior_nee {
             let st = self.stack;
             let mut li = None;
-            let c = estimate_direct(
+            let c = estimate_direct_seen(
                 scene,
                 p,
                 |_| (p, st),
@@ -485,17 +486,24 @@ impl PathState {
                 sampler,
                 stats,
                 &mut li,
+                None,
+                &mut seen,
             );
+            if lean.is_none_or(|l| li != Some(l.light)) {
+                seen = None;
+            }
             let c = match lean_weight {
                 Some((w, light)) if li == Some(light) => c * w,
                 _ => c,
             };
             self.add_light(scene, li, self.beta * c);
         }
+        // The lean is played by chance where the vertex's own sun NEE saw little of the sun.
+        let play = SunLean::play_probability(seen);
         if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
-            if self.depth + 1 < scene.film.max_depth {
-                let c = self.lean_estimate(scene, medium, &l, hg, *wo, p, sampler, stats);
-                self.add_light(scene, Some(l.light), c);
+            if self.depth + 1 < scene.film.max_depth && (play >= 1.0 || sampler.next_1d() < play) {
+                let c = self.lean_estimate(scene, medium, &l, hg, *wo, p, play, sampler, stats);
+                self.add_light(scene, Some(l.light), c / play);
             }
         }
         self.guided_from = None;
@@ -525,7 +533,7 @@ impl PathState {
         };
         self.beta *= s.weight;
         if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
-            self.lean_weight = Some((l.main_weight(hg, *wo, s.wi), l.light));
+            self.lean_weight = Some((l.main_weight(hg, *wo, s.wi, play), l.light));
         }
         self.prev = PrevVertex {
             p,
@@ -540,7 +548,8 @@ impl PathState {
     /// The sun-leaned estimate of the sun's light scattered at the *next* vertex
     /// ([`direct::SunLean`]): a direction from the lobe centred on the sun, a free flight
     /// along it up to the interior's next boundary, and where it collides the sun's NEE there,
-    /// balance-weighted against the main path's own sun NEE at its next vertex. Returns the
+    /// balance-weighted against the main path's own sun NEE at its next vertex, for a lean played
+    /// with probability `play` (the caller divides by it). Returns the
     /// contribution with the path throughput included.
     #[allow(clippy::too_many_arguments)]
     fn lean_estimate(
@@ -551,10 +560,11 @@ impl PathState {
         hg: &crate::phase::PhaseFunction,
         wo: Vec3,
         p: Vec3,
+        play: f32,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
     ) -> Rgb {
-        let Some((d, f_over_q, w)) = lean.sample(hg, wo, sampler) else {
+        let Some((d, f_over_q, w)) = lean.sample(hg, wo, play, sampler) else {
             return Rgb::ZERO;
         };
         let ray = Ray::new(p, d);
@@ -583,7 +593,7 @@ impl PathState {
         let st = self.stack;
         let p2 = v2.p;
         let mut li = None;
-        let c = estimate_direct(
+        let c = estimate_direct_seen(
             scene,
             p2,
             |_| (p2, st),
@@ -593,6 +603,8 @@ impl PathState {
             sampler,
             stats,
             &mut li,
+            Some(lean.light),
+            &mut None,
         );
         if li == Some(lean.light) {
             beta * c

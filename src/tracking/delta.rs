@@ -178,7 +178,7 @@ where
             let sigma_t = coeff.sigma_t_at(seg.max);
             let sigma_hero = sigma_t[hero];
             let t_local = if sigma_hero > 0.0 {
-                -(-u()).ln_1p() / sigma_hero
+                -(1.0 - u()).ln() / sigma_hero
             } else {
                 f32::INFINITY
             };
@@ -214,7 +214,7 @@ where
         // of the absolute distance (far from the origin).
         let mut local = 0.0f32;
         loop {
-            local += -(-u()).ln_1p() / majorant;
+            local += -(1.0 - u()).ln() / majorant;
             if local >= len {
                 break;
             }

@@ -33,7 +33,7 @@ impl HomogeneousFlight {
         let channel = pick_channel(p, u_channel);
         let st = sigma_t[channel];
         let t = if st > 0.0 {
-            -(-u_distance).ln_1p() / st
+            -(1.0 - u_distance).ln() / st
         } else {
             f32::INFINITY
         };

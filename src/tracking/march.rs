@@ -24,7 +24,7 @@ where
 {
     let probs = hero_probabilities(beta, coeff);
     let hero = pick_channel(probs, u());
-    let target = -(-u()).ln_1p();
+    let target = -(1.0 - u()).ln();
     let mut tau = Rgb::ZERO; // optical depth per channel
     let offset = u();
     for seg in segments {

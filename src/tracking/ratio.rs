@@ -120,7 +120,7 @@ where
                     if majorant > 0.0 && majorant.is_finite() {
                         let mut local = 0.0f32;
                         loop {
-                            local += -(-u()).ln_1p() / majorant;
+                            local += -(1.0 - u()).ln() / majorant;
                             if local >= len {
                                 break;
                             }

@@ -138,7 +138,7 @@ where
         }
         let mut t = seg.t0;
         loop {
-            t += -(-u()).ln_1p() / majorant;
+            t += -(1.0 - u()).ln() / majorant;
             if !(t < seg.t1) {
                 break;
             }
@@ -214,7 +214,7 @@ where
         }
         let mut t = seg.t0;
         loop {
-            t += -(-u()).ln_1p() / majorant;
+            t += -(1.0 - u()).ln() / majorant;
             if !(t < seg.t1) {
                 break;
             }
