@@ -451,14 +451,18 @@ fn wrap_fast(x: f32) -> f32 {
 fn exp_neg(x: f32) -> f32 {
     const MAGIC: f32 = 12_582_912.0;
     let x = x.max(-87.0);
-    let n = (x * std::f32::consts::LOG2_E + MAGIC) - MAGIC;
+    // n = round(x / ln 2), as a float and (from the rounded sum's low mantissa bits) as an
+    // integer: no float-to-integer conversion, which would not vectorise.
+    let t = x * std::f32::consts::LOG2_E + MAGIC;
+    let n = t - MAGIC;
+    let ni = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
     let r = x - n * 0.693_359_4 - n * -2.121_944_4e-4;
     let p = ((((1.987_569_1e-4 * r + 1.398_199_9e-3) * r + 8.333_452e-3) * r + 4.166_579_6e-2) * r
         + 0.166_666_65)
         * r
         + 0.5;
     let y = p * r * r + r + 1.0;
-    y * f32::from_bits(((n as i32 + 127) << 23) as u32)
+    y * f32::from_bits((ni.wrapping_add(127) << 23) as u32)
 }
 
 /// The logistic density at `x` without its `1/s` factor: `e/(1 + e)²` with `e = exp(−|x|/s)`,
@@ -512,9 +516,13 @@ fn fresnel_entering(cos_i: f32, eta: f32) -> f32 {
 #[inline(always)]
 fn azimuthal_sums(t: &LobeTable, batches: usize, dphi: f32, neg_inv_s: f32) -> [[f32; 4]; 3] {
     let lanes = |x: &[f32; CACHED_NODES], batch: usize| -> [f32; LANES] {
-        std::array::from_fn(|j| x[(batch * LANES + j) % CACHED_NODES])
+        let start = (batch * LANES).min(CACHED_NODES - LANES);
+        let mut v = [0.0f32; LANES];
+        v.copy_from_slice(&x[start..start + LANES]);
+        v
     };
-    std::array::from_fn(|p| {
+    let mut out = [[0.0f32; 4]; 3];
+    for (p, o) in out.iter_mut().enumerate() {
         let (mut r, mut g, mut b, mut w) =
             ([0.0f32; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
         for batch in 0..batches {
@@ -535,8 +543,9 @@ fn azimuthal_sums(t: &LobeTable, batches: usize, dphi: f32, neg_inv_s: f32) -> [
             }
         }
         let sum = |x: [f32; LANES]| x.iter().sum::<f32>();
-        [sum(r), sum(g), sum(b), sum(w)]
-    })
+        *o = [sum(r), sum(g), sum(b), sum(w)];
+    }
+    out
 }
 
 /// [`azimuthal_sums`] compiled for AVX2 (eight lanes at once; no FMA contraction, so the
