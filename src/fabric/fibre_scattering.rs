@@ -342,6 +342,12 @@ pub struct FibrePhase {
     inv_logistic_norm: f32,
     /// `(h, γ_o = asin h, cos γ_o)` per quadrature node.
     nodes: Vec<(f32, f32, f32)>,
+    /// Whether [`FibrePhase::eval_pdf_prepared`] sums the azimuthal lobes with AVX2.
+    avx2: bool,
+    /// `h_k` and `cos γ_o(h_k)` of the first [`CACHED_NODES`] nodes (0 past the count), for the
+    /// batched terms of [`FibrePhase::prepare`].
+    node_h: [f32; CACHED_NODES],
+    node_cos_go: [f32; CACHED_NODES],
 }
 
 /// Per-`h` lobe data for one `wo`.
@@ -365,20 +371,45 @@ struct NodeTerms {
     total: f32,
 }
 
-impl NodeTerms {
-    const ZERO: NodeTerms = NodeTerms {
-        a: [Rgb::ZERO; 4],
-        w: [0.0; 4],
-        phi: [0.0; 3],
-        total: 0.0,
+/// The per-vertex terms of the cached unique nodes, laid out by lobe (structure of arrays) for
+/// the batched azimuthal sum of [`FibrePhase::eval_pdf_prepared`]. Entries past the unique node
+/// count are zero (they add nothing).
+#[derive(Clone, Debug)]
+struct LobeTable {
+    /// `Φ(p, h_k)` for the azimuthal lobes `p = 0, 1, 2`.
+    phi: [[f32; CACHED_NODES]; 3],
+    /// `A_p(h_k)` by lobe and channel.
+    a: [[[f32; CACHED_NODES]; 3]; 3],
+    /// The lobe's share of the node's sampling weight, `w_p(h_k) / total_k` (0 for a node whose
+    /// lobes are all black).
+    share: [[f32; CACHED_NODES]; 3],
+    /// 1 where the node's mirrored twin `−h_k` is a node too, 0 for the unpaired middle node of
+    /// an odd count.
+    mirror: [f32; CACHED_NODES],
+    /// `A_3(h_k)` (the residual lobe) by channel.
+    a3: [[f32; CACHED_NODES]; 3],
+    /// `γ_t(h_k)`, the refracted offset angle (the sampler rebuilds `Φ` of a mirrored node
+    /// from it).
+    gamma_t: [f32; CACHED_NODES],
+}
+
+impl LobeTable {
+    const ZERO: LobeTable = LobeTable {
+        phi: [[0.0; CACHED_NODES]; 3],
+        a: [[[0.0; CACHED_NODES]; 3]; 3],
+        share: [[0.0; CACHED_NODES]; 3],
+        mirror: [0.0; CACHED_NODES],
+        a3: [[0.0; CACHED_NODES]; 3],
+        gamma_t: [0.0; CACHED_NODES],
     };
 }
 
 /// A [`FibrePhase`] with its outgoing direction and tangent fixed (one scattering vertex):
 /// the tangent frame, the angles of `wo` and the per-node lobe terms are computed once and
 /// shared by every evaluation and the sample at that vertex (next event estimation evaluates
-/// the light direction, sampling evaluates the sampled one). Evaluations through it are
-/// bit-identical to [`FibrePhase::eval`] and [`FibrePhase::pdf`]. No heap allocation.
+/// the light direction, sampling evaluates the sampled one). The terms that do not depend on
+/// `wi` (the residual lobe, isotropic in azimuth, and the diffuse lobe's share of the pdf) are
+/// summed over the nodes here, once. No heap allocation.
 #[derive(Clone, Debug)]
 pub struct PreparedFibre {
     /// `None` for a zero or non-finite tangent (value and pdf 0, no sample).
@@ -390,8 +421,161 @@ pub struct PreparedFibre {
     /// The fibre absorption the terms were computed with (offsets beyond the cached ones
     /// are computed per evaluation with it).
     sigma_a: Rgb,
+    /// Σ over the nodes (mirrored twins included) of `A_3(h_k) / 2π`: the residual lobe's value
+    /// is this × `M_3`.
+    residual_value: Rgb,
+    /// Σ over the nodes of `w_3(h_k) / total_k / 2π`: the residual lobe's pdf is this × `M_3`.
+    residual_pdf: f32,
+    /// Σ over the nodes of `w_d / total_k`: the diffuse lobe's pdf is this × its density.
+    diffuse_pdf: f32,
     /// Terms of the first `min(unique nodes, CACHED_NODES)` unique nodes.
-    terms: [NodeTerms; CACHED_NODES],
+    table: LobeTable,
+}
+
+/// Lanes of the batched azimuthal sum (the node arrays are a multiple of it long).
+const LANES: usize = 8;
+
+/// `x` wrapped into `[−π, π]` (to rounding) without a loop: `x − 2π·round(x / 2π)`, the
+/// rounding by the float magic number (exact for `|x / 2π| < 2²²`).
+#[inline(always)]
+fn wrap_fast(x: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0; // 1.5 · 2²³
+    let n = (x * INV_2PI + MAGIC) - MAGIC;
+    x - n * (2.0 * PI)
+}
+
+/// `eˣ` for `x ≤ 0` (inputs below −87 are clamped there), branch-free so that a loop of it
+/// vectorises: Cody and Waite's range reduction by `ln 2` and Cephes' degree-6 polynomial
+/// (`expf`, Moshier 1992), within 2 ulp of the library's `expf` (unit test).
+#[inline(always)]
+fn exp_neg(x: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0;
+    let x = x.max(-87.0);
+    // n = round(x / ln 2), as a float and (from the rounded sum's low mantissa bits) as an
+    // integer: no float-to-integer conversion, which would not vectorise.
+    let t = x * std::f32::consts::LOG2_E + MAGIC;
+    let n = t - MAGIC;
+    let ni = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
+    let r = x - n * 0.693_359_4 - n * -2.121_944_4e-4;
+    let p = ((((1.987_569_1e-4 * r + 1.398_199_9e-3) * r + 8.333_452e-3) * r + 4.166_579_6e-2) * r
+        + 0.166_666_65)
+        * r
+        + 0.5;
+    let y = p * r * r + r + 1.0;
+    y * f32::from_bits((ni.wrapping_add(127) << 23) as u32)
+}
+
+/// The logistic density at `x` without its `1/s` factor: `e/(1 + e)²` with `e = exp(−|x|/s)`,
+/// given `neg_inv_s = −1/s`.
+#[inline(always)]
+fn logistic_unscaled(x: f32, neg_inv_s: f32) -> f32 {
+    let e = exp_neg(x.abs() * neg_inv_s);
+    let d = 1.0 + e;
+    e / (d * d)
+}
+
+/// `asin x` for `x ∈ [−1, 1]`, branch-free so that a loop of it vectorises: Cephes' `asinf`
+/// (Moshier 1992; the half-angle identity above |x| = ½), within 3 ulp of the library's
+/// `asinf` (unit test). Odd exactly.
+#[inline(always)]
+fn asin_fast(x: f32) -> f32 {
+    let a = x.abs();
+    let big = a > 0.5;
+    let zb = 0.5 * (1.0 - a);
+    let z = if big { zb } else { a * a };
+    let r = if big { zb.sqrt() } else { a };
+    let p = ((((4.216_32e-2 * z + 2.418_131_1e-2) * z + 4.547_002_6e-2) * z + 7.495_300_3e-2) * z
+        + 0.166_667_52)
+        * z
+        * r
+        + r;
+    let y = if big {
+        std::f32::consts::FRAC_PI_2 - (p + p)
+    } else {
+        p
+    };
+    y.copysign(x)
+}
+
+/// Unpolarised Fresnel reflectance for `cos_i ∈ [0, 1]` and `eta ≥ 1` (no total internal
+/// reflection): [`fresnel_dielectric`]'s arithmetic on that branch, branch-free.
+#[inline(always)]
+fn fresnel_entering(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.clamp(-1.0, 1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    let r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_par * r_par + r_perp * r_perp)
+}
+
+/// For the three azimuthal lobes, the sums over the cached nodes (and their mirrored twins)
+/// of `A_p(h_k)·L` per channel and of the lobe's sampling share × `L`, where `L` is the
+/// unscaled logistic ([`logistic_unscaled`]) at `dphi − Φ(p, ±h_k)`. Nodes in batches of
+/// [`LANES`] with one accumulator per lane, summed in a fixed order at the end: the same
+/// value whatever instruction set the loop is compiled for.
+#[inline(always)]
+fn azimuthal_sums(t: &LobeTable, batches: usize, dphi: f32, neg_inv_s: f32) -> [[f32; 4]; 3] {
+    let lanes = |x: &[f32; CACHED_NODES], batch: usize| -> [f32; LANES] {
+        let start = (batch * LANES).min(CACHED_NODES - LANES);
+        let mut v = [0.0f32; LANES];
+        v.copy_from_slice(&x[start..start + LANES]);
+        v
+    };
+    let mut out = [[0.0f32; 4]; 3];
+    for (p, o) in out.iter_mut().enumerate() {
+        let (mut r, mut g, mut b, mut w) =
+            ([0.0f32; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for batch in 0..batches {
+            let (phi, mirror) = (lanes(&t.phi[p], batch), lanes(&t.mirror, batch));
+            let (ar, ag, ab) = (
+                lanes(&t.a[p][0], batch),
+                lanes(&t.a[p][1], batch),
+                lanes(&t.a[p][2], batch),
+            );
+            let share = lanes(&t.share[p], batch);
+            for j in 0..LANES {
+                let l = logistic_unscaled(wrap_fast(dphi - phi[j]), neg_inv_s)
+                    + mirror[j] * logistic_unscaled(wrap_fast(dphi + phi[j]), neg_inv_s);
+                r[j] += ar[j] * l;
+                g[j] += ag[j] * l;
+                b[j] += ab[j] * l;
+                w[j] += share[j] * l;
+            }
+        }
+        let sum = |x: [f32; LANES]| x.iter().sum::<f32>();
+        *o = [sum(r), sum(g), sum(b), sum(w)];
+    }
+    out
+}
+
+/// [`azimuthal_sums`] compiled for AVX2 (eight lanes at once; no FMA contraction, so the
+/// same bits as the baseline build).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn azimuthal_sums_avx2(
+    t: &LobeTable,
+    batches: usize,
+    dphi: f32,
+    neg_inv_s: f32,
+) -> [[f32; 4]; 3] {
+    azimuthal_sums(t, batches, dphi, neg_inv_s)
+}
+
+/// True when the CPU runs AVX2 and `VELOUR_NO_AVX2` is not set (it forces the baseline
+/// loop, for A/B measurements in one binary; the values are the same either way).
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::env::var_os("VELOUR_NO_AVX2").is_none()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 impl FibrePhase {
@@ -449,7 +633,7 @@ impl FibrePhase {
             let h = -1.0 + (2 * k + 1) as f32 / n as f32;
             (h, h.asin(), (1.0 - h * h).max(0.0).sqrt())
         };
-        let nodes = (0..n)
+        let nodes: Vec<(f32, f32, f32)> = (0..n)
             .map(|k| {
                 if 2 * k < n {
                     node(k)
@@ -459,9 +643,14 @@ impl FibrePhase {
                 }
             })
             .collect();
+        let node_h = std::array::from_fn(|k| nodes.get(k).map_or(0.0, |n| n.0));
+        let node_cos_go = std::array::from_fn(|k| nodes.get(k).map_or(0.0, |n| n.2));
         Ok(FibrePhase {
             inv_logistic_norm: 1.0 / (logistic_cdf(PI, s) - logistic_cdf(-PI, s)),
             nodes,
+            avx2: has_avx2(),
+            node_h,
+            node_cos_go,
             s,
             v: [v0, 0.25 * v0, 4.0 * v0, 4.0 * v0],
             params,
@@ -571,6 +760,43 @@ impl FibrePhase {
         }
     }
 
+    /// The attenuations `A_p(h_k)` (mixed, inactive lobes zeroed) and `γ_t(h_k)` of the first
+    /// `unique` nodes for the outgoing angles `o`: [`FibrePhase::node`]'s arithmetic in one
+    /// branch-free loop over the nodes, with [`asin_fast`] and [`exp_neg`] for `asin` and `exp`.
+    fn fill_lobes(&self, table: &mut LobeTable, unique: usize, o: &Angles, sigma_a: Rgb) {
+        let eta = self.params.eta;
+        let sin_o = o.sin_t;
+        let cos_o = o.cos_t.max(1e-4);
+        let sin_t = sin_o / eta;
+        let cos_t = (1.0 - sin_t * sin_t).max(1e-8).sqrt();
+        let etap = (eta * eta - sin_o * sin_o).max(0.0).sqrt() / cos_o;
+        let mix = 1.0 - self.params.diffuse_weight;
+        let on: [f32; 4] = std::array::from_fn(|p| if self.params.lobes.on(p) { mix } else { 0.0 });
+        let unique = unique.min(CACHED_NODES);
+        for k in 0..unique {
+            let sin_gt = (self.node_h[k] / etap).clamp(-1.0, 1.0);
+            let cos_gt = (1.0 - sin_gt * sin_gt).max(0.0).sqrt();
+            table.gamma_t[k] = asin_fast(sin_gt);
+            let f = fresnel_entering(cos_o * self.node_cos_go[k], eta);
+            let x = -2.0 * cos_gt / cos_t;
+            for c in 0..3 {
+                let trans = exp_neg(sigma_a[c] * x);
+                let a1 = trans * (1.0 - f) * (1.0 - f);
+                let a2 = a1 * trans * f;
+                let denom = 1.0 - trans * f;
+                let a3 = if denom != 0.0 {
+                    a2 * trans * f / denom
+                } else {
+                    0.0
+                };
+                table.a[0][c][k] = f * on[0];
+                table.a[1][c][k] = a1 * on[1];
+                table.a[2][c][k] = a2 * on[2];
+                table.a3[c][k] = a3 * on[3];
+            }
+        }
+    }
+
     /// Fixes `wo` and the tangent of one scattering vertex; see [`PreparedFibre`].
     #[must_use]
     pub fn prepare(&self, wo: Vec3, tangent: Vec3) -> PreparedFibre {
@@ -599,21 +825,56 @@ impl FibrePhase {
             },
             ad,
             wd,
-            terms: [NodeTerms::ZERO; CACHED_NODES],
+            residual_value: Rgb::ZERO,
+            residual_pdf: 0.0,
+            diffuse_pdf: 0.0,
+            table: LobeTable::ZERO,
         };
         if let Some(frame) = &prepared.frame {
             let o = angles(frame, wo);
             prepared.o = o;
-            let unique = self.nodes.len().div_ceil(2).min(CACHED_NODES);
-            for (k, t) in prepared.terms[..unique].iter_mut().enumerate() {
-                *t = self.terms(k, &o, wd, sigma_a);
+            let n_nodes = self.nodes.len();
+            let unique = n_nodes.div_ceil(2);
+            if unique > CACHED_NODES {
+                return prepared;
             }
+            let table = &mut prepared.table;
+            self.fill_lobes(table, unique, &o, sigma_a);
+            let (mut residual_value, mut residual_pdf, mut diffuse_pdf) = (Rgb::ZERO, 0.0, 0.0);
+            for k in 0..unique {
+                let a: [Rgb; 4] = std::array::from_fn(|p| {
+                    let ch = if p < 3 { &table.a[p] } else { &table.a3 };
+                    Rgb::new(ch[0][k], ch[1][k], ch[2][k])
+                });
+                let w: [f32; 4] = std::array::from_fn(|p| lobe_weight(a[p]));
+                let total: f32 = w.iter().sum::<f32>() + wd;
+                let count = if n_nodes - 1 - k != k { 2.0 } else { 1.0 };
+                table.mirror[k] = count - 1.0;
+                let inv_total = if total > 0.0 { 1.0 / total } else { 0.0 };
+                for p in 0..3 {
+                    table.phi[p][k] =
+                        2.0 * p as f32 * table.gamma_t[k] - 2.0 * self.nodes[k].1 + p as f32 * PI;
+                    table.share[p][k] = w[p] * inv_total;
+                }
+                residual_value += a[3] * (count * INV_2PI);
+                residual_pdf += count * w[3] * inv_total * INV_2PI;
+                diffuse_pdf += count * wd * inv_total;
+            }
+            prepared.residual_value = residual_value;
+            prepared.residual_pdf = residual_pdf;
+            prepared.diffuse_pdf = diffuse_pdf;
         }
         prepared
     }
 
-    /// Value (RGB) and pdf of `wi` at a prepared vertex (bit-identical to
+    /// Value (RGB) and pdf of `wi` at a prepared vertex (the same function as
     /// [`FibrePhase::eval`] and [`FibrePhase::pdf`] with the vertex's `wo` and tangent).
+    ///
+    /// `A_p(h) = A_p(−h)` and `Φ(p, −h) ≡ −Φ(p, h)` (mod 2π): one node's terms serve the
+    /// mirrored pair. The azimuthal lobes are summed lobe by lobe over the nodes in batches of
+    /// [`LANES`] (branch-free wrap and exponential, [`exp_neg`]), the residual and diffuse
+    /// terms come summed from [`FibrePhase::prepare`]. The sum is the quadrature of the
+    /// module docs; only the rounding differs from a node-by-node loop.
     #[must_use]
     pub fn eval_pdf_prepared(&self, prepared: &PreparedFibre, wi: Vec3) -> (Rgb, f32) {
         let Some(frame) = &prepared.frame else {
@@ -624,20 +885,52 @@ impl FibrePhase {
         let m = self.mp(o, &i);
         let dphi = i.phi - o.phi;
         let dd = Self::diffuse_density(o, &i);
-        let ad = prepared.ad;
+        let n_nodes = self.nodes.len();
+        let unique = n_nodes.div_ceil(2);
+        if unique > CACHED_NODES {
+            return self.eval_pdf_uncached(prepared, m, dphi, dd);
+        }
+        let batches = unique.div_ceil(LANES);
+        let neg_inv_s = -1.0 / self.s;
+        let sums = if self.avx2 {
+            // SAFETY: `avx2` is set only where the CPU has AVX2 (`FibrePhase::new`).
+            #[cfg(target_arch = "x86_64")]
+            unsafe {
+                azimuthal_sums_avx2(&prepared.table, batches, dphi, neg_inv_s)
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            azimuthal_sums(&prepared.table, batches, dphi, neg_inv_s)
+        } else {
+            azimuthal_sums(&prepared.table, batches, dphi, neg_inv_s)
+        };
+        let scale = self.inv_logistic_norm / self.s;
+        let mut value = prepared.residual_value * m[3];
+        let mut pdf = prepared.residual_pdf * m[3] + prepared.diffuse_pdf * dd;
+        for (p, [r, g, b, w]) in sums.into_iter().enumerate() {
+            let f = m[p] * scale;
+            value += Rgb::new(r, g, b) * f;
+            pdf += w * f;
+        }
+        let inv_n = 1.0 / n_nodes as f32;
+        (value * inv_n + prepared.ad * dd, pdf * inv_n)
+    }
+
+    /// [`FibrePhase::eval_pdf_prepared`] for more unique nodes than a [`PreparedFibre`]
+    /// keeps (`h_nodes` above 128): every node's terms computed here, node by node.
+    fn eval_pdf_uncached(
+        &self,
+        prepared: &PreparedFibre,
+        m: [f32; 4],
+        dphi: f32,
+        dd: f32,
+    ) -> (Rgb, f32) {
+        let o = &prepared.o;
+        let wd = prepared.wd;
+        let n_nodes = self.nodes.len();
         let mut value = Rgb::ZERO;
         let mut pdf = 0.0;
-        let n_nodes = self.nodes.len();
-        let wd = prepared.wd;
-        // A_p(h) = A_p(−h) and Φ(p, −h) ≡ −Φ(p, h) (mod 2π): one node evaluation serves the
-        // mirrored pair.
         for k in 0..n_nodes.div_ceil(2) {
-            let node = match prepared.terms.get(k) {
-                Some(t) => *t,
-                None => self.terms(k, o, wd, prepared.sigma_a),
-            };
-            let w = node.w;
-            let total = node.total;
+            let node = self.terms(k, o, wd, prepared.sigma_a);
             let mirrored = n_nodes - 1 - k != k;
             for sign in [1.0f32, -1.0] {
                 if sign < 0.0 && !mirrored {
@@ -653,14 +946,14 @@ impl FibrePhase {
                     };
                     let lv = m[p] * n;
                     value += node.a[p] * lv;
-                    lobe_pdf += w[p] * lv;
+                    lobe_pdf += node.w[p] * lv;
                 }
-                if total > 0.0 {
-                    pdf += lobe_pdf / total;
+                if node.total > 0.0 {
+                    pdf += lobe_pdf / node.total;
                 }
             }
         }
-        value = value * (1.0 / n_nodes as f32) + ad * dd;
+        value = value * (1.0 / n_nodes as f32) + prepared.ad * dd;
         (value, pdf / n_nodes as f32)
     }
 
@@ -703,7 +996,26 @@ impl FibrePhase {
         let n_nodes = self.nodes.len();
         let k = ((u[0] * n_nodes as f32) as usize).min(n_nodes - 1);
         let mut u0 = (u[0] * n_nodes as f32 - k as f32).clamp(0.0, 1.0);
-        let node = self.node(k, o.sin_t, o.cos_t, prepared.sigma_a);
+        let unique = n_nodes.div_ceil(2);
+        let node = if unique <= CACHED_NODES {
+            // The terms `prepare` computed: node `k` or the mirror of node `n − 1 − k`.
+            let (uk, sign) = if k < unique {
+                (k, 1.0)
+            } else {
+                (n_nodes - 1 - k, -1.0)
+            };
+            let t = &prepared.table;
+            NodeLobes {
+                gamma_o: self.nodes[k].1,
+                gamma_t: sign * t.gamma_t[uk],
+                a: std::array::from_fn(|p| {
+                    let ch = if p < 3 { &t.a[p] } else { &t.a3 };
+                    Rgb::new(ch[0][uk], ch[1][uk], ch[2][uk])
+                }),
+            }
+        } else {
+            self.node(k, o.sin_t, o.cos_t, prepared.sigma_a)
+        };
         let wd = prepared.wd;
         let w: [f32; 5] = std::array::from_fn(|p| if p < 4 { lobe_weight(node.a[p]) } else { wd });
         let total: f32 = w.iter().sum();
@@ -883,5 +1195,102 @@ impl SggxFibrePhase {
             weight: self.albedo,
             pdf,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Units in the last place between `a` and `b` (same sign, finite).
+    fn ulps(a: f32, b: f32) -> u32 {
+        (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs() as u32
+    }
+
+    #[test]
+    fn fast_exp_and_asin_are_within_a_few_ulp() {
+        let mut worst = (0, 0);
+        for i in 0..=200_000 {
+            let x = -87.0 * i as f32 / 200_000.0;
+            worst.0 = worst.0.max(ulps(exp_neg(x), x.exp()));
+            let y = -1.0 + 2.0 * i as f32 / 200_000.0;
+            worst.1 = worst.1.max(ulps(asin_fast(y), y.asin()));
+            assert_eq!(asin_fast(-y).to_bits(), (-asin_fast(y)).to_bits());
+        }
+        assert!(
+            worst.0 <= 2 && worst.1 <= 3,
+            "ulp errors (exp, asin): {worst:?}"
+        );
+        assert_eq!(exp_neg(0.0), 1.0);
+        assert_eq!(exp_neg(-0.0), 1.0);
+        assert!(exp_neg(-1e4) > 0.0 && exp_neg(-1e4) < 1e-37);
+        assert_eq!(asin_fast(1.0), std::f32::consts::FRAC_PI_2);
+    }
+
+    #[test]
+    fn wrap_fast_lands_in_minus_pi_to_pi() {
+        for i in -4000..=4000 {
+            let x = i as f32 * 0.01;
+            let w = wrap_fast(x);
+            assert!(w.abs() <= PI + 1e-5, "{x} -> {w}");
+            assert!(
+                (w - wrap(x)).abs() < 1e-5 || (w.abs() - PI).abs() < 1e-5,
+                "{x}"
+            );
+        }
+    }
+
+    /// The batched evaluation (fast `exp`/`asin`, lobes summed per lobe) against the node by
+    /// node quadrature with the library's `exp` and `asin`: the same function to float
+    /// precision, for saturated and grey colours, odd and even node counts, and lobes off.
+    #[test]
+    fn batched_eval_matches_the_node_by_node_quadrature() {
+        let mut rng = crate::sampling::Rng::new(7, 1);
+        let configs = [
+            (Rgb::new(0.72, 0.1, 0.09), 0, FibreLobes::default()),
+            (Rgb::new(0.86, 0.82, 0.72), 17, FibreLobes::default()),
+            (
+                Rgb::new(0.5, 0.4, 0.3),
+                9,
+                FibreLobes {
+                    tt: false,
+                    ..FibreLobes::default()
+                },
+            ),
+        ];
+        let dir = |rng: &mut crate::sampling::Rng| {
+            let z = 2.0 * rng.next_f32() - 1.0;
+            let a = 2.0 * PI * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(r * a.cos(), r * a.sin(), z)
+        };
+        for (colour, h_nodes, lobes) in configs {
+            let params = FibrePhaseParams {
+                h_nodes,
+                lobes,
+                ..FibrePhaseParams::default()
+            }
+            .with_colour(colour);
+            let phase = FibrePhase::new(params).unwrap();
+            for _ in 0..400 {
+                let (wo, wi, t) = (dir(&mut rng), dir(&mut rng), dir(&mut rng));
+                let prepared = phase.prepare(wo, t);
+                let (v, p) = phase.eval_pdf_prepared(&prepared, wi);
+                let frame = prepared.frame.unwrap();
+                let i = angles(&frame, wi);
+                let m = phase.mp(&prepared.o, &i);
+                let dphi = i.phi - prepared.o.phi;
+                let dd = FibrePhase::diffuse_density(&prepared.o, &i);
+                let (rv, rp) = phase.eval_pdf_uncached(&prepared, m, dphi, dd);
+                let close = |a: f32, b: f32| (a - b).abs() <= 2e-5 * b.abs() + 1e-30;
+                assert!(close(p, rp), "pdf {p} vs {rp} ({colour:?}, {h_nodes})");
+                for c in 0..3 {
+                    assert!(
+                        close(v[c], rv[c]),
+                        "value {v:?} vs {rv:?} ({colour:?}, {h_nodes})"
+                    );
+                }
+            }
+        }
     }
 }

@@ -586,8 +586,9 @@ impl FabricShell {
     #[inline]
     pub fn density(&self, acc: &mut Accessor<'_>, p: Vec3, hint: &mut u32) -> f32 {
         match self.patch_coordinates(p, hint) {
-            Some(q) => self.density_at_q(acc, q),
-            None => 0.0,
+            // Between the yarns the eight voxels are all empty: no brick reads.
+            Some(q) if self.support_at_q(q) > 0.0 => self.density_at_q(acc, q),
+            _ => 0.0,
         }
     }
 
@@ -613,6 +614,12 @@ impl FabricShell {
         };
         let t = &self.tets[i];
         let q = t.q0 + t.bary_to_q * l;
+        // Between the yarns the eight voxels the filter reads are all empty (densities are
+        // never negative): the trilinear value would be 0, so neither it nor the tangent is
+        // read. The same value.
+        if self.support_at_q(q) <= 0.0 {
+            return 0.0;
+        }
         let density = self.density_at_q(acc, q);
         if density.is_nan() || density <= 0.0 {
             return density;
@@ -633,7 +640,14 @@ impl FabricShell {
             return 0.0;
         };
         let t = &self.tets[i];
-        let q = t.q0 + t.bary_to_q * l;
+        self.support_at_q(t.q0 + t.bary_to_q * l)
+    }
+
+    /// The largest density of the eight voxels a trilinear lookup at patch index point `q`
+    /// reads (one read of the [`support_max`] table; 0 outside the shell's layers, where the
+    /// patch holds no fibre).
+    #[inline]
+    fn support_at_q(&self, q: Vec3) -> f32 {
         let v = self.wrap(super::floor_ivec3(q));
         let z = v.z - (self.layer_lo - 1);
         if z < 0 || z > self.dims.z + 1 {
