@@ -12,6 +12,8 @@ use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
+mod beyond;
+
 /// A triangle `(a, b, c)` in BVH order.
 #[derive(Clone, Copy, Debug)]
 struct Prim {
