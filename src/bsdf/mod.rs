@@ -40,6 +40,10 @@ pub const COS_EPSILON: f32 = 1e-7;
 
 /// Number of nodes of the tabulated coat albedo `E(μ)`.
 const COAT_TABLE_SIZE: usize = 32;
+
+/// The largest reflection floor a dielectric accepts ([`Surface::with_reflect_floor`]): the
+/// transmission keeps at least this much less than all of the samples.
+pub const MAX_REFLECT_FLOOR: f32 = 0.95;
 /// Stratified quadrature resolution (per axis) used to tabulate the coat albedo.
 const COAT_TABLE_STRATA: usize = 24;
 
@@ -101,6 +105,11 @@ pub enum BaseLobe {
         distribution: MicrofacetDistribution,
         /// Transmission tint in [0, 1] per channel (reflection is untinted).
         tint: Rgb,
+        /// The least probability with which sampling picks reflection for a direction
+        /// arriving from outside (`wo.z > 0`), in [0, [`MAX_REFLECT_FLOOR`]]: reflection is
+        /// picked with probability max(F, floor), transmission with the rest (0: by F alone,
+        /// the usual choice). Only the sampling changes, not the BSDF.
+        reflect_floor: f32,
     },
     /// Lambertian transmission `T/π` to the opposite side plus Lambertian reflection `R/π`
     /// (docs/references.md §3.9); reciprocal, no η² scaling.
@@ -317,9 +326,24 @@ fn dielectric_f(mf: &Microfacet, tint: Rgb, eta: f32, wo: Vec3, wi: Vec3, h: &Ha
     }
 }
 
-/// Rough dielectric pdf for a valid half-vector geometry (docs/references.md §3.8).
-fn dielectric_pdf(mf: &Microfacet, eta: f32, wo: Vec3, h: &HalfGeometry) -> f32 {
-    let f = fresnel_dielectric(h.wo_m, eta);
+/// The probability with which a dielectric's sampling picks reflection: the Fresnel
+/// reflectance `f`, raised to `floor` for a direction arriving from outside (`wo_z > 0`).
+/// Any choice in (0, 1) keeps the estimate unbiased (the sample's weight divides by it); a
+/// floor spends more samples on the reflection where it is bright and cheap beside what
+/// the transmission reaches (sky over water).
+#[inline]
+fn reflect_probability(f: f32, floor: f32, wo_z: f32) -> f32 {
+    if wo_z > 0.0 {
+        f.max(floor)
+    } else {
+        f
+    }
+}
+
+/// Rough dielectric pdf for a valid half-vector geometry (docs/references.md §3.8), with
+/// reflection picked with [`reflect_probability`].
+fn dielectric_pdf(mf: &Microfacet, eta: f32, floor: f32, wo: Vec3, h: &HalfGeometry) -> f32 {
+    let f = reflect_probability(fresnel_dielectric(h.wo_m, eta), floor, wo.z);
     let dv = mf.visible_pdf(wo, h.wm);
     let v = if h.reflect {
         f * dv / (4.0 * h.wo_m.abs())
@@ -375,6 +399,7 @@ impl BaseLobe {
                 alpha,
                 distribution,
                 tint,
+                ..
             } => {
                 if eta == 1.0 || alpha < SMOOTH_ALPHA {
                     return Rgb::ZERO;
@@ -430,6 +455,7 @@ impl BaseLobe {
                 eta,
                 alpha,
                 distribution,
+                reflect_floor,
                 ..
             } => {
                 if eta == 1.0 || alpha < SMOOTH_ALPHA {
@@ -437,7 +463,7 @@ impl BaseLobe {
                 }
                 let mf = Microfacet::new(distribution, alpha);
                 match dielectric_half(wo, wi, eta) {
-                    Some(h) => dielectric_pdf(&mf, eta, wo, &h),
+                    Some(h) => dielectric_pdf(&mf, eta, reflect_floor, wo, &h),
                     None => 0.0,
                 }
             }
@@ -484,6 +510,7 @@ impl BaseLobe {
                 alpha,
                 distribution,
                 tint,
+                reflect_floor,
             } => {
                 if eta == 1.0 {
                     // Index-matched boundary: straight pass-through.
@@ -497,7 +524,7 @@ impl BaseLobe {
                     });
                 }
                 if alpha < SMOOTH_ALPHA {
-                    return sample_smooth_dielectric(eta, tint, wo, uc);
+                    return sample_smooth_dielectric(eta, tint, reflect_floor, wo, uc);
                 }
                 let mf = Microfacet::new(distribution, alpha);
                 let wm = mf.sample_visible(wo, u);
@@ -506,7 +533,7 @@ impl BaseLobe {
                     return None;
                 }
                 let f = fresnel_dielectric(wo_m, eta);
-                let wi = if uc < f {
+                let wi = if uc < reflect_probability(f, reflect_floor, wo.z) {
                     let wi = crate::math::reflect(wo, wm);
                     if !(wi.z * wo.z > 0.0) {
                         return None;
@@ -528,7 +555,7 @@ impl BaseLobe {
                 // Recompute f and pdf from (wo, wi) exactly as eval/pdf do (MIS consistency).
                 let h = dielectric_half(wo, wi, eta)?;
                 let fv = dielectric_f(&mf, tint, eta, wo, wi, &h);
-                let pdf = dielectric_pdf(&mf, eta, wo, &h);
+                let pdf = dielectric_pdf(&mf, eta, reflect_floor, wo, &h);
                 continuous_sample(wo, wi, fv, pdf, h.etap)
             }
             BaseLobe::DiffuseTransmission {
@@ -649,15 +676,27 @@ fn diffuse_reflect_prob(r: Rgb, t: Rgb) -> f32 {
     }
 }
 
-/// Smooth (delta) dielectric: reflect with probability F, refract otherwise; f/pdf = 1
-/// (× tint/η'² for transmission, radiance mode).
-fn sample_smooth_dielectric(eta: f32, tint: Rgb, wo: Vec3, uc: f32) -> Option<BsdfSample> {
+/// Smooth (delta) dielectric: reflect with probability q = [`reflect_probability`] (F when
+/// `floor` is 0), refract otherwise; weights F/q and (1 − F)/(1 − q) (the latter × tint/η'²,
+/// radiance mode): f/pdf = 1 at `floor` 0.
+fn sample_smooth_dielectric(
+    eta: f32,
+    tint: Rgb,
+    floor: f32,
+    wo: Vec3,
+    uc: f32,
+) -> Option<BsdfSample> {
     let f = fresnel_dielectric(wo.z, eta);
-    if uc < f {
+    let q = reflect_probability(f, floor, wo.z);
+    if uc < q {
         return Some(BsdfSample {
             wi: mirror_z(wo),
-            weight: Rgb::ONE,
-            pdf: f,
+            weight: if q == f {
+                Rgb::ONE
+            } else {
+                Rgb::splat(finite_or_zero(f / q))
+            },
+            pdf: q,
             is_delta: true,
             is_transmission: false,
             eta: 1.0,
@@ -671,8 +710,12 @@ fn sample_smooth_dielectric(eta: f32, tint: Rgb, wo: Vec3, uc: f32) -> Option<Bs
     match refract(wo, n, etap).and_then(|w| w.try_normalize()) {
         Some(wi) if wi.z * wo.z < 0.0 => Some(BsdfSample {
             wi,
-            weight: finite_rgb(tint / (etap * etap)),
-            pdf: 1.0 - f,
+            weight: if q == f {
+                finite_rgb(tint / (etap * etap))
+            } else {
+                finite_rgb(tint * ((1.0 - f) / ((1.0 - q) * etap * etap)))
+            },
+            pdf: 1.0 - q,
             is_delta: true,
             is_transmission: true,
             eta: etap,
@@ -809,6 +852,7 @@ impl Surface {
                 alpha,
                 distribution,
                 tint,
+                reflect_floor: 0.0,
             },
             coat: None,
         })
@@ -913,6 +957,27 @@ impl Surface {
             k[i] = kk;
         }
         Surface::conductor(eta, k, roughness, distribution)
+    }
+
+    /// Sets a dielectric's reflection floor: its sampling picks reflection with probability
+    /// max(F, `floor`) for a direction arriving from outside instead of F (from inside, F as
+    /// before), and weights the two branches by F/q and (1 − F)/(1 − q). The BSDF (`eval`)
+    /// is unchanged and `pdf` follows the sampling, so estimates stay unbiased and MIS stays
+    /// consistent. `floor` in [0, [`MAX_REFLECT_FLOOR`]]; other lobes are returned unchanged.
+    /// Pays where the reflection is bright and cheap to follow (the sky over water) beside
+    /// what a transmitted path costs (docs/choosing-estimators.md, "Reflection floor").
+    pub fn with_reflect_floor(mut self, floor: f32) -> Result<Surface, BsdfError> {
+        if !(0.0..=MAX_REFLECT_FLOOR).contains(&floor) {
+            return Err(invalid(
+                "min_reflect_probability",
+                floor,
+                "must be in [0, 0.95]",
+            ));
+        }
+        if let BaseLobe::Dielectric { reflect_floor, .. } = &mut self.base {
+            *reflect_floor = floor;
+        }
+        Ok(self)
     }
 
     /// Adds a secondary specular coat: a GGX reflection lobe with dielectric Fresnel of

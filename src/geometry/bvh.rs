@@ -14,6 +14,8 @@ use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
+mod beyond;
+
 /// Which shape and which of its triangles a BVH position is.
 #[derive(Clone, Copy, Debug)]
 struct Prim {
@@ -32,7 +34,7 @@ pub struct SceneGeometry {
     /// Every triangle vertex once, as `(x, y, z, 0)`, numbered in the order the BVH's
     /// positions first use them. With `tris` this is the compact layout (16 bytes per vertex
     /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
-    /// icosphere's hierarchy, nodes and triangles, fits in a 1 MB L2 cache.
+    /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB.
     verts: Vec<Vec4>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,

@@ -42,9 +42,27 @@ pub(super) fn shadow_transmittance(
 ) -> Rgb {
     let mut tr = Rgb::ONE;
     let mut remaining = distance;
+    // Set when the search that found the last surface crossed also proved that no other
+    // surface lies beyond it on the ray: the rest of the ray then needs no search (one
+    // traversal for a shadow ray that leaves a closed mesh, not two). Asked only of rays
+    // that start inside an object, whose first surface is usually where they leave it.
+    let mut clear_beyond = false;
     for _ in 0..4 * MAX_NESTING + 8 {
-        stats.rays += 1;
-        let hit = scene.geometry.intersect(&Ray::new(origin, dir), remaining);
+        let hit = if clear_beyond {
+            None
+        } else {
+            stats.rays += 1;
+            let ray = Ray::new(origin, dir);
+            if stack.entries().is_empty() {
+                // Outside every object the first surface is as likely opaque as not: a
+                // plain search stops sooner.
+                scene.geometry.intersect(&ray, remaining)
+            } else {
+                let (hit, clear) = scene.geometry.intersect_and_beyond(&ray, remaining);
+                clear_beyond = clear;
+                hit
+            }
+        };
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
         let mut scratch = None;
         if let Some((m, _)) = current_medium(scene, &stack, &mut scratch) {

@@ -302,6 +302,7 @@ pub(super) fn boundary_surface_at(
                 d.distribution,
                 d.tint.eval(uv, width_uv),
             )
+            .and_then(|s| s.with_reflect_floor(d.min_reflect_probability))
             .ok()?;
             match &d.coat {
                 Some(c) => c.over(s, uv, width_uv),

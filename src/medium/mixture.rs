@@ -216,33 +216,31 @@ impl<'a> MixSegments<'a> {
     /// The merged segments of `medium` with coefficients `k` along `ray` over `[t0, t1]`:
     /// each field's density bounds times its σ_t per unit density in `k`.
     fn new(medium: &'a MixtureMedium, k: &WalkCoefficients, ray: &Ray, t0: f32, t1: f32) -> Self {
-        let mut streams: [Option<MediumSegments<'a>>; MAX_COMPONENTS] = [None, None, None, None];
-        let mut scale = [Rgb::ZERO; MAX_COMPONENTS];
-        let mut constant = Rgb::ZERO;
+        // Filled in place (the streams are large: one DDA stack each).
+        let mut m = MixSegments {
+            streams: [None, None, None, None],
+            current: [None; MAX_COMPONENTS],
+            scale: [Rgb::ZERO; MAX_COMPONENTS],
+            constant: Rgb::ZERO,
+            t: t0,
+            end: t1,
+        };
         let comps = medium.components.iter().take(MAX_COMPONENTS);
         for (i, (c, own)) in comps.zip(k.iter()).enumerate() {
             match &c.density {
-                ComponentDensity::Constant(_) => constant += own.sigma_t,
+                ComponentDensity::Constant(_) => m.constant += own.sigma_t,
                 ComponentDensity::Field(h) => {
-                    if let (Some(s), Some(k)) = (streams.get_mut(i), scale.get_mut(i)) {
+                    if let (Some(s), Some(k)) = (m.streams.get_mut(i), m.scale.get_mut(i)) {
                         *s = Some(h.segments_along(ray, t0, t1));
                         *k = own.sigma_t;
                     }
                 }
             }
         }
-        let mut current = [None; MAX_COMPONENTS];
-        for (c, s) in current.iter_mut().zip(streams.iter_mut()) {
+        for (c, s) in m.current.iter_mut().zip(m.streams.iter_mut()) {
             *c = s.as_mut().and_then(Iterator::next);
         }
-        MixSegments {
-            streams,
-            current,
-            scale,
-            constant,
-            t: t0,
-            end: t1,
-        }
+        m
     }
 }
 
@@ -423,8 +421,11 @@ impl MixtureMedium {
         // (the walks' cells do not depend on where the ray ends), which is what lets a caller
         // sample the flight first and search the boundary only up to the collision
         // ([`super::Medium::flight_before_boundary`]).
+        // Held here and lent to the tracker: the merged walk holds one DDA stack per
+        // component and is too large to move around by value.
+        let mut merged = MixSegments::new(self, k, ray, 0.0, f32::INFINITY);
         let segments = ClippedSegments {
-            inner: MixSegments::new(self, k, ray, 0.0, f32::INFINITY),
+            inner: &mut merged,
             end: t_max,
         };
         let mut state = MixRay::new(self, k, ray, emits);

@@ -125,6 +125,9 @@ pub struct DielectricParams {
     pub distribution: MicrofacetDistribution,
     /// Transmission tint.
     pub tint: ColorParam,
+    /// The least probability of sampling reflection from outside
+    /// ([`crate::bsdf::Surface::with_reflect_floor`]; 0: by Fresnel alone).
+    pub min_reflect_probability: f32,
     /// Optional coat.
     pub coat: Option<CoatParams>,
 }

@@ -138,9 +138,18 @@ fn build_named(
             )?;
             let tint = colour("tint", d.tint.as_ref(), Rgb::ONE)?;
             let dist = distribution(ctx, line, name, d.distribution.as_deref())?;
+            let min_reflect_probability = check_range(
+                ctx,
+                line,
+                &format!("{owner}.min_reflect_probability"),
+                d.min_reflect_probability.unwrap_or(0.0),
+                0.0,
+                crate::bsdf::MAX_REFLECT_FLOOR,
+            )?;
             // Check once that the parameters build (the per-hit construction then cannot fail:
             // textured values are checked against the same ranges).
             let test = Surface::dielectric(ior, constant_scalar(&roughness), dist, constant(&tint))
+                .and_then(|s| s.with_reflect_floor(min_reflect_probability))
                 .map_err(|e| bad(&e))?;
             with_coat(test)?;
             Ok((
@@ -149,6 +158,7 @@ fn build_named(
                     roughness,
                     distribution: dist,
                     tint,
+                    min_reflect_probability,
                     coat,
                 }),
                 ior,

@@ -46,6 +46,9 @@ pub struct DielectricDesc {
     pub distribution: Option<String>,
     /// Multiplier on transmission (default 1).
     pub tint: Option<ColorInput>,
+    /// The least probability with which sampling picks reflection from outside, in
+    /// [0, 0.95] (default 0: by Fresnel alone).
+    pub min_reflect_probability: Option<f32>,
     /// Optional secondary specular coat.
     pub coat: Option<CoatDesc>,
 }
