@@ -10,6 +10,23 @@ pub const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 /// 1/(4π).
 pub const INV_4PI: f32 = 0.25 * std::f32::consts::FRAC_1_PI;
 
+/// True when the CPU runs AVX2 and the environment variable `VELOUR_NO_AVX2` is not set. The
+/// code paths that use AVX2 (the BVH's 8-wide node test, the fibre phase function's batched
+/// azimuthal sums) give the same results as their baseline forms; the variable forces the
+/// baseline, for A/B measurements in one binary. Reads the environment: call it once per
+/// structure built, not per evaluation.
+#[must_use]
+pub fn avx2_enabled() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::env::var_os("VELOUR_NO_AVX2").is_none()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// A ray `o + t d`. `d` is always unit length so that `t` is a world distance
 /// (media coefficients are per unit world length; docs/references.md §0).
 #[derive(Clone, Copy, Debug, PartialEq)]

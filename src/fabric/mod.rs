@@ -31,6 +31,7 @@
 //! length in this module is in the same unit as the yarn parameters it came from. Use
 //! [`yarn::YarnParams::scaled`] to convert to scene units.
 
+mod fibre_fast_math;
 pub mod fibre_scattering;
 pub mod lod;
 pub mod look;

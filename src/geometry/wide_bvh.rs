@@ -300,7 +300,7 @@ impl WideBvh {
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
-            avx2: has_avx2(),
+            avx2: crate::math::avx2_enabled(),
             ..WideBvh::default()
         };
         if counts[0] <= MAX_LEAF_PRIMITIVES {
@@ -482,20 +482,6 @@ impl WideBvh {
     }
 }
 
-/// True when the CPU runs AVX2 (the 8-wide node test) and the environment variable
-/// `VELOUR_NO_AVX2` is not set (it forces the 4-wide test, for A/B measurements in one
-/// binary; the hits are the same either way).
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::env::var_os("VELOUR_NO_AVX2").is_none()
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// Primitives under each bvh2 node.
 fn subtree_counts(bvh2: &Bvh2) -> Vec<u32> {
     let mut counts = vec![0u32; bvh2.nodes.len()];
@@ -597,7 +583,7 @@ mod tests {
 
     #[test]
     fn the_8_wide_and_4_wide_node_tests_visit_the_same_leaves_in_the_same_order() {
-        if !has_avx2() {
+        if !crate::math::avx2_enabled() {
             eprintln!("no AVX2 on this CPU: only the 4-wide test runs");
             return;
         }
