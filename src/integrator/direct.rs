@@ -163,41 +163,13 @@ pub(super) struct GuidedPrev {
 /// Next event estimation from a point: picks a light, traces a shadow ray, returns the
 /// MIS-weighted contribution (without the path throughput). `eval` gives (f·|cos| or phase
 /// value, pdf of the scattering strategy) for a world direction. `cone`: the path's
-/// ray cone at `p` (see [`shadow_transmittance`]).
+/// ray cone at `p` (see [`shadow_transmittance`]). The light drawn is written to `chosen`.
+/// With `only` = `Some(li)` light `li` is taken with probability 1 instead of being drawn
+/// from the scene's NEE distribution: an estimate of that light's part alone. `seen` receives
+/// the shadow ray's transmittance estimate (its largest channel) when a shadow ray was traced
+/// (`None` otherwise).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn estimate_direct(
-    scene: &Scene,
-    p: Vec3,
-    shadow_origin: impl Fn(Vec3) -> (Vec3, InteriorStack),
-    eval: impl Fn(Vec3) -> (Rgb, f32),
-    mode: ShadowMode,
-    cone: RayFootprint,
-    sampler: &mut PixelSampler,
-    stats: &mut TraceStats,
-    chosen: &mut Option<usize>,
-) -> Rgb {
-    let mut tr = None;
-    estimate_direct_seen(
-        scene,
-        p,
-        shadow_origin,
-        eval,
-        mode,
-        cone,
-        sampler,
-        stats,
-        chosen,
-        None,
-        &mut tr,
-    )
-}
-
-/// [`estimate_direct`] that also reports the shadow ray's transmittance estimate (its largest
-/// channel) in `seen` when a shadow ray was traced (`None` otherwise). With `only` = `Some(li)`
-/// light `li` is taken with probability 1 instead of being drawn from the scene's NEE
-/// distribution: an estimate of that light's part alone.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn estimate_direct_seen(
     scene: &Scene,
     p: Vec3,
     shadow_origin: impl Fn(Vec3) -> (Vec3, InteriorStack),

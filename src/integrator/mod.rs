@@ -18,7 +18,7 @@ pub mod manifold;
 
 pub use interiors::{InteriorStack, MAX_NESTING};
 
-use direct::{emitted, estimate_direct, estimate_direct_seen, PrevVertex, ShadowMode, SunLean};
+use direct::{emitted, estimate_direct, PrevVertex, ShadowMode, SunLean};
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
@@ -476,7 +476,7 @@ impl PathState {
         if interior_nee {
             let st = self.stack;
             let mut li = None;
-            let c = estimate_direct_seen(
+            let c = estimate_direct(
                 scene,
                 p,
                 |_| (p, st),
@@ -593,7 +593,7 @@ impl PathState {
         let st = self.stack;
         let p2 = v2.p;
         let mut li = None;
-        let c = estimate_direct_seen(
+        let c = estimate_direct(
             scene,
             p2,
             |_| (p2, st),
@@ -974,6 +974,8 @@ impl SurfaceVertex<'_> {
             sampler,
             stats,
             chosen,
+            None,
+            &mut None,
         )
     }
 }
