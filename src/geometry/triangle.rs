@@ -173,6 +173,86 @@ impl ShearedRay {
     }
 }
 
+/// Four triangles tested at once by [`ShearedRay::intersect4`]: per lane (triangle) the hit's
+/// distance and barycentrics, which lanes hit, and which need the exact edge-function path.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Hits4 {
+    pub(crate) t: Vec4,
+    pub(crate) b0: Vec4,
+    pub(crate) b1: Vec4,
+    pub(crate) b2: Vec4,
+    /// Bit `i`: lane `i` is valid and hits with `0 < t < t_max`.
+    pub(crate) hit: u32,
+    /// Bit `i`: lane `i` is valid and has an edge function exactly zero in f32; its answer is
+    /// not in `hit` (the caller must test it with [`ShearedRay::intersect`]).
+    pub(crate) unsure: u32,
+}
+
+impl Hits4 {
+    /// Lane `i`'s hit.
+    pub(crate) fn lane(&self, i: usize) -> TriangleHit {
+        let i = i & 3;
+        TriangleHit {
+            t: self.t.to_array()[i],
+            b0: self.b0.to_array()[i],
+            b1: self.b1.to_array()[i],
+            b2: self.b2.to_array()[i],
+        }
+    }
+}
+
+impl ShearedRay {
+    /// [`ShearedRay::intersect`] on four triangles at once, one per lane: `a`, `b`, `c` hold
+    /// the x, y, z coordinates of each triangle's first, second and third vertex (lane `i` for
+    /// triangle `i`); lanes outside `valid` (a bit mask) are ignored. Every lane goes through
+    /// exactly the IEEE operations of the one-triangle test in the same order (no FMA), so a
+    /// lane's hit is bit-identical to it; lanes with an edge function exactly zero are
+    /// reported in `unsure` instead of taking the exact path.
+    #[inline(always)]
+    pub(crate) fn intersect4(
+        &self,
+        a: &[Vec4; 3],
+        b: &[Vec4; 3],
+        c: &[Vec4; 3],
+        valid: u32,
+        t_max: f32,
+    ) -> Hits4 {
+        let (kx, ky, kz) = (self.kx.min(2), self.ky.min(2), self.kz.min(2));
+        let sheared = |v: &[Vec4; 3]| {
+            let px = v[kx] - self.okx;
+            let py = v[ky] - self.oky;
+            let pz = v[kz] - self.okz;
+            (px - self.sxv * pz, py - self.syv * pz, pz)
+        };
+        let (xa, ya, za) = sheared(a);
+        let (xb, yb, zb) = sheared(b);
+        let (xc, yc, zc) = sheared(c);
+        let u = xc * yb - yc * xb;
+        let v = xa * yc - ya * xc;
+        let w = xb * ya - yb * xa;
+        let zero = Vec4::ZERO;
+        let unsure = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & valid;
+        let neg = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+        let pos = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+        let inside = !(neg & pos).bitmask();
+        let det = u + v + w;
+        let det_ok = (det.cmpne(zero) & det.abs().cmplt(Vec4::splat(f32::INFINITY))).bitmask();
+        let sz = Vec4::splat(self.sz);
+        let tn = u * (sz * za) + v * (sz * zb) + w * (sz * zc);
+        let inv = Vec4::ONE / det;
+        let t = tn * inv;
+        let in_range = (t.cmpgt(zero) & t.cmplt(Vec4::splat(t_max))).bitmask();
+        Hits4 {
+            t,
+            b0: u * inv,
+            b1: v * inv,
+            b2: w * inv,
+            hit: valid & !unsure & inside & det_ok & in_range,
+            unsure,
+        }
+    }
+}
+
 /// The edge functions when one of them is exactly zero in f32: re-evaluated in f64 (exact for
 /// products of f32), and a zero resolved by the sign the edge function takes when the origin
 /// moves by `(ε, ε²)`. `None` when the ray misses or lies in the triangle's plane.
