@@ -11,13 +11,10 @@ use super::empty_cells::EmptyCells;
 use super::levelset::LevelSetHit;
 use super::sphere::{intersect_sphere, SphereHit};
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
-use super::wide_bvh::{WideBvh, MAX_ENTERED_PRIMITIVES};
+use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
 mod beyond;
-mod leaf_batch;
-
-use leaf_batch::{Batch, Positions};
 
 /// Which shape and which of its triangles a BVH position is.
 #[derive(Clone, Copy, Debug)]
@@ -269,24 +266,13 @@ impl SceneGeometry {
         }
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
-            let mut positions: Positions = [0; MAX_ENTERED_PRIMITIVES];
-            self.bvh.traverse_leaves(ray, closest, |leaves, t_max| {
-                let n = leaves.positions(&mut positions);
-                match self.closest_in(&sr, &positions, n, t_max) {
-                    Batch::Miss => t_max,
-                    Batch::Hit(slot, h) => {
-                        best = Some(Best::Tri(slot, h));
+            self.bvh.traverse(ray, closest, |slot, t_max| {
+                match sr.intersect(&self.triangle(slot as usize), t_max) {
+                    Some(h) => {
+                        best = Some(Best::Tri(slot as usize, h));
                         h.t
                     }
-                    Batch::Unsure => leaves.visit_sorted(t_max, |slot, t_max| {
-                        match sr.intersect(&self.triangle(slot as usize), t_max) {
-                            Some(h) => {
-                                best = Some(Best::Tri(slot as usize, h));
-                                h.t
-                            }
-                            None => t_max,
-                        }
-                    }),
+                    None => t_max,
                 }
             });
         }
@@ -314,19 +300,8 @@ impl SceneGeometry {
         let mut found = false;
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
             let sr = ShearedRay::new(ray);
-            let mut positions: Positions = [0; MAX_ENTERED_PRIMITIVES];
-            self.bvh.traverse_leaves(ray, t_max, |leaves, t| {
-                let n = leaves.positions(&mut positions);
-                let any = self.any_in(&sr, &positions, n, t).unwrap_or_else(|| {
-                    leaves.visit_sorted(t, |slot, t| {
-                        if sr.intersect(&self.triangle(slot as usize), t).is_some() {
-                            0.0
-                        } else {
-                            t
-                        }
-                    }) <= 0.0
-                });
-                if any {
+            self.bvh.traverse(ray, t_max, |slot, t| {
+                if sr.intersect(&self.triangle(slot as usize), t).is_some() {
                     found = true;
                     0.0
                 } else {

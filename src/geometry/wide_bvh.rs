@@ -15,8 +15,6 @@
 //! were built, and the interval is clipped to `[0, t_max]`, so a primitive the ray hits is never
 //! culled.
 
-use std::mem::MaybeUninit;
-
 use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb as OAabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -47,14 +45,8 @@ struct Node8 {
     /// Child node index, or the first primitive of a leaf.
     child: [u32; WIDTH],
     /// Primitives of a leaf child (0 for an inner child or an empty slot).
-    count: [u8; WIDTH],
-    /// Bit `i` set when child `i` is a leaf (`count[i] > 0`), so that the traversal splits
-    /// the entered children into leaves and inner nodes with one `and`.
-    leaves: u8,
+    count: [u32; WIDTH],
 }
-
-// Leaf counts are stored in a byte.
-const _: () = assert!(MAX_LEAF_PRIMITIVES <= u8::MAX as u32);
 
 impl Node8 {
     fn empty() -> Self {
@@ -69,7 +61,6 @@ impl Node8 {
             ],
             child: [0; WIDTH],
             count: [0; WIDTH],
-            leaves: 0,
         }
     }
 }
@@ -249,26 +240,24 @@ struct Entry {
 }
 
 /// The traversal stack: inline entries, spilling to the heap only for unusually deep trees.
-/// The inline entries are not initialised when the stack is made (a ray pushes only a few).
 struct Stack {
-    inline: [MaybeUninit<Entry>; STACK_INLINE],
+    inline: [Entry; STACK_INLINE],
     len: usize,
     spill: Vec<Entry>,
 }
 
 impl Stack {
-    #[inline(always)]
     fn new() -> Self {
         Stack {
-            inline: [MaybeUninit::uninit(); STACK_INLINE],
+            inline: [Entry::default(); STACK_INLINE],
             len: 0,
             spill: Vec::new(),
         }
     }
     #[inline(always)]
     fn push(&mut self, e: Entry) {
-        if let Some(slot) = self.inline.get_mut(self.len) {
-            slot.write(e);
+        if self.len < STACK_INLINE {
+            self.inline[self.len] = e;
             self.len += 1;
         } else {
             self.spill.push(e);
@@ -283,11 +272,7 @@ impl Stack {
             return None;
         }
         self.len -= 1;
-        let slot = self.inline.get(self.len)?;
-        // SAFETY: `push` wrote every inline entry below `len` (it increments `len` only after
-        // writing `inline[len]`), and `len` only decreases here, so entry `len - 1` is
-        // initialised.
-        Some(unsafe { slot.assume_init() })
+        Some(self.inline[self.len])
     }
 }
 
@@ -328,8 +313,7 @@ impl WideBvh {
                 node.planes[k + 3][0][0] = f32::INFINITY;
             }
             node.child[0] = first;
-            node.count[0] = (out.order.len() as u32 - first) as u8;
-            node.leaves = 1;
+            node.count[0] = out.order.len() as u32 - first;
             out.nodes.push(node);
             out.depth = 1;
             return out;
@@ -350,8 +334,7 @@ impl WideBvh {
                     let first = out.order.len() as u32;
                     collect_primitives(&bvh2, c, &mut out.order);
                     node.child[slot] = first;
-                    node.count[slot] = (out.order.len() as u32 - first) as u8;
-                    node.leaves |= 1 << slot;
+                    node.count[slot] = out.order.len() as u32 - first;
                 } else {
                     let index = out.nodes.len();
                     out.nodes.push(Node8::empty());
@@ -381,24 +364,7 @@ impl WideBvh {
     /// `t_max` (the distance of a closer hit, or the same value). Returns early when
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
     #[inline]
-    pub fn traverse(&self, ray: &Ray, t_max: f32, mut primitive: impl FnMut(u32, f32) -> f32) {
-        self.traverse_leaves(ray, t_max, |leaves, t| {
-            leaves.visit_sorted(t, &mut primitive)
-        });
-    }
-
-    /// The traversal of [`Self::traverse`], handing over the entered leaves of each node at
-    /// once: `leaf(entered, t_max)` returns the new `t_max`, ≤ 0 to stop. Calling
-    /// [`EnteredLeaves::visit_sorted`] with the per-primitive closure is exactly
-    /// [`Self::traverse`]; a caller that tests the leaves' primitives together must return
-    /// what that would (the closest hit below `t_max`, ties to the first in that order).
-    #[inline]
-    pub fn traverse_leaves(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        leaf: impl FnMut(&EnteredLeaves<'_>, f32) -> f32,
-    ) {
+    pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         if self.nodes.is_empty() {
             return;
         }
@@ -406,13 +372,13 @@ impl WideBvh {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when the CPU reported AVX2.
-            unsafe { self.traverse_avx2(&slab, t_max, leaf) };
+            unsafe { self.traverse_avx2(&slab, t_max, primitive) };
             return;
         }
-        self.traverse_with(&slab, t_max, leaf);
+        self.traverse_with(&slab, t_max, primitive);
     }
 
-    /// [`Self::traverse_leaves`] compiled for AVX2, with the 8-wide node test.
+    /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
     ///
     /// # Safety
     /// The CPU must support AVX2.
@@ -422,11 +388,11 @@ impl WideBvh {
         &self,
         slab: &SlabRay,
         t_max: f32,
-        leaf: impl FnMut(&EnteredLeaves<'_>, f32) -> f32,
+        primitive: impl FnMut(u32, f32) -> f32,
     ) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::new(slab) };
-        self.traverse_with(&wide, t_max, leaf);
+        self.traverse_with(&wide, t_max, primitive);
     }
 
     /// Forces the 4-wide node test (tests compare it with the 8-wide one).
@@ -437,171 +403,83 @@ impl WideBvh {
     }
 
     /// The traversal with node test `slab`.
-    ///
-    /// Per node, the entered leaf children are intersected first, nearest first (a hit
-    /// shortens the ray for the rest; ties in entry distance go to the lower slot), then the
-    /// nearest entered inner child is visited and the others wait on the stack, farthest
-    /// deepest. Leaves and inner children are ordered separately (one `and` with the node's
-    /// leaf mask), with no sort at all for the common single child.
     #[inline(always)]
     fn traverse_with<T: NodeTest>(
         &self,
         slab: &T,
         mut t_max: f32,
-        mut leaf: impl FnMut(&EnteredLeaves<'_>, f32) -> f32,
+        mut primitive: impl FnMut(u32, f32) -> f32,
     ) {
         let mut stack = Stack::new();
         let mut current = 0u32;
-        'nodes: loop {
-            let Some(node) = self.nodes.get(current as usize) else {
-                return;
-            };
-            let (near, mask) = slab.test(node, t_max);
-            let leaf_mask = u32::from(node.leaves);
-            let leaves = mask & leaf_mask;
-            if leaves != 0 {
-                let entered = EnteredLeaves {
-                    node,
-                    near: &near,
-                    mask: leaves,
-                };
-                t_max = leaf(&entered, t_max);
-                if t_max <= 0.0 {
-                    return;
+        // Scratch for the children of the node visited (only entries below the counts are
+        // read), initialised once per ray.
+        let mut order = [(0usize, 0.0f32); WIDTH];
+        let mut inner = [Entry::default(); WIDTH];
+        loop {
+            let node = &self.nodes[current as usize];
+            let (near, mut mask) = slab.test(node, t_max);
+            // The entered children sorted by entry distance, nearest first.
+            let mut n = 0;
+            while mask != 0 {
+                let slot = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let t = near[slot];
+                let mut j = n;
+                while j > 0 && order[j - 1].1 > t {
+                    order[j] = order[j - 1];
+                    j -= 1;
                 }
+                order[j] = (slot, t);
+                n += 1;
             }
-            // The inner children the ray still enters (a leaf may have shortened it; the
-            // ones dropped here would be dropped when popped).
-            let mut inner = mask & !leaf_mask;
-            let mut rest = inner;
-            while rest != 0 {
-                let slot = (rest.trailing_zeros() & 7) as usize;
-                rest &= rest - 1;
-                if near[slot] > t_max {
-                    inner &= !(1 << slot);
+            // Leaves are intersected at once, nearest first (a hit shortens the ray for the
+            // rest); inner children are pushed farthest first, so the nearest is visited next.
+            let mut m = 0;
+            for &(slot, t) in &order[..n] {
+                if t > t_max {
+                    break;
                 }
-            }
-            if inner != 0 {
-                if inner & (inner - 1) == 0 {
-                    current = node.child[(inner.trailing_zeros() & 7) as usize];
-                    continue 'nodes;
-                }
-                let (keys, n) = sorted_keys(&near, inner);
-                for &k in keys[1..n].iter().rev() {
-                    let slot = (k & 7) as usize;
-                    stack.push(Entry {
+                let count = node.count[slot];
+                if count > 0 {
+                    let first = node.child[slot];
+                    for i in first..first + count {
+                        t_max = primitive(i, t_max);
+                        if t_max <= 0.0 {
+                            return;
+                        }
+                    }
+                } else {
+                    inner[m] = Entry {
                         node: node.child[slot],
-                        t: near[slot],
-                    });
+                        t,
+                    };
+                    m += 1;
                 }
-                current = node.child[(keys[0] & 7) as usize];
-                continue 'nodes;
+            }
+            // The nearest inner child is visited next; the others wait, farthest deepest.
+            if m > 0 {
+                for e in inner[1..m].iter().rev() {
+                    stack.push(*e);
+                }
+                // (A leaf after it may have shortened the ray.)
+                if !(inner[0].t > t_max) {
+                    current = inner[0].node;
+                    continue;
+                }
             }
             loop {
                 match stack.pop() {
                     None => return,
                     Some(e) if !(e.t > t_max) => {
                         current = e.node;
-                        continue 'nodes;
+                        break;
                     }
                     Some(_) => {}
                 }
             }
         }
     }
-}
-
-/// Primitives of the leaves entered at one node, at most this many.
-pub const MAX_ENTERED_PRIMITIVES: usize = WIDTH * MAX_LEAF_PRIMITIVES as usize;
-const _: () = assert!(MAX_ENTERED_PRIMITIVES.is_power_of_two());
-
-/// The leaf children of one node that a ray enters, with their entry distances.
-pub struct EnteredLeaves<'a> {
-    node: &'a Node8,
-    near: &'a [f32; WIDTH],
-    /// Bit `i` for leaf child `i`.
-    mask: u32,
-}
-
-impl EnteredLeaves<'_> {
-    /// Calls `primitive(position, t_max)` for the primitives of the leaves nearest first
-    /// (ties in entry distance to the lower slot), skipping the leaves entered beyond the
-    /// current `t_max`; `primitive` returns the new `t_max`. Returns the final `t_max`, or the
-    /// first value ≤ 0 `primitive` returned (it stops there).
-    #[inline(always)]
-    pub fn visit_sorted(&self, mut t_max: f32, mut primitive: impl FnMut(u32, f32) -> f32) -> f32 {
-        let mut visit = |slot: usize, t_max: &mut f32| -> bool {
-            let first = self.node.child[slot];
-            for i in first..first + u32::from(self.node.count[slot]) {
-                *t_max = primitive(i, *t_max);
-                if *t_max <= 0.0 {
-                    return false;
-                }
-            }
-            true
-        };
-        if self.mask & (self.mask - 1) == 0 {
-            // One leaf: the node test entered it within this `t_max`.
-            visit((self.mask.trailing_zeros() & 7) as usize, &mut t_max);
-            return t_max;
-        }
-        let (keys, n) = sorted_keys(self.near, self.mask);
-        for &k in &keys[..n] {
-            let slot = (k & 7) as usize;
-            if self.near[slot] > t_max || !visit(slot, &mut t_max) {
-                break;
-            }
-        }
-        t_max
-    }
-
-    /// Writes the positions of the leaves' primitives to `out` in slot order (not distance
-    /// order) and returns their number; entries from there to the next multiple of four repeat
-    /// the first.
-    #[inline(always)]
-    pub fn positions(&self, out: &mut [u32; MAX_ENTERED_PRIMITIVES]) -> usize {
-        let mut n = 0;
-        let mut rest = self.mask;
-        while rest != 0 {
-            let slot = (rest.trailing_zeros() & 7) as usize;
-            rest &= rest - 1;
-            let first = self.node.child[slot];
-            for i in first..first + u32::from(self.node.count[slot]) {
-                // (`n` stays below `MAX_ENTERED_PRIMITIVES`, a power of two: the mask only
-                // spares the bounds check.)
-                out[n & (MAX_ENTERED_PRIMITIVES - 1)] = i;
-                n += 1;
-            }
-        }
-        // Lanes up to the next multiple of four repeat the first (a batch of four reads them).
-        for k in n..(n + 3) & !3 {
-            out[k & (MAX_ENTERED_PRIMITIVES - 1)] = out[0];
-        }
-        n
-    }
-}
-
-/// The slots of `mask` ordered by entry distance `near[slot]`, ties by slot: keys holding
-/// the distance's bits (sign cleared: the distances are ≥ 0, and −0 sorts with +0) above the
-/// slot, so that integer order is (distance, slot) order. Returns the keys and their count.
-#[inline(always)]
-fn sorted_keys(near: &[f32; WIDTH], mask: u32) -> ([u64; WIDTH], usize) {
-    let mut keys = [0u64; WIDTH];
-    let mut n = 0;
-    let mut rest = mask;
-    while rest != 0 {
-        let slot = (rest.trailing_zeros() & 7) as usize;
-        rest &= rest - 1;
-        let key = (u64::from(near[slot].to_bits() & 0x7fff_ffff) << 32) | slot as u64;
-        let mut j = n & 7;
-        while j > 0 && keys[(j - 1) & 7] > key {
-            keys[j & 7] = keys[(j - 1) & 7];
-            j -= 1;
-        }
-        keys[j & 7] = key;
-        n += 1;
-    }
-    (keys, n)
 }
 
 /// Primitives under each bvh2 node.
