@@ -7,7 +7,8 @@
 //! sphere's bounding box, rays from inside in random directions (what a walk inside the skin
 //! traces to find the boundary), and short rays from inside (a walk's free flight in a dense
 //! medium, traced only up to the sampled distance). Times are on-CPU times of the thread, best
-//! of five passes. `RAY_CASTING_SUBDIV=n` changes the icosphere's subdivision level (default 5).
+//! of five passes. `RAY_CASTING_SUBDIV=n` changes the icosphere's subdivision level (default 5),
+//! `RAY_CASTING_RAYS=n` the number of rays per set (default 200,000; fewer for callgrind).
 
 use std::time::Duration;
 
@@ -122,7 +123,10 @@ fn main() {
         triangles.len(),
         geometry.bvh_depth()
     );
-    let n = 200_000;
+    let n = std::env::var("RAY_CASTING_RAYS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(200_000);
     println!(
         "{:<28} {:>14} {:>14} {:>14} {:>10}",
         "rays", "velour closest", "velour occl.", "obvhs closest", "velour/obvhs"
