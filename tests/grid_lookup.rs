@@ -154,6 +154,51 @@ fn trilinear_matches_direct_evaluation() {
     }
 }
 
+/// Lookups through the padded bricks (`SparseGrid::padded_accessor`, what media use) give the
+/// plain accessor's values bit for bit: inside bricks, across brick faces, edges and corners
+/// (neighbour bricks, brick tiles, block and root tiles, the background), in both storages
+/// (16-bit grids keep the plain path).
+#[test]
+fn padded_lookups_match_the_plain_accessor_bit_for_bit() {
+    for storage in [Storage::F32, Storage::F16] {
+        let (g, _) = build(storage);
+        let mut rng = Rng::new(9, 0);
+        let mut pts = Vec::new();
+        for _ in 0..40000 {
+            pts.push(Vec3::new(
+                -18.0 + 46.0 * rng.next_f32(),
+                -14.0 + 66.0 * rng.next_f32(),
+                -14.0 + 30.0 * rng.next_f32(),
+            ));
+        }
+        // First corners on the last voxel of a brick along one, two or three axes.
+        let faces = [
+            -9.0f32, -8.5, -1.0, -0.5, 7.0, 7.25, 7.99, 15.5, 23.5, 39.5, 47.5,
+        ];
+        for &x in &faces {
+            for &y in &faces {
+                for &z in &faces {
+                    pts.push(Vec3::new(x, y, z));
+                }
+            }
+        }
+        for _ in 0..5000 {
+            pts.push(Vec3::new(
+                120.0 + 150.0 * rng.next_f32(),
+                -2.0 + 132.0 * rng.next_f32(),
+                40.0 * rng.next_f32(),
+            ));
+        }
+        let mut plain = g.accessor(0);
+        let mut padded = g.padded_accessor(0);
+        for &p in &pts {
+            let a = plain.sample_trilinear(p);
+            let b = padded.sample_trilinear(p);
+            assert_eq!(a.to_bits(), b.to_bits(), "{storage:?} at {p}: {a} vs {b}");
+        }
+    }
+}
+
 #[test]
 fn world_space_lookups_use_the_affine_map() {
     let (mut g, r) = build(Storage::F32);

@@ -1,8 +1,8 @@
 //! Cached lookups: nearest and trilinear interpolation.
 
 use super::{
-    block_slot, voxel_offset, SparseGrid, Values, BLOCK_LOG2, BRICK_LOG2, BRICK_VOXELS, ROOT_LOG2,
-    TILE_BIT,
+    block_slot, voxel_offset, SparseGrid, Values, BLOCK_LOG2, BRICK_LOG2, BRICK_VOXELS,
+    PADDED_EDGE, PADDED_VOXELS, ROOT_LOG2, TILE_BIT,
 };
 use glam::{IVec3, Vec3};
 
@@ -21,6 +21,8 @@ pub struct Accessor<'a> {
     grid: &'a SparseGrid,
     vals: Vals<'a>,
     tiles: &'a [f32],
+    /// The channel's padded bricks ([`SparseGrid::padded_accessor`]), if any.
+    padded: Option<&'a [f32]>,
     comps: usize,
     key: IVec3,
     /// Brick index, or `TILE_BIT | tile` for a constant cell.
@@ -39,6 +41,21 @@ impl<'a> Accessor<'a> {
     /// If `channel` is out of range (programming error).
     #[must_use]
     pub fn new(grid: &'a SparseGrid, channel: usize) -> Self {
+        Self::with_padded(grid, channel, None)
+    }
+
+    /// An accessor on channel `channel` of `grid` that reads the 8 corners of a trilinear
+    /// lookup from `padded` (the channel's padded bricks, [`SparseGrid::padded_accessor`])
+    /// where the first corner lies in a brick.
+    ///
+    /// # Panics
+    /// If `channel` is out of range (programming error).
+    #[must_use]
+    pub(super) fn with_padded(
+        grid: &'a SparseGrid,
+        channel: usize,
+        padded: Option<&'a [f32]>,
+    ) -> Self {
         let ch = &grid.channels[channel];
         let vals = match &ch.values {
             Values::F32(v) => Vals::F32(v),
@@ -48,6 +65,7 @@ impl<'a> Accessor<'a> {
             grid,
             vals,
             tiles: &ch.tile_values,
+            padded,
             comps: ch.kind.components(),
             key: NO_KEY,
             entry: TILE_BIT,
@@ -125,6 +143,26 @@ impl<'a> Accessor<'a> {
         }
     }
 
+    /// Appends the padded copy of brick `key` (brick coordinates) to `out`: the first
+    /// component of the voxels `8 key + (x, y, z)`, `x, y, z ∈ 0..9` ([`PADDED_EDGE`]), `z`
+    /// fastest; the 8 bricks (or tiles) they lie in are resolved once.
+    pub(super) fn push_padded_brick(&mut self, key: IVec3, out: &mut Vec<f32>) {
+        let mut e = [0u32; 8];
+        for (n, en) in e.iter_mut().enumerate() {
+            let d = IVec3::new((n >> 2) as i32, ((n >> 1) & 1) as i32, (n & 1) as i32);
+            *en = self.peek(key + d);
+        }
+        for x in 0..PADDED_EDGE {
+            for y in 0..PADDED_EDGE {
+                for z in 0..PADDED_EDGE {
+                    let n = ((x >> 3) << 2) | ((y >> 3) << 1) | (z >> 3);
+                    let v = ((x & 7) << 6) | ((y & 7) << 3) | (z & 7);
+                    out.push(self.fetch(e[n], v, 0));
+                }
+            }
+        }
+    }
+
     /// Value (first component) of voxel `ijk`, active or not.
     #[inline]
     pub fn value(&mut self, ijk: IVec3) -> f32 {
@@ -182,6 +220,23 @@ impl<'a> Accessor<'a> {
     fn gather(&mut self, i: IVec3) -> Result<[f32; 8], f32> {
         let l = i & 7;
         let mut c = [0.0f32; 8];
+        if let Some(p) = self.padded {
+            let e = self.resolve(i >> BRICK_LOG2);
+            if e & TILE_BIT == 0 {
+                // All 8 corners in the brick's padded copy (the same values as below).
+                const E: usize = PADDED_EDGE;
+                const OFF: [usize; 8] =
+                    [0, 1, E, E + 1, E * E, E * E + 1, E * E + E, E * E + E + 1];
+                let base = e as usize * PADDED_VOXELS
+                    + (l.x as usize * E + l.y as usize) * E
+                    + l.z as usize;
+                let s = &p[base..base + OFF[7] + 1];
+                for k in 0..8 {
+                    c[k] = s[OFF[k]];
+                }
+                return Ok(c);
+            }
+        }
         if l.x < 7 && l.y < 7 && l.z < 7 {
             let e = self.resolve(i >> BRICK_LOG2);
             if e & TILE_BIT != 0 {

@@ -62,6 +62,7 @@ impl SparseGridBuilder {
             kind,
             values,
             tile_values,
+            padded: std::sync::OnceLock::new(),
         });
         self.grid.channels.len() - 1
     }
@@ -380,7 +381,11 @@ impl SparseGridBuilder {
 
     /// Finishes the grid.
     #[must_use]
-    pub fn build(self) -> SparseGrid {
+    pub fn build(mut self) -> SparseGrid {
+        // Padded copies made while building (through `grid()`) may be out of date.
+        for ch in &mut self.grid.channels {
+            ch.padded = std::sync::OnceLock::new();
+        }
         self.grid
     }
 }

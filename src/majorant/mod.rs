@@ -97,6 +97,11 @@ pub enum LookupModel {
     /// [`PROBE_COST`] lookups, and the lookups that remain depend only on the local bounds, not
     /// on the segment. A segment costs `PROBE_COST ·` its majorant.
     Probed,
+    /// Ratio and residual ratio tracking of shadow rays: lookups at the majorant's rate, as
+    /// [`LookupModel::Majorant`], but a segment costs [`RATIO_SEGMENT_COST`] times
+    /// [`SEGMENT_COST`] (its walk cells, its control density and the exponentials of its
+    /// analytic part), so the walk opens fewer cells.
+    Ratio,
 }
 
 impl LookupModel {
@@ -107,6 +112,7 @@ impl LookupModel {
             LookupModel::Majorant => 0,
             LookupModel::AboveMinorant => 1,
             LookupModel::Probed => 2,
+            LookupModel::Ratio => 3,
         }
     }
 
@@ -120,6 +126,9 @@ impl LookupModel {
             // Every lookup density is PROBE_COST times the majorant's, so every cost function
             // is f_probed(λ) = PROBE_COST · f_majorant(λ / PROBE_COST).
             LookupModel::Probed => (0, PROBE_COST),
+            // The Majorant model's costs with segments RATIO_SEGMENT_COST times dearer: a cell
+            // opens where RATIO_SEGMENT_COST times the ray's segment price is below its price.
+            LookupModel::Ratio => (0, 1.0 / RATIO_SEGMENT_COST),
         }
     }
 }
@@ -131,6 +140,14 @@ impl LookupModel {
 /// puffs (512³, 20 puffs in empty space) the walk must still skip the empty space (0.1: 70 M,
 /// 0.2: 63 M, 0.3: 62 M; without 61 M).
 pub const PROBE_COST: f64 = 0.2;
+
+/// What a segment of a shadow ray's ratio tracking costs ([`LookupModel::Ratio`]), in units
+/// of [`SEGMENT_COST`]: besides the walk, each segment sets up its control density and the
+/// exponentials of its analytic part, and the walk's cells merged back into one segment are
+/// paid too. Tuned by instruction counts on the dense peer cloud (docs/BENCHMARKS.md, "Padded
+/// bricks and dearer shadow-ray segments"): 1: 1.626 G instructions, 3: 1.541 G, 4: 1.501 G,
+/// 6 to 12: 1.499 G, at the same variance.
+pub const RATIO_SEGMENT_COST: f64 = 4.0;
 
 /// How segments are produced along a ray.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -347,7 +364,7 @@ impl MajorantPyramid {
             0.0
         } else {
             match model {
-                LookupModel::Majorant => max,
+                LookupModel::Majorant | LookupModel::Ratio => max,
                 LookupModel::AboveMinorant => (max - min).max(0.0),
                 LookupModel::Probed => (f64::from(max) * PROBE_COST) as f32,
             }

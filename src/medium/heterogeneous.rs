@@ -17,7 +17,7 @@ use crate::spectrum::Rgb;
 use crate::tracking::{
     decomposition_track, decomposition_track_local, delta_track, delta_track_local,
     ray_march_free_flight, split_flight, transmittance, DensityCoefficients, Flight,
-    FreeFlightMethod, TrackingConfig, TrackingStats,
+    FreeFlightMethod, TrackingConfig, TrackingStats, TransmittanceMode,
 };
 
 /// Where a heterogeneous interior's density comes from.
@@ -270,15 +270,29 @@ impl HeterogeneousMedium {
         let model = if self.uses_local_bounds() {
             LookupModel::Probed
         } else {
-            self.shadow_model()
+            self.unprobed_flight_model()
         };
         self.segments_with(&self.coefficients, ray, t0, t1, model)
     }
 
-    /// The walk's lookup model of shadow rays (and of free flights without point bounds).
+    /// The walk's lookup model of shadow rays.
     /// Shadow rays keep the segments of the walk without point bounds: ratio tracking's
     /// variance grows as its majorant tightens (docs/references.md §4.10).
     fn shadow_model(&self) -> LookupModel {
+        match (self.tracking.free_flight, self.tracking.transmittance) {
+            (FreeFlightMethod::Decomposition, _) => LookupModel::AboveMinorant,
+            // Ratio tracking's segments cost more than a free flight's (docs/BENCHMARKS.md,
+            // "Padded bricks and dearer shadow-ray segments").
+            (_, TransmittanceMode::Ratio | TransmittanceMode::ResidualRatio(_)) => {
+                LookupModel::Ratio
+            }
+            _ => LookupModel::Majorant,
+        }
+    }
+
+    /// The walk's lookup model of free flights without point bounds (and of projected
+    /// fields' trackers, [`Self::segments_for`]).
+    fn unprobed_flight_model(&self) -> LookupModel {
         // Decomposition tracking pays lookups only above each segment's minorant: the walk
         // then prefers cells with tight minorants too.
         match self.tracking.free_flight {
@@ -288,7 +302,7 @@ impl HeterogeneousMedium {
     }
 
     /// The majorant segments of `[t0, t1]` along `ray` walked at coefficients `c`'s extinction
-    /// under the shadow rays' lookup model: for trackers of this field with coefficients of
+    /// under the lookup model of free flights without point bounds: for trackers of this field with coefficients of
     /// their own (surface-projected textures, [`super::ProjectedMedium`]).
     pub(super) fn segments_for(
         &self,
@@ -297,7 +311,7 @@ impl HeterogeneousMedium {
         t0: f32,
         t1: f32,
     ) -> MediumSegments<'_> {
-        self.segments_with(c, ray, t0, t1, self.shadow_model())
+        self.segments_with(c, ray, t0, t1, self.unprobed_flight_model())
     }
 
     /// [`Self::segments_along`] under lookup model `model`, for coefficients `c`.
@@ -418,7 +432,7 @@ impl HeterogeneousMedium {
         let model = if self.uses_local_bounds() {
             LookupModel::Probed
         } else {
-            self.shadow_model()
+            self.unprobed_flight_model()
         };
         let flight = match self.tracking.free_flight {
             FreeFlightMethod::Split if t_max.is_finite() => {

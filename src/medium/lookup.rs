@@ -84,7 +84,7 @@ impl<'a> GridLookup<'a> {
     #[must_use]
     pub fn from_index_ray(grid: &'a SparseGrid, channel: usize, o: Vec3, d: Vec3) -> Self {
         GridLookup {
-            accessor: grid.accessor(channel),
+            accessor: grid.padded_accessor(channel),
             o,
             d,
         }
