@@ -13,12 +13,14 @@
 
 mod connect;
 mod direct;
+mod fibre_lean;
 mod interiors;
 pub mod manifold;
 
 pub use interiors::{InteriorStack, MAX_NESTING};
 
 use direct::{emitted, estimate_direct, PrevVertex, ShadowMode, SunLean};
+use fibre_lean::FibreLean;
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
 use crate::bsdf::Surface;
@@ -466,11 +468,19 @@ impl PathState {
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
         let phase = vertex.phase.prepare(wo);
-        let lean = if interior_nee && medium.sun_lean() {
+        let lean = if interior_nee && medium.sun_lean() && matches!(phase, PreparedPhase::Hg { .. })
+        {
             SunLean::for_scene(scene)
         } else {
             None
         };
+        let fibre_lean = match lean {
+            None if interior_nee && medium.sun_lean() => FibreLean::at_vertex(scene, &vertex.phase),
+            _ => None,
+        };
+        let lean_light = lean
+            .map(|l| l.light)
+            .or(fibre_lean.as_ref().map(|l| l.light));
         let lean_weight = self.lean_weight.take();
         let mut seen = None;
         if interior_nee {
@@ -489,7 +499,7 @@ impl PathState {
                 None,
                 &mut seen,
             );
-            if lean.is_none_or(|l| li != Some(l.light)) {
+            if lean_light.is_none_or(|l| li != Some(l)) {
                 seen = None;
             }
             let c = match lean_weight {
@@ -499,11 +509,23 @@ impl PathState {
             self.add_light(scene, li, self.beta * c);
         }
         // The lean is played by chance where the vertex's own sun NEE saw little of the sun.
-        let play = SunLean::play_probability(seen);
-        if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
+        let play = match &fibre_lean {
+            Some(f) => f.play_probability(seen),
+            None => SunLean::play_probability(seen),
+        };
+        if let Some(light) = lean_light {
             if self.depth + 1 < scene.film.max_depth && (play >= 1.0 || sampler.next_1d() < play) {
-                let c = self.lean_estimate(scene, medium, &l, hg, *wo, p, play, sampler, stats);
-                self.add_light(scene, Some(l.light), c / play);
+                let drawn = match (lean, &phase, &fibre_lean) {
+                    (Some(l), PreparedPhase::Hg { phase: hg, wo }, _) => l
+                        .sample(hg, *wo, play, sampler)
+                        .map(|(d, f_over_q, w)| (d, Rgb::splat(f_over_q), w)),
+                    (_, _, Some(f)) => f.sample(&phase, play, sampler),
+                    _ => None,
+                };
+                if let Some(drawn) = drawn {
+                    let c = self.lean_estimate(scene, medium, light, drawn, p, sampler, stats);
+                    self.add_light(scene, Some(light), c / play);
+                }
             }
         }
         self.guided_from = None;
@@ -535,6 +557,9 @@ impl PathState {
         if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
             self.lean_weight = Some((l.main_weight(hg, *wo, s.wi, play), l.light));
         }
+        if let Some(f) = &fibre_lean {
+            self.lean_weight = Some((f.main_weight(s.pdf, s.wi, play), f.light));
+        }
         self.prev = PrevVertex {
             p,
             pdf: s.pdf,
@@ -546,27 +571,23 @@ impl PathState {
     }
 
     /// The sun-leaned estimate of the sun's light scattered at the *next* vertex
-    /// ([`direct::SunLean`]): a direction from the lobe centred on the sun, a free flight
-    /// along it up to the interior's next boundary, and where it collides the sun's NEE there,
-    /// balance-weighted against the main path's own sun NEE at its next vertex, for a lean played
-    /// with probability `play` (the caller divides by it). Returns the
-    /// contribution with the path throughput included.
+    /// ([`direct::SunLean`], [`fibre_lean::FibreLean`]): `drawn` = (a direction from the lobe
+    /// centred on the sun, phase value / that lobe's pdf, the balance weight against the main
+    /// path's own sun NEE at its next vertex); a free flight along it up to the interior's next
+    /// boundary, and where it collides the NEE there of the sun, light `light`. Returns the
+    /// contribution with the path throughput included (the caller divides by the lean's play
+    /// probability).
     #[allow(clippy::too_many_arguments)]
     fn lean_estimate(
         &self,
         scene: &Scene,
         medium: &Medium,
-        lean: &SunLean,
-        hg: &crate::phase::PhaseFunction,
-        wo: Vec3,
+        light: usize,
+        (d, f_over_q, w): (Vec3, Rgb, f32),
         p: Vec3,
-        play: f32,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
     ) -> Rgb {
-        let Some((d, f_over_q, w)) = lean.sample(hg, wo, play, sampler) else {
-            return Rgb::ZERO;
-        };
         let ray = Ray::new(p, d);
         stats.rays += 1;
         let event = medium.sample_flight_in_cone(
@@ -603,10 +624,10 @@ impl PathState {
             sampler,
             stats,
             &mut li,
-            Some(lean.light),
+            Some(light),
             &mut None,
         );
-        if li == Some(lean.light) {
+        if li == Some(light) {
             beta * c
         } else {
             Rgb::ZERO

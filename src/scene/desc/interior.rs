@@ -241,6 +241,9 @@ pub struct FabricDesc {
     pub density: Option<f32>,
     /// "exit" or "interior".
     pub nee: Option<String>,
+    /// With `nee = "interior"`: the sun-leaned estimate of the next vertex's sun light at
+    /// every fibre vertex (default true; docs/fabric.md, "The sun lean at fibre vertices").
+    pub sun_lean: Option<bool>,
 }
 
 /// `fibre_phase = { ... }`: the fibre scattering parameters of a fabric interior (Chiang et

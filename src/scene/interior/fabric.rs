@@ -43,7 +43,8 @@ pub(super) fn build(
     if placement.rest_mesh.is_none() && placement.rest_bounds.is_some() {
         return Err(at.invalid(format!("{}: a fabric interior needs shape = \"bounds\" (a free-standing patch) or shape = \"mesh\" (a shell tiled over the mesh's texture coordinates)", at.owner)));
     }
-    let (medium, colours) = build_fabric(at, d, placement, attenuation, density)?;
+    let (mut medium, colours) = build_fabric(at, d, placement, attenuation, density)?;
+    medium.tracking.sun_lean = d.sun_lean.unwrap_or(true);
     if !colours.is_textured() {
         return Ok(BuiltInterior {
             medium: Medium::Heterogeneous(Box::new(medium)),
