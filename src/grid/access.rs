@@ -143,23 +143,22 @@ impl<'a> Accessor<'a> {
         }
     }
 
-    /// Appends the padded copy of brick `key` (brick coordinates) to `out`: the first
-    /// component of the voxels `8 key + (x, y, z)`, `x, y, z ∈ 0..9` ([`PADDED_EDGE`]), `z`
-    /// fastest; the 8 bricks (or tiles) they lie in are resolved once.
-    pub(super) fn push_padded_brick(&mut self, key: IVec3, out: &mut Vec<f32>) {
+    /// Writes the padded copy of brick `key` (brick coordinates) into `out` (9³ values): the
+    /// first component of the voxels `8 key + (x, y, z)`, `x, y, z ∈ 0..9` ([`PADDED_EDGE`]),
+    /// `z` fastest; the 8 bricks (or tiles) they lie in are resolved once.
+    pub(super) fn write_padded_brick(&mut self, key: IVec3, out: &mut [f32]) {
         let mut e = [0u32; 8];
         for (n, en) in e.iter_mut().enumerate() {
             let d = IVec3::new((n >> 2) as i32, ((n >> 1) & 1) as i32, (n & 1) as i32);
             *en = self.peek(key + d);
         }
-        for x in 0..PADDED_EDGE {
-            for y in 0..PADDED_EDGE {
-                for z in 0..PADDED_EDGE {
-                    let n = ((x >> 3) << 2) | ((y >> 3) << 1) | (z >> 3);
-                    let v = ((x & 7) << 6) | ((y & 7) << 3) | (z & 7);
-                    out.push(self.fetch(e[n], v, 0));
-                }
-            }
+        let cells = (0..PADDED_EDGE).flat_map(|x| {
+            (0..PADDED_EDGE).flat_map(move |y| (0..PADDED_EDGE).map(move |z| (x, y, z)))
+        });
+        for (slot, (x, y, z)) in out.iter_mut().zip(cells) {
+            let n = ((x >> 3) << 2) | ((y >> 3) << 1) | (z >> 3);
+            let v = ((x & 7) << 6) | ((y & 7) << 3) | (z & 7);
+            *slot = self.fetch(e[n], v, 0);
         }
     }
 

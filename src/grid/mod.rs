@@ -31,6 +31,7 @@ mod builder;
 pub use access::Accessor;
 pub use builder::SparseGridBuilder;
 
+use rayon::prelude::*;
 use glam::{DAffine3, DVec3, IVec3, Vec3};
 use half::f16;
 use std::collections::HashMap;
@@ -663,8 +664,18 @@ impl SparseGrid {
         Accessor::with_padded(self, c, padded)
     }
 
+    /// Makes the padded bricks of channel `c` now ([`Self::padded_accessor`]), in parallel,
+    /// instead of on the first lookup (where the first render thread would make them alone
+    /// while the others wait). Scene loading calls this for voxel and baked fBm interiors.
+    ///
+    /// # Panics
+    /// If `c` is not a channel of the grid (programming error).
+    pub fn prepare_padded(&self, c: usize) {
+        let _ = self.padded_accessor(c);
+    }
+
     /// The padded bricks of channel `c` ([`Self::padded_accessor`]), or `None` where they are
-    /// not made.
+    /// not made (bricks in parallel, one accessor per worker).
     fn make_padded(&self, c: usize) -> Option<Vec<f32>> {
         let ch = &self.channels[c];
         if ch.kind.components() != 1 || !matches!(ch.values, Values::F32(_)) {
@@ -674,11 +685,13 @@ impl SparseGrid {
         if n.checked_mul(4)? > PADDED_BUDGET {
             return None;
         }
-        let mut out = Vec::with_capacity(n);
-        let mut acc = Accessor::new(self, c);
-        for &origin in &self.brick_origin {
-            acc.push_padded_brick(origin >> BRICK_LOG2, &mut out);
-        }
+        let mut out = vec![0.0f32; n];
+        out.par_chunks_mut(PADDED_VOXELS)
+            .zip(self.brick_origin.par_iter())
+            .for_each_init(
+                || Accessor::new(self, c),
+                |acc, (brick, &origin)| acc.write_padded_brick(origin >> BRICK_LOG2, brick),
+            );
         Some(out)
     }
 

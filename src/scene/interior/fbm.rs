@@ -123,6 +123,7 @@ fn fbm_field(
             )?;
             let grid = bake_fbm(&field, &lattice).map_err(|e| bad(&e))?;
             let pyramid = MajorantPyramid::from_grid(&grid, 0).map_err(|e| bad(&e))?;
+            grid.prepare_padded(0);
             Ok((DensityField::Grid { grid, channel: 0 }, pyramid))
         }
         evaluation @ ("lazy" | "exact") => {

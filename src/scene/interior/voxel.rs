@@ -110,6 +110,7 @@ fn voxel_field(
         .map_err(|e| at.invalid(format!("{owner}: placing grid `{name}`: {e}")))?;
     let pyramid = MajorantPyramid::from_grid(&grid, 0)
         .map_err(|e| at.invalid(format!("{owner}: grid `{name}`: {e}")))?;
+    grid.prepare_padded(0);
     Ok((
         DensityField::Grid { grid, channel: 0 },
         pyramid,
