@@ -116,11 +116,7 @@ impl SlabRay {
                 Vec4::splat(ray.o.y),
                 Vec4::splat(ray.o.z),
             ],
-            inv: [
-                Vec4::splat(inv.x),
-                Vec4::splat(inv.y),
-                Vec4::splat(inv.z),
-            ],
+            inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
             near: [near(0), near(1), near(2)],
             far: [far(0), far(1), far(2)],
         }
