@@ -323,11 +323,6 @@ impl SceneGeometry {
         )
     }
 
-    /// The corners of the triangle at BVH position `slot`.
-    fn corners(&self, slot: usize) -> [Vec3; 3] {
-        self.tris[slot].map(|i| self.verts[i as usize].truncate())
-    }
-
     /// True when the segment `(0, t_max)` of `ray` provably hits no triangle: it is short
     /// and lies in cells no triangle touches ([`EmptyCells`]; the traversal would find nothing).
     #[inline]
@@ -396,8 +391,16 @@ impl SceneGeometry {
             },
             Best::Tri(slot, h) => {
                 let p = &self.prims[slot];
-                let [a, b, c] = self.corners(slot);
-                let pos = a * h.b0 + b * h.b1 + c * h.b2;
+                // The corners as stored (`w` = 0), combined in SIMD lanes: the same
+                // per-coordinate IEEE operations as on `Vec3`s.
+                let [ia, ib, ic] = self.tris[slot];
+                let (a4, b4, c4) = (
+                    self.verts[ia as usize],
+                    self.verts[ib as usize],
+                    self.verts[ic as usize],
+                );
+                let (a, b, c) = (a4.truncate(), b4.truncate(), c4.truncate());
+                let pos = (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate();
                 let ng = (b - a).cross(c - a).normalize_or(-ray.d);
                 let mut ns = ng;
                 let mut uv = Vec2::new(h.b1, h.b2);
@@ -414,7 +417,8 @@ impl SceneGeometry {
                 }
                 // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
                 let p_error = crate::math::gamma(7)
-                    * (a.abs() * h.b0.abs() + b.abs() * h.b1.abs() + c.abs() * h.b2.abs())
+                    * (a4.abs() * h.b0.abs() + b4.abs() * h.b1.abs() + c4.abs() * h.b2.abs())
+                        .truncate()
                         .max_element();
                 Hit {
                     t: h.t,

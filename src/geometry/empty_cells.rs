@@ -10,6 +10,8 @@
 //! (the paddings exceed the rounding of the segment's end point and of the triangle test), so
 //! images are bit-identical.
 
+use glam::Vec3A;
+
 use crate::math::Vec3;
 
 /// Segments whose bounding box overlaps more cells than this are traversed.
@@ -107,23 +109,22 @@ impl EmptyCells {
     /// can be hit along it. False when unsure (long segments, segments leaving the grid).
     #[inline]
     pub(super) fn clear(&self, a: Vec3, b: Vec3) -> bool {
-        let m = Vec3::splat(self.margin);
-        let fa = (a.min(b) - m - self.lo) * self.inv_cell;
-        let fb = (a.max(b) + m - self.lo) * self.inv_cell;
-        // Written out per axis (indexing a `Vec3` by a variable and the array `map`s cost
-        // about 290 instructions per call; the same comparisons and conversions).
-        let ([ax, ay, az], [bx, by, bz]) = (fa.to_array(), fb.to_array());
+        // In SIMD lanes: the same per-coordinate IEEE operations (`a` and `b` are finite or
+        // infinite, never NaN, so `min`/`max` agree with the scalar ones where it matters).
+        let (a, b) = (Vec3A::from(a), Vec3A::from(b));
+        let m = Vec3A::splat(self.margin);
+        let lo = Vec3A::from(self.lo);
+        let fa = (a.min(b) - m - lo) * self.inv_cell;
+        let fb = (a.max(b) + m - lo) * self.inv_cell;
         let [dx, dy, dz] = self.dims;
-        // Inside the grid (this also rejects NaN).
-        let inside = ax >= 0.0
-            && bx < dx as f32
-            && ay >= 0.0
-            && by < dy as f32
-            && az >= 0.0
-            && bz < dz as f32;
-        if !inside {
+        // Inside the grid (this also rejects NaN). The dimensions (at most 128) are exact in f32.
+        let dims = Vec3A::new(dx as f32, dy as f32, dz as f32);
+        if !(fa.cmpge(Vec3A::ZERO) & fb.cmplt(dims)).all() {
             return false;
         }
+        // Written out per axis (indexing by a variable and array `map`s cost about 290
+        // instructions per call; the same comparisons and conversions).
+        let ([ax, ay, az], [bx, by, bz]) = (fa.to_array(), fb.to_array());
         let (x0, y0, z0) = (ax as i64, ay as i64, az as i64);
         let x1 = (bx as i64).min(dx - 1);
         let y1 = (by as i64).min(dy - 1);

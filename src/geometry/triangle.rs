@@ -93,31 +93,33 @@ pub(crate) struct ShearedRay {
 }
 
 impl ShearedRay {
+    #[inline]
     pub(crate) fn new(ray: &Ray) -> Self {
-        let d = ray.d;
-        let a = d.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
+        let a = ray.d.abs();
+        // (kz, kx, ky) for a positive `d[kz]`; a negative one swaps kx and ky (the winding).
+        let (kz, kx, ky) = if a.x >= a.y && a.x >= a.z {
+            (0, 1, 2)
         } else if a.y >= a.z {
-            1
+            (1, 2, 0)
         } else {
-            2
+            (2, 0, 1)
         };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        let d = ray.d.to_array();
+        let o = ray.o.to_array();
+        let (kx, ky) = if d[kz] < 0.0 { (ky, kx) } else { (kx, ky) };
+        // `d[kx] / d[kz]`, `d[ky] / d[kz]` and `1 / d[kz]` in one vector division (the same
+        // IEEE quotients as three scalar ones).
+        let s = Vec4::new(d[kx], d[ky], 1.0, 1.0) / Vec4::splat(d[kz]);
         ShearedRay {
             kx,
             ky,
             kz,
-            okx: Vec4::splat(ray.o[kx]),
-            oky: Vec4::splat(ray.o[ky]),
-            okz: Vec4::splat(ray.o[kz]),
-            sxv: Vec4::splat(d[kx] / d[kz]),
-            syv: Vec4::splat(d[ky] / d[kz]),
-            sz: 1.0 / d[kz],
+            okx: Vec4::splat(o[kx]),
+            oky: Vec4::splat(o[ky]),
+            okz: Vec4::splat(o[kz]),
+            sxv: Vec4::splat(s.x),
+            syv: Vec4::splat(s.y),
+            sz: s.z,
         }
     }
 

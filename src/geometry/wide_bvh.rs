@@ -97,36 +97,28 @@ struct SlabRay {
     far: [usize; 3],
 }
 
-/// Reciprocal direction with magnitudes capped at 1e20 (sign kept, `-0` treated as `+0`),
-/// so that slab tests never produce `0·∞`.
-fn capped_inverse(x: f32) -> f32 {
-    if x.abs() < 1e-20 {
-        if x < 0.0 {
-            -1e20
-        } else {
-            1e20
-        }
-    } else {
-        1.0 / x
-    }
-}
-
 impl SlabRay {
+    /// The slab constants of `ray`. The reciprocal direction has magnitudes capped at 1e20
+    /// (sign kept, `-0` treated as `+0`), so that slab tests never produce `0·∞`; the three
+    /// reciprocals are one vector division (the same IEEE quotients as three scalar ones).
+    #[inline]
     fn new(ray: &Ray) -> Self {
-        let inv = [
-            capped_inverse(ray.d.x),
-            capped_inverse(ray.d.y),
-            capped_inverse(ray.d.z),
-        ];
+        let d = Vec4::from((ray.d, 1.0));
+        let small = d.abs().cmplt(Vec4::splat(1e-20));
+        let cap = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::splat(-1e20), Vec4::splat(1e20));
+        let inv = Vec4::select(small, cap, Vec4::ONE / d);
+        let neg = inv.cmplt(Vec4::ZERO).bitmask();
+        let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
+        let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
         SlabRay {
             o: [
                 Vec4::splat(ray.o.x),
                 Vec4::splat(ray.o.y),
                 Vec4::splat(ray.o.z),
             ],
-            inv: inv.map(Vec4::splat),
-            near: [0, 1, 2].map(|k| if inv[k] < 0.0 { k + 3 } else { k }),
-            far: [0, 1, 2].map(|k| if inv[k] < 0.0 { k } else { k + 3 }),
+            inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
+            near: [near(0), near(1), near(2)],
+            far: [far(0), far(1), far(2)],
         }
     }
 
@@ -191,8 +183,16 @@ mod avx2 {
         #[target_feature(enable = "avx2")]
         pub(super) unsafe fn new(s: &SlabRay) -> Self {
             AvxSlab {
-                o: s.o.map(|v| _mm256_set1_ps(v.x)),
-                inv: s.inv.map(|v| _mm256_set1_ps(v.x)),
+                o: [
+                    _mm256_set1_ps(s.o[0].x),
+                    _mm256_set1_ps(s.o[1].x),
+                    _mm256_set1_ps(s.o[2].x),
+                ],
+                inv: [
+                    _mm256_set1_ps(s.inv[0].x),
+                    _mm256_set1_ps(s.inv[1].x),
+                    _mm256_set1_ps(s.inv[2].x),
+                ],
                 near: s.near,
                 far: s.far,
             }
