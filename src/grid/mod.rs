@@ -31,9 +31,9 @@ mod builder;
 pub use access::Accessor;
 pub use builder::SparseGridBuilder;
 
-use rayon::prelude::*;
 use glam::{DAffine3, DVec3, IVec3, Vec3};
 use half::f16;
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
