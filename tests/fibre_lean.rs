@@ -8,8 +8,7 @@
 mod common;
 
 use common::files::TempDir;
-use common::render::{assert_images_agree, render_finite, scene_from_text};
-use velour::film::Film;
+use common::render::{assert_images_agree, render_text, total_variance};
 
 /// A free-standing twill patch seen from above at a grazing sun (3° disc), NEE at every
 /// vertex.
@@ -43,28 +42,11 @@ interior = {{ type = "fabric", pattern = "twill", yarn = "cotton1", resolution =
     )
 }
 
-fn render(dir: &TempDir, text: &str) -> Film {
-    let scene = scene_from_text(text, dir.join("scene.toml"));
-    render_finite(&scene, 0).0
-}
-
-/// Summed variance of the pixel means over the image and channels.
-fn total_variance(f: &Film) -> f64 {
-    let mut v = 0.0;
-    for y in 0..f.height() {
-        for x in 0..f.width() {
-            let p = f.variance_of_mean(x, y);
-            v += f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2]);
-        }
-    }
-    v
-}
-
 #[test]
 fn the_fibre_lean_renders_the_same_image_with_less_variance() {
     let dir = TempDir::new("fibre_lean");
-    let lean = render(&dir, &twill(true, 256, 1));
-    let plain = render(&dir, &twill(false, 256, 2));
+    let lean = render_text(&twill(true, 256, 1), dir.path());
+    let plain = render_text(&twill(false, 256, 2), dir.path());
     assert_images_agree(&lean, &plain);
     let (vl, vp) = (total_variance(&lean), total_variance(&plain));
     eprintln!("variance of the pixel means: lean {vl:.4e}, plain {vp:.4e}");

@@ -9,8 +9,7 @@
 mod common;
 
 use common::files::TempDir;
-use common::render::{assert_images_agree, render_finite, scene_from_text};
-use velour::film::Film;
+use common::render::{assert_images_agree, render_text, total_variance};
 
 /// An optically thin fBm cloud (σ_t ≤ 2 per unit, albedo 0.9, HG g = 0.6) in an index-matched
 /// sphere with NEE at every vertex, under a dim constant sky and a bright sun.
@@ -49,28 +48,11 @@ interior = {{ type = "fbm", voxel_size = 0.05, noise = {{ frequency = 1.5, octav
     )
 }
 
-fn render(dir: &TempDir, text: &str) -> Film {
-    let scene = scene_from_text(text, dir.join("scene.toml"));
-    render_finite(&scene, 0).0
-}
-
-/// Summed variance of the pixel means over the image and channels.
-fn total_variance(f: &Film) -> f64 {
-    let mut v = 0.0;
-    for y in 0..f.height() {
-        for x in 0..f.width() {
-            let p = f.variance_of_mean(x, y);
-            v += f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2]);
-        }
-    }
-    v
-}
-
 #[test]
 fn the_sun_leaned_estimate_renders_the_same_image_with_less_variance() {
     let dir = TempDir::new("sun_lean");
-    let lean = render(&dir, &scene(true, 384, 1));
-    let plain = render(&dir, &scene(false, 384, 2));
+    let lean = render_text(&scene(true, 384, 1), dir.path());
+    let plain = render_text(&scene(false, 384, 2), dir.path());
     assert_images_agree(&lean, &plain);
     let (vl, vp) = (total_variance(&lean), total_variance(&plain));
     eprintln!("variance of the pixel means: lean {vl:.4e}, plain {vp:.4e}");
@@ -84,8 +66,8 @@ fn the_sun_leaned_estimate_renders_the_same_image_with_less_variance() {
 #[test]
 fn the_lean_played_by_chance_in_a_dense_cloud_renders_the_same_image() {
     let dir = TempDir::new("sun_lean_dense");
-    let lean = render(&dir, &cloud(true, 0.025, 256, 3));
-    let plain = render(&dir, &cloud(false, 0.025, 256, 4));
+    let lean = render_text(&cloud(true, 0.025, 256, 3), dir.path());
+    let plain = render_text(&cloud(false, 0.025, 256, 4), dir.path());
     assert_images_agree(&lean, &plain);
     let (vl, vp) = (total_variance(&lean), total_variance(&plain));
     eprintln!("dense: variance of the pixel means: lean {vl:.4e}, plain {vp:.4e}");

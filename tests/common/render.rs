@@ -78,6 +78,18 @@ pub fn assert_images_agree(a: &Film, b: &Film) {
     }
 }
 
+/// Summed variance of the pixel means over the image and its three channels.
+pub fn total_variance(f: &Film) -> f64 {
+    let mut v = 0.0;
+    for y in 0..f.height() {
+        for x in 0..f.width() {
+            let p = f.variance_of_mean(x, y);
+            v += f64::from(p[0]) + f64::from(p[1]) + f64::from(p[2]);
+        }
+    }
+    v
+}
+
 /// [`region_mean`] over the whole image.
 pub fn image_mean(film: &Film, c: usize) -> (f64, f64) {
     region_mean(film, c, |_, _| true)
