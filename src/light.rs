@@ -368,6 +368,14 @@ pub struct LightSampler {
 /// irradiance summed over RGB, the first of equals; `None` when `lights` has none.
 #[must_use]
 pub fn brightest_delta_sun(lights: &[Light]) -> Option<usize> {
+    brightest_distant(lights, false)
+}
+
+/// The index of the distant light of greatest irradiance summed over RGB, the first of
+/// equals, among delta suns and, with `discs`, suns with an angular radius too; `None` when
+/// `lights` has none.
+#[must_use]
+pub fn brightest_distant(lights: &[Light], discs: bool) -> Option<usize> {
     let mut best: Option<(f32, usize)> = None;
     for (li, light) in lights.iter().enumerate() {
         if let Light::Distant {
@@ -377,7 +385,7 @@ pub fn brightest_delta_sun(lights: &[Light]) -> Option<usize> {
         } = light
         {
             let power = irradiance[0] + irradiance[1] + irradiance[2];
-            if *cos_radius >= 1.0 && best.is_none_or(|(b, _)| power > b) {
+            if (discs || *cos_radius >= 1.0) && best.is_none_or(|(b, _)| power > b) {
                 best = Some((power, li));
             }
         }

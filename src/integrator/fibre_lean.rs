@@ -32,26 +32,6 @@ pub(super) struct FibreLean<'a> {
     lobe: PreparedPhase<'a>,
 }
 
-/// The index and direction (unit, towards the light) of the scene's distant light of greatest
-/// irradiance (summed over RGB), delta or disc; the first of equals.
-fn brightest_distant(scene: &Scene) -> Option<(usize, Vec3)> {
-    let mut best: Option<(f32, usize, Vec3)> = None;
-    for (li, light) in scene.lights.iter().enumerate() {
-        if let Light::Distant {
-            to_light,
-            irradiance,
-            ..
-        } = light
-        {
-            let power = irradiance[0] + irradiance[1] + irradiance[2];
-            if best.is_none_or(|(b, _, _)| power > b) {
-                best = Some((power, li, *to_light));
-            }
-        }
-    }
-    best.map(|(_, li, d)| (li, d))
-}
-
 /// The lean's play probability per unit of the vertex's sun transmittance estimate
 /// ([`FibreLean::play_probability`]): chosen on `scenes/draped_cloth.toml` (docs/BENCHMARKS.md,
 /// "draped_cloth: the sun lean at fibre vertices").
@@ -67,10 +47,13 @@ impl<'a> FibreLean<'a> {
         if !matches!(phase, VertexPhase::Fibre { .. }) {
             return None;
         }
-        let (light, to_light) = brightest_distant(scene)?;
+        let light = scene.brightest_sun?;
+        let Some(Light::Distant { to_light, .. }) = scene.lights.get(light) else {
+            return None;
+        };
         Some(FibreLean {
             light,
-            lobe: phase.prepare(-to_light),
+            lobe: phase.prepare(-*to_light),
         })
     }
 

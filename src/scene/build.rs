@@ -102,6 +102,7 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let light_sampler = LightSampler::new(&lights, radius);
     let nee_light_sampler = LightSampler::for_nee(&lights, radius);
     let brightest_delta_sun = crate::light::brightest_delta_sun(&lights);
+    let brightest_sun = crate::light::brightest_distant(&lights, true);
     Ok(Scene {
         camera,
         camera_params,
@@ -110,6 +111,7 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
         light_sampler,
         nee_light_sampler,
         brightest_delta_sun,
+        brightest_sun,
         geometry,
         objects: built.objects,
         media: built.media,

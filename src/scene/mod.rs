@@ -420,6 +420,9 @@ pub struct Scene {
     /// The delta sun a medium's `sun_lean` estimate leans towards
     /// ([`crate::light::brightest_delta_sun`]), found once at load.
     pub brightest_delta_sun: Option<usize>,
+    /// The distant light, delta or disc, the fibre vertices' sun lean leans towards
+    /// ([`crate::light::brightest_distant`]), found once at load.
+    pub brightest_sun: Option<usize>,
     /// All geometry.
     pub geometry: SceneGeometry,
     /// Objects.
