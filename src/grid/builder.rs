@@ -63,6 +63,7 @@ impl SparseGridBuilder {
             values,
             tile_values,
             padded: std::sync::OnceLock::new(),
+            sun_map: std::sync::OnceLock::new(),
         });
         self.grid.channels.len() - 1
     }
@@ -385,6 +386,7 @@ impl SparseGridBuilder {
         // Padded copies made while building (through `grid()`) may be out of date.
         for ch in &mut self.grid.channels {
             ch.padded = std::sync::OnceLock::new();
+            ch.sun_map = std::sync::OnceLock::new();
         }
         self.grid
     }

@@ -27,9 +27,11 @@
 
 mod access;
 mod builder;
+mod sun_map;
 
 pub use access::Accessor;
 pub use builder::SparseGridBuilder;
+pub use sun_map::SunMap;
 
 use glam::{DAffine3, DVec3, IVec3, Vec3};
 use half::f16;
@@ -183,6 +185,9 @@ pub(crate) struct Channel {
     pub(crate) tile_values: Vec<f32>,
     /// The bricks with their apron ([`SparseGrid::padded_accessor`]), made on first use.
     pub(crate) padded: std::sync::OnceLock<Option<Vec<f32>>>,
+    /// The channel's integral towards one distant direction ([`SparseGrid::sun_map`]), made
+    /// on first use for the first direction asked.
+    pub(crate) sun_map: std::sync::OnceLock<Option<Box<SunMap>>>,
 }
 
 /// Edge of a brick with its apron: the brick's 8 voxels and the first voxel of the next brick
@@ -400,6 +405,9 @@ impl SparseGrid {
         }
         self.index_to_world = m;
         self.world_to_index = m.inverse();
+        for ch in &mut self.channels {
+            ch.sun_map = std::sync::OnceLock::new();
+        }
         Ok(())
     }
 
@@ -662,6 +670,27 @@ impl SparseGrid {
         let ch = &self.channels[c];
         let padded = ch.padded.get_or_init(|| self.make_padded(c)).as_deref();
         Accessor::with_padded(self, c, padded)
+    }
+
+    /// The map of channel `c`'s integral from each point to the grid's edge along `to_light`
+    /// (unit, world; [`SunMap`]), made on the first call (in parallel, 2 lookups per node) for
+    /// the direction then asked; `None` for any other direction (beyond 1e-6 in each
+    /// component), a grid with nothing active, or a channel with more than one component.
+    ///
+    /// # Panics
+    /// If `c` is not a channel of the grid (programming error).
+    #[must_use]
+    pub fn sun_map(&self, c: usize, to_light: Vec3) -> Option<&SunMap> {
+        let ch = &self.channels[c];
+        let map = ch
+            .sun_map
+            .get_or_init(|| {
+                (ch.kind.components() == 1)
+                    .then(|| SunMap::build(self, c, to_light).map(Box::new))
+                    .flatten()
+            })
+            .as_deref()?;
+        ((map.to_light() - to_light).abs().max_element() <= 1e-6).then_some(map)
     }
 
     /// Makes the padded bricks of channel `c` now ([`Self::padded_accessor`]), in parallel,

@@ -167,7 +167,10 @@ pub(super) struct GuidedPrev {
 /// With `only` = `Some(li)` light `li` is taken with probability 1 instead of being drawn
 /// from the scene's NEE distribution: an estimate of that light's part alone. `seen` receives
 /// the shadow ray's transmittance estimate (its largest channel) when a shadow ray was traced
-/// (`None` otherwise).
+/// (`None` otherwise; 0 when it was ended by the roulette below). With `survival` =
+/// `Some((l, s))`, a shadow ray to light `l` is traced only with probability `s` (Russian
+/// roulette before any lookup; `s` must not depend on the random numbers it decides) and the
+/// estimate of the survivors is divided by `s`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn estimate_direct(
     scene: &Scene,
@@ -181,6 +184,7 @@ pub(super) fn estimate_direct(
     chosen: &mut Option<usize>,
     only: Option<usize>,
     seen: &mut Option<f32>,
+    survival: Option<(usize, f32)>,
 ) -> Rgb {
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
@@ -202,6 +206,16 @@ pub(super) fn estimate_direct(
     }
     let (f, scatter_pdf) = eval(ls.wi);
     if f.is_black() {
+        return Rgb::ZERO;
+    }
+    // Russian roulette on the shadow ray before it is traced, with a survival probability
+    // that depends on the light alone (not on the random numbers it decides): unbiased.
+    let survive = match survival {
+        Some((l, s)) if l == li && s > 0.0 => s.min(1.0),
+        _ => 1.0,
+    };
+    if survive < 1.0 && !(sampler.next_1d() < survive) {
+        *seen = Some(0.0);
         return Rgb::ZERO;
     }
     let (origin, stack) = shadow_origin(ls.wi);
@@ -237,7 +251,7 @@ pub(super) fn estimate_direct(
     } else {
         power_heuristic(light_pdf, scatter_pdf)
     };
-    f * tr * ls.radiance * (w / light_pdf)
+    f * tr * ls.radiance * (w / (light_pdf * survive))
 }
 
 /// Radiance arriving from lights hit by a sampled ray (sphere light `shape` or escaped rays),
@@ -324,6 +338,16 @@ const LEAN_PLAY_PER_TRANSMITTANCE: f32 = 5.0;
 /// own sun shadow ray came back black (mostly ended by its Russian roulette).
 const LEAN_PLAY_FLOOR: f32 = 0.3;
 
+/// The predicted sun transmittance (largest channel) below which the sun's shadow rays from
+/// a medium vertex are rouletted before they are traced ([`SunLean::shadow_survival`]):
+/// chosen on the dense peer cloud (docs/BENCHMARKS.md, "Shadow rays to the sun rouletted by a
+/// predicted transmittance").
+const SHADOW_ROULETTE_TRANSMITTANCE: f32 = 0.1;
+
+/// The smallest survival probability of that roulette: where the prediction is far below the
+/// ray's true transmittance, a survivor's weight stays at most 20.
+const SHADOW_ROULETTE_FLOOR: f32 = 0.05;
+
 /// The sun-leaned estimate of second-vertex sun light (`sun_lean` in a medium's `tracking`
 /// table). In an optically thin, forward-scattering medium under a sun, most of the image's
 /// noise is the sun's NEE at the vertex *after* a medium vertex: it is large only where the
@@ -360,6 +384,25 @@ impl SunLean {
             }),
             _ => None,
         }
+    }
+
+    /// Unit direction towards the light.
+    #[inline]
+    pub(super) fn to_light(&self) -> Vec3 {
+        self.to_light
+    }
+
+    /// The survival probability of a shadow ray to the sun from a point whose transmittance
+    /// towards it is predicted (not estimated) as `predicted`
+    /// ([`crate::medium::Medium::sun_transmittance_hint`]): `predicted /
+    /// SHADOW_ROULETTE_TRANSMITTANCE` clamped to [`SHADOW_ROULETTE_FLOOR`, 1]. Deep in a dense
+    /// cloud most sun rays come back (nearly) black, and half of them used to be ended by
+    /// ratio tracking's own roulette only after their walk and several lookups; this one
+    /// decides before the walk. Unbiased (the survivors are divided by it) whatever the
+    /// prediction's error, which costs variance only.
+    #[inline]
+    pub(super) fn shadow_survival(predicted: f32) -> f32 {
+        (predicted / SHADOW_ROULETTE_TRANSMITTANCE).clamp(SHADOW_ROULETTE_FLOOR, 1.0)
     }
 
     /// Balance weight p/(p + P·q) of the main path's direction `wi` (sampled from `phase` at

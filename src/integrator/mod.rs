@@ -482,6 +482,13 @@ impl PathState {
             .map(|l| l.light)
             .or(fibre_lean.as_ref().map(|l| l.light));
         let lean_weight = self.lean_weight.take();
+        // The sun's shadow ray from here is rouletted by the sun's transmittance predicted
+        // from the medium's map (where the medium has one) before it is traced.
+        let survival = lean.and_then(|l| {
+            medium
+                .sun_transmittance_hint(p, l.to_light())
+                .map(|t| (l.light, SunLean::shadow_survival(t)))
+        });
         let mut seen = None;
         if interior_nee {
             let st = self.stack;
@@ -498,6 +505,7 @@ impl PathState {
                 &mut li,
                 None,
                 &mut seen,
+                survival,
             );
             if lean_light.is_none_or(|l| li != Some(l)) {
                 seen = None;
@@ -613,6 +621,13 @@ impl PathState {
         let phase2 = v2.phase.prepare(-d);
         let st = self.stack;
         let p2 = v2.p;
+        // The same roulette as the vertex's own sun shadow ray ([`SunLean::shadow_survival`]).
+        let survival = match scene.lights.get(light) {
+            Some(crate::light::Light::Distant { to_light, .. }) => medium
+                .sun_transmittance_hint(p2, *to_light)
+                .map(|t| (light, SunLean::shadow_survival(t))),
+            _ => None,
+        };
         let mut li = None;
         let c = estimate_direct(
             scene,
@@ -626,6 +641,7 @@ impl PathState {
             &mut li,
             Some(light),
             &mut None,
+            survival,
         );
         if li == Some(light) {
             beta * c
@@ -997,6 +1013,7 @@ impl SurfaceVertex<'_> {
             chosen,
             None,
             &mut None,
+            None,
         )
     }
 }

@@ -43,7 +43,7 @@ pub use mixture::{
 pub use projected::ProjectedMedium;
 pub use walk::{EntryInterior, FieldInterior, WalkInterior, WalkLook, WalkMedium};
 
-use crate::math::Ray;
+use crate::math::{Ray, Vec3};
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
 use crate::tracking::{BehindMode, Flight, HomogeneousFlight, TrackingStats};
@@ -394,6 +394,27 @@ impl Medium {
             Medium::ScaledMixture(m) => m.transmittance(ray, t_max, u, stats),
             Medium::Dyed(f) => f.transmittance_in_cone(ray, t_max, cone, u, stats),
         }
+    }
+
+    /// A prediction of the transmittance (largest channel) from world point `p` inside the
+    /// medium to its grid's edge along `to_light` (unit, world): exp(−σ_t⁰ · ∫d) from the
+    /// grid's [`crate::grid::SunMap`] (made on the first call for the first direction asked),
+    /// for `voxel` and baked `fbm` interiors on a grid without fibres or per-ray mip levels;
+    /// `None` for other media and other directions. Not an estimate: used to choose
+    /// probabilities (Russian roulette, the sun lean's play), where errors cost variance only.
+    #[must_use]
+    pub fn sun_transmittance_hint(&self, p: Vec3, to_light: Vec3) -> Option<f32> {
+        let Medium::Heterogeneous(h) = self else {
+            return None;
+        };
+        if h.fabric.is_some() || h.mips.is_some() {
+            return None;
+        }
+        let heterogeneous::DensityField::Grid { grid, channel } = &h.field else {
+            return None;
+        };
+        let map = grid.sun_map(*channel, to_light)?;
+        Some((-h.coefficients.max_sigma_t() * map.integral(p)).exp())
     }
 
     /// Transmittance `exp(−σ_t d)` along a straight segment of length `d` (world units) of a
