@@ -359,8 +359,16 @@ struct NodeLobes {
 }
 
 /// Unique (unmirrored) quadrature nodes whose terms a [`PreparedFibre`] keeps: all of them
-/// for up to 128 nodes (every automatic count); beyond, the rest are computed per evaluation.
+/// for up to 128 nodes (every automatic count); beyond, every node's terms are computed per
+/// evaluation.
 const CACHED_NODES: usize = 64;
+
+/// Unique nodes a [`PreparedFibre`] keeps inline, in the vertex's own memory: up to 64 nodes
+/// (the automatic count for `β_n ≥ 0.16`; 34 at the default 0.3). A vertex is prepared, moved
+/// and dropped several times per path vertex, so its size is part of the cost: a table for
+/// 64 unique nodes is 5 KiB to clear and copy, of which the default count uses a quarter.
+/// Vertices with more unique nodes (up to [`CACHED_NODES`]) keep their table on the heap.
+const INLINE_NODES: usize = 32;
 
 /// What one unique node contributes for a fixed `wo`: the attenuations, their RGB averages,
 /// `Φ(p, h)` for the three azimuthal lobes and the total lobe weight.
@@ -376,33 +384,57 @@ struct NodeTerms {
 /// the batched azimuthal sum of [`FibrePhase::eval_pdf_prepared`]. Entries past the unique node
 /// count are zero (they add nothing).
 #[derive(Clone, Debug)]
-struct LobeTable {
+struct LobeTable<const N: usize> {
     /// `Φ(p, h_k)` for the azimuthal lobes `p = 0, 1, 2`.
-    phi: [[f32; CACHED_NODES]; 3],
+    phi: [[f32; N]; 3],
     /// `A_p(h_k)` by lobe and channel.
-    a: [[[f32; CACHED_NODES]; 3]; 3],
+    a: [[[f32; N]; 3]; 3],
     /// The lobe's share of the node's sampling weight, `w_p(h_k) / total_k` (0 for a node whose
     /// lobes are all black).
-    share: [[f32; CACHED_NODES]; 3],
+    share: [[f32; N]; 3],
     /// 1 where the node's mirrored twin `−h_k` is a node too, 0 for the unpaired middle node of
     /// an odd count.
-    mirror: [f32; CACHED_NODES],
+    mirror: [f32; N],
     /// `A_3(h_k)` (the residual lobe) by channel.
-    a3: [[f32; CACHED_NODES]; 3],
+    a3: [[f32; N]; 3],
     /// `γ_t(h_k)`, the refracted offset angle (the sampler rebuilds `Φ` of a mirrored node
     /// from it).
-    gamma_t: [f32; CACHED_NODES],
+    gamma_t: [f32; N],
 }
 
-impl LobeTable {
-    const ZERO: LobeTable = LobeTable {
-        phi: [[0.0; CACHED_NODES]; 3],
-        a: [[[0.0; CACHED_NODES]; 3]; 3],
-        share: [[0.0; CACHED_NODES]; 3],
-        mirror: [0.0; CACHED_NODES],
-        a3: [[0.0; CACHED_NODES]; 3],
-        gamma_t: [0.0; CACHED_NODES],
+impl<const N: usize> LobeTable<N> {
+    const ZERO: Self = LobeTable {
+        phi: [[0.0; N]; 3],
+        a: [[[0.0; N]; 3]; 3],
+        share: [[0.0; N]; 3],
+        mirror: [0.0; N],
+        a3: [[0.0; N]; 3],
+        gamma_t: [0.0; N],
     };
+
+    /// The lobes of node `k` (`uk` its unique node, `sign` −1 for the mirrored twin).
+    fn node_lobes(&self, uk: usize, sign: f32, gamma_o: f32) -> NodeLobes {
+        NodeLobes {
+            gamma_o,
+            gamma_t: sign * self.gamma_t[uk],
+            a: std::array::from_fn(|p| {
+                let ch = if p < 3 { &self.a[p] } else { &self.a3 };
+                Rgb::new(ch[0][uk], ch[1][uk], ch[2][uk])
+            }),
+        }
+    }
+}
+
+/// Where a [`PreparedFibre`] keeps its per-node terms.
+#[derive(Clone, Debug)]
+enum NodeTable {
+    /// Up to [`INLINE_NODES`] unique nodes, in place.
+    Inline(LobeTable<INLINE_NODES>),
+    /// Up to [`CACHED_NODES`] unique nodes (narrow azimuthal lobes), on the heap.
+    Boxed(Box<LobeTable<CACHED_NODES>>),
+    /// No table: no fibre frame, or more unique nodes than [`CACHED_NODES`] (every node's
+    /// terms are computed per evaluation).
+    Uncached,
 }
 
 /// A [`FibrePhase`] with its outgoing direction and tangent fixed (one scattering vertex):
@@ -410,7 +442,8 @@ impl LobeTable {
 /// shared by every evaluation and the sample at that vertex (next event estimation evaluates
 /// the light direction, sampling evaluates the sampled one). The terms that do not depend on
 /// `wi` (the residual lobe, isotropic in azimuth, and the diffuse lobe's share of the pdf) are
-/// summed over the nodes here, once. No heap allocation.
+/// summed over the nodes here, once. No heap allocation up to 64 quadrature nodes
+/// ([`INLINE_NODES`]).
 #[derive(Clone, Debug)]
 pub struct PreparedFibre {
     /// `None` for a zero or non-finite tangent (value and pdf 0, no sample).
@@ -429,8 +462,17 @@ pub struct PreparedFibre {
     residual_pdf: f32,
     /// Σ over the nodes of `w_d / total_k`: the diffuse lobe's pdf is this × its density.
     diffuse_pdf: f32,
-    /// Terms of the first `min(unique nodes, CACHED_NODES)` unique nodes.
-    table: LobeTable,
+    /// Terms of the unique nodes.
+    table: NodeTable,
+}
+
+impl PreparedFibre {
+    /// Sets the `wi`-independent sums ([`FibrePhase::fill_table`]).
+    fn set_sums(&mut self, (residual_value, residual_pdf, diffuse_pdf): (Rgb, f32, f32)) {
+        self.residual_value = residual_value;
+        self.residual_pdf = residual_pdf;
+        self.diffuse_pdf = diffuse_pdf;
+    }
 }
 
 /// Lanes of the batched azimuthal sum (the node arrays are a multiple of it long).
@@ -442,9 +484,14 @@ const LANES: usize = 8;
 /// [`LANES`] with one accumulator per lane, summed in a fixed order at the end: the same
 /// value whatever instruction set the loop is compiled for.
 #[inline(always)]
-fn azimuthal_sums(t: &LobeTable, batches: usize, dphi: f32, neg_inv_s: f32) -> [[f32; 4]; 3] {
-    let lanes = |x: &[f32; CACHED_NODES], batch: usize| -> [f32; LANES] {
-        let start = (batch * LANES).min(CACHED_NODES - LANES);
+fn azimuthal_sums<const N: usize>(
+    t: &LobeTable<N>,
+    batches: usize,
+    dphi: f32,
+    neg_inv_s: f32,
+) -> [[f32; 4]; 3] {
+    let lanes = |x: &[f32; N], batch: usize| -> [f32; LANES] {
+        let start = (batch * LANES).min(N - LANES);
         let mut v = [0.0f32; LANES];
         v.copy_from_slice(&x[start..start + LANES]);
         v
@@ -483,8 +530,8 @@ fn azimuthal_sums(t: &LobeTable, batches: usize, dphi: f32, neg_inv_s: f32) -> [
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn azimuthal_sums_avx2(
-    t: &LobeTable,
+unsafe fn azimuthal_sums_avx2<const N: usize>(
+    t: &LobeTable<N>,
     batches: usize,
     dphi: f32,
     neg_inv_s: f32,
@@ -677,7 +724,13 @@ impl FibrePhase {
     /// The attenuations `A_p(h_k)` (mixed, inactive lobes zeroed) and `γ_t(h_k)` of the first
     /// `unique` nodes for the outgoing angles `o`: [`FibrePhase::node`]'s arithmetic in one
     /// branch-free loop over the nodes, with [`asin_fast`] and [`exp_neg`] for `asin` and `exp`.
-    fn fill_lobes(&self, table: &mut LobeTable, unique: usize, o: &Angles, sigma_a: Rgb) {
+    fn fill_lobes<const N: usize>(
+        &self,
+        table: &mut LobeTable<N>,
+        unique: usize,
+        o: &Angles,
+        sigma_a: Rgb,
+    ) {
         let eta = self.params.eta;
         let sin_o = o.sin_t;
         let cos_o = o.cos_t.max(1e-4);
@@ -686,7 +739,7 @@ impl FibrePhase {
         let etap = (eta * eta - sin_o * sin_o).max(0.0).sqrt() / cos_o;
         let mix = 1.0 - self.params.diffuse_weight;
         let on: [f32; 4] = std::array::from_fn(|p| if self.params.lobes.on(p) { mix } else { 0.0 });
-        let unique = unique.min(CACHED_NODES);
+        let unique = unique.min(N);
         for k in 0..unique {
             let sin_gt = (self.node_h[k] / etap).clamp(-1.0, 1.0);
             let cos_gt = (1.0 - sin_gt * sin_gt).max(0.0).sqrt();
@@ -729,9 +782,10 @@ impl FibrePhase {
     fn prepare_with(&self, wo: Vec3, tangent: Vec3, sigma_a: Rgb, albedo: Rgb) -> PreparedFibre {
         let ad = albedo * self.params.diffuse_weight;
         let wd = lobe_weight(ad);
+        let frame = tangent_frame(tangent);
         let mut prepared = PreparedFibre {
             sigma_a,
-            frame: tangent_frame(tangent),
+            frame,
             o: Angles {
                 sin_t: 0.0,
                 cos_t: 1.0,
@@ -742,43 +796,87 @@ impl FibrePhase {
             residual_value: Rgb::ZERO,
             residual_pdf: 0.0,
             diffuse_pdf: 0.0,
-            table: LobeTable::ZERO,
+            table: NodeTable::Uncached,
         };
-        if let Some(frame) = &prepared.frame {
-            let o = angles(frame, wo);
-            prepared.o = o;
-            let n_nodes = self.nodes.len();
-            let unique = n_nodes.div_ceil(2);
-            if unique > CACHED_NODES {
-                return prepared;
+        let Some(frame) = &prepared.frame else {
+            return prepared;
+        };
+        let o = angles(frame, wo);
+        prepared.o = o;
+        let unique = self.nodes.len().div_ceil(2);
+        if unique <= INLINE_NODES {
+            prepared.table = NodeTable::Inline(LobeTable::ZERO);
+            if let NodeTable::Inline(table) = &mut prepared.table {
+                let sums = self.fill_table(table, unique, &o, sigma_a, wd);
+                prepared.set_sums(sums);
             }
-            let table = &mut prepared.table;
-            self.fill_lobes(table, unique, &o, sigma_a);
-            let (mut residual_value, mut residual_pdf, mut diffuse_pdf) = (Rgb::ZERO, 0.0, 0.0);
-            for k in 0..unique {
-                let a: [Rgb; 4] = std::array::from_fn(|p| {
-                    let ch = if p < 3 { &table.a[p] } else { &table.a3 };
-                    Rgb::new(ch[0][k], ch[1][k], ch[2][k])
-                });
-                let w: [f32; 4] = std::array::from_fn(|p| lobe_weight(a[p]));
-                let total: f32 = w.iter().sum::<f32>() + wd;
-                let count = if n_nodes - 1 - k != k { 2.0 } else { 1.0 };
-                table.mirror[k] = count - 1.0;
-                let inv_total = if total > 0.0 { 1.0 / total } else { 0.0 };
-                for p in 0..3 {
-                    table.phi[p][k] =
-                        2.0 * p as f32 * table.gamma_t[k] - 2.0 * self.nodes[k].1 + p as f32 * PI;
-                    table.share[p][k] = w[p] * inv_total;
-                }
-                residual_value += a[3] * (count * INV_2PI);
-                residual_pdf += count * w[3] * inv_total * INV_2PI;
-                diffuse_pdf += count * wd * inv_total;
-            }
-            prepared.residual_value = residual_value;
-            prepared.residual_pdf = residual_pdf;
-            prepared.diffuse_pdf = diffuse_pdf;
+        } else if unique <= CACHED_NODES {
+            let mut table = Box::new(LobeTable::ZERO);
+            let sums = self.fill_table(&mut table, unique, &o, sigma_a, wd);
+            prepared.set_sums(sums);
+            prepared.table = NodeTable::Boxed(table);
         }
         prepared
+    }
+
+    /// Fills `table` with the terms of the first `unique` nodes (at most `N`) for the
+    /// outgoing angles `o` and returns the `wi`-independent sums of [`PreparedFibre`]:
+    /// (residual value, residual pdf, diffuse pdf).
+    fn fill_table<const N: usize>(
+        &self,
+        table: &mut LobeTable<N>,
+        unique: usize,
+        o: &Angles,
+        sigma_a: Rgb,
+        wd: f32,
+    ) -> (Rgb, f32, f32) {
+        let n_nodes = self.nodes.len();
+        let unique = unique.min(N);
+        self.fill_lobes(table, unique, o, sigma_a);
+        let (mut residual_value, mut residual_pdf, mut diffuse_pdf) = (Rgb::ZERO, 0.0, 0.0);
+        for k in 0..unique {
+            let a: [Rgb; 4] = std::array::from_fn(|p| {
+                let ch = if p < 3 { &table.a[p] } else { &table.a3 };
+                Rgb::new(ch[0][k], ch[1][k], ch[2][k])
+            });
+            let w: [f32; 4] = std::array::from_fn(|p| lobe_weight(a[p]));
+            let total: f32 = w.iter().sum::<f32>() + wd;
+            let count = if n_nodes - 1 - k != k { 2.0 } else { 1.0 };
+            table.mirror[k] = count - 1.0;
+            let inv_total = if total > 0.0 { 1.0 / total } else { 0.0 };
+            for p in 0..3 {
+                table.phi[p][k] =
+                    2.0 * p as f32 * table.gamma_t[k] - 2.0 * self.nodes[k].1 + p as f32 * PI;
+                table.share[p][k] = w[p] * inv_total;
+            }
+            residual_value += a[3] * (count * INV_2PI);
+            residual_pdf += count * w[3] * inv_total * INV_2PI;
+            diffuse_pdf += count * wd * inv_total;
+        }
+        (residual_value, residual_pdf, diffuse_pdf)
+    }
+
+    /// The three azimuthal lobes' sums of [`azimuthal_sums`] over the first `batches` batches
+    /// of `table`, with AVX2 where the CPU has it.
+    #[inline]
+    fn sums<const N: usize>(
+        &self,
+        table: &LobeTable<N>,
+        batches: usize,
+        dphi: f32,
+        neg_inv_s: f32,
+    ) -> [[f32; 4]; 3] {
+        if self.avx2 {
+            // SAFETY: `avx2` is set only where the CPU has AVX2 (`FibrePhase::new`).
+            #[cfg(target_arch = "x86_64")]
+            unsafe {
+                azimuthal_sums_avx2(table, batches, dphi, neg_inv_s)
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            azimuthal_sums(table, batches, dphi, neg_inv_s)
+        } else {
+            azimuthal_sums(table, batches, dphi, neg_inv_s)
+        }
     }
 
     /// Value (RGB) and pdf of `wi` at a prepared vertex (the same function as
@@ -800,22 +898,12 @@ impl FibrePhase {
         let dphi = i.phi - o.phi;
         let dd = Self::diffuse_density(o, &i);
         let n_nodes = self.nodes.len();
-        let unique = n_nodes.div_ceil(2);
-        if unique > CACHED_NODES {
-            return self.eval_pdf_uncached(prepared, m, dphi, dd);
-        }
-        let batches = unique.div_ceil(LANES);
+        let batches = n_nodes.div_ceil(2).div_ceil(LANES);
         let neg_inv_s = -1.0 / self.s;
-        let sums = if self.avx2 {
-            // SAFETY: `avx2` is set only where the CPU has AVX2 (`FibrePhase::new`).
-            #[cfg(target_arch = "x86_64")]
-            unsafe {
-                azimuthal_sums_avx2(&prepared.table, batches, dphi, neg_inv_s)
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            azimuthal_sums(&prepared.table, batches, dphi, neg_inv_s)
-        } else {
-            azimuthal_sums(&prepared.table, batches, dphi, neg_inv_s)
+        let sums = match &prepared.table {
+            NodeTable::Inline(t) => self.sums(t, batches, dphi, neg_inv_s),
+            NodeTable::Boxed(t) => self.sums(&**t, batches, dphi, neg_inv_s),
+            NodeTable::Uncached => return self.eval_pdf_uncached(prepared, m, dphi, dd),
         };
         let scale = self.inv_logistic_norm / self.s;
         let mut value = prepared.residual_value * m[3];
@@ -911,24 +999,17 @@ impl FibrePhase {
         let k = ((u[0] * n_nodes as f32) as usize).min(n_nodes - 1);
         let mut u0 = (u[0] * n_nodes as f32 - k as f32).clamp(0.0, 1.0);
         let unique = n_nodes.div_ceil(2);
-        let node = if unique <= CACHED_NODES {
-            // The terms `prepare` computed: node `k` or the mirror of node `n − 1 − k`.
-            let (uk, sign) = if k < unique {
-                (k, 1.0)
-            } else {
-                (n_nodes - 1 - k, -1.0)
-            };
-            let t = &prepared.table;
-            NodeLobes {
-                gamma_o: self.nodes[k].1,
-                gamma_t: sign * t.gamma_t[uk],
-                a: std::array::from_fn(|p| {
-                    let ch = if p < 3 { &t.a[p] } else { &t.a3 };
-                    Rgb::new(ch[0][uk], ch[1][uk], ch[2][uk])
-                }),
-            }
+        // The terms `prepare` computed: node `k` or the mirror of node `n − 1 − k`.
+        let (uk, sign) = if k < unique {
+            (k, 1.0)
         } else {
-            self.node(k, o.sin_t, o.cos_t, prepared.sigma_a)
+            (n_nodes - 1 - k, -1.0)
+        };
+        let gamma_o = self.nodes[k].1;
+        let node = match &prepared.table {
+            NodeTable::Inline(t) => t.node_lobes(uk, sign, gamma_o),
+            NodeTable::Boxed(t) => t.node_lobes(uk, sign, gamma_o),
+            NodeTable::Uncached => self.node(k, o.sin_t, o.cos_t, prepared.sigma_a),
         };
         let wd = prepared.wd;
         let w: [f32; 5] = std::array::from_fn(|p| if p < 4 { lobe_weight(node.a[p]) } else { wd });
@@ -1138,6 +1219,8 @@ mod tests {
         let configs = [
             (Rgb::new(0.72, 0.1, 0.09), 0, FibreLobes::default()),
             (Rgb::new(0.86, 0.82, 0.72), 17, FibreLobes::default()),
+            // 50 unique nodes: more than a vertex keeps inline (its table on the heap).
+            (Rgb::new(0.3, 0.6, 0.9), 100, FibreLobes::default()),
             (
                 Rgb::new(0.5, 0.4, 0.3),
                 9,
@@ -1164,6 +1247,8 @@ mod tests {
             for _ in 0..400 {
                 let (wo, wi, t) = (dir(&mut rng), dir(&mut rng), dir(&mut rng));
                 let prepared = phase.prepare(wo, t);
+                let boxed = matches!(prepared.table, NodeTable::Boxed(_));
+                assert_eq!(boxed, phase.h_node_count() > 2 * INLINE_NODES);
                 let (v, p) = phase.eval_pdf_prepared(&prepared, wi);
                 let frame = prepared.frame.unwrap();
                 let i = angles(&frame, wi);
