@@ -417,6 +417,22 @@ impl Medium {
         Some((-h.coefficients.max_sigma_t() * map.integral(p)).exp())
     }
 
+    /// Makes the grid's sun map ([`Self::sun_transmittance_hint`]) for direction `to_light`
+    /// now, in parallel, instead of on the first shadow ray (where one render thread would make
+    /// it while the others wait). Does nothing for media without one. Scene loading calls this
+    /// for the interiors whose sun lean will ask for it.
+    pub fn prepare_sun_map(&self, to_light: Vec3) {
+        let Medium::Heterogeneous(h) = self else {
+            return;
+        };
+        if h.fabric.is_some() || h.mips.is_some() {
+            return;
+        }
+        if let heterogeneous::DensityField::Grid { grid, channel } = &h.field {
+            let _ = grid.sun_map(*channel, to_light);
+        }
+    }
+
     /// Transmittance `exp(−σ_t d)` along a straight segment of length `d` (world units) of a
     /// homogeneous medium.
     #[must_use]

@@ -7,6 +7,7 @@ use super::context::Ctx;
 use super::{camera, lights, objects, read, Scene, SceneError, ShapeOwner};
 use crate::geometry::{SceneGeometry, Shape};
 use crate::light::{Light, LightSampler};
+use crate::medium::NeeStrategy;
 
 /// Name shown for the built-in default scene.
 pub const DEFAULT_SCENE_NAME: &str = "<built-in default scene>";
@@ -103,6 +104,21 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let nee_light_sampler = LightSampler::for_nee(&lights, radius);
     let brightest_delta_sun = crate::light::brightest_delta_sun(&lights);
     let brightest_sun = crate::light::brightest_distant(&lights, true);
+    // The sun map of every interior whose sun lean will ask for it, made now (in parallel)
+    // rather than by the first render thread to need it.
+    if let Some(Light::Distant { to_light, .. }) = brightest_delta_sun.and_then(|l| lights.get(l)) {
+        for obj in built
+            .objects
+            .iter()
+            .filter(|o| o.nee == NeeStrategy::Interior)
+        {
+            if let Some(m) = obj.medium.and_then(|m| built.media.get(m as usize)) {
+                if m.sun_lean() {
+                    m.prepare_sun_map(*to_light);
+                }
+            }
+        }
+    }
     Ok(Scene {
         camera,
         camera_params,
