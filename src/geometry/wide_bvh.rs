@@ -15,6 +15,8 @@
 //! were built, and the interval is clipped to `[0, t_max]`, so a primitive the ray hits is never
 //! culled.
 
+use std::mem::MaybeUninit;
+
 use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb as OAabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -203,14 +205,25 @@ mod avx2 {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
             // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
-            // it); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
+            // it); the plane indices are `k` or `k + 3` (below 6, set by `SlabRay::new`); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
             // writes the 8 floats of `out`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
                 for k in 0..3 {
-                    let n = _mm256_loadu_ps(node.planes[self.near[k]].as_ptr().cast::<f32>());
-                    let f = _mm256_loadu_ps(node.planes[self.far[k]].as_ptr().cast::<f32>());
+                    // (`near[k]` and `far[k]` are `k` and `k + 3`, below 6.)
+                    let n = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.near[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
+                    let f = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.far[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
                     near = _mm256_max_ps(
                         near,
                         _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
@@ -240,16 +253,18 @@ struct Entry {
 }
 
 /// The traversal stack: inline entries, spilling to the heap only for unusually deep trees.
-struct Stack {
-    inline: [Entry; STACK_INLINE],
+/// The inline entries are not initialised: only those below `len` are ever read.
+struct Stack<'a> {
+    inline: &'a mut MaybeUninit<[Entry; STACK_INLINE]>,
     len: usize,
     spill: Vec<Entry>,
 }
 
-impl Stack {
-    fn new() -> Self {
+impl<'a> Stack<'a> {
+    #[inline(always)]
+    fn new(inline: &'a mut MaybeUninit<[Entry; STACK_INLINE]>) -> Self {
         Stack {
-            inline: [Entry::default(); STACK_INLINE],
+            inline,
             len: 0,
             spill: Vec::new(),
         }
@@ -257,22 +272,35 @@ impl Stack {
     #[inline(always)]
     fn push(&mut self, e: Entry) {
         if self.len < STACK_INLINE {
-            self.inline[self.len] = e;
+            // SAFETY: `len < STACK_INLINE`: the write stays inside the inline array.
+            unsafe {
+                self.inline
+                    .as_mut_ptr()
+                    .cast::<Entry>()
+                    .add(self.len)
+                    .write(e)
+            };
             self.len += 1;
         } else {
             self.spill.push(e);
         }
     }
+    /// The entry pushed last. The spill is used only once the inline entries are full, so
+    /// it is looked at only then.
     #[inline(always)]
     fn pop(&mut self) -> Option<Entry> {
-        if let Some(e) = self.spill.pop() {
-            return Some(e);
-        }
         if self.len == 0 {
             return None;
         }
+        if self.len == STACK_INLINE {
+            if let Some(e) = self.spill.pop() {
+                return Some(e);
+            }
+        }
         self.len -= 1;
-        Some(self.inline[self.len])
+        // SAFETY: `len < STACK_INLINE`, and every entry below the old `len` was written by
+        // `push`.
+        Some(unsafe { self.inline.as_ptr().cast::<Entry>().add(self.len).read() })
     }
 }
 
@@ -402,7 +430,10 @@ impl WideBvh {
         self
     }
 
-    /// The traversal with node test `slab`.
+    /// The traversal with node test `slab`. One or two entered children (most nodes) are
+    /// ordered without the general insertion sort; every case visits the children in the
+    /// order the general one does (nearest first, ties by slot), tests leaves at once and
+    /// pushes inner children farthest first, so hits are the same.
     #[inline(always)]
     fn traverse_with<T: NodeTest>(
         &self,
@@ -410,62 +441,130 @@ impl WideBvh {
         mut t_max: f32,
         mut primitive: impl FnMut(u32, f32) -> f32,
     ) {
-        let mut stack = Stack::new();
+        let mut stack_entries = MaybeUninit::uninit();
+        let mut stack = Stack::new(&mut stack_entries);
         let mut current = 0u32;
-        // Scratch for the children of the node visited (only entries below the counts are
-        // read), initialised once per ray.
-        let mut order = [(0usize, 0.0f32); WIDTH];
+        // Scratch for the children of a node with three or more entered (only entries below
+        // the counts are read), initialised once per ray.
+        let mut order = [(0u32, 0.0f32); WIDTH];
         let mut inner = [Entry::default(); WIDTH];
+        // Tests the primitives of the leaf in slot `$slot` of `node`; returns from the
+        // traversal when `primitive` ends it.
+        macro_rules! leaf {
+            ($node:expr, $slot:expr) => {{
+                let first = $node.child[$slot];
+                for i in first..first + $node.count[$slot] {
+                    t_max = primitive(i, t_max);
+                    if t_max <= 0.0 {
+                        return;
+                    }
+                }
+            }};
+        }
         loop {
-            let node = &self.nodes[current as usize];
-            let (near, mut mask) = slab.test(node, t_max);
-            // The entered children sorted by entry distance, nearest first.
-            let mut n = 0;
-            while mask != 0 {
-                let slot = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let t = near[slot];
-                let mut j = n;
-                while j > 0 && order[j - 1].1 > t {
-                    order[j] = order[j - 1];
-                    j -= 1;
+            // SAFETY: `current` is the root (the hierarchy is not empty) or a child index the
+            // build wrote, both below `nodes.len()`.
+            let node = unsafe { self.nodes.get_unchecked(current as usize) };
+            let (near, mask) = slab.test(node, t_max);
+            // (Slots are below 8: the mask has 8 bits.)
+            let s0 = (mask.trailing_zeros() & 7) as usize;
+            let rest = mask & mask.wrapping_sub(1);
+            if mask == 0 {
+                // Nothing entered.
+            } else if rest == 0 {
+                // One child.
+                if !(near[s0] > t_max) {
+                    if node.count[s0] == 0 {
+                        current = node.child[s0];
+                        continue;
+                    }
+                    leaf!(node, s0);
                 }
-                order[j] = (slot, t);
-                n += 1;
-            }
-            // Leaves are intersected at once, nearest first (a hit shortens the ray for the
-            // rest); inner children are pushed farthest first, so the nearest is visited next.
-            let mut m = 0;
-            for &(slot, t) in &order[..n] {
-                if t > t_max {
-                    break;
-                }
-                let count = node.count[slot];
-                if count > 0 {
-                    let first = node.child[slot];
-                    for i in first..first + count {
-                        t_max = primitive(i, t_max);
-                        if t_max <= 0.0 {
-                            return;
+            } else if rest & (rest - 1) == 0 {
+                // Two children, nearest first (a tie keeps the lower slot first).
+                let s1 = (rest.trailing_zeros() & 7) as usize;
+                let (a, b) = if near[s1] < near[s0] {
+                    (s1, s0)
+                } else {
+                    (s0, s1)
+                };
+                let (ta, tb) = (near[a], near[b]);
+                if !(ta > t_max) {
+                    if node.count[a] > 0 {
+                        leaf!(node, a);
+                        if !(tb > t_max) {
+                            if node.count[b] > 0 {
+                                leaf!(node, b);
+                            } else {
+                                current = node.child[b];
+                                continue;
+                            }
+                        }
+                    } else {
+                        if !(tb > t_max) {
+                            if node.count[b] > 0 {
+                                leaf!(node, b);
+                            } else {
+                                stack.push(Entry {
+                                    node: node.child[b],
+                                    t: tb,
+                                });
+                            }
+                        }
+                        // (A leaf after it may have shortened the ray.)
+                        if !(ta > t_max) {
+                            current = node.child[a];
+                            continue;
                         }
                     }
-                } else {
-                    inner[m] = Entry {
-                        node: node.child[slot],
-                        t,
-                    };
-                    m += 1;
                 }
-            }
-            // The nearest inner child is visited next; the others wait, farthest deepest.
-            if m > 0 {
-                for e in inner[1..m].iter().rev() {
-                    stack.push(*e);
+            } else {
+                // Three or more: the entered children sorted by entry distance, nearest
+                // first.
+                let mut mask = mask;
+                let mut n = 0;
+                while mask != 0 {
+                    let slot = (mask.trailing_zeros() & 7) as usize;
+                    mask &= mask - 1;
+                    let t = near[slot];
+                    let mut j = n;
+                    while j > 0 && order[j - 1].1 > t {
+                        order[j] = order[j - 1];
+                        j -= 1;
+                    }
+                    order[j] = (slot as u32, t);
+                    n += 1;
                 }
-                // (A leaf after it may have shortened the ray.)
-                if !(inner[0].t > t_max) {
-                    current = inner[0].node;
-                    continue;
+                // Leaves are intersected at once, nearest first (a hit shortens the ray for
+                // the rest); inner children are pushed farthest first, so the nearest is
+                // visited next.
+                let mut m = 0;
+                for &(slot, t) in &order[..n] {
+                    if t > t_max {
+                        break;
+                    }
+                    let slot = (slot & 7) as usize;
+                    if node.count[slot] > 0 {
+                        leaf!(node, slot);
+                    } else {
+                        inner[m] = Entry {
+                            node: node.child[slot],
+                            t,
+                        };
+                        m += 1;
+                    }
+                }
+                // The nearest inner child is visited next; the others wait, farthest
+                // deepest.
+                if m > 0 {
+                    for e in inner[1..m].iter().rev() {
+                        stack.push(*e);
+                    }
+                    // (A leaf after it may have shortened the ray.)
+                    if !(inner[0].t > t_max) {
+                        current = inner[0].node;
+                        continue;
+                    }
                 }
             }
             loop {
