@@ -315,12 +315,17 @@ impl SceneGeometry {
     /// The triangle at BVH position `slot`, transposed for the triangle test.
     #[inline(always)]
     fn triangle(&self, slot: usize) -> TriangleSoa {
-        let [a, b, c] = self.tris[slot];
-        TriangleSoa::from_vertices(
-            self.verts[a as usize],
-            self.verts[b as usize],
-            self.verts[c as usize],
-        )
+        debug_assert!(slot < self.tris.len());
+        // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
+        // and `build` numbers every vertex a triangle names below `verts.len()`.
+        unsafe {
+            let [a, b, c] = *self.tris.get_unchecked(slot);
+            TriangleSoa::from_vertices(
+                *self.verts.get_unchecked(a as usize),
+                *self.verts.get_unchecked(b as usize),
+                *self.verts.get_unchecked(c as usize),
+            )
+        }
     }
 
     /// True when the segment `(0, t_max)` of `ray` provably hits no triangle: it is short

@@ -133,45 +133,86 @@ impl ShearedRay {
     /// evaluation.
     #[inline(always)]
     pub(crate) fn intersect(&self, tri: &TriangleSoa, t_max: f32) -> Option<TriangleHit> {
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
+        // SAFETY: `kx`, `ky` and `kz` are a permutation of 0, 1, 2 (set by `new`).
+        let (vx, vy, vz) = unsafe {
+            (
+                *tri.v.get_unchecked(self.kx),
+                *tri.v.get_unchecked(self.ky),
+                *tri.v.get_unchecked(self.kz),
+            )
+        };
         // Lanes: vertices 0, 1, 2 (a, b, c) relative to the origin, permuted and sheared.
-        let px = tri.v[self.kx] - self.okx;
-        let py = tri.v[self.ky] - self.oky;
-        let pz = tri.v[self.kz] - self.okz;
+        let px = vx - self.okx;
+        let py = vy - self.oky;
+        let pz = vz - self.okz;
         let x = px - self.sxv * pz;
         let y = py - self.syv * pz;
         // Lane 0: E(B, C) = cx·by − cy·bx (weight of vertex 0); lane 1: E(C, A); lane 2: E(A, B).
         let e = x.zxyw() * y.yzxw() - y.zxyw() * x.yzxw();
         let zero = e.cmpeq(Vec4::ZERO).bitmask() & 7;
-        let (u, v, w) = if zero != 0 {
-            edge_functions_exact([x.x, y.x], [x.y, y.y], [x.z, y.z])?
+        // With no edge function zero, the signs are the sign bits (a NaN lane, whatever its
+        // sign bit, makes `det` NaN below: no hit either way).
+        let sign = e.is_negative_bitmask() & 7;
+        if zero == 0 && sign != 0 && sign != 7 {
+            return None;
+        }
+        // `det = (u + v) + w` and `tn = (u·az + v·bz) + w·cz`, with `az = sz·pz[0]` and so
+        // on, in lanes 0 and 1: the same IEEE operations, in the same order, as in scalars.
+        let e = if zero != 0 {
+            let (u, v, w) = edge_functions_exact([x.x, y.x], [x.y, y.y], [x.z, y.z])?;
+            Vec4::new(u, v, w, 0.0)
         } else {
-            let neg = e.cmplt(Vec4::ZERO).bitmask() & 7;
-            let pos = e.cmpgt(Vec4::ZERO).bitmask() & 7;
-            if neg != 0 && pos != 0 {
-                return None;
-            }
-            (e.x, e.y, e.z)
+            e
         };
-
-        let det = u + v + w;
+        let ez = e * (pz * self.sz);
+        let (first, second, third) = interleave(e, ez);
+        let sums = (first + second) + third;
+        let (det, tn) = (sums.x, sums.y);
         if det == 0.0 || !det.is_finite() {
             return None;
         }
-        let az = self.sz * pz.x;
-        let bz = self.sz * pz.y;
-        let cz = self.sz * pz.z;
-        let tn = u * az + v * bz + w * cz;
         let inv = 1.0 / det;
         let t = tn * inv;
         if !(t > 0.0 && t < t_max) {
             return None;
         }
+        let b = e * inv;
         Some(TriangleHit {
             t,
-            b0: u * inv,
-            b1: v * inv,
-            b2: w * inv,
+            b0: b.x,
+            b1: b.y,
+            b2: b.z,
         })
+    }
+}
+
+/// `(a.x, b.x, …)`, `(a.y, b.y, …)` and `(a.z, b.z, …)`: lanes 0 and 1 of each hold one
+/// coordinate of `a` and of `b` (lanes 2 and 3 are not used).
+#[inline(always)]
+fn interleave(a: Vec4, b: Vec4) -> (Vec4, Vec4, Vec4) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128, _mm_movehl_ps, _mm_unpackhi_ps, _mm_unpacklo_ps};
+        let (a, b) = (__m128::from(a), __m128::from(b));
+        // SAFETY: SSE is part of the x86-64 baseline; these are register shuffles.
+        unsafe {
+            let lo = _mm_unpacklo_ps(a, b); // ax bx ay by
+            let hi = _mm_unpackhi_ps(a, b); // az bz aw bw
+            (
+                Vec4::from(lo),
+                Vec4::from(_mm_movehl_ps(lo, lo)),
+                Vec4::from(hi),
+            )
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        (
+            Vec4::new(a.x, b.x, 0.0, 0.0),
+            Vec4::new(a.y, b.y, 0.0, 0.0),
+            Vec4::new(a.z, b.z, 0.0, 0.0),
+        )
     }
 }
 
