@@ -169,9 +169,8 @@ impl ShearedRay {
         let (first, second, third) = interleave(e, ez);
         let sums = (first + second) + third;
         let (det, tn) = (sums.x, sums.y);
-        if det == 0.0 || !det.is_finite() {
-            return None;
-        }
+        // `det` zero, infinite or NaN needs no test of its own: `t` is then ±∞, 0 or NaN,
+        // which the distance test below rejects.
         let inv = 1.0 / det;
         let t = tn * inv;
         if !(t > 0.0 && t < t_max) {

@@ -105,11 +105,7 @@ impl SlabRay {
     /// reciprocals are one vector division (the same IEEE quotients as three scalar ones).
     #[inline]
     fn new(ray: &Ray) -> Self {
-        let d = Vec4::from((ray.d, 1.0));
-        let small = d.abs().cmplt(Vec4::splat(1e-20));
-        let cap = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::splat(-1e20), Vec4::splat(1e20));
-        let inv = Vec4::select(small, cap, Vec4::ONE / d);
-        let neg = inv.cmplt(Vec4::ZERO).bitmask();
+        let (inv, neg) = slab_constants(ray);
         let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
         let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
         SlabRay {
@@ -136,6 +132,19 @@ impl SlabRay {
         }
         (near, near.cmple(far).bitmask())
     }
+}
+
+/// The capped reciprocal direction of `ray` (magnitudes capped at 1e20, sign kept, `-0`
+/// treated as `+0`, so that slab tests never produce `0·∞`; the three reciprocals are one
+/// vector division, the same IEEE quotients as three scalar ones) and the mask of its
+/// negative components (bit `k` for axis `k`).
+#[inline(always)]
+fn slab_constants(ray: &Ray) -> (Vec4, u32) {
+    let d = Vec4::from((ray.d, 1.0));
+    let small = d.abs().cmplt(Vec4::splat(1e-20));
+    let cap = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::splat(-1e20), Vec4::splat(1e20));
+    let inv = Vec4::select(small, cap, Vec4::ONE / d);
+    (inv, inv.cmplt(Vec4::ZERO).bitmask())
 }
 
 /// 1 + 2γ₃: the relative rounding bound of a slab distance.
@@ -168,7 +177,10 @@ mod avx2 {
         _CMP_LE_OS,
     };
 
-    use super::{Node8, NodeTest, SlabRay, FAR_SCALE, WIDTH};
+    #[cfg(test)]
+    use super::SlabRay;
+    use super::{slab_constants, Node8, NodeTest, FAR_SCALE, WIDTH};
+    use crate::math::Ray;
 
     /// The ray of a [`SlabRay`] splatted to 8 lanes. Made only by [`AvxSlab::new`], which
     /// needs AVX.
@@ -183,6 +195,7 @@ mod avx2 {
         /// # Safety
         /// The CPU must support AVX2.
         #[target_feature(enable = "avx2")]
+        #[cfg(test)]
         pub(super) unsafe fn new(s: &SlabRay) -> Self {
             AvxSlab {
                 o: [
@@ -197,6 +210,33 @@ mod avx2 {
                 ],
                 near: s.near,
                 far: s.far,
+            }
+        }
+
+        /// The same constants as `AvxSlab::new(&SlabRay::new(ray))`, without the 4-wide
+        /// splats in between.
+        ///
+        /// # Safety
+        /// The CPU must support AVX2.
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        pub(super) unsafe fn from_ray(ray: &Ray) -> Self {
+            let (inv, neg) = slab_constants(ray);
+            let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
+            let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
+            AvxSlab {
+                o: [
+                    _mm256_set1_ps(ray.o.x),
+                    _mm256_set1_ps(ray.o.y),
+                    _mm256_set1_ps(ray.o.z),
+                ],
+                inv: [
+                    _mm256_set1_ps(inv.x),
+                    _mm256_set1_ps(inv.y),
+                    _mm256_set1_ps(inv.z),
+                ],
+                near: [near(0), near(1), near(2)],
+                far: [far(0), far(1), far(2)],
             }
         }
     }
@@ -252,15 +292,17 @@ struct Entry {
     t: f32,
 }
 
-/// The traversal stack: inline entries, spilling to the heap only for unusually deep trees.
-/// The inline entries are not initialised: only those below `len` are ever read.
-struct Stack<'a> {
+/// The traversal stack: inline entries, spilling to the heap only for unusually deep trees
+/// (`SPILL`; without it, the caller guarantees that the inline entries suffice, see
+/// `WideBvh::shallow`). The inline entries are not initialised: only those below `len` are
+/// ever read.
+struct Stack<'a, const SPILL: bool> {
     inline: &'a mut MaybeUninit<[Entry; STACK_INLINE]>,
     len: usize,
     spill: Vec<Entry>,
 }
 
-impl<'a> Stack<'a> {
+impl<'a, const SPILL: bool> Stack<'a, SPILL> {
     #[inline(always)]
     fn new(inline: &'a mut MaybeUninit<[Entry; STACK_INLINE]>) -> Self {
         Stack {
@@ -271,8 +313,10 @@ impl<'a> Stack<'a> {
     }
     #[inline(always)]
     fn push(&mut self, e: Entry) {
-        if self.len < STACK_INLINE {
-            // SAFETY: `len < STACK_INLINE`: the write stays inside the inline array.
+        if !SPILL || self.len < STACK_INLINE {
+            debug_assert!(self.len < STACK_INLINE);
+            // SAFETY: `len < STACK_INLINE` (checked, or guaranteed by the caller without
+            // `SPILL`): the write stays inside the inline array.
             unsafe {
                 self.inline
                     .as_mut_ptr()
@@ -292,7 +336,7 @@ impl<'a> Stack<'a> {
         if self.len == 0 {
             return None;
         }
-        if self.len == STACK_INLINE {
+        if SPILL && self.len == STACK_INLINE {
             if let Some(e) = self.spill.pop() {
                 return Some(e);
             }
@@ -396,14 +440,26 @@ impl WideBvh {
         if self.nodes.is_empty() {
             return;
         }
-        let slab = SlabRay::new(ray);
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when the CPU reported AVX2.
-            unsafe { self.traverse_avx2(&slab, t_max, primitive) };
+            unsafe { self.traverse_avx2(ray, t_max, primitive) };
             return;
         }
-        self.traverse_with(&slab, t_max, primitive);
+        let slab = SlabRay::new(ray);
+        if self.shallow() {
+            self.traverse_with::<_, false>(&slab, t_max, primitive);
+        } else {
+            self.traverse_with::<_, true>(&slab, t_max, primitive);
+        }
+    }
+
+    /// True when the traversal stack never holds more than its inline entries: a node pushes
+    /// at most `WIDTH − 1` children, and the entries on the stack come from the nodes on the
+    /// path to the current one, one node per level above it.
+    #[inline(always)]
+    fn shallow(&self) -> bool {
+        self.depth.saturating_sub(1) * (WIDTH - 1) <= STACK_INLINE
     }
 
     /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
@@ -412,15 +468,14 @@ impl WideBvh {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn traverse_avx2(
-        &self,
-        slab: &SlabRay,
-        t_max: f32,
-        primitive: impl FnMut(u32, f32) -> f32,
-    ) {
+    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         // SAFETY: this function runs only with AVX2.
-        let wide = unsafe { avx2::AvxSlab::new(slab) };
-        self.traverse_with(&wide, t_max, primitive);
+        let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
+        if self.shallow() {
+            self.traverse_with::<_, false>(&wide, t_max, primitive);
+        } else {
+            self.traverse_with::<_, true>(&wide, t_max, primitive);
+        }
     }
 
     /// Forces the 4-wide node test (tests compare it with the 8-wide one).
@@ -435,14 +490,14 @@ impl WideBvh {
     /// order the general one does (nearest first, ties by slot), tests leaves at once and
     /// pushes inner children farthest first, so hits are the same.
     #[inline(always)]
-    fn traverse_with<T: NodeTest>(
+    fn traverse_with<T: NodeTest, const SPILL: bool>(
         &self,
         slab: &T,
         mut t_max: f32,
         mut primitive: impl FnMut(u32, f32) -> f32,
     ) {
         let mut stack_entries = MaybeUninit::uninit();
-        let mut stack = Stack::new(&mut stack_entries);
+        let mut stack = Stack::<SPILL>::new(&mut stack_entries);
         let mut current = 0u32;
         // Scratch for the children of a node with three or more entered (only entries below
         // the counts are read), initialised once per ray.
@@ -713,12 +768,17 @@ mod tests {
             // SAFETY: AVX2 was detected above.
             let avx = unsafe { avx2::AvxSlab::new(&slab) };
             let node = &wide.nodes[i % wide.nodes.len()];
+            // SAFETY: AVX2 was detected above.
+            let direct = unsafe { avx2::AvxSlab::from_ray(&ray) };
             let (a, ma) = slab.test(node, t_max);
             let (b, mb) = avx.test(node, t_max);
+            let (c, mc) = direct.test(node, t_max);
             assert_eq!(ma, mb, "ray {i}");
+            assert_eq!(ma, mc, "ray {i}");
             for k in 0..WIDTH {
                 if ma & (1 << k) != 0 {
                     assert_eq!(a[k].to_bits(), b[k].to_bits(), "ray {i} child {k}");
+                    assert_eq!(a[k].to_bits(), c[k].to_bits(), "ray {i} child {k}");
                 }
             }
             let mut seen = (Vec::new(), Vec::new());
@@ -729,6 +789,52 @@ mod tests {
                 shorten(pos, t)
             });
             narrow.traverse(&ray, t_max, |pos, t| {
+                seen.1.push((pos, t.to_bits()));
+                shorten(pos, t)
+            });
+            assert_eq!(seen.0, seen.1, "ray {i}");
+        }
+    }
+
+    #[test]
+    fn the_stack_spills_past_its_inline_entries_and_pops_in_reverse() {
+        let mut entries = MaybeUninit::uninit();
+        let mut stack = Stack::<true>::new(&mut entries);
+        for i in 0..3 * STACK_INLINE as u32 {
+            stack.push(Entry {
+                node: i,
+                t: i as f32,
+            });
+        }
+        for i in (0..3 * STACK_INLINE as u32).rev() {
+            let e = stack.pop().map(|e| (e.node, e.t));
+            assert_eq!(e, Some((i, i as f32)));
+        }
+        assert!(stack.pop().is_none());
+    }
+
+    #[test]
+    fn the_spilling_and_the_inline_stack_visit_the_same_leaves() {
+        let mut rng = Lcg(5);
+        let boxes: Vec<(Vec3, Vec3)> = (0..3000)
+            .map(|_| {
+                let c = rng.vec();
+                let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.1;
+                (c - e, c + e)
+            })
+            .collect();
+        let bvh = WideBvh::build(&boxes);
+        assert!(bvh.shallow());
+        for i in 0..5000 {
+            let ray = Ray::new(rng.vec() * 1.5, rng.vec().normalize_or(Vec3::X));
+            let slab = SlabRay::new(&ray);
+            let mut seen = (Vec::new(), Vec::new());
+            let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
+            bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t| {
+                seen.0.push((pos, t.to_bits()));
+                shorten(pos, t)
+            });
+            bvh.traverse_with::<_, false>(&slab, f32::INFINITY, |pos, t| {
                 seen.1.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
