@@ -410,13 +410,16 @@ impl SceneGeometry {
                 let mut ns = ng;
                 let mut uv = Vec2::new(h.b1, h.b2);
                 if let Some(Shape::Mesh(m)) = self.shapes.get(p.shape as usize) {
-                    let tri = m.indices[p.prim as usize].map(|i| i as usize);
+                    // (Read only for a mesh with normals or UVs.)
+                    let tri = || m.indices[p.prim as usize].map(|i| i as usize);
                     if let Some(n) = &m.normals {
+                        let tri = tri();
                         let s = (n[tri[0]] * h.b0 + n[tri[1]] * h.b1 + n[tri[2]] * h.b2)
                             .normalize_or(ng);
                         ns = if s.dot(ng) < 0.0 { -s } else { s };
                     }
                     if let Some(t) = &m.uvs {
+                        let tri = tri();
                         uv = t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2;
                     }
                 }
