@@ -315,12 +315,17 @@ impl SceneGeometry {
     /// The triangle at BVH position `slot`, transposed for the triangle test.
     #[inline(always)]
     fn triangle(&self, slot: usize) -> TriangleSoa {
-        let [a, b, c] = self.tris[slot];
-        TriangleSoa::from_vertices(
-            self.verts[a as usize],
-            self.verts[b as usize],
-            self.verts[c as usize],
-        )
+        debug_assert!(slot < self.tris.len());
+        // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
+        // and `build` numbers every vertex a triangle names below `verts.len()`.
+        unsafe {
+            let [a, b, c] = *self.tris.get_unchecked(slot);
+            TriangleSoa::from_vertices(
+                *self.verts.get_unchecked(a as usize),
+                *self.verts.get_unchecked(b as usize),
+                *self.verts.get_unchecked(c as usize),
+            )
+        }
     }
 
     /// True when the segment `(0, t_max)` of `ray` provably hits no triangle: it is short
@@ -405,13 +410,16 @@ impl SceneGeometry {
                 let mut ns = ng;
                 let mut uv = Vec2::new(h.b1, h.b2);
                 if let Some(Shape::Mesh(m)) = self.shapes.get(p.shape as usize) {
-                    let tri = m.indices[p.prim as usize].map(|i| i as usize);
+                    // (Read only for a mesh with normals or UVs.)
+                    let tri = || m.indices[p.prim as usize].map(|i| i as usize);
                     if let Some(n) = &m.normals {
+                        let tri = tri();
                         let s = (n[tri[0]] * h.b0 + n[tri[1]] * h.b1 + n[tri[2]] * h.b2)
                             .normalize_or(ng);
                         ns = if s.dot(ng) < 0.0 { -s } else { s };
                     }
                     if let Some(t) = &m.uvs {
+                        let tri = tri();
                         uv = t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2;
                     }
                 }

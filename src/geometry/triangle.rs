@@ -133,45 +133,85 @@ impl ShearedRay {
     /// evaluation.
     #[inline(always)]
     pub(crate) fn intersect(&self, tri: &TriangleSoa, t_max: f32) -> Option<TriangleHit> {
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
+        // SAFETY: `kx`, `ky` and `kz` are a permutation of 0, 1, 2 (set by `new`).
+        let (vx, vy, vz) = unsafe {
+            (
+                *tri.v.get_unchecked(self.kx),
+                *tri.v.get_unchecked(self.ky),
+                *tri.v.get_unchecked(self.kz),
+            )
+        };
         // Lanes: vertices 0, 1, 2 (a, b, c) relative to the origin, permuted and sheared.
-        let px = tri.v[self.kx] - self.okx;
-        let py = tri.v[self.ky] - self.oky;
-        let pz = tri.v[self.kz] - self.okz;
+        let px = vx - self.okx;
+        let py = vy - self.oky;
+        let pz = vz - self.okz;
         let x = px - self.sxv * pz;
         let y = py - self.syv * pz;
         // Lane 0: E(B, C) = cx·by − cy·bx (weight of vertex 0); lane 1: E(C, A); lane 2: E(A, B).
         let e = x.zxyw() * y.yzxw() - y.zxyw() * x.yzxw();
         let zero = e.cmpeq(Vec4::ZERO).bitmask() & 7;
-        let (u, v, w) = if zero != 0 {
-            edge_functions_exact([x.x, y.x], [x.y, y.y], [x.z, y.z])?
-        } else {
-            let neg = e.cmplt(Vec4::ZERO).bitmask() & 7;
-            let pos = e.cmpgt(Vec4::ZERO).bitmask() & 7;
-            if neg != 0 && pos != 0 {
-                return None;
-            }
-            (e.x, e.y, e.z)
-        };
-
-        let det = u + v + w;
-        if det == 0.0 || !det.is_finite() {
+        // With no edge function zero, the signs are the sign bits (a NaN lane, whatever its
+        // sign bit, makes `det` NaN below: no hit either way).
+        let sign = e.is_negative_bitmask() & 7;
+        if zero == 0 && sign != 0 && sign != 7 {
             return None;
         }
-        let az = self.sz * pz.x;
-        let bz = self.sz * pz.y;
-        let cz = self.sz * pz.z;
-        let tn = u * az + v * bz + w * cz;
+        // `det = (u + v) + w` and `tn = (u·az + v·bz) + w·cz`, with `az = sz·pz[0]` and so
+        // on, in lanes 0 and 1: the same IEEE operations, in the same order, as in scalars.
+        let e = if zero != 0 {
+            let (u, v, w) = edge_functions_exact([x.x, y.x], [x.y, y.y], [x.z, y.z])?;
+            Vec4::new(u, v, w, 0.0)
+        } else {
+            e
+        };
+        let ez = e * (pz * self.sz);
+        let (first, second, third) = interleave(e, ez);
+        let sums = (first + second) + third;
+        let (det, tn) = (sums.x, sums.y);
+        // `det` zero, infinite or NaN needs no test of its own: `t` is then ±∞, 0 or NaN,
+        // which the distance test below rejects.
         let inv = 1.0 / det;
         let t = tn * inv;
         if !(t > 0.0 && t < t_max) {
             return None;
         }
+        let b = e * inv;
         Some(TriangleHit {
             t,
-            b0: u * inv,
-            b1: v * inv,
-            b2: w * inv,
+            b0: b.x,
+            b1: b.y,
+            b2: b.z,
         })
+    }
+}
+
+/// `(a.x, b.x, …)`, `(a.y, b.y, …)` and `(a.z, b.z, …)`: lanes 0 and 1 of each hold one
+/// coordinate of `a` and of `b` (lanes 2 and 3 are not used).
+#[inline(always)]
+fn interleave(a: Vec4, b: Vec4) -> (Vec4, Vec4, Vec4) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128, _mm_movehl_ps, _mm_unpackhi_ps, _mm_unpacklo_ps};
+        let (a, b) = (__m128::from(a), __m128::from(b));
+        // SAFETY: SSE is part of the x86-64 baseline; these are register shuffles.
+        unsafe {
+            let lo = _mm_unpacklo_ps(a, b); // ax bx ay by
+            let hi = _mm_unpackhi_ps(a, b); // az bz aw bw
+            (
+                Vec4::from(lo),
+                Vec4::from(_mm_movehl_ps(lo, lo)),
+                Vec4::from(hi),
+            )
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        (
+            Vec4::new(a.x, b.x, 0.0, 0.0),
+            Vec4::new(a.y, b.y, 0.0, 0.0),
+            Vec4::new(a.z, b.z, 0.0, 0.0),
+        )
     }
 }
 
@@ -227,4 +267,110 @@ pub fn intersect_triangle(
         return None;
     }
     ShearedRay::new(ray).intersect(&TriangleSoa::new(p0, p1, p2), t_max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The watertight test written out in scalars, step by step as in the paper (the
+    /// SIMD-lane test must give exactly its results).
+    fn scalar_reference(ray: &Ray, p: [Vec3; 3], t_max: f32) -> Option<TriangleHit> {
+        let a = ray.d.abs();
+        let (kz, kx, ky) = if a.x >= a.y && a.x >= a.z {
+            (0, 1, 2)
+        } else if a.y >= a.z {
+            (1, 2, 0)
+        } else {
+            (2, 0, 1)
+        };
+        let (kx, ky) = if ray.d[kz] < 0.0 { (ky, kx) } else { (kx, ky) };
+        let sx = ray.d[kx] / ray.d[kz];
+        let sy = ray.d[ky] / ray.d[kz];
+        let sz = 1.0 / ray.d[kz];
+        let rel = p.map(|v| v - ray.o);
+        let xy = rel.map(|q| (q[kx] - sx * q[kz], q[ky] - sy * q[kz]));
+        let [(ax, ay), (bx, by), (cx, cy)] = xy;
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            (u, v, w) = edge_functions_exact([ax, ay], [bx, by], [cx, cy])?;
+        } else if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let (az, bz, cz) = (sz * rel[0][kz], sz * rel[1][kz], sz * rel[2][kz]);
+        let tn = u * az + v * bz + w * cz;
+        let inv = 1.0 / det;
+        let t = tn * inv;
+        if !(t > 0.0 && t < t_max) {
+            return None;
+        }
+        Some(TriangleHit {
+            t,
+            b0: u * inv,
+            b1: v * inv,
+            b2: w * inv,
+        })
+    }
+
+    fn bits(h: Option<TriangleHit>) -> Option<[u32; 4]> {
+        h.map(|h| [h.t, h.b0, h.b1, h.b2].map(f32::to_bits))
+    }
+
+    #[test]
+    fn the_lane_test_equals_the_scalar_steps_bit_for_bit() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (mut hits, mut zeros) = (0, 0);
+        for i in 0..400_000 {
+            // Half the cases on a coarse grid (edge functions exactly zero, rays through
+            // vertices and edges, degenerate and axis-aligned triangles), half continuous.
+            let grid = i % 2 == 0;
+            let mut coord = || {
+                let x = next() * 4.0 - 2.0;
+                if grid {
+                    (x * 2.0).round() * 0.5
+                } else {
+                    x
+                }
+            };
+            let p = [
+                Vec3::new(coord(), coord(), coord()),
+                Vec3::new(coord(), coord(), coord()),
+                Vec3::new(coord(), coord(), coord()),
+            ];
+            let o = Vec3::new(coord(), coord(), coord()) * 2.0;
+            let target = Vec3::new(coord(), coord(), coord());
+            let Some(d) = (target - o).try_normalize() else {
+                continue;
+            };
+            let ray = Ray::new(o, d);
+            let t_max = if i % 3 == 0 { 2.0 } else { f32::INFINITY };
+            let expected = scalar_reference(&ray, p, t_max);
+            let got = intersect_triangle(&ray, p[0], p[1], p[2], t_max);
+            assert_eq!(bits(got), bits(expected), "case {i}: {p:?} {ray:?}");
+            hits += usize::from(expected.is_some());
+            let sr = ShearedRay::new(&ray);
+            let tri = TriangleSoa::new(p[0], p[1], p[2]);
+            let x = tri.v[sr.kx] - sr.okx - sr.sxv * (tri.v[sr.kz] - sr.okz);
+            let y = tri.v[sr.ky] - sr.oky - sr.syv * (tri.v[sr.kz] - sr.okz);
+            let e = x.zxyw() * y.yzxw() - y.zxyw() * x.yzxw();
+            zeros += usize::from(e.cmpeq(Vec4::ZERO).bitmask() & 7 != 0);
+        }
+        assert!(hits > 20_000, "{hits} hits");
+        assert!(
+            zeros > 5_000,
+            "{zeros} cases with an edge function exactly zero"
+        );
+    }
 }

@@ -15,6 +15,8 @@
 //! were built, and the interval is clipped to `[0, t_max]`, so a primitive the ray hits is never
 //! culled.
 
+use std::mem::MaybeUninit;
+
 use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb as OAabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -103,11 +105,7 @@ impl SlabRay {
     /// reciprocals are one vector division (the same IEEE quotients as three scalar ones).
     #[inline]
     fn new(ray: &Ray) -> Self {
-        let d = Vec4::from((ray.d, 1.0));
-        let small = d.abs().cmplt(Vec4::splat(1e-20));
-        let cap = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::splat(-1e20), Vec4::splat(1e20));
-        let inv = Vec4::select(small, cap, Vec4::ONE / d);
-        let neg = inv.cmplt(Vec4::ZERO).bitmask();
+        let (inv, neg) = slab_constants(ray);
         let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
         let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
         SlabRay {
@@ -134,6 +132,19 @@ impl SlabRay {
         }
         (near, near.cmple(far).bitmask())
     }
+}
+
+/// The capped reciprocal direction of `ray` (magnitudes capped at 1e20, sign kept, `-0`
+/// treated as `+0`, so that slab tests never produce `0·∞`; the three reciprocals are one
+/// vector division, the same IEEE quotients as three scalar ones) and the mask of its
+/// negative components (bit `k` for axis `k`).
+#[inline(always)]
+fn slab_constants(ray: &Ray) -> (Vec4, u32) {
+    let d = Vec4::from((ray.d, 1.0));
+    let small = d.abs().cmplt(Vec4::splat(1e-20));
+    let cap = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::splat(-1e20), Vec4::splat(1e20));
+    let inv = Vec4::select(small, cap, Vec4::ONE / d);
+    (inv, inv.cmplt(Vec4::ZERO).bitmask())
 }
 
 /// 1 + 2γ₃: the relative rounding bound of a slab distance.
@@ -166,7 +177,10 @@ mod avx2 {
         _CMP_LE_OS,
     };
 
-    use super::{Node8, NodeTest, SlabRay, FAR_SCALE, WIDTH};
+    #[cfg(test)]
+    use super::SlabRay;
+    use super::{slab_constants, Node8, NodeTest, FAR_SCALE, WIDTH};
+    use crate::math::Ray;
 
     /// The ray of a [`SlabRay`] splatted to 8 lanes. Made only by [`AvxSlab::new`], which
     /// needs AVX.
@@ -181,6 +195,7 @@ mod avx2 {
         /// # Safety
         /// The CPU must support AVX2.
         #[target_feature(enable = "avx2")]
+        #[cfg(test)]
         pub(super) unsafe fn new(s: &SlabRay) -> Self {
             AvxSlab {
                 o: [
@@ -197,20 +212,58 @@ mod avx2 {
                 far: s.far,
             }
         }
+
+        /// The same constants as `AvxSlab::new(&SlabRay::new(ray))`, without the 4-wide
+        /// splats in between.
+        ///
+        /// # Safety
+        /// The CPU must support AVX2.
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        pub(super) unsafe fn from_ray(ray: &Ray) -> Self {
+            let (inv, neg) = slab_constants(ray);
+            let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
+            let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
+            AvxSlab {
+                o: [
+                    _mm256_set1_ps(ray.o.x),
+                    _mm256_set1_ps(ray.o.y),
+                    _mm256_set1_ps(ray.o.z),
+                ],
+                inv: [
+                    _mm256_set1_ps(inv.x),
+                    _mm256_set1_ps(inv.y),
+                    _mm256_set1_ps(inv.z),
+                ],
+                near: [near(0), near(1), near(2)],
+                far: [far(0), far(1), far(2)],
+            }
+        }
     }
 
     impl NodeTest for AvxSlab {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
             // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
-            // it); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
+            // it); the plane indices are `k` or `k + 3` (below 6, set by `SlabRay::new`); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
             // writes the 8 floats of `out`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
                 for k in 0..3 {
-                    let n = _mm256_loadu_ps(node.planes[self.near[k]].as_ptr().cast::<f32>());
-                    let f = _mm256_loadu_ps(node.planes[self.far[k]].as_ptr().cast::<f32>());
+                    // (`near[k]` and `far[k]` are `k` and `k + 3`, below 6.)
+                    let n = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.near[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
+                    let f = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.far[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
                     near = _mm256_max_ps(
                         near,
                         _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
@@ -239,40 +292,59 @@ struct Entry {
     t: f32,
 }
 
-/// The traversal stack: inline entries, spilling to the heap only for unusually deep trees.
-struct Stack {
-    inline: [Entry; STACK_INLINE],
+/// The traversal stack: inline entries, spilling to the heap only for unusually deep trees
+/// (`SPILL`; without it, the caller guarantees that the inline entries suffice, see
+/// `WideBvh::shallow`). The inline entries are not initialised: only those below `len` are
+/// ever read.
+struct Stack<'a, const SPILL: bool> {
+    inline: &'a mut MaybeUninit<[Entry; STACK_INLINE]>,
     len: usize,
     spill: Vec<Entry>,
 }
 
-impl Stack {
-    fn new() -> Self {
+impl<'a, const SPILL: bool> Stack<'a, SPILL> {
+    #[inline(always)]
+    fn new(inline: &'a mut MaybeUninit<[Entry; STACK_INLINE]>) -> Self {
         Stack {
-            inline: [Entry::default(); STACK_INLINE],
+            inline,
             len: 0,
             spill: Vec::new(),
         }
     }
     #[inline(always)]
     fn push(&mut self, e: Entry) {
-        if self.len < STACK_INLINE {
-            self.inline[self.len] = e;
+        if !SPILL || self.len < STACK_INLINE {
+            debug_assert!(self.len < STACK_INLINE);
+            // SAFETY: `len < STACK_INLINE` (checked, or guaranteed by the caller without
+            // `SPILL`): the write stays inside the inline array.
+            unsafe {
+                self.inline
+                    .as_mut_ptr()
+                    .cast::<Entry>()
+                    .add(self.len)
+                    .write(e)
+            };
             self.len += 1;
         } else {
             self.spill.push(e);
         }
     }
+    /// The entry pushed last. The spill is used only once the inline entries are full, so
+    /// it is looked at only then.
     #[inline(always)]
     fn pop(&mut self) -> Option<Entry> {
-        if let Some(e) = self.spill.pop() {
-            return Some(e);
-        }
         if self.len == 0 {
             return None;
         }
+        if SPILL && self.len == STACK_INLINE {
+            if let Some(e) = self.spill.pop() {
+                return Some(e);
+            }
+        }
         self.len -= 1;
-        Some(self.inline[self.len])
+        // SAFETY: `len < STACK_INLINE`, and every entry below the old `len` was written by
+        // `push`.
+        Some(unsafe { self.inline.as_ptr().cast::<Entry>().add(self.len).read() })
     }
 }
 
@@ -368,14 +440,26 @@ impl WideBvh {
         if self.nodes.is_empty() {
             return;
         }
-        let slab = SlabRay::new(ray);
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when the CPU reported AVX2.
-            unsafe { self.traverse_avx2(&slab, t_max, primitive) };
+            unsafe { self.traverse_avx2(ray, t_max, primitive) };
             return;
         }
-        self.traverse_with(&slab, t_max, primitive);
+        let slab = SlabRay::new(ray);
+        if self.shallow() {
+            self.traverse_with::<_, false>(&slab, t_max, primitive);
+        } else {
+            self.traverse_with::<_, true>(&slab, t_max, primitive);
+        }
+    }
+
+    /// True when the traversal stack never holds more than its inline entries: a node pushes
+    /// at most `WIDTH − 1` children, and the entries on the stack come from the nodes on the
+    /// path to the current one, one node per level above it.
+    #[inline(always)]
+    fn shallow(&self) -> bool {
+        self.depth.saturating_sub(1) * (WIDTH - 1) <= STACK_INLINE
     }
 
     /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
@@ -384,15 +468,14 @@ impl WideBvh {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn traverse_avx2(
-        &self,
-        slab: &SlabRay,
-        t_max: f32,
-        primitive: impl FnMut(u32, f32) -> f32,
-    ) {
+    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         // SAFETY: this function runs only with AVX2.
-        let wide = unsafe { avx2::AvxSlab::new(slab) };
-        self.traverse_with(&wide, t_max, primitive);
+        let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
+        if self.shallow() {
+            self.traverse_with::<_, false>(&wide, t_max, primitive);
+        } else {
+            self.traverse_with::<_, true>(&wide, t_max, primitive);
+        }
     }
 
     /// Forces the 4-wide node test (tests compare it with the 8-wide one).
@@ -402,70 +485,141 @@ impl WideBvh {
         self
     }
 
-    /// The traversal with node test `slab`.
+    /// The traversal with node test `slab`. One or two entered children (most nodes) are
+    /// ordered without the general insertion sort; every case visits the children in the
+    /// order the general one does (nearest first, ties by slot), tests leaves at once and
+    /// pushes inner children farthest first, so hits are the same.
     #[inline(always)]
-    fn traverse_with<T: NodeTest>(
+    fn traverse_with<T: NodeTest, const SPILL: bool>(
         &self,
         slab: &T,
         mut t_max: f32,
         mut primitive: impl FnMut(u32, f32) -> f32,
     ) {
-        let mut stack = Stack::new();
+        let mut stack_entries = MaybeUninit::uninit();
+        let mut stack = Stack::<SPILL>::new(&mut stack_entries);
         let mut current = 0u32;
-        // Scratch for the children of the node visited (only entries below the counts are
-        // read), initialised once per ray.
-        let mut order = [(0usize, 0.0f32); WIDTH];
+        // Scratch for the children of a node with three or more entered (only entries below
+        // the counts are read), initialised once per ray.
+        let mut order = [(0u32, 0.0f32); WIDTH];
         let mut inner = [Entry::default(); WIDTH];
+        // Tests the primitives of the leaf in slot `$slot` of `node`; returns from the
+        // traversal when `primitive` ends it.
+        macro_rules! leaf {
+            ($node:expr, $slot:expr) => {{
+                let first = $node.child[$slot];
+                for i in first..first + $node.count[$slot] {
+                    t_max = primitive(i, t_max);
+                    if t_max <= 0.0 {
+                        return;
+                    }
+                }
+            }};
+        }
         loop {
-            let node = &self.nodes[current as usize];
-            let (near, mut mask) = slab.test(node, t_max);
-            // The entered children sorted by entry distance, nearest first.
-            let mut n = 0;
-            while mask != 0 {
-                let slot = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let t = near[slot];
-                let mut j = n;
-                while j > 0 && order[j - 1].1 > t {
-                    order[j] = order[j - 1];
-                    j -= 1;
+            // SAFETY: `current` is the root (the hierarchy is not empty) or a child index the
+            // build wrote, both below `nodes.len()`.
+            let node = unsafe { self.nodes.get_unchecked(current as usize) };
+            let (near, mask) = slab.test(node, t_max);
+            // (Slots are below 8: the mask has 8 bits.)
+            let s0 = (mask.trailing_zeros() & 7) as usize;
+            let rest = mask & mask.wrapping_sub(1);
+            if mask == 0 {
+                // Nothing entered.
+            } else if rest == 0 {
+                // One child.
+                if !(near[s0] > t_max) {
+                    if node.count[s0] == 0 {
+                        current = node.child[s0];
+                        continue;
+                    }
+                    leaf!(node, s0);
                 }
-                order[j] = (slot, t);
-                n += 1;
-            }
-            // Leaves are intersected at once, nearest first (a hit shortens the ray for the
-            // rest); inner children are pushed farthest first, so the nearest is visited next.
-            let mut m = 0;
-            for &(slot, t) in &order[..n] {
-                if t > t_max {
-                    break;
-                }
-                let count = node.count[slot];
-                if count > 0 {
-                    let first = node.child[slot];
-                    for i in first..first + count {
-                        t_max = primitive(i, t_max);
-                        if t_max <= 0.0 {
-                            return;
+            } else if rest & (rest - 1) == 0 {
+                // Two children, nearest first (a tie keeps the lower slot first).
+                let s1 = (rest.trailing_zeros() & 7) as usize;
+                let (a, b) = if near[s1] < near[s0] {
+                    (s1, s0)
+                } else {
+                    (s0, s1)
+                };
+                let (ta, tb) = (near[a], near[b]);
+                if !(ta > t_max) {
+                    if node.count[a] > 0 {
+                        leaf!(node, a);
+                        if !(tb > t_max) {
+                            if node.count[b] > 0 {
+                                leaf!(node, b);
+                            } else {
+                                current = node.child[b];
+                                continue;
+                            }
+                        }
+                    } else {
+                        if !(tb > t_max) {
+                            if node.count[b] > 0 {
+                                leaf!(node, b);
+                            } else {
+                                stack.push(Entry {
+                                    node: node.child[b],
+                                    t: tb,
+                                });
+                            }
+                        }
+                        // (A leaf after it may have shortened the ray.)
+                        if !(ta > t_max) {
+                            current = node.child[a];
+                            continue;
                         }
                     }
-                } else {
-                    inner[m] = Entry {
-                        node: node.child[slot],
-                        t,
-                    };
-                    m += 1;
                 }
-            }
-            // The nearest inner child is visited next; the others wait, farthest deepest.
-            if m > 0 {
-                for e in inner[1..m].iter().rev() {
-                    stack.push(*e);
+            } else {
+                // Three or more: the entered children sorted by entry distance, nearest
+                // first.
+                let mut mask = mask;
+                let mut n = 0;
+                while mask != 0 {
+                    let slot = (mask.trailing_zeros() & 7) as usize;
+                    mask &= mask - 1;
+                    let t = near[slot];
+                    let mut j = n;
+                    while j > 0 && order[j - 1].1 > t {
+                        order[j] = order[j - 1];
+                        j -= 1;
+                    }
+                    order[j] = (slot as u32, t);
+                    n += 1;
                 }
-                // (A leaf after it may have shortened the ray.)
-                if !(inner[0].t > t_max) {
-                    current = inner[0].node;
-                    continue;
+                // Leaves are intersected at once, nearest first (a hit shortens the ray for
+                // the rest); inner children are pushed farthest first, so the nearest is
+                // visited next.
+                let mut m = 0;
+                for &(slot, t) in &order[..n] {
+                    if t > t_max {
+                        break;
+                    }
+                    let slot = (slot & 7) as usize;
+                    if node.count[slot] > 0 {
+                        leaf!(node, slot);
+                    } else {
+                        inner[m] = Entry {
+                            node: node.child[slot],
+                            t,
+                        };
+                        m += 1;
+                    }
+                }
+                // The nearest inner child is visited next; the others wait, farthest
+                // deepest.
+                if m > 0 {
+                    for e in inner[1..m].iter().rev() {
+                        stack.push(*e);
+                    }
+                    // (A leaf after it may have shortened the ray.)
+                    if !(inner[0].t > t_max) {
+                        current = inner[0].node;
+                        continue;
+                    }
                 }
             }
             loop {
@@ -614,12 +768,17 @@ mod tests {
             // SAFETY: AVX2 was detected above.
             let avx = unsafe { avx2::AvxSlab::new(&slab) };
             let node = &wide.nodes[i % wide.nodes.len()];
+            // SAFETY: AVX2 was detected above.
+            let direct = unsafe { avx2::AvxSlab::from_ray(&ray) };
             let (a, ma) = slab.test(node, t_max);
             let (b, mb) = avx.test(node, t_max);
+            let (c, mc) = direct.test(node, t_max);
             assert_eq!(ma, mb, "ray {i}");
+            assert_eq!(ma, mc, "ray {i}");
             for k in 0..WIDTH {
                 if ma & (1 << k) != 0 {
                     assert_eq!(a[k].to_bits(), b[k].to_bits(), "ray {i} child {k}");
+                    assert_eq!(a[k].to_bits(), c[k].to_bits(), "ray {i} child {k}");
                 }
             }
             let mut seen = (Vec::new(), Vec::new());
@@ -630,6 +789,52 @@ mod tests {
                 shorten(pos, t)
             });
             narrow.traverse(&ray, t_max, |pos, t| {
+                seen.1.push((pos, t.to_bits()));
+                shorten(pos, t)
+            });
+            assert_eq!(seen.0, seen.1, "ray {i}");
+        }
+    }
+
+    #[test]
+    fn the_stack_spills_past_its_inline_entries_and_pops_in_reverse() {
+        let mut entries = MaybeUninit::uninit();
+        let mut stack = Stack::<true>::new(&mut entries);
+        for i in 0..3 * STACK_INLINE as u32 {
+            stack.push(Entry {
+                node: i,
+                t: i as f32,
+            });
+        }
+        for i in (0..3 * STACK_INLINE as u32).rev() {
+            let e = stack.pop().map(|e| (e.node, e.t));
+            assert_eq!(e, Some((i, i as f32)));
+        }
+        assert!(stack.pop().is_none());
+    }
+
+    #[test]
+    fn the_spilling_and_the_inline_stack_visit_the_same_leaves() {
+        let mut rng = Lcg(5);
+        let boxes: Vec<(Vec3, Vec3)> = (0..3000)
+            .map(|_| {
+                let c = rng.vec();
+                let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.1;
+                (c - e, c + e)
+            })
+            .collect();
+        let bvh = WideBvh::build(&boxes);
+        assert!(bvh.shallow());
+        for i in 0..5000 {
+            let ray = Ray::new(rng.vec() * 1.5, rng.vec().normalize_or(Vec3::X));
+            let slab = SlabRay::new(&ray);
+            let mut seen = (Vec::new(), Vec::new());
+            let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
+            bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t| {
+                seen.0.push((pos, t.to_bits()));
+                shorten(pos, t)
+            });
+            bvh.traverse_with::<_, false>(&slab, f32::INFINITY, |pos, t| {
                 seen.1.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
