@@ -721,6 +721,16 @@ mod tests {
         fn vec(&mut self) -> Vec3 {
             Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE
         }
+        /// `n` boxes centred in [−1, 1]³ with half-extents up to `half` per axis.
+        fn boxes(&mut self, n: usize, half: f32) -> Vec<(Vec3, Vec3)> {
+            (0..n)
+                .map(|_| {
+                    let c = self.vec();
+                    let e = Vec3::new(self.next(), self.next(), self.next()) * half;
+                    (c - e, c + e)
+                })
+                .collect()
+        }
     }
 
     /// Entry and exit of the ray through a box in f64, or `None`.
@@ -742,13 +752,7 @@ mod tests {
             return;
         }
         let mut rng = Lcg(17);
-        let boxes: Vec<(Vec3, Vec3)> = (0..3000)
-            .map(|_| {
-                let c = rng.vec();
-                let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.1;
-                (c - e, c + e)
-            })
-            .collect();
+        let boxes = rng.boxes(3000, 0.1);
         let wide = WideBvh::build(&boxes);
         assert!(wide.avx2);
         let narrow = wide.clone().without_avx2();
@@ -816,13 +820,7 @@ mod tests {
     #[test]
     fn the_spilling_and_the_inline_stack_visit_the_same_leaves() {
         let mut rng = Lcg(5);
-        let boxes: Vec<(Vec3, Vec3)> = (0..3000)
-            .map(|_| {
-                let c = rng.vec();
-                let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.1;
-                (c - e, c + e)
-            })
-            .collect();
+        let boxes = rng.boxes(3000, 0.1);
         let bvh = WideBvh::build(&boxes);
         assert!(bvh.shallow());
         for i in 0..5000 {
@@ -846,13 +844,7 @@ mod tests {
     fn every_box_a_ray_crosses_is_visited_nearest_leaf_first_and_any_hit_stops() {
         let mut rng = Lcg(3);
         for n in [1usize, 2, 3, 9, 64, 2000] {
-            let boxes: Vec<(Vec3, Vec3)> = (0..n)
-                .map(|_| {
-                    let c = rng.vec();
-                    let e = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.2;
-                    (c - e, c + e)
-                })
-                .collect();
+            let boxes = rng.boxes(n, 0.2);
             let bvh = WideBvh::build(&boxes);
             let mut seen = vec![false; n];
             for &i in bvh.order() {
