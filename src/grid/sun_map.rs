@@ -33,8 +33,15 @@ pub struct SunMap {
     origin: Vec3,
     /// Node spacing, voxels.
     cell: f32,
-    /// Nodes per axis.
-    dims: IVec3,
+    /// The largest node coordinate per axis (`dims − 1`), for the clamp.
+    top: Vec3,
+    /// The largest cell's lower node per axis (`max(dims − 2, 0)`).
+    last_cell: IVec3,
+    /// `tau` index steps: one node along y, one along z (x is 1).
+    stride_y: usize,
+    stride_z: usize,
+    /// `tau` index offsets of a cell's upper corner per axis (0 along axes of one node).
+    step: [usize; 3],
     /// The integral per node (density × world length), x fastest.
     tau: Vec<f32>,
 }
@@ -133,12 +140,21 @@ impl SunMap {
                 }
             }
         }
+        let (nx, nxy) = (dims.x as usize, (dims.x * dims.y) as usize);
         Some(SunMap {
             to_light,
             world_to_index,
             origin: lo,
             cell,
-            dims,
+            top: (dims - IVec3::ONE).as_vec3(),
+            last_cell: (dims - IVec3::splat(2)).max(IVec3::ZERO),
+            stride_y: nx,
+            stride_z: nxy,
+            step: [
+                usize::from(dims.x > 1),
+                if dims.y > 1 { nx } else { 0 },
+                if dims.z > 1 { nxy } else { 0 },
+            ],
             tau,
         })
     }
@@ -154,16 +170,17 @@ impl SunMap {
     #[must_use]
     pub fn integral(&self, p: Vec3) -> f32 {
         let g = (self.world_to_index.transform_point3(p) - self.origin) / self.cell;
-        let max = (self.dims - IVec3::splat(2)).max(IVec3::ZERO);
-        let g = g.clamp(Vec3::ZERO, (self.dims - IVec3::ONE).as_vec3());
-        let i = g.floor().as_ivec3().min(max);
+        let g = g.clamp(Vec3::ZERO, self.top);
+        // `g ≥ 0`, so the cast's truncation is the floor (without a call to `floorf`).
+        let i = g.as_ivec3().min(self.last_cell);
         let t = g - i.as_vec3();
-        let (nx, nxy) = (self.dims.x as usize, (self.dims.x * self.dims.y) as usize);
-        let base = i.z as usize * nxy + i.y as usize * nx + i.x as usize;
-        let dx = usize::from(self.dims.x > 1);
-        let dy = if self.dims.y > 1 { nx } else { 0 };
-        let dz = if self.dims.z > 1 { nxy } else { 0 };
-        let v = |o: usize| self.tau.get(base + o).copied().unwrap_or(0.0);
+        let base = i.z as usize * self.stride_z + i.y as usize * self.stride_y + i.x as usize;
+        let [dx, dy, dz] = self.step;
+        debug_assert!(base + dz + dy + dx < self.tau.len());
+        // SAFETY: `g` is clamped to [0, dims − 1] (a NaN casts to 0), so `0 ≤ i ≤ last_cell`
+        // and `i + 1 ≤ dims − 1` along every axis with a step; the farthest corner
+        // `base + dx + dy + dz` is then a node of the map, and `tau` holds all of them.
+        let v = |o: usize| unsafe { *self.tau.get_unchecked(base + o) };
         let x00 = v(0) + (v(dx) - v(0)) * t.x;
         let x10 = v(dy) + (v(dy + dx) - v(dy)) * t.x;
         let x01 = v(dz) + (v(dz + dx) - v(dz)) * t.x;

@@ -252,12 +252,10 @@ impl LocalBounds {
             i32::from(tf.y > p.y),
             i32::from(tf.z > p.z),
         );
-        let r = i.wrapping_sub(self.origin);
-        if r.cmplt(IVec3::ZERO).any() {
-            return (self.background, self.background);
-        }
-        let c = r >> self.log2;
-        if c.cmpge(self.dims).any() {
+        // A point below the origin has a negative cell (the shift is arithmetic), which is
+        // beyond `dims` unsigned: one comparison for both sides.
+        let c = i.wrapping_sub(self.origin) >> self.log2;
+        if c.as_uvec3().cmpge(self.dims.as_uvec3()).any() {
             return (self.background, self.background);
         }
         match self.cells.get(self.slot(c)) {

@@ -270,8 +270,10 @@ impl<'a> Walk<'a> {
         let r = &walk.ray;
         let size = cell0 * (1u64 << top) as f64;
         let p = o + d * (t0 + (t1 - t0) * 1e-6);
+        // The cast truncates towards zero where the floor would round down, which differs
+        // only in (−∞, 0) (and not for the integer values there), where both clamp to 0:
+        // the same cell without three calls to `floor`.
         let cell = ((p - r.base) / size)
-            .floor()
             .as_ivec3()
             .clamp(IVec3::ZERO, root.dims - IVec3::ONE);
         let mut t_next = DVec3::splat(f64::INFINITY);

@@ -358,8 +358,9 @@ impl HeterogeneousMedium {
 
     /// The density lookup along `ray` and, when the interior uses them, its point bounds
     /// ([`Self::density_along`] and [`Self::local_probe`], the grid's index-space ray
-    /// computed once for both).
-    #[inline]
+    /// computed once for both). Inlined into the flight, so that the lookup (with its
+    /// accessor's cache) is built in place rather than returned and copied.
+    #[inline(always)]
     fn lookups_along(&self, ray: &Ray) -> (DensityLookup<'_>, Option<LocalProbe<'_>>) {
         if let (DensityField::Grid { grid, channel }, true, None) = (
             &self.field,
