@@ -16,11 +16,17 @@ use super::{GeometryError, Hit, MeshTopology, Shape};
 
 mod beyond;
 
-/// Which shape and which of its triangles a BVH position is.
+/// Which shape and which of its triangles a BVH position is, with the triangle's geometric
+/// normal: what the hit record needs beyond the vertices (read once per closest hit, never
+/// by the traversal; 24 bytes a triangle).
 #[derive(Clone, Copy, Debug)]
 struct Prim {
+    /// [`geometric_normal`] of the triangle: NaN components when it has none.
+    ng: Vec3,
     shape: u32,
     prim: u32,
+    /// Whether the mesh has vertex normals or UVs (the hit record then reads the mesh).
+    attributes: bool,
 }
 
 /// The scene's surfaces and their acceleration structure (immutable once built).
@@ -153,9 +159,12 @@ impl SceneGeometry {
                     positions.extend_from_slice(&m.positions);
                     for (ti, t) in m.indices.iter().enumerate() {
                         corners.push(t.map(|i| (base + i as usize) as u32));
+                        let [a, b, c] = t.map(|i| m.positions[i as usize]);
                         prims.push(Prim {
+                            ng: geometric_normal(a, b, c),
                             shape: si as u32,
                             prim: ti as u32,
+                            attributes: m.normals.is_some() || m.uvs.is_some(),
                         });
                     }
                 }
@@ -395,32 +404,40 @@ impl SceneGeometry {
                 p_error: h.p_error,
             },
             Best::Tri(slot, h) => {
-                let p = &self.prims[slot];
+                debug_assert!(slot < self.tris.len() && slot < self.prims.len());
+                // SAFETY: `slot` is a BVH position the traversal reported, below
+                // `bvh.order().len() == tris.len() == prims.len()`, and `build` numbers every
+                // vertex a triangle names below `verts.len()` (as in `triangle`).
+                let (p, a4, b4, c4) = unsafe {
+                    let [ia, ib, ic] = *self.tris.get_unchecked(slot);
+                    (
+                        self.prims.get_unchecked(slot),
+                        *self.verts.get_unchecked(ia as usize),
+                        *self.verts.get_unchecked(ib as usize),
+                        *self.verts.get_unchecked(ic as usize),
+                    )
+                };
                 // The corners as stored (`w` = 0), combined in SIMD lanes: the same
                 // per-coordinate IEEE operations as on `Vec3`s.
-                let [ia, ib, ic] = self.tris[slot];
-                let (a4, b4, c4) = (
-                    self.verts[ia as usize],
-                    self.verts[ib as usize],
-                    self.verts[ic as usize],
-                );
-                let (a, b, c) = (a4.truncate(), b4.truncate(), c4.truncate());
                 let pos = (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate();
-                let ng = (b - a).cross(c - a).normalize_or(-ray.d);
+                // A triangle without a normal faces the ray.
+                let ng = if p.ng.x.is_nan() { -ray.d } else { p.ng };
                 let mut ns = ng;
                 let mut uv = Vec2::new(h.b1, h.b2);
-                if let Some(Shape::Mesh(m)) = self.shapes.get(p.shape as usize) {
-                    // (Read only for a mesh with normals or UVs.)
-                    let tri = || m.indices[p.prim as usize].map(|i| i as usize);
-                    if let Some(n) = &m.normals {
-                        let tri = tri();
-                        let s = (n[tri[0]] * h.b0 + n[tri[1]] * h.b1 + n[tri[2]] * h.b2)
-                            .normalize_or(ng);
-                        ns = if s.dot(ng) < 0.0 { -s } else { s };
-                    }
-                    if let Some(t) = &m.uvs {
-                        let tri = tri();
-                        uv = t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2;
+                // (The mesh is read only when it has normals or UVs.)
+                if p.attributes {
+                    if let Some(Shape::Mesh(m)) = self.shapes.get(p.shape as usize) {
+                        let tri = || m.indices[p.prim as usize].map(|i| i as usize);
+                        if let Some(n) = &m.normals {
+                            let tri = tri();
+                            let s = (n[tri[0]] * h.b0 + n[tri[1]] * h.b1 + n[tri[2]] * h.b2)
+                                .normalize_or(ng);
+                            ns = if s.dot(ng) < 0.0 { -s } else { s };
+                        }
+                        if let Some(t) = &m.uvs {
+                            let tri = tri();
+                            uv = t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2;
+                        }
                     }
                 }
                 // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
@@ -497,10 +514,19 @@ fn valid_query(ray: &Ray, t_max: f32) -> bool {
     ray.o.is_finite() && ray.d.is_finite() && ray.d != Vec3::ZERO && !t_max.is_nan() && t_max > 0.0
 }
 
+/// The unit geometric normal of the triangle `a, b, c` along its winding,
+/// `(b − a) × (c − a)` normalised; NaN in every component when that vector cannot be
+/// normalised (a degenerate triangle, or a cross product whose squared length overflows).
+/// Computed once per triangle when the scene is built, with the operations the hit record
+/// used to perform per hit, so the stored normal is the same bit for bit.
+fn geometric_normal(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    (b - a).cross(c - a).normalize_or(Vec3::NAN)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::icosphere;
+    use crate::geometry::{icosphere, TriangleMesh};
     use crate::sampling::{sample_uniform_sphere, Rng};
 
     fn hit_bits(h: Option<Hit>) -> Option<[u32; 6]> {
@@ -670,6 +696,211 @@ mod tests {
             hits += usize::from(expected.is_some());
         }
         assert!(hits > 10_000, "{hits} hits");
+    }
+
+    /// The triangle hit record as it was computed per hit before the geometric normals were
+    /// stored: every corner and attribute read from the mesh's own arrays, the normal's cross
+    /// product and normalisation done here.
+    fn reference_hit(geometry: &SceneGeometry, ray: &Ray, slot: usize, h: TriangleHit) -> Hit {
+        let p = geometry.prims[slot];
+        let Some(Shape::Mesh(m)) = geometry.shapes.get(p.shape as usize) else {
+            panic!("position of a non-mesh shape");
+        };
+        let tri = m.indices[p.prim as usize].map(|i| i as usize);
+        let [a, b, c] = tri.map(|i| m.positions[i]);
+        let [a4, b4, c4] = [a, b, c].map(|v| v.extend(0.0));
+        let ng = (b - a).cross(c - a).normalize_or(-ray.d);
+        let mut ns = ng;
+        if let Some(n) = &m.normals {
+            let s = (n[tri[0]] * h.b0 + n[tri[1]] * h.b1 + n[tri[2]] * h.b2).normalize_or(ng);
+            ns = if s.dot(ng) < 0.0 { -s } else { s };
+        }
+        let uv = match &m.uvs {
+            Some(t) => t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2,
+            None => Vec2::new(h.b1, h.b2),
+        };
+        Hit {
+            t: h.t,
+            p: (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate(),
+            ng,
+            ns,
+            uv,
+            shape: p.shape,
+            prim: p.prim,
+            p_error: crate::math::gamma(7)
+                * (a4.abs() * h.b0.abs() + b4.abs() * h.b1.abs() + c4.abs() * h.b2.abs())
+                    .truncate()
+                    .max_element(),
+        }
+    }
+
+    /// Every field of a hit as bits.
+    fn all_bits(h: &Hit) -> [u32; 15] {
+        [
+            h.t.to_bits(),
+            h.p.x.to_bits(),
+            h.p.y.to_bits(),
+            h.p.z.to_bits(),
+            h.ng.x.to_bits(),
+            h.ng.y.to_bits(),
+            h.ng.z.to_bits(),
+            h.ns.x.to_bits(),
+            h.ns.y.to_bits(),
+            h.ns.z.to_bits(),
+            h.uv.x.to_bits(),
+            h.uv.y.to_bits(),
+            h.shape,
+            h.prim,
+            h.p_error.to_bits(),
+        ]
+    }
+
+    /// Three meshes for the hit record: the skin icosphere moved off the origin, a coarser
+    /// icosphere with perturbed vertex normals (some facing inward) and UVs, and a soup of
+    /// random triangles with some degenerate ones (a repeated vertex, three collinear
+    /// vertices) and two so large that their cross product's squared length overflows (no
+    /// normal: the hit record falls back to the reversed ray direction).
+    fn hit_record_scene() -> SceneGeometry {
+        let mut rng = Rng::new(41, 3);
+        let mut skin = icosphere(5);
+        for p in &mut skin.positions {
+            *p = *p * 3.0 + Vec3::new(10.0, -2.0, 5.0);
+        }
+        let mut shaded = icosphere(3);
+        for p in &mut shaded.positions {
+            *p = *p * 0.7 + Vec3::new(10.0, -2.0, 5.0);
+        }
+        let normals = shaded
+            .positions
+            .iter()
+            .map(|&p| {
+                let jitter = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
+                (p - Vec3::new(10.0, -2.0, 5.0)) * (rng.next_f32() * 2.4 - 0.4) + jitter
+            })
+            .collect();
+        let uvs = (0..shaded.positions.len())
+            .map(|_| Vec2::new(rng.next_f32(), rng.next_f32()))
+            .collect();
+        shaded.normals = Some(normals);
+        shaded.uvs = Some(uvs);
+        let mut soup = TriangleMesh {
+            positions: Vec::new(),
+            normals: None,
+            uvs: None,
+            indices: Vec::new(),
+        };
+        for i in 0..400u32 {
+            let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
+            let e = |rng: &mut Rng| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
+            let (a, b) = (c + e(&mut rng), c + e(&mut rng));
+            let third = match i % 20 {
+                0 => a,
+                1 => a + (b - a) * 0.5,
+                _ => c + e(&mut rng),
+            };
+            soup.positions.extend([a, b, third]);
+            soup.indices.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        let n = soup.positions.len() as u32;
+        let big = 9e14;
+        soup.positions.extend([
+            Vec3::new(-big, -big, 50.0),
+            Vec3::new(big, -big, 50.0),
+            Vec3::new(0.0, big, 50.0),
+            Vec3::new(-big, -big, -50.0),
+            Vec3::new(0.0, big, -50.0),
+            Vec3::new(big, -big, -50.0),
+        ]);
+        soup.indices
+            .extend([[n, n + 1, n + 2], [n + 3, n + 4, n + 5]]);
+        SceneGeometry::build(vec![
+            Shape::Mesh(skin),
+            Shape::Mesh(shaded),
+            Shape::Mesh(soup),
+        ])
+        .expect("geometry")
+    }
+
+    #[test]
+    fn stored_normals_are_the_per_hit_normals_bit_for_bit() {
+        let geometry = hit_record_scene();
+        let d = Vec3::new(0.36, -0.48, 0.8);
+        let mut without = 0;
+        for (slot, p) in geometry.prims.iter().enumerate() {
+            let Some(Shape::Mesh(m)) = geometry.shapes.get(p.shape as usize) else {
+                panic!("position of a non-mesh shape");
+            };
+            let [a, b, c] = m.indices[p.prim as usize].map(|i| m.positions[i as usize]);
+            let expected = (b - a).cross(c - a).normalize_or(-d);
+            let stored = if p.ng.x.is_nan() { -d } else { p.ng };
+            assert_eq!(
+                stored.to_array().map(f32::to_bits),
+                expected.to_array().map(f32::to_bits),
+                "position {slot}: shape {} triangle {}",
+                p.shape,
+                p.prim
+            );
+            without += usize::from(p.ng.x.is_nan());
+        }
+        // The triangles with a repeated vertex and the overflowing ones (20 + 2) have none,
+        // and some of the 20 with a vertex rounded onto the others' line.
+        assert!(
+            (22..=42).contains(&without),
+            "{without} triangles without a normal"
+        );
+    }
+
+    #[test]
+    fn hit_records_are_those_computed_per_hit_bit_for_bit() {
+        let geometry = hit_record_scene();
+        let mut rng = Rng::new(43, 5);
+        let (mut hits, mut shaded, mut fallback) = (0, 0, 0);
+        for i in 0..60_000 {
+            let (ray, t_max) = if i % 10 == 9 {
+                // Towards the two huge triangles, from between or beyond them.
+                let o = Vec3::new(
+                    rng.next_f32(),
+                    rng.next_f32(),
+                    rng.next_f32() * 200.0 - 100.0,
+                );
+                let d = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 1.0);
+                let d = if rng.next_f32() < 0.5 { d } else { -d };
+                (Ray::new(o, d.normalize()), f32::INFINITY)
+            } else if i % 10 == 8 {
+                // Through the soup.
+                let o = sample_uniform_sphere(rng.next_2d()) * 10.0;
+                let target = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
+                (Ray::new(o, (target - o).normalize()), 40.0)
+            } else {
+                icosphere_ray(&mut rng, i)
+            };
+            let sr = ShearedRay::new(&ray);
+            let mut best = None;
+            geometry.bvh.traverse(&ray, t_max, |slot, t| {
+                match sr.intersect(&geometry.triangle(slot as usize), t) {
+                    Some(h) => {
+                        best = Some((slot as usize, h));
+                        h.t
+                    }
+                    None => t,
+                }
+            });
+            let got = geometry.intersect(&ray, t_max);
+            assert_eq!(
+                got.as_ref().map(all_bits),
+                best.map(|(slot, h)| all_bits(&reference_hit(&geometry, &ray, slot, h))),
+                "ray {i}: {ray:?} to {t_max}"
+            );
+            if let Some(h) = got {
+                hits += 1;
+                shaded += usize::from(h.shape == 1);
+                fallback += usize::from(h.ng == -ray.d);
+            }
+        }
+        // Hits on every mesh, on the shaded one and on the triangles without a normal.
+        assert!(hits > 30_000, "{hits} hits");
+        assert!(shaded > 300, "{shaded} hits on the shaded mesh");
+        assert!(fallback > 1_000, "{fallback} hits without a normal");
     }
 
     #[test]
