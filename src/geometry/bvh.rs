@@ -545,16 +545,22 @@ mod tests {
     /// Each BVH position's triangle read from its mesh's own vertex and index arrays and
     /// transposed by [`TriangleSoa::new`] (the layout before the compact one), so that the
     /// brute force below does not share the compact layout's indexing or transposition.
+    /// The mesh of BVH primitive `p`, and the triangle's corner indices in it.
+    fn mesh_triangle<'g>(geometry: &'g SceneGeometry, p: &Prim) -> (&'g TriangleMesh, [usize; 3]) {
+        let Some(Shape::Mesh(m)) = geometry.shapes.get(p.shape as usize) else {
+            panic!("position of a non-mesh shape");
+        };
+        (m, m.indices[p.prim as usize].map(|i| i as usize))
+    }
+
     fn triangles_from_meshes(geometry: &SceneGeometry) -> Vec<TriangleSoa> {
         geometry
             .prims
             .iter()
-            .map(|p| match geometry.shapes.get(p.shape as usize) {
-                Some(Shape::Mesh(m)) => {
-                    let [a, b, c] = m.indices[p.prim as usize].map(|i| m.positions[i as usize]);
-                    TriangleSoa::new(a, b, c)
-                }
-                _ => panic!("position of a non-mesh shape"),
+            .map(|p| {
+                let (m, tri) = mesh_triangle(geometry, p);
+                let [a, b, c] = tri.map(|i| m.positions[i]);
+                TriangleSoa::new(a, b, c)
             })
             .collect()
     }
@@ -703,10 +709,7 @@ mod tests {
     /// product and normalisation done here.
     fn reference_hit(geometry: &SceneGeometry, ray: &Ray, slot: usize, h: TriangleHit) -> Hit {
         let p = geometry.prims[slot];
-        let Some(Shape::Mesh(m)) = geometry.shapes.get(p.shape as usize) else {
-            panic!("position of a non-mesh shape");
-        };
-        let tri = m.indices[p.prim as usize].map(|i| i as usize);
+        let (m, tri) = mesh_triangle(geometry, &p);
         let [a, b, c] = tri.map(|i| m.positions[i]);
         let [a4, b4, c4] = [a, b, c].map(|v| v.extend(0.0));
         let ng = (b - a).cross(c - a).normalize_or(-ray.d);
@@ -827,10 +830,8 @@ mod tests {
         let d = Vec3::new(0.36, -0.48, 0.8);
         let mut without = 0;
         for (slot, p) in geometry.prims.iter().enumerate() {
-            let Some(Shape::Mesh(m)) = geometry.shapes.get(p.shape as usize) else {
-                panic!("position of a non-mesh shape");
-            };
-            let [a, b, c] = m.indices[p.prim as usize].map(|i| m.positions[i as usize]);
+            let (m, tri) = mesh_triangle(&geometry, p);
+            let [a, b, c] = tri.map(|i| m.positions[i]);
             let expected = (b - a).cross(c - a).normalize_or(-d);
             let stored = if p.ng.x.is_nan() { -d } else { p.ng };
             assert_eq!(
