@@ -77,12 +77,19 @@ fn validate_g(param: &'static str, g: f32) -> Result<f32, PhaseError> {
 }
 
 /// HG value from `a = 1 − μ` and `b = 1 + μ` (docs/references.md §2.2).
+#[inline]
 fn hg_from_ab(g: f32, a: f32, b: f32) -> f32 {
     let delta = if g >= 0.0 {
         (1.0 - g) * (1.0 - g) + 2.0 * g * a
     } else {
         (1.0 + g) * (1.0 + g) - 2.0 * g * b
     };
+    hg_from_delta(g, delta)
+}
+
+/// HG value from the denominator's base `delta` = 1 + g² − 2gμ in its cancellation-free form.
+#[inline]
+fn hg_from_delta(g: f32, delta: f32) -> f32 {
     let v = (1.0 - g) * (1.0 + g) * INV_4PI / (delta * delta.sqrt());
     if v.is_finite() {
         v
@@ -91,7 +98,22 @@ fn hg_from_ab(g: f32, a: f32, b: f32) -> f32 {
     }
 }
 
+/// Single-lobe HG value for directions `wo`, `wi` (both pointing away): [`hg_from_ab`] with
+/// only the one of `1 − μ`, `1 + μ` that the sign of `g` uses computed (the same bits).
+#[inline]
+fn hg_eval(g: f32, wo: Vec3, wi: Vec3) -> f32 {
+    let delta = if g >= 0.0 {
+        let a = (0.5 * (wo + wi).length_squared()).clamp(0.0, 2.0);
+        (1.0 - g) * (1.0 - g) + 2.0 * g * a
+    } else {
+        let b = (0.5 * (wo - wi).length_squared()).clamp(0.0, 2.0);
+        (1.0 + g) * (1.0 + g) - 2.0 * g * b
+    };
+    hg_from_delta(g, delta)
+}
+
 /// `(1 − μ, 1 + μ)` for the propagation cosine μ = (−wo)·wi, without cancellation.
+#[inline]
 fn one_minus_plus_mu(wo: Vec3, wi: Vec3) -> (f32, f32) {
     // u = -wo (propagation before), v = wi: 1 - μ = |u - v|²/2 = |wo + wi|²/2.
     let a = 0.5 * (wo + wi).length_squared();
@@ -166,11 +188,12 @@ impl PhaseFunction {
     /// Phase function value `p(wo, wi)` (1/sr); both directions point away from the
     /// scattering point. Never NaN for finite unit inputs.
     #[must_use]
+    #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let (a, b) = one_minus_plus_mu(wo, wi);
         match *self {
-            PhaseFunction::HenyeyGreenstein { g } => hg_from_ab(g, a, b),
+            PhaseFunction::HenyeyGreenstein { g } => hg_eval(g, wo, wi),
             PhaseFunction::DoubleHenyeyGreenstein { g1, g2, w } => {
+                let (a, b) = one_minus_plus_mu(wo, wi);
                 w * hg_from_ab(g1, a, b) + (1.0 - w) * hg_from_ab(g2, a, b)
             }
         }
@@ -178,6 +201,7 @@ impl PhaseFunction {
 
     /// Solid-angle pdf of [`PhaseFunction::sample`] (equal to [`PhaseFunction::eval`]).
     #[must_use]
+    #[inline]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         self.eval(wo, wi)
     }
@@ -186,6 +210,25 @@ impl PhaseFunction {
     /// lobe and is rescaled. The returned pdf is the full mixture pdf, so `value/pdf = 1`.
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: Vec2) -> PhaseSample {
+        let (wi, w_in) = self.sample_with_incident(wo, u);
+        let pdf = self.pdf(-w_in, wi);
+        PhaseSample {
+            wi,
+            pdf,
+            value: pdf,
+        }
+    }
+
+    /// The direction [`PhaseFunction::sample`] returns for the same `wo` and `u` (the same
+    /// bits), without its pdf: for callers that evaluate the pdf they need themselves.
+    #[must_use]
+    pub fn sample_direction(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        self.sample_with_incident(wo, u).0
+    }
+
+    /// The sampled direction and the normalised propagation direction before scattering.
+    #[inline]
+    fn sample_with_incident(&self, wo: Vec3, u: Vec2) -> (Vec3, Vec3) {
         let w_in = (-wo).try_normalize().unwrap_or(Vec3::Z);
         let wi = match *self {
             PhaseFunction::HenyeyGreenstein { g } => sample_hg(g, w_in, u),
@@ -199,12 +242,7 @@ impl PhaseFunction {
                 }
             }
         };
-        let pdf = self.pdf(-w_in, wi);
-        PhaseSample {
-            wi,
-            pdf,
-            value: pdf,
-        }
+        (wi, w_in)
     }
 
     /// Mean cosine `E[μ]` of the scattering angle (after clamping): `g`, or `w g1 + (1−w) g2`.

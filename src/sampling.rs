@@ -37,6 +37,7 @@ pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// A 64-bit finaliser (splitmix64 / Stafford variant 13): a good avalanche hash.
 #[must_use]
+#[inline]
 pub fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
@@ -55,6 +56,7 @@ pub fn hash_words(words: &[u64]) -> u64 {
 
 /// Converts 32 random bits to a float in `[0, 1)` (24 bits; never rounds to 1).
 #[must_use]
+#[inline]
 pub fn bits_to_unit_f32(bits: u32) -> f32 {
     (bits >> 8) as f32 * (1.0 / 16_777_216.0)
 }
@@ -123,6 +125,12 @@ pub struct PixelSampler {
     vertex: u32,
     /// Numbers drawn in the current vertex.
     used: u32,
+    /// How many of the current vertex's first numbers come from the Sobol sequence (0 past
+    /// [`SOBOL_VERTICES`] or [`SOBOL_SAMPLES`]); set when the vertex starts, so that a hashed
+    /// draw tests one bound only.
+    sobol_dims: u32,
+    /// The current vertex's first 4-dimensional Sobol set.
+    first_set: u32,
     /// The current 4-dimensional Sobol set.
     sobol: [f32; 4],
     /// The sample's shuffled Sobol index, by nibble ([`shuffled_nibbles`]).
@@ -141,6 +149,12 @@ impl PixelSampler {
             hash_base: hash_words(&[pixel_seed, sample_index as u64]),
             vertex: 0,
             used: 0,
+            sobol_dims: if sample_index < SOBOL_SAMPLES {
+                CAMERA_SOBOL_DIMENSIONS
+            } else {
+                0
+            },
+            first_set: 0,
             sobol: [0.0; 4],
             nibbles: shuffled_nibbles(sample_index, pixel_seed as u32),
         }
@@ -150,32 +164,38 @@ impl PixelSampler {
     pub fn start_vertex(&mut self) {
         self.vertex = self.vertex.saturating_add(1);
         self.used = 0;
+        if self.vertex <= SOBOL_VERTICES && self.sample_index < SOBOL_SAMPLES {
+            self.sobol_dims = VERTEX_SOBOL_DIMENSIONS;
+            self.first_set = 1 + (self.vertex - 1) * (VERTEX_SOBOL_DIMENSIONS / 4);
+        } else {
+            self.sobol_dims = 0;
+        }
     }
 
-    /// The next uniform number in `[0, 1)`.
+    /// The next uniform number in `[0, 1)`. The hashed draws (most of them: tracking walks,
+    /// shadow rays) are a few instructions and inline; the Sobol ones are out of line.
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
         let j = self.used;
-        self.used = self.used.saturating_add(1);
-        let (sobol_dims, first_set) = if self.vertex == 0 {
-            (CAMERA_SOBOL_DIMENSIONS, 0)
-        } else {
-            (
-                VERTEX_SOBOL_DIMENSIONS,
-                1 + (self.vertex - 1) * (VERTEX_SOBOL_DIMENSIONS / 4),
-            )
-        };
-        if j < sobol_dims && self.vertex <= SOBOL_VERTICES && self.sample_index < SOBOL_SAMPLES {
-            if j % 4 == 0 {
-                let set = first_set + j / 4;
-                self.sobol = sobol_4d(nibble_tables(), self.nibbles, set, self.sobol_seed)
-                    .map(|v| v.min(ONE_MINUS_EPSILON));
-            }
-            return self.sobol[(j % 4) as usize];
+        if j < self.sobol_dims {
+            return self.next_sobol(j);
         }
+        self.used = j.saturating_add(1);
         let key = (u64::from(self.vertex) << 32) | u64::from(j);
         let bits = mix64(self.hash_base ^ key.wrapping_mul(0x9e37_79b9_7f4a_7c15));
         bits_to_unit_f32((bits >> 32) as u32)
+    }
+
+    /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets.
+    #[inline(never)]
+    fn next_sobol(&mut self, j: u32) -> f32 {
+        self.used = j + 1;
+        if j % 4 == 0 {
+            let set = self.first_set + j / 4;
+            self.sobol = sobol_4d(nibble_tables(), self.nibbles, set, self.sobol_seed)
+                .map(|v| v.min(ONE_MINUS_EPSILON));
+        }
+        self.sobol[(j % 4) as usize]
     }
 
     /// The next two uniform numbers.

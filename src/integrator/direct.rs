@@ -429,11 +429,11 @@ impl SunLean {
         play: f32,
         sampler: &mut PixelSampler,
     ) -> Option<(Vec3, f32, f32)> {
-        let wi = phase.sample(-self.to_light, sampler.next_2d()).wi;
+        let wi = phase.sample_direction(-self.to_light, sampler.next_2d());
         let q = phase.pdf(-self.to_light, wi);
+        // The phase value is its pdf (`PhaseFunction::pdf` is `eval`).
         let p = phase.pdf(wo, wi);
-        let value = phase.eval(wo, wi);
-        (q > 0.0 && q.is_finite()).then_some((wi, value / q, play * q / (p + play * q)))
+        (q > 0.0 && q.is_finite()).then_some((wi, p / q, play * q / (p + play * q)))
     }
 
     /// The probability with which the lean is played at a vertex whose own sun NEE estimated
