@@ -195,6 +195,14 @@ pub struct FabricShell {
     /// cloth's patch against 600 KiB), which stays in the first-level cache. Shadow rays,
     /// which make most of the lookups, need only that test before reading the bricks.
     support_bits: Vec<u64>,
+    /// Flat copy of the patch's density (first component, as the accessor reads it) over
+    /// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, x and y padded by one voxel (column
+    /// `dims.x` repeats column 0, row `dims.y` row 0): the eight corners of every lookup that
+    /// passes the occupancy bit lie at fixed offsets from one index, with no brick
+    /// resolution and no wrapping ([`FabricShell::flat_index`]).
+    flat_density: Vec<f32>,
+    /// The patch's tangents on the layout of `flat_density`.
+    flat_tangent: Vec<Vec3>,
 }
 
 /// The fibre frame of a voxel: world tangent and yarn-family id (0 warp, 1 weft, 2 pile).
@@ -374,11 +382,14 @@ impl FabricShell {
             tiles: params.tiles,
             support_max: Vec::new(),
             support_bits: Vec::new(),
+            flat_density: Vec::new(),
+            flat_tangent: Vec::new(),
         };
         shell.link_neighbours(&tet_keys);
         shell.build_cells();
         shell.support_max = support_max(&shell.patch, dims, layer_lo);
         shell.support_bits = occupancy_bits(&shell.support_max);
+        (shell.flat_density, shell.flat_tangent) = flat_channels(&shell.patch, dims, layer_lo);
         Ok(shell)
     }
 
@@ -551,8 +562,9 @@ impl FabricShell {
         Some(t.q0 + t.bary_to_q * l)
     }
 
-    /// Trilinear density of the patch at index point `q`, periodic in `x` and `y`.
-    #[inline]
+    /// Trilinear density of the patch at index point `q`, periodic in `x` and `y`, read
+    /// through the accessor (the reference the flat tables are tested against).
+    #[cfg(test)]
     fn density_at_q(&self, acc: &mut Accessor<'_>, q: Vec3) -> f32 {
         let i = super::floor_ivec3(q);
         let base = self.wrap(i);
@@ -591,10 +603,17 @@ impl FabricShell {
 
     /// Fibre volume fraction at world point `p` (0 outside the shell).
     #[inline]
-    pub fn density(&self, acc: &mut Accessor<'_>, p: Vec3, hint: &mut u32) -> f32 {
-        match self.patch_coordinates(p, hint) {
-            // Between the yarns the eight voxels are all empty: no brick reads.
-            Some(q) if self.occupied_at_q(q) => self.density_at_q(acc, q),
+    ///
+    /// The values are read from the shell's flat copy of the patch (the same values, bit for
+    /// bit, as a trilinear lookup in `_acc`, which is kept for the interface).
+    pub fn density(&self, _acc: &mut Accessor<'_>, p: Vec3, hint: &mut u32) -> f32 {
+        let Some(q) = self.patch_coordinates(p, hint) else {
+            return 0.0;
+        };
+        let i = super::floor_ivec3(q);
+        match self.cell_at(i) {
+            // Between the yarns the eight voxels are all empty: no table reads.
+            Some((k, f)) if self.bit(k) => self.flat_trilinear(f, q - i.as_vec3()),
             _ => 0.0,
         }
     }
@@ -610,7 +629,7 @@ impl FabricShell {
     #[inline]
     pub fn projected_density(
         &self,
-        acc: &mut Accessor<'_>,
+        _acc: &mut Accessor<'_>,
         tangents: &mut Accessor<'_>,
         p: Vec3,
         dir: Vec3,
@@ -621,17 +640,22 @@ impl FabricShell {
         };
         let t = &self.tets[i];
         let q = t.q0 + t.bary_to_q * l;
+        let v = super::floor_ivec3(q);
         // Between the yarns the eight voxels the filter reads are all empty (densities are
         // never negative): the trilinear value would be 0, so neither it nor the tangent is
         // read. The same value.
-        if !self.occupied_at_q(q) {
+        let Some((k, f)) = self.cell_at(v) else {
+            return 0.0;
+        };
+        if !self.bit(k) {
             return 0.0;
         }
-        let density = self.density_at_q(acc, q);
+        let frac = q - v.as_vec3();
+        let density = self.flat_trilinear(f, frac);
         if density.is_nan() || density <= 0.0 {
             return density;
         }
-        let local = super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
+        let local = self.flat_tangent_near(q, v, f, frac, tangents);
         density * super::look::projected_width(dir, t.tangent_to_world * local)
     }
 
@@ -674,9 +698,102 @@ impl FabricShell {
             .is_some_and(|w| (w >> (k & 63)) & 1 != 0)
     }
 
+    /// For a lookup whose lower corner is voxel `i` (unwrapped): its entry `k` in the
+    /// support table and bits, and the index in `flat_density` / `flat_tangent` of its
+    /// lower corner; `None` outside the shell's layers (as [`FabricShell::support_index`]).
+    #[inline(always)]
+    fn cell_at(&self, i: IVec3) -> Option<(usize, usize)> {
+        let v = self.wrap(i);
+        let z = v.z - (self.layer_lo - 1);
+        if z < 0 || z > self.dims.z + 1 {
+            return None;
+        }
+        let k = ((z * self.dims.y + v.y) * self.dims.x + v.x) as usize;
+        let (rx, ry) = (self.dims.x + 1, self.dims.y + 1);
+        let f = ((z * ry + v.y) * rx + v.x) as usize;
+        Some((k, f))
+    }
+
+    /// Trilinear density at fractional position `t` in the cell whose lower corner is flat
+    /// index `f` (from [`FabricShell::cell_at`]): the accessor's order of operations.
+    #[inline(always)]
+    fn flat_trilinear(&self, f: usize, t: Vec3) -> f32 {
+        let rx = (self.dims.x + 1) as usize;
+        let layer = rx * (self.dims.y + 1) as usize;
+        let off = [
+            0,
+            layer,
+            rx,
+            rx + layer,
+            1,
+            1 + layer,
+            1 + rx,
+            1 + rx + layer,
+        ];
+        debug_assert!(f + off[7] < self.flat_density.len());
+        let mut c = [0.0f32; 8];
+        for (ck, o) in c.iter_mut().zip(off) {
+            // SAFETY: `cell_at` gives `f` for a wrapped voxel (x < dims.x, y < dims.y) of a
+            // layer `z ≤ dims.z + 1` from `layer_lo − 1`; the table holds `dims.z + 3`
+            // layers of `(dims.x + 1) × (dims.y + 1)` voxels, so `f` plus one step in each
+            // of x, y, z (`off[7]`) is inside it.
+            *ck = unsafe { *self.flat_density.get_unchecked(f + o) };
+        }
+        let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
+        let y0 = lerp(lerp(c[0], c[4], t.x), lerp(c[2], c[6], t.x), t.y);
+        let y1 = lerp(lerp(c[1], c[5], t.x), lerp(c[3], c[7], t.x), t.y);
+        lerp(y0, y1, t.z)
+    }
+
+    /// [`super::tangent_near`] at patch index point `q` (lower corner `v = floor(q)`, flat
+    /// index `f`, fraction `t = q − v`) from `flat_tangent`: the same voxels in the same order.
+    /// Where the nearest voxel is not one of the cell's corners (`q` so large that `q + 0.5`
+    /// rounds past `v + 1`), the accessor `tangents` is read as before.
+    #[inline(always)]
+    fn flat_tangent_near(
+        &self,
+        q: Vec3,
+        v: IVec3,
+        f: usize,
+        t: Vec3,
+        tangents: &mut Accessor<'_>,
+    ) -> Vec3 {
+        let n = super::floor_ivec3(q + Vec3::splat(0.5)) - v;
+        if !(n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
+            return super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
+        }
+        let rx = (self.dims.x + 1) as usize;
+        let layer = rx * (self.dims.y + 1) as usize;
+        let at = |d: IVec3| {
+            let o = d.x as usize + d.y as usize * rx + d.z as usize * layer;
+            debug_assert!(f + o < self.flat_tangent.len());
+            // SAFETY: `d` is in {0, 1}³ and `f` comes from `cell_at`: inside the table, as
+            // in `flat_trilinear`.
+            unsafe { *self.flat_tangent.get_unchecked(f + o) }
+        };
+        let nearest = at(n);
+        if nearest != Vec3::ZERO {
+            return nearest;
+        }
+        let mut best = (0.0f32, Vec3::ZERO);
+        for k in 0..8 {
+            let d = IVec3::new(k >> 2, (k >> 1) & 1, k & 1);
+            let w = (if d.x == 1 { t.x } else { 1.0 - t.x })
+                * (if d.y == 1 { t.y } else { 1.0 - t.y })
+                * (if d.z == 1 { t.z } else { 1.0 - t.z });
+            if w > best.0 {
+                let tv = at(d);
+                if tv != Vec3::ZERO {
+                    best = (w, tv);
+                }
+            }
+        }
+        best.1
+    }
+
     /// Whether [`FabricShell::support_at_q`] is above 0 (one bit of `support_bits`): false
     /// exactly where the trilinear lookup at `q` reads eight empty voxels.
-    #[inline]
+    #[cfg(test)]
     fn occupied_at_q(&self, q: Vec3) -> bool {
         self.support_index(q).is_some_and(|k| self.bit(k))
     }
@@ -1054,6 +1171,29 @@ fn support_max(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> Vec<f32> {
     out
 }
 
+/// The shell's flat copies of the patch's density (first component) and tangent channels:
+/// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, `(dims.x + 1) × (dims.y + 1)` voxels a
+/// layer (x fastest), voxel `(x, y)` holding the patch's `(x mod dims.x, y mod dims.y)`,
+/// read through accessors (the values lookups read, bit for bit).
+fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<f32>, Vec<Vec3>) {
+    let (rx, ry, nz) = (dims.x + 1, dims.y + 1, dims.z + 3);
+    let n = (rx * ry * nz) as usize;
+    let mut density = Vec::with_capacity(n);
+    let mut tangent = Vec::with_capacity(n);
+    let mut dacc = grid.accessor(DENSITY);
+    let mut tacc = grid.accessor(TANGENT);
+    for z in 0..nz {
+        for y in 0..ry {
+            for x in 0..rx {
+                let ijk = IVec3::new(x % dims.x, y % dims.y, z + layer_lo - 1);
+                density.push(dacc.value(ijk));
+                tangent.push(tacc.value_vec3(ijk));
+            }
+        }
+    }
+    (density, tangent)
+}
+
 /// One bit per entry of `support`, set where the entry is above 0 (bit `k & 63` of word
 /// `k >> 6`).
 fn occupancy_bits(support: &[f32]) -> Vec<u64> {
@@ -1119,4 +1259,89 @@ fn face_key(k: &[u32; 4], opp: u8) -> [u32; 3] {
     }
     f.sort_unstable();
     f
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fabric::{
+        generate_patch, voxelise, VoxeliseOptions, WeaveParams, WeavePattern, YarnParams,
+    };
+    use crate::math::Vec2;
+    use crate::sampling::Rng;
+
+    /// The flat tables give the accessor's trilinear densities and nearest tangents bit for
+    /// bit, at random patch points over several tiles (negative ones too), below, inside and
+    /// above the shell's layers, a quarter of them on the voxel lattice and half-lattice
+    /// (corners that wrap, nearest voxels on ties).
+    #[test]
+    fn flat_tables_read_the_accessor_values_bit_for_bit() {
+        let yarn = YarnParams::preset("cotton1").expect("preset");
+        let mut wp = WeaveParams::new(WeavePattern::from_name("twill").expect("twill"), yarn);
+        wp.repeats = [1, 1];
+        let fp = generate_patch(&wp, 3).expect("patch");
+        let vp = voxelise(&fp, 32, &VoxeliseOptions::default()).expect("voxelise");
+        let mesh = TriangleMesh {
+            positions: vec![
+                Vec3::ZERO,
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+            ],
+            normals: None,
+            uvs: Some(vec![
+                Vec2::new(0.0, 0.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(0.0, 1.0),
+                Vec2::new(1.0, 1.0),
+            ]),
+            indices: vec![[0, 1, 2], [1, 3, 2]],
+        };
+        let shell =
+            FabricShell::new(&vp, &mesh, &ShellParams { tiles: [2.0, 2.0] }).expect("shell");
+        let d = shell.dims.as_vec3();
+        let mut acc = shell.density_accessor();
+        let mut tan = shell.tangent_accessor();
+        let mut tan2 = shell.tangent_accessor();
+        let mut rng = Rng::new(23, 0);
+        let (mut occupied, mut tangents) = (0u32, 0u32);
+        for n in 0..300_000 {
+            let r = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let mut q = Vec3::new(
+                (r.x * 6.0 - 3.0) * d.x,
+                (r.y * 6.0 - 3.0) * d.y,
+                (shell.layer_lo - 3) as f32 + r.z * (d.z + 6.0),
+            );
+            if n % 4 == 0 {
+                q = (q * 2.0).floor() * 0.5;
+            }
+            let i = super::super::floor_ivec3(q);
+            let flat = shell.cell_at(i).filter(|&(k, _)| shell.bit(k));
+            assert_eq!(shell.occupied_at_q(q), flat.is_some(), "at {q}");
+            let Some((_, f)) = flat else {
+                continue;
+            };
+            occupied += 1;
+            let t = q - i.as_vec3();
+            let old = shell.density_at_q(&mut acc, q);
+            let new = shell.flat_trilinear(f, t);
+            assert_eq!(
+                old.to_bits(),
+                new.to_bits(),
+                "density at {q}: {old} against {new}"
+            );
+            let old = super::super::tangent_near(q, |c| tan.value_vec3(shell.wrap(c)));
+            let new = shell.flat_tangent_near(q, i, f, t, &mut tan2);
+            assert_eq!(
+                old.to_array().map(f32::to_bits),
+                new.to_array().map(f32::to_bits),
+                "tangent at {q}: {old} against {new}"
+            );
+            tangents += u32::from(old != Vec3::ZERO);
+        }
+        assert!(
+            occupied > 50_000 && tangents > 20_000,
+            "{occupied} {tangents}"
+        );
+    }
 }
