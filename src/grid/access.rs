@@ -193,9 +193,44 @@ impl<'a> Accessor<'a> {
 
     /// Trilinear interpolation of the first component at index-space point `p` (voxel
     /// centres at integer coordinates, as OpenVDB's `BoxSampler`).
+    ///
+    /// The common cases of a padded accessor, a cell whose first corner lies in a brick or
+    /// whose 8 corners lie in one constant tile, are a short inlined path; every other case
+    /// (a cell across a tile's edge, plain accessors) goes
+    /// through [`Self::gather`] out of line (the same values: the padded copy holds what
+    /// `gather` reads there).
     #[inline]
     pub fn sample_trilinear(&mut self, p: Vec3) -> f32 {
         let (i, t) = floor_frac(p);
+        if let Some(pad) = self.padded {
+            let e = self.resolve(i >> BRICK_LOG2);
+            if e & TILE_BIT == 0 {
+                const E: usize = PADDED_EDGE;
+                const OFF: [usize; 8] =
+                    [0, 1, E, E + 1, E * E, E * E + 1, E * E + E, E * E + E + 1];
+                let l = i & 7;
+                let base = e as usize * PADDED_VOXELS
+                    + (l.x as usize * E + l.y as usize) * E
+                    + l.z as usize;
+                if let Some(s) = pad.get(base..base + OFF[7] + 1) {
+                    let c: [f32; 8] = std::array::from_fn(|k| s[OFF[k]]);
+                    return trilerp(&c, t);
+                }
+            } else if (i & 7).cmplt(IVec3::splat(7)).all() {
+                // All 8 corners under one constant tile (or the background): its value, as
+                // `gather` finds it.
+                if let Some(&v) = self.tiles.get((e & !TILE_BIT) as usize * self.comps) {
+                    return v;
+                }
+            }
+        }
+        self.sample_trilinear_cold(i, t)
+    }
+
+    /// [`Self::sample_trilinear`] at the cell of first corner `i` with weights `t`, by
+    /// [`Self::gather`].
+    #[inline(never)]
+    fn sample_trilinear_cold(&mut self, i: IVec3, t: Vec3) -> f32 {
         match self.gather(i) {
             Ok(c) => trilerp(&c, t),
             Err(v) => v,

@@ -88,11 +88,13 @@ impl Descent {
 /// `lo = cell & !1` (the parent's cell doubled), so neither is stored.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Frame {
-    /// Distance at which the ray leaves the current cell across each axis.
-    pub t_next: DVec3,
+    /// Distance at which the ray leaves the current cell across each axis (arrays rather
+    /// than glam vectors: the walk indexes them by a run-time axis, which a glam vector's
+    /// `Index` turns into a branch per access).
+    pub t_next: [f64; 3],
     /// Where the parent cell ends.
     pub t_end: f64,
-    pub cell: IVec3,
+    pub cell: [i32; 3],
     pub done: bool,
 }
 
@@ -151,7 +153,7 @@ impl RaySetup {
         exits: DVec3,
         t: f64,
     ) -> (IVec3, DVec3) {
-        let half = self.cell0 * (1u64 << (level - 1)) as f64;
+        let half = self.cell0 * pow2(level - 1);
         let mut c = cell * 2;
         let mut c_next = exits;
         for k in 0..3 {
@@ -173,6 +175,13 @@ impl RaySetup {
         }
         (c, c_next)
     }
+}
+
+/// 2^`n` as an `f64` (exact; a signed conversion, one instruction where the unsigned one
+/// takes several).
+#[inline(always)]
+fn pow2(n: usize) -> f64 {
+    (1i64 << n) as f64
 }
 
 /// The hierarchical DDA over `t ∈ [t0, t1]` (inside the pyramid's box) as an iterator of
@@ -268,7 +277,7 @@ impl<'a> Walk<'a> {
         };
         let root = &pyramid.levels[top];
         let r = &walk.ray;
-        let size = cell0 * (1u64 << top) as f64;
+        let size = cell0 * pow2(top);
         let p = o + d * (t0 + (t1 - t0) * 1e-6);
         // The cast truncates towards zero where the floor would round down, which differs
         // only in (−∞, 0) (and not for the integer values there), where both clamp to 0:
@@ -285,9 +294,9 @@ impl<'a> Walk<'a> {
             }
         }
         walk.stack[0] = Frame {
-            t_next,
+            t_next: t_next.to_array(),
             t_end: t1,
-            cell,
+            cell: cell.to_array(),
             done: false,
         };
         walk.depth = 1;
@@ -300,8 +309,8 @@ impl Iterator for Walk<'_> {
     type Item = WalkCell;
 
     fn next(&mut self) -> Option<WalkCell> {
-        let step = self.ray.step;
-        let delta0 = self.ray.delta0;
+        let step = self.ray.step.to_array();
+        let delta0 = self.ray.delta0.to_array();
         while self.depth > 0 {
             let f = &mut self.stack[self.depth - 1];
             if f.done || self.t >= f.t_end {
@@ -310,28 +319,30 @@ impl Iterator for Walk<'_> {
                 continue;
             }
             let level = self.top - (self.depth - 1);
-            let cell = f.cell;
-            let exits = f.t_next;
-            let axis = if exits.x <= exits.y && exits.x <= exits.z {
+            let cell_a = f.cell;
+            let exits_a = f.t_next;
+            let axis = if exits_a[0] <= exits_a[1] && exits_a[0] <= exits_a[2] {
                 0
-            } else if exits.y <= exits.z {
+            } else if exits_a[1] <= exits_a[2] {
                 1
             } else {
                 2
             };
             let t = self.t;
-            let t_exit = exits[axis].min(f.t_end).max(t);
+            let t_exit = exits_a[axis].min(f.t_end).max(t);
             f.cell[axis] += step[axis];
-            f.t_next[axis] += delta0[axis] * (1u64 << level) as f64;
-            let lo = cell[axis] & !1;
-            let hi = (lo + 2).min(self.pyramid.levels[level].dims[axis]);
+            f.t_next[axis] += delta0[axis] * pow2(level);
+            let lv = &self.pyramid.levels[level];
+            let lo = cell_a[axis] & !1;
+            let hi = (lo + 2).min(lv.dims.to_array()[axis]);
             if f.cell[axis] < lo || f.cell[axis] >= hi || t_exit >= f.t_end {
                 f.done = true;
             }
             if !(t_exit > t) {
                 continue;
             }
-            let lv = &self.pyramid.levels[level];
+            let cell = IVec3::from_array(cell_a);
+            let exits = DVec3::from_array(exits_a);
             let i = lv.index(cell);
             let b = lv.cells[i];
             if b.is_empty() {
@@ -345,9 +356,9 @@ impl Iterator for Walk<'_> {
                 let hi = (lo + IVec3::splat(2)).min(child.dims);
                 if c.cmpge(lo).all() && c.cmplt(hi).all() && self.depth < MAX_LEVELS {
                     self.stack[self.depth] = Frame {
-                        t_next: c_next,
+                        t_next: c_next.to_array(),
                         t_end: t_exit,
-                        cell: c,
+                        cell: c.to_array(),
                         done: false,
                     };
                     self.depth += 1;

@@ -464,7 +464,10 @@ impl HeterogeneousMedium {
                     self.track_flight(&mut segments, c, ray, beta, u, stats)
                 }
                 SegmentsStart::Open(walk) => {
-                    let mut segments = self.medium_segments(c, walk.segments(), 0.0, t_max);
+                    // The adjustments borrow the walk's iterator rather than take it: moving
+                    // it into them copied its DDA stack (twice, 920 bytes each).
+                    let mut inner = walk.segments();
+                    let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
                     self.track_flight(&mut segments, c, ray, beta, u, stats)
                 }
             },
@@ -547,7 +550,17 @@ impl HeterogeneousMedium {
         // Shadow rays do not thin by the point bounds (`tracking::transmittance_local`): that
         // saves lookups but ratio tracking's variance grows as its majorant tightens (on the
         // dense peer cloud 35 % of the lookups at 1.5× the image's relative MSE).
-        let mut segments = self.segments_with(c, ray, 0.0, t_max, self.shadow_model());
+        // [`Self::segments_with`], with the walk's iterator borrowed (not moved, which
+        // copies its DDA stack).
+        let mut inner = self.pyramid.segments_along(
+            ray,
+            0.0,
+            t_max,
+            self.tracking.majorant,
+            Some(c.max_sigma_t()),
+            self.shadow_model(),
+        );
+        let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
         let mut lookup = self.density_along(ray);
         transmittance(
             &mut segments,
