@@ -203,7 +203,12 @@ impl SceneGeometry {
             })
             .collect();
         let bvh = WideBvh::build(&boxes);
-        let empty = EmptyCells::build(&boxes, pad.x);
+        let mut empty = EmptyCells::build(&boxes, pad.x);
+        if let Some(e) = &mut empty {
+            let in_order: Vec<(Vec3, Vec3)> =
+                bvh.order().iter().map(|&i| boxes[i as usize]).collect();
+            e.fill_lists(&in_order);
+        }
         let ordered: Vec<Prim> = bvh.order().iter().map(|&i| prims[i as usize]).collect();
         // Vertices renumbered by first use in BVH order, so that a leaf's vertices lie
         // together; vertices no triangle uses are dropped.
@@ -275,15 +280,21 @@ impl SceneGeometry {
         }
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
-            self.bvh.traverse(ray, closest, |slot, t_max| {
-                match sr.intersect(&self.triangle(slot as usize), t_max) {
+            let mut test =
+                |slot: u32, t_max: f32| match sr.intersect(&self.triangle(slot as usize), t_max) {
                     Some(h) => {
                         best = Some(Best::Tri(slot as usize, h));
                         h.t
                     }
                     None => t_max,
-                }
-            });
+                };
+            let walked = match &self.empty {
+                Some(e) => e.march(ray.o, ray.d, closest, &mut test),
+                None => Err(closest),
+            };
+            if let Err(t_max) = walked {
+                self.bvh.traverse(ray, t_max, test);
+            }
         }
         best.map(|b| self.make_hit(ray, b))
     }
@@ -309,14 +320,21 @@ impl SceneGeometry {
         let mut found = false;
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
             let sr = ShearedRay::new(ray);
-            self.bvh.traverse(ray, t_max, |slot, t| {
+            let mut test = |slot: u32, t: f32| {
                 if sr.intersect(&self.triangle(slot as usize), t).is_some() {
                     found = true;
                     0.0
                 } else {
                     t
                 }
-            });
+            };
+            let walked = match &self.empty {
+                Some(e) => e.march(ray.o, ray.d, t_max, &mut test),
+                None => Err(t_max),
+            };
+            if let Err(t_max) = walked {
+                self.bvh.traverse(ray, t_max, test);
+            }
         }
         found
     }
@@ -687,6 +705,60 @@ mod tests {
             }
             assert!((100_000..190_000).contains(&hits), "{hits} hits");
         }
+    }
+
+    /// Rays from inside the skin icosphere answered by walking the cells
+    /// ([`EmptyCells::march`]): from anywhere inside, from just below the surface, along the
+    /// axes and the cells' diagonals (directions with zero components, exit distances that
+    /// tie) and from points on cell boundaries; the closest hit and the shadow ray's answer
+    /// equal brute force over every triangle, bit for bit.
+    #[test]
+    fn rays_from_inside_walk_the_cells_to_the_brute_force_hits_bit_for_bit() {
+        let geometry = skin_icosphere();
+        let triangles = triangles_from_meshes(&geometry);
+        let centre = Vec3::new(10.0, -2.0, 5.0);
+        let mut rng = Rng::new(47, 3);
+        let (mut hits, mut walked) = (0, 0);
+        for i in 0..30_000 {
+            let o = match i % 3 {
+                0 => centre + sample_uniform_sphere(rng.next_2d()) * rng.next_f32().cbrt() * 2.95,
+                1 => centre + sample_uniform_sphere(rng.next_2d()) * (2.9 + 0.1 * rng.next_f32()),
+                // On a coarse lattice: often exactly on a cell boundary.
+                _ => centre + (sample_uniform_sphere(rng.next_2d()) * 2.5 * 8.0).round() / 8.0,
+            };
+            let d = match i % 5 {
+                0 => [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z][i / 5 % 6],
+                1 => Vec3::new(
+                    if rng.next_f32() < 0.5 { 1.0 } else { -1.0 },
+                    if rng.next_f32() < 0.5 { 1.0 } else { -1.0 },
+                    if i % 2 == 0 { 0.0 } else { 1.0 },
+                )
+                .normalize(),
+                _ => sample_uniform_sphere(rng.next_2d()),
+            };
+            let t_max = if i % 4 == 0 {
+                -(1.0 - rng.next_f32()).ln() / 4.0
+            } else {
+                f32::INFINITY
+            };
+            let ray = Ray::new(o, d);
+            let expected = brute_force_hit(&triangles, &ray, t_max);
+            let got = geometry
+                .intersect(&ray, t_max)
+                .map(|h| (h.t.to_bits(), h.prim));
+            let want = expected.map(|[t, slot, ..]| (t, geometry.prims[slot as usize].prim));
+            assert_eq!(got, want, "ray {i}: {ray:?} to {t_max}");
+            assert_eq!(
+                geometry.occluded(&ray, t_max),
+                expected.is_some(),
+                "ray {i}"
+            );
+            let cells = geometry.empty.as_ref().expect("cells");
+            walked += usize::from(cells.march(ray.o, ray.d, t_max, |_, t| t).is_ok());
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 15_000, "{hits} hits");
+        assert!(walked > 25_000, "{walked} rays answered by the cells");
     }
 
     #[test]
