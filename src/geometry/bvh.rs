@@ -689,6 +689,57 @@ mod tests {
         }
     }
 
+    /// Rays from inside the skin icosphere through `intersect` and `occluded` (the paths a
+    /// walk inside the skin takes, empty-cell test included): from anywhere inside, from just
+    /// below the surface, along the axes and diagonals (directions with zero components) and
+    /// from points on a coarse lattice; the closest hit and the shadow ray's answer equal
+    /// brute force over every triangle, bit for bit.
+    #[test]
+    fn rays_from_inside_find_the_brute_force_hits_bit_for_bit() {
+        let geometry = skin_icosphere();
+        let triangles = triangles_from_meshes(&geometry);
+        let centre = Vec3::new(10.0, -2.0, 5.0);
+        let mut rng = Rng::new(47, 3);
+        let mut hits = 0;
+        for i in 0..30_000 {
+            let o = match i % 3 {
+                0 => centre + sample_uniform_sphere(rng.next_2d()) * rng.next_f32().cbrt() * 2.95,
+                1 => centre + sample_uniform_sphere(rng.next_2d()) * (2.9 + 0.1 * rng.next_f32()),
+                // On a coarse lattice: often exactly on a cell boundary.
+                _ => centre + (sample_uniform_sphere(rng.next_2d()) * 2.5 * 8.0).round() / 8.0,
+            };
+            let d = match i % 5 {
+                0 => [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z][i / 5 % 6],
+                1 => Vec3::new(
+                    if rng.next_f32() < 0.5 { 1.0 } else { -1.0 },
+                    if rng.next_f32() < 0.5 { 1.0 } else { -1.0 },
+                    if i % 2 == 0 { 0.0 } else { 1.0 },
+                )
+                .normalize(),
+                _ => sample_uniform_sphere(rng.next_2d()),
+            };
+            let t_max = if i % 4 == 0 {
+                -(1.0 - rng.next_f32()).ln() / 4.0
+            } else {
+                f32::INFINITY
+            };
+            let ray = Ray::new(o, d);
+            let expected = brute_force_hit(&triangles, &ray, t_max);
+            let got = geometry
+                .intersect(&ray, t_max)
+                .map(|h| (h.t.to_bits(), h.prim));
+            let want = expected.map(|[t, slot, ..]| (t, geometry.prims[slot as usize].prim));
+            assert_eq!(got, want, "ray {i}: {ray:?} to {t_max}");
+            assert_eq!(
+                geometry.occluded(&ray, t_max),
+                expected.is_some(),
+                "ray {i}"
+            );
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 15_000, "{hits} hits");
+    }
+
     #[test]
     fn traversal_hits_are_those_of_brute_force_bit_for_bit() {
         let geometry = skin_icosphere();
