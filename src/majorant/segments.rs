@@ -240,8 +240,6 @@ pub struct OpenWalk<'a> {
     after: Option<MajorantSegment>,
     o: DVec3,
     d: DVec3,
-    /// `1 / d` per axis (made once, by the clip).
-    inv: DVec3,
     t0: f64,
     t1: f64,
     finest: usize,
@@ -264,7 +262,6 @@ impl<'a> OpenWalk<'a> {
             self.t1,
             self.o,
             self.d,
-            self.inv,
             self.finest,
             self.descent,
             self.model,
@@ -396,8 +393,7 @@ impl MajorantPyramid {
             }
             MajorantMode::Hierarchical { finest } => {
                 let (o, d) = self.ray_to_index(ray);
-                let inv = DVec3::ONE / d;
-                let Some((a, c)) = self.clip_index(o, d, inv, t_min, t_max) else {
+                let Some((a, c)) = self.clip_index(o, d, t_min, t_max) else {
                     few.push(self.background_segment(t_min, t_max));
                     return SegmentsStart::Few(few);
                 };
@@ -431,7 +427,6 @@ impl MajorantPyramid {
                             after,
                             o,
                             d,
-                            inv,
                             t0,
                             t1,
                             finest,
@@ -496,8 +491,7 @@ impl MajorantPyramid {
         length: &mut [f64],
     ) {
         let (o, d) = self.ray_to_index(ray);
-        let inv = DVec3::ONE / d;
-        let Some((a, c)) = self.clip_index(o, d, inv, t_min, t_max) else {
+        let Some((a, c)) = self.clip_index(o, d, t_min, t_max) else {
             return;
         };
         let sigma = Some(f64::from(sigma_scale)).filter(|s| s.is_finite() && *s > 0.0);
@@ -511,7 +505,7 @@ impl MajorantPyramid {
         match root_step(self, t0, t1, 0, descent, model) {
             RootStep::Empty => {}
             RootStep::Whole(cell) => add(cell),
-            RootStep::Open => Walk::new(self, t0, t1, o, d, inv, 0, descent, model).for_each(add),
+            RootStep::Open => Walk::new(self, t0, t1, o, d, 0, descent, model).for_each(add),
         }
     }
 
@@ -524,33 +518,24 @@ impl MajorantPyramid {
     /// [i − 0.5, i + 0.5)).
     fn clip(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
         let (o, d) = self.ray_to_index(ray);
-        self.clip_index(o, d, DVec3::ONE / d, t_min, t_max)
+        self.clip_index(o, d, t_min, t_max)
     }
 
-    /// [`Self::clip`] for a ray already in index space (`inv = 1 / d` per axis).
+    /// [`Self::clip`] for a ray already in index space.
     #[inline]
-    fn clip_index(
-        &self,
-        o: DVec3,
-        d: DVec3,
-        inv: DVec3,
-        t_min: f32,
-        t_max: f32,
-    ) -> Option<(f32, f32)> {
+    fn clip_index(&self, o: DVec3, d: DVec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
         let l0 = self.levels.first()?;
         let lo = self.origin.as_dvec3() - DVec3::splat(0.5);
         let hi = lo + (l0.dims * self.finest_cell_voxels()).as_dvec3();
-        clip_box(o, d, inv, lo, hi, t_min, t_max)
+        clip_box(o, d, lo, hi, t_min, t_max)
     }
 }
 
-/// `[t_min, t_max]` of the ray `o + t d` clipped to the box `[lo, hi)` (index space), given
-/// `inv = 1 / d` per axis (made once per ray and shared with the walk's set-up).
+/// `[t_min, t_max]` of the ray `o + t d` clipped to the box `[lo, hi)` (index space).
 #[inline]
 fn clip_box(
     o: DVec3,
     d: DVec3,
-    inv: DVec3,
     lo: DVec3,
     hi: DVec3,
     t_min: f32,
@@ -560,9 +545,9 @@ fn clip_box(
     let mut t1 = t_max as f64;
     // The three slabs written out by axis (indexing a `DVec3` by a loop variable compiles to
     // a branch per access); the same operations in the same order as a loop over the axes.
-    if !(clip_slab(o.x, d.x, inv.x, lo.x, hi.x, &mut t0, &mut t1)
-        && clip_slab(o.y, d.y, inv.y, lo.y, hi.y, &mut t0, &mut t1)
-        && clip_slab(o.z, d.z, inv.z, lo.z, hi.z, &mut t0, &mut t1))
+    if !(clip_slab(o.x, d.x, lo.x, hi.x, &mut t0, &mut t1)
+        && clip_slab(o.y, d.y, lo.y, hi.y, &mut t0, &mut t1)
+        && clip_slab(o.z, d.z, lo.z, hi.z, &mut t0, &mut t1))
     {
         return None;
     }
@@ -570,13 +555,14 @@ fn clip_box(
 }
 
 /// One slab of [`clip_box`]: narrows `[t0, t1]` to where the ray
-/// `o + t d` lies within `[lo, hi)` on one axis (`inv = 1 / d`). False when the ray runs
-/// parallel to the slab outside it.
+/// `o + t d` lies within `[lo, hi)` on one axis. False when the ray runs parallel to the slab
+/// outside it.
 #[inline(always)]
-fn clip_slab(o: f64, d: f64, inv: f64, lo: f64, hi: f64, t0: &mut f64, t1: &mut f64) -> bool {
+fn clip_slab(o: f64, d: f64, lo: f64, hi: f64, t0: &mut f64, t1: &mut f64) -> bool {
     if d == 0.0 {
         return !(o < lo || o >= hi);
     }
+    let inv = 1.0 / d;
     let (mut a, mut b) = ((lo - o) * inv, (hi - o) * inv);
     if a > b {
         std::mem::swap(&mut a, &mut b);
@@ -652,7 +638,7 @@ mod tests {
             } else {
                 t_min + (400.0 * u()) as f32
             };
-            let a = clip_box(o, d, DVec3::ONE / d, lo, hi, t_min, t_max);
+            let a = clip_box(o, d, lo, hi, t_min, t_max);
             let b = by_loop(o, d, lo, hi, t_min, t_max);
             let bits = |c: Option<(f32, f32)>| c.map(|(x, y)| (x.to_bits(), y.to_bits()));
             assert_eq!(

@@ -113,19 +113,16 @@ pub(super) struct RaySetup {
 }
 
 impl RaySetup {
-    /// The set-up of the ray `o + t d`, given `inv = 1 / d` (per axis, as the clip to the
-    /// pyramid's box computed it: the divisions are made once per ray).
-    #[inline]
-    pub(super) fn new(o: DVec3, d: DVec3, inv: DVec3, base: DVec3, cell0: f64) -> Self {
+    pub(super) fn new(o: DVec3, d: DVec3, base: DVec3, cell0: f64) -> Self {
         let mut step = IVec3::ZERO;
         let mut inv_d = DVec3::ZERO;
         for k in 0..3 {
             if d[k] > 0.0 {
                 step[k] = 1;
-                inv_d[k] = inv[k];
+                inv_d[k] = 1.0 / d[k];
             } else if d[k] < 0.0 {
                 step[k] = -1;
-                inv_d[k] = inv[k];
+                inv_d[k] = 1.0 / d[k];
             }
         }
         let across = |k: usize| {
@@ -246,9 +243,9 @@ pub(super) fn root_step(
 }
 
 impl<'a> Walk<'a> {
-    /// Prepares the walk of the index-space ray `o + t d` (`inv = 1 / d` per axis) over
-    /// `[t0, t1]` below an opened root (the caller asked [`root_step`] first, and emits a whole
-    /// or empty root itself), opening cells as `descent` decides.
+    /// Prepares the walk of the index-space ray `o + t d` over `[t0, t1]` below an opened root
+    /// (the caller asked [`root_step`] first, and emits a whole or empty root itself), opening
+    /// cells as `descent` decides.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     pub(super) fn new(
@@ -257,7 +254,6 @@ impl<'a> Walk<'a> {
         t1: f64,
         o: DVec3,
         d: DVec3,
-        inv: DVec3,
         finest: usize,
         descent: Descent,
         model: LookupModel,
@@ -266,7 +262,7 @@ impl<'a> Walk<'a> {
         let cell0 = f64::from(pyramid.finest_cell_voxels());
         let mut walk = Walk {
             pyramid,
-            ray: RaySetup::new(o, d, inv, base, cell0),
+            ray: RaySetup::new(o, d, base, cell0),
             finest,
             descent,
             model,
@@ -393,13 +389,7 @@ mod tests {
     use super::*;
 
     fn setup(o: [f64; 3], d: [f64; 3]) -> RaySetup {
-        RaySetup::new(
-            DVec3::from(o),
-            DVec3::from(d),
-            DVec3::ONE / DVec3::from(d),
-            DVec3::splat(-0.5),
-            8.0,
-        )
+        RaySetup::new(DVec3::from(o), DVec3::from(d), DVec3::splat(-0.5), 8.0)
     }
 
     #[test]
