@@ -205,15 +205,7 @@ impl<'a> Accessor<'a> {
         if let Some(pad) = self.padded {
             let e = self.resolve(i >> BRICK_LOG2);
             if e & TILE_BIT == 0 {
-                const E: usize = PADDED_EDGE;
-                const OFF: [usize; 8] =
-                    [0, 1, E, E + 1, E * E, E * E + 1, E * E + E, E * E + E + 1];
-                let l = i & 7;
-                let base = e as usize * PADDED_VOXELS
-                    + (l.x as usize * E + l.y as usize) * E
-                    + l.z as usize;
-                if let Some(s) = pad.get(base..base + OFF[7] + 1) {
-                    let c: [f32; 8] = std::array::from_fn(|k| s[OFF[k]]);
+                if let Some(c) = padded_corners(pad, e, i & 7) {
                     return trilerp(&c, t);
                 }
             } else if (i & 7).cmplt(IVec3::splat(7)).all() {
@@ -258,17 +250,9 @@ impl<'a> Accessor<'a> {
             let e = self.resolve(i >> BRICK_LOG2);
             if e & TILE_BIT == 0 {
                 // All 8 corners in the brick's padded copy (the same values as below).
-                const E: usize = PADDED_EDGE;
-                const OFF: [usize; 8] =
-                    [0, 1, E, E + 1, E * E, E * E + 1, E * E + E, E * E + E + 1];
-                let base = e as usize * PADDED_VOXELS
-                    + (l.x as usize * E + l.y as usize) * E
-                    + l.z as usize;
-                let s = &p[base..base + OFF[7] + 1];
-                for k in 0..8 {
-                    c[k] = s[OFF[k]];
+                if let Some(c) = padded_corners(p, e, l) {
+                    return Ok(c);
                 }
-                return Ok(c);
             }
         }
         if l.x < 7 && l.y < 7 && l.z < 7 {
@@ -347,6 +331,18 @@ impl<'a> Accessor<'a> {
         }
         Vec3::new(trilerp(&c[0], t), trilerp(&c[1], t), trilerp(&c[2], t))
     }
+}
+
+/// The 8 trilinear corners of the cell whose first corner is local voxel `l` (each of x, y,
+/// z in 0..8) of brick entry `e`, read from the brick's padded copy `pad`
+/// ([`PADDED_EDGE`]³ values per brick, x slowest); `None` if the copy is too short.
+#[inline]
+fn padded_corners(pad: &[f32], e: u32, l: IVec3) -> Option<[f32; 8]> {
+    const E: usize = PADDED_EDGE;
+    const OFF: [usize; 8] = [0, 1, E, E + 1, E * E, E * E + 1, E * E + E, E * E + E + 1];
+    let base = e as usize * PADDED_VOXELS + (l.x as usize * E + l.y as usize) * E + l.z as usize;
+    let s = pad.get(base..base + OFF[7] + 1)?;
+    Some(std::array::from_fn(|k| s[OFF[k]]))
 }
 
 /// Integer floor and fractional part of each coordinate, without a libm call (the x86-64
