@@ -323,15 +323,29 @@ impl HeterogeneousMedium {
         t1: f32,
         model: LookupModel,
     ) -> MediumSegments<'_> {
-        let inner = self.pyramid.segments_along(
+        let inner = self.pyramid_segments(c, ray, t0, t1, model);
+        self.medium_segments(c, inner, t0, t1)
+    }
+
+    /// The pyramid's majorant segments of `[t0, t1]` along `ray` for coefficients `c`, before
+    /// the adjustments of [`Self::medium_segments`].
+    #[inline]
+    fn pyramid_segments(
+        &self,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        t0: f32,
+        t1: f32,
+        model: LookupModel,
+    ) -> Segments<'_> {
+        self.pyramid.segments_along(
             ray,
             t0,
             t1,
             self.tracking.majorant,
             Some(c.max_sigma_t()),
             model,
-        );
-        self.medium_segments(c, inner, t0, t1)
+        )
     }
 
     /// The pyramid's segments `inner` of `[t0, t1]` with the fibre-projected and
@@ -552,14 +566,7 @@ impl HeterogeneousMedium {
         // dense peer cloud 35 % of the lookups at 1.5× the image's relative MSE).
         // [`Self::segments_with`], with the walk's iterator borrowed (not moved, which
         // copies its DDA stack).
-        let mut inner = self.pyramid.segments_along(
-            ray,
-            0.0,
-            t_max,
-            self.tracking.majorant,
-            Some(c.max_sigma_t()),
-            self.shadow_model(),
-        );
+        let mut inner = self.pyramid_segments(c, ray, 0.0, t_max, self.shadow_model());
         let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
         let mut lookup = self.density_along(ray);
         transmittance(
