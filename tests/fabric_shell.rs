@@ -135,7 +135,6 @@ fn flat_shell_maps_world_points_onto_the_tiled_patch() {
     );
     let mut rng = Rng::new(11, 0);
     let mut hint = u32::MAX;
-    let mut acc = shell.density_accessor();
     let mut nonzero = 0;
     for _ in 0..20_000 {
         let p = Vec3::new(
@@ -162,7 +161,7 @@ fn flat_shell_maps_world_points_onto_the_tiled_patch() {
             wrap(dq.x, nx).abs() < 2e-3 && wrap(dq.y, ny).abs() < 2e-3 && dq.z.abs() < 2e-3,
             "p {p}: q {q} vs expected {expected}"
         );
-        let d = shell.density(&mut acc, p, &mut hint);
+        let d = shell.density(p, &mut hint);
         let e = periodic_density(&vp, expected);
         assert!(
             (d - e).abs() < 2e-3 * (1.0 + e),
@@ -172,7 +171,7 @@ fn flat_shell_maps_world_points_onto_the_tiled_patch() {
         // Periodic: one tile further along u and v is the same fibre.
         let shifted = p + Vec3::new(size.x / tiles[0], size.y / tiles[1], 0.0);
         if shifted.x < size.x && shifted.y < size.y {
-            let ds = shell.density(&mut acc, shifted, &mut hint);
+            let ds = shell.density(shifted, &mut hint);
             assert!(
                 (d - ds).abs() < 5e-3 * (1.0 + d),
                 "not periodic: {d} vs {ds}"
@@ -187,7 +186,7 @@ fn flat_shell_maps_world_points_onto_the_tiled_patch() {
         Vec3::new(-0.01, 1.0, 0.0),
         Vec3::new(3.01, 1.0, 0.0),
     ] {
-        assert_eq!(shell.density(&mut acc, p, &mut hint), 0.0, "at {p}");
+        assert_eq!(shell.density(p, &mut hint), 0.0, "at {p}");
     }
     // The boundary is closed and the shell's volume is area × thickness.
     assert!(shell.boundary_mesh().is_closed());
@@ -201,12 +200,11 @@ fn flat_shell_maps_world_points_onto_the_tiled_patch() {
 
 /// Monte-Carlo estimate of ∫ density dV over a box, with its standard error.
 fn integrate(shell: &FabricShell, lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Estimate {
-    let mut acc = shell.density_accessor();
     let mut hint = u32::MAX;
     let vol = f64::from((hi - lo).x * (hi - lo).y * (hi - lo).z);
     estimate(n, &mut Rng::new(seed, 1), |rng| {
         let p = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        f64::from(shell.density(&mut acc, p, &mut hint)) * vol
+        f64::from(shell.density(p, &mut hint)) * vol
     })
 }
 
@@ -277,7 +275,6 @@ fn shell_tangents_follow_the_mesh_and_the_yarn_directions() {
     let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [2.0, 2.0] }).unwrap();
     let t = shell.thickness();
     let mut rng = Rng::new(3, 2);
-    let mut acc = shell.density_accessor();
     let mut hint = u32::MAX;
     let (mut warp, mut warp_ok, mut weft, mut weft_ok) = (0, 0, 0, 0);
     let mut exact = 0;
@@ -287,7 +284,7 @@ fn shell_tangents_follow_the_mesh_and_the_yarn_directions() {
             (rng.next_f32() - 0.5) * t,
             rng.next_f32() * 2.0,
         );
-        if shell.density(&mut acc, p, &mut hint) < 0.2 {
+        if shell.density(p, &mut hint) < 0.2 {
             continue;
         }
         let f = shell.fibre_at(p).expect("inside");
@@ -667,7 +664,6 @@ fn shell_point_bounds_bound_every_lookup_and_are_tight() {
     let mesh = half_cylinder(1.0, 1.0, 48, 6);
     let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [6.0, 2.0] }).unwrap();
     let b = shell.boundary_mesh().bounds();
-    let mut acc = shell.density_accessor();
     let mut tangents = shell.tangent_accessor();
     let mut rng = Rng::new(17, 0);
     let (mut inside, mut sum_bound, mut sum_density) = (0u32, 0.0f64, 0.0f64);
@@ -681,9 +677,8 @@ fn shell_point_bounds_bound_every_lookup_and_are_tight() {
         )
         .normalize_or_zero();
         let bound = shell.point_bound(p, &mut u32::MAX.clone());
-        let d = shell.density(&mut acc, p, &mut u32::MAX.clone());
-        let projected =
-            shell.projected_density(&mut acc, &mut tangents, p, dir, &mut u32::MAX.clone());
+        let d = shell.density(p, &mut u32::MAX.clone());
+        let projected = shell.projected_density(&mut tangents, p, dir, &mut u32::MAX.clone());
         assert!(
             d <= bound && projected <= bound,
             "at {p}: density {d}, projected {projected} above the point bound {bound}"

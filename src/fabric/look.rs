@@ -207,7 +207,6 @@ impl<'a> FibreGridLookup<'a> {
 /// the patch; with fibre-projected extinction the density is scaled by sin∠(ray, fibre).
 pub struct ShellLookup<'a> {
     shell: &'a FabricShell,
-    accessor: Accessor<'a>,
     ray: Ray,
     /// The last tetrahedron found.
     hint: u32,
@@ -221,7 +220,6 @@ impl<'a> ShellLookup<'a> {
     #[must_use]
     pub fn new(shell: &'a FabricShell, ray: &Ray, projected: bool) -> Self {
         ShellLookup {
-            accessor: shell.density_accessor(),
             tangents: projected.then(|| (shell.tangent_accessor(), ray.d.normalize_or_zero())),
             shell,
             ray: *ray,
@@ -234,11 +232,8 @@ impl<'a> ShellLookup<'a> {
     pub fn at(&mut self, t: f32) -> f32 {
         let p = self.ray.at(t);
         match &mut self.tangents {
-            None => self.shell.density(&mut self.accessor, p, &mut self.hint),
-            Some((tan, dir)) => {
-                self.shell
-                    .projected_density(&mut self.accessor, tan, p, *dir, &mut self.hint)
-            }
+            None => self.shell.density(p, &mut self.hint),
+            Some((tan, dir)) => self.shell.projected_density(tan, p, *dir, &mut self.hint),
         }
     }
 }

@@ -602,11 +602,11 @@ impl FabricShell {
     }
 
     /// Fibre volume fraction at world point `p` (0 outside the shell).
-    #[inline]
     ///
     /// The values are read from the shell's flat copy of the patch (the same values, bit for
-    /// bit, as a trilinear lookup in `_acc`, which is kept for the interface).
-    pub fn density(&self, _acc: &mut Accessor<'_>, p: Vec3, hint: &mut u32) -> f32 {
+    /// bit, as a trilinear lookup through [`Self::density_accessor`]).
+    #[inline]
+    pub fn density(&self, p: Vec3, hint: &mut u32) -> f32 {
         let Some(q) = self.patch_coordinates(p, hint) else {
             return 0.0;
         };
@@ -629,7 +629,6 @@ impl FabricShell {
     #[inline]
     pub fn projected_density(
         &self,
-        _acc: &mut Accessor<'_>,
         tangents: &mut Accessor<'_>,
         p: Vec3,
         dir: Vec3,
