@@ -196,6 +196,9 @@ pub struct MajorantPyramid {
     /// Per-point bounds over the grid's dual lattice, when attached
     /// ([`Self::with_local_bounds`]).
     local: Option<LocalBounds>,
+    /// Per priced lookup model ([`plan::PRICED_MODELS`]), the root's cost as a function of
+    /// the segment price: whether opening the root pays for preparing the walk.
+    root_cost: [plan::RootCost; 2],
 }
 
 /// Statistics of one pyramid level (for `velour majorants`).
@@ -292,6 +295,7 @@ impl MajorantPyramid {
             world_to_index,
             exact: true,
             local: None,
+            root_cost: Default::default(),
         }
     }
 
@@ -471,13 +475,15 @@ impl MajorantPyramid {
             world_to_index,
             exact,
             local: None,
+            root_cost: Default::default(),
         };
-        let prices = plan::PRICED_MODELS.map(|m| plan::open_prices(&pyramid, m));
+        let [(p0, r0), (p1, r1)] = plan::PRICED_MODELS.map(|m| plan::open_prices(&pyramid, m));
         for (l, level) in pyramid.levels.iter_mut().enumerate() {
             level.open_below = (0..level.cells.len())
-                .map(|i| [prices[0][l][i], prices[1][l][i]])
+                .map(|i| [p0[l][i], p1[l][i]])
                 .collect();
         }
+        pyramid.root_cost = [r0, r1];
         Ok(pyramid)
     }
 
@@ -600,6 +606,15 @@ impl MajorantPyramid {
 /// exponential sample and the tracker's per-segment set-up, about what one tentative collision
 /// costs; measured with callgrind on the grid scenes, docs/BENCHMARKS.md).
 pub const SEGMENT_COST: f64 = 1.0;
+
+/// What preparing the hierarchical walk below an opened root costs a free flight, in density
+/// lookups ([`SEGMENT_COST`] units): the ray's DDA set-up, the root's frame and the descent to
+/// the first cells emitted (about 1,100 instructions per walk on the dense peer cloud, some
+/// five lookups). The plan's prices count segment boundaries per unit length only; a tracker
+/// that stops at its first real collision covers a short part of the ray in a dense medium,
+/// so the root is opened only where the lookups saved over that part pay for the walk
+/// ([`walk::root_step`]; docs/BENCHMARKS.md, "The walk's set-up priced per free flight").
+pub const WALK_COST: f64 = 8.0;
 
 /// log₂ of the finest cell edge (voxels) for a grid region of `bricks` bricks: 2³-voxel cells
 /// (64 per brick) up to 2^16 bricks, 4³ (8 per brick) up to 2^21, else whole bricks, so that

@@ -57,13 +57,57 @@ struct LevelCosts {
     events: Vec<Event>,
 }
 
+/// The root's best cost as a function of the segment price λ (density units, the model's
+/// stored prices): `min(L(root), descent term)`, piecewise linear. The walk compares the
+/// lookups opening the root saves along one ray with what preparing the walk costs
+/// ([`super::WALK_COST`]; [`super::walk::root_step`]).
+#[derive(Clone, Debug, Default)]
+pub(super) struct RootCost {
+    /// The root's own lookup density (the cost of emitting it whole).
+    whole: f32,
+    /// Breakpoints `(price, cost, slope)`, by increasing price: on `[price_k, price_k+1)` the
+    /// cost is `cost_k + slope_k · (λ − price_k)`. Empty when the root is never opened.
+    knots: Vec<[f32; 3]>,
+}
+
+impl RootCost {
+    /// The root's best cost at segment price `price`.
+    #[inline]
+    pub(super) fn at(&self, price: f32) -> f32 {
+        let k = self.knots.partition_point(|k| k[0] <= price);
+        match k.checked_sub(1).and_then(|i| self.knots.get(i)) {
+            Some(&[p, f, s]) => (f + s * (price - p)).min(self.whole),
+            None => self.whole,
+        }
+    }
+
+    /// What opening the root saves per unit length at segment price `price` (density units,
+    /// ≥ 0).
+    #[inline]
+    pub(super) fn saving(&self, price: f32) -> f32 {
+        (self.whole - self.at(price)).max(0.0)
+    }
+
+    /// The largest saving at any price (at price 0), an upper bound of [`Self::saving`].
+    #[inline]
+    pub(super) fn max_saving(&self) -> f32 {
+        self.knots
+            .first()
+            .map_or(0.0, |k| (self.whole - k[1]).max(0.0))
+    }
+}
+
 /// Per level and cell, the price below which the cell is opened under `model`
-/// (`out[level][cell]`; 0 at level 0 and for cells never worth opening).
-pub(super) fn open_prices(pyramid: &MajorantPyramid, model: LookupModel) -> Vec<Vec<f32>> {
+/// (`out[level][cell]`; 0 at level 0 and for cells never worth opening), and the root's cost
+/// function.
+pub(super) fn open_prices(
+    pyramid: &MajorantPyramid,
+    model: LookupModel,
+) -> (Vec<Vec<f32>>, RootCost) {
     let levels = &pyramid.levels;
     let mut out = Vec::with_capacity(levels.len());
     let Some(level0) = levels.first() else {
-        return out;
+        return (out, RootCost::default());
     };
     out.push(vec![0.0f32; level0.cells.len()]);
     let mut below = LevelCosts {
@@ -145,7 +189,39 @@ pub(super) fn open_prices(pyramid: &MajorantPyramid, model: LookupModel) -> Vec<
         out.push(prices);
         below = here;
     }
-    out
+    (out, root_cost(pyramid, model, &below))
+}
+
+/// The root's cost function from the top level's costs (one cell).
+fn root_cost(pyramid: &MajorantPyramid, model: LookupModel, top: &LevelCosts) -> RootCost {
+    let (Some(root), Some(cost)) = (
+        pyramid.levels.last().and_then(|l| l.cells.first()),
+        top.costs.first(),
+    ) else {
+        return RootCost::default();
+    };
+    let whole = pyramid.lookup_density(root, model);
+    let events = top
+        .first
+        .get(0..2)
+        .and_then(|r| top.events.get(r[0]..r[1]))
+        .unwrap_or(&[]);
+    if events.is_empty() {
+        return RootCost {
+            whole,
+            knots: Vec::new(),
+        };
+    }
+    let mut knots = Vec::with_capacity(events.len() + 1);
+    let (mut price, mut f, mut s) = (0.0f64, cost.f0, cost.s0);
+    knots.push([0.0, f as f32, s as f32]);
+    for e in events {
+        f += s * (e.price - price);
+        price = e.price;
+        s = (s - e.drop).max(0.0);
+        knots.push([price as f32, f as f32, s as f32]);
+    }
+    RootCost { whole, knots }
 }
 
 /// Calls `f` with the index of each child of level-(ℓ+1) cell `c` inside `child`'s box
@@ -174,8 +250,9 @@ mod tests {
             .unwrap_or_else(|e| unreachable!("{e}"))
     }
 
-    /// The dynamic programme at one price, by brute force: per level, per cell, open or not.
-    fn brute_force(p: &MajorantPyramid, price: f64, model: LookupModel) -> Vec<Vec<bool>> {
+    /// The dynamic programme at one price, by brute force: per level, per cell, open or not,
+    /// and the root's best cost.
+    fn brute_force(p: &MajorantPyramid, price: f64, model: LookupModel) -> (Vec<Vec<bool>>, f64) {
         let mut open = Vec::new();
         let mut best: Vec<f64> = Vec::new();
         for (level, lv) in p.levels.iter().enumerate() {
@@ -210,7 +287,7 @@ mod tests {
             open.push(opens);
             best = here;
         }
-        open
+        (open, best.first().copied().unwrap_or(0.0))
     }
 
     #[test]
@@ -235,10 +312,10 @@ mod tests {
         }
         let p = pyramid(12, |k| table[((k.z * 12 + k.y) * 12 + k.x) as usize]);
         for model in PRICED_MODELS {
-            let prices = open_prices(&p, model);
+            let (prices, _) = open_prices(&p, model);
             let (mut opened, mut checked) = (0usize, 0usize);
             for price in [1e-4, 1e-2, 0.05, 0.1, 0.3, 0.7, 1.5, 4.0, 10.0, 100.0] {
-                let open = brute_force(&p, price, model);
+                let (open, _) = brute_force(&p, price, model);
                 for (level, cells) in open.iter().enumerate() {
                     for (i, &o) in cells.iter().enumerate() {
                         let star = f64::from(prices[level][i]);
@@ -261,6 +338,49 @@ mod tests {
     }
 
     #[test]
+    fn the_root_cost_is_the_dynamic_programme_at_every_price() {
+        // A blob of random bounds in a sparse box (the root worth opening at low prices, not
+        // at high ones), over 12³ bricks.
+        let mut rng = Rng::new(5, 3);
+        let mut table = Vec::new();
+        for i in 0..12 * 12 * 12 {
+            let k = IVec3::new(i % 12, (i / 12) % 12, i / 144);
+            let inside = (k.as_vec3() - 5.5).length() < 4.0;
+            let hi = if inside {
+                1.0 + rng.next_f32() * 3.0
+            } else {
+                0.02 * rng.next_f32()
+            };
+            table.push(Bounds {
+                min: 0.0,
+                max: hi,
+                mean: 0.5 * hi,
+            });
+        }
+        let p = pyramid(12, |k| table[((k.z * 12 + k.y) * 12 + k.x) as usize]);
+        for model in PRICED_MODELS {
+            let (_, root) = open_prices(&p, model);
+            let whole = f64::from(root.whole);
+            let mut saved = 0;
+            for price in [0.0, 1e-4, 1e-2, 0.05, 0.1, 0.3, 0.7, 1.5, 4.0, 10.0, 100.0] {
+                let (_, best) = brute_force(&p, price, model);
+                let cost = f64::from(root.at(price as f32));
+                assert!(
+                    (cost - best).abs() <= 1e-4 * whole,
+                    "{model:?} at {price}: {cost} against {best}"
+                );
+                let saving = f64::from(root.saving(price as f32));
+                assert!(saving >= 0.0 && saving <= f64::from(root.max_saving()) + 1e-6);
+                saved += usize::from(saving > 1e-3 * whole);
+            }
+            assert!(
+                saved > 2 && saved < 11,
+                "{model:?}: saves at {saved} prices"
+            );
+        }
+    }
+
+    #[test]
     fn a_uniform_field_is_never_split() {
         // Equal majorants everywhere: splitting only adds boundaries.
         let p = pyramid(8, |_| Bounds {
@@ -268,7 +388,7 @@ mod tests {
             max: 3.0,
             mean: 1.0,
         });
-        for prices in open_prices(&p, LookupModel::Majorant) {
+        for prices in open_prices(&p, LookupModel::Majorant).0 {
             assert!(prices.iter().all(|&x| x == 0.0));
         }
     }
@@ -290,7 +410,7 @@ mod tests {
                 mean: 0.5 * v,
             }
         });
-        let prices = open_prices(&p, LookupModel::Majorant);
+        let (prices, _) = open_prices(&p, LookupModel::Majorant);
         let root = prices.last().map_or(0.0, |l| l[0]);
         assert!(root > 1e-3 && root < 1e3, "root price {root}");
         let opened_at_small = prices.iter().flatten().filter(|&&x| x > 1e-3).count();

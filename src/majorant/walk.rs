@@ -43,6 +43,14 @@ pub(super) enum Descent {
         price: f32,
         /// Index of the stored prices.
         slot: usize,
+        /// The medium's extinction per unit density.
+        sigma: f32,
+        /// The model's lookups per lookup of the stored prices' model (the probe's cost for
+        /// [`LookupModel::Probed`], else 1).
+        scale: f32,
+        /// True when the tracker walks the whole ray ([`LookupModel::Ratio`]: ratio tracking
+        /// of shadow rays), false when it stops at its first real collision.
+        whole_ray: bool,
     },
 }
 
@@ -63,9 +71,57 @@ impl Descent {
                 Descent::BelowPrice {
                     price: (pyramid.segment_price(d, s) / factor) as f32,
                     slot,
+                    sigma: s as f32,
+                    scale: match model {
+                        LookupModel::Probed => super::PROBE_COST as f32,
+                        _ => 1.0,
+                    },
+                    whole_ray: model == LookupModel::Ratio,
                 }
             }
         }
+    }
+
+    /// True when opening the root `rb` of `pyramid` over a ray interval `length` long saves
+    /// more lookups than preparing the walk costs ([`super::WALK_COST`]). A tracker that stops
+    /// at its first real collision is expected to cover `(1 − e^{−τ})/(σ·mean)` of the
+    /// interval (`τ = σ·mean·length`, the root's mean density as if homogeneous), and opening
+    /// saves the root's lookup density less its best cost at the ray's price
+    /// ([`super::plan::RootCost`]) per unit of that length. Ratio tracking walks the whole
+    /// interval and keeps the plan's decision alone (charging its walks too raised the dense
+    /// cloud's image variance: docs/BENCHMARKS.md).
+    #[inline]
+    fn root_pays(self, pyramid: &MajorantPyramid, rb: &Bounds, length: f64) -> bool {
+        let Descent::BelowPrice {
+            price,
+            slot,
+            sigma,
+            scale,
+            whole_ray: false,
+        } = self
+        else {
+            return true;
+        };
+        let Some(cost) = pyramid.root_cost.get(slot) else {
+            return true;
+        };
+        let sigma = f64::from(sigma);
+        let rate = sigma * f64::from(rb.mean.max(0.0));
+        let tau = rate * length;
+        let thin = !(tau > 1e-6);
+        // Bounds first (the saving at price 0, a covered length of at most 1/rate): most
+        // flights in a dense medium are decided without the cost function or the exponential.
+        let most = sigma * f64::from(scale);
+        let upper = most * if thin { length } else { length.min(1.0 / rate) };
+        if !(upper * f64::from(cost.max_saving()) > super::WALK_COST) {
+            return false;
+        }
+        let covered = if thin {
+            length
+        } else {
+            -(-tau).exp_m1() / rate
+        };
+        most * covered * f64::from(cost.saving(price)) > super::WALK_COST
     }
 
     /// True when cell `i` of `level` (bounds `b`, not empty) is opened.
@@ -73,7 +129,7 @@ impl Descent {
     fn opens(self, level: &Level, i: usize, b: &Bounds) -> bool {
         match self {
             Descent::Always => b.min != b.max,
-            Descent::BelowPrice { price, slot } => level
+            Descent::BelowPrice { price, slot, .. } => level
                 .open_below
                 .get(i)
                 .and_then(|p| p.get(slot))
@@ -230,7 +286,7 @@ pub(super) fn root_step(
     if rb.is_empty() {
         return RootStep::Empty;
     }
-    if top <= finest || !descent.opens(root, 0, &rb) {
+    if top <= finest || !descent.opens(root, 0, &rb) || !descent.root_pays(pyramid, &rb, t1 - t0) {
         return RootStep::Whole(WalkCell {
             t0,
             t1,
