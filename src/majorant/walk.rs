@@ -444,6 +444,68 @@ impl Iterator for Walk<'_> {
 mod tests {
     use super::*;
 
+    /// A pyramid over 16³ bricks (the unit cube) with bounds `field(brick centre)`.
+    fn pyramid(field: impl Fn(DVec3) -> f32) -> MajorantPyramid {
+        let scale = glam::DAffine3::from_scale(DVec3::splat(128.0));
+        MajorantPyramid::from_brick_bounds(IVec3::ZERO, IVec3::splat(15), 0.0, scale, |k| {
+            let v = field((k.as_dvec3() + 0.5) / 16.0);
+            Bounds {
+                min: 0.0,
+                max: v,
+                mean: 0.5 * v,
+            }
+        })
+        .unwrap_or_else(|e| unreachable!("{e}"))
+    }
+
+    /// The descent of a ray along x through the middle of `p` under `model`, and whether it
+    /// opens the root.
+    fn opens_root(p: &MajorantPyramid, sigma: f64, model: LookupModel) -> (Descent, bool) {
+        let descent = Descent::new(p, DVec3::new(128.0, 0.0, 0.0), Some(sigma), model);
+        let open = matches!(root_step(p, 0.0, 1.0, 0, descent, model), RootStep::Open);
+        (descent, open)
+    }
+
+    #[test]
+    fn a_free_flight_opens_the_root_only_where_the_walk_pays() {
+        // A dense blob in sparse space: flights cross the empty part at no cost once the root
+        // is opened.
+        let blob = pyramid(|c| {
+            if (c - 0.5).length() < 0.15 {
+                10.0
+            } else {
+                0.01
+            }
+        });
+        // A dense field whose maxima vary little: a flight ends after a short way, and the
+        // few probes a finer walk would save there do not pay for preparing it.
+        let dense = pyramid(|c| 0.1 + 0.9 * (c.x * 7.0).sin().abs() as f32);
+        let root = |p: &MajorantPyramid| p.levels.last().map(|l| l.cells[0]);
+        for sigma in [40.0, 400.0, 4000.0] {
+            let (_, open) = opens_root(&blob, sigma, LookupModel::Probed);
+            assert!(open, "blob at {sigma}");
+            let (descent, open) = opens_root(&dense, sigma, LookupModel::Probed);
+            assert!(!open, "dense at {sigma}");
+            // At high extinction the plan alone would open it.
+            let top = dense.levels.len() - 1;
+            let rb = root(&dense).unwrap_or(Bounds::constant(0.0));
+            if sigma > 1000.0 {
+                assert!(descent.opens(&dense.levels[top], 0, &rb), "plan at {sigma}");
+            }
+            assert!(!descent.root_pays(&dense, &rb, 1.0));
+            // Ratio tracking walks the whole ray and keeps the plan's decision.
+            let (ratio, _) = opens_root(&dense, sigma, LookupModel::Ratio);
+            assert!(matches!(
+                ratio,
+                Descent::BelowPrice {
+                    whole_ray: true,
+                    ..
+                }
+            ));
+            assert!(ratio.root_pays(&dense, &rb, 1.0));
+        }
+    }
+
     fn setup(o: [f64; 3], d: [f64; 3]) -> RaySetup {
         RaySetup::new(DVec3::from(o), DVec3::from(d), DVec3::splat(-0.5), 8.0)
     }
