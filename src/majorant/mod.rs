@@ -607,13 +607,14 @@ impl MajorantPyramid {
 /// costs; measured with callgrind on the grid scenes, docs/BENCHMARKS.md).
 pub const SEGMENT_COST: f64 = 1.0;
 
-/// What preparing the hierarchical walk below an opened root costs a free flight, in density
-/// lookups ([`SEGMENT_COST`] units): the ray's DDA set-up, the root's frame and the descent to
-/// the first cells emitted (about 1,100 instructions per walk on the dense peer cloud, some
-/// five lookups). The plan's prices count segment boundaries per unit length only; a tracker
-/// that stops at its first real collision covers a short part of the ray in a dense medium,
-/// so the root is opened only where the lookups saved over that part pay for the walk
-/// ([`walk::root_step`]; docs/BENCHMARKS.md, "The walk's set-up priced per free flight").
+/// What preparing the hierarchical walk below an opened root costs a free flight with point
+/// bounds ([`LookupModel::Probed`]), in density lookups ([`SEGMENT_COST`] units): the ray's
+/// DDA set-up, the root's frame and the descent to the first cells emitted (about 1,100
+/// instructions per walk on the dense peer cloud, some five lookups). The plan's prices count
+/// segment boundaries per unit length only; a flight stops at its first real collision and
+/// covers a short part of the ray in a dense medium, so the root is opened only where the
+/// lookups saved over that part pay for the walk ([`walk::root_step`]; docs/BENCHMARKS.md,
+/// "The walk's set-up priced per free flight").
 pub const WALK_COST: f64 = 8.0;
 
 /// log₂ of the finest cell edge (voxels) for a grid region of `bricks` bricks: 2³-voxel cells

@@ -45,12 +45,10 @@ pub(super) enum Descent {
         slot: usize,
         /// The medium's extinction per unit density.
         sigma: f32,
-        /// The model's lookups per lookup of the stored prices' model (the probe's cost for
-        /// [`LookupModel::Probed`], else 1).
-        scale: f32,
-        /// True when the tracker walks the whole ray ([`LookupModel::Ratio`]: ratio tracking
-        /// of shadow rays), false when it stops at its first real collision.
-        whole_ray: bool,
+        /// True when the root is opened only where it pays for preparing the walk
+        /// ([`Descent::root_pays`]): free flights with point bounds
+        /// ([`LookupModel::Probed`]).
+        weigh_set_up: bool,
     },
 }
 
@@ -72,32 +70,29 @@ impl Descent {
                     price: (pyramid.segment_price(d, s) / factor) as f32,
                     slot,
                     sigma: s as f32,
-                    scale: match model {
-                        LookupModel::Probed => super::PROBE_COST as f32,
-                        _ => 1.0,
-                    },
-                    whole_ray: model == LookupModel::Ratio,
+                    weigh_set_up: model == LookupModel::Probed,
                 }
             }
         }
     }
 
     /// True when opening the root `rb` of `pyramid` over a ray interval `length` long saves
-    /// more lookups than preparing the walk costs ([`super::WALK_COST`]). A tracker that stops
-    /// at its first real collision is expected to cover `(1 − e^{−τ})/(σ·mean)` of the
-    /// interval (`τ = σ·mean·length`, the root's mean density as if homogeneous), and opening
-    /// saves the root's lookup density less its best cost at the ray's price
-    /// ([`super::plan::RootCost`]) per unit of that length. Ratio tracking walks the whole
-    /// interval and keeps the plan's decision alone (charging its walks too raised the dense
-    /// cloud's image variance: docs/BENCHMARKS.md).
+    /// more lookups than preparing the walk costs ([`super::WALK_COST`]). A probed free flight
+    /// stops at its first real collision: it is expected to cover `(1 − e^{−τ})/(σ·mean)` of
+    /// the interval (`τ = σ·mean·length`, the root's mean density as if homogeneous), and
+    /// opening saves the root's lookup density less its best cost at the ray's price
+    /// ([`super::plan::RootCost`]) per unit of that length. Other walks keep the plan's
+    /// decision alone: shadow rays' ratio tracking walks the whole ray, and charging its walks
+    /// too raised the dense cloud's image variance (its control is the segment's mean); free
+    /// flights without point bounds pay a lookup per tentative collision, for which the plan's
+    /// prices were measured (docs/BENCHMARKS.md, "The walk's set-up priced per free flight").
     #[inline]
     fn root_pays(self, pyramid: &MajorantPyramid, rb: &Bounds, length: f64) -> bool {
         let Descent::BelowPrice {
             price,
             slot,
             sigma,
-            scale,
-            whole_ray: false,
+            weigh_set_up: true,
         } = self
         else {
             return true;
@@ -111,7 +106,7 @@ impl Descent {
         let thin = !(tau > 1e-6);
         // Bounds first (the saving at price 0, a covered length of at most 1/rate): most
         // flights in a dense medium are decided without the cost function or the exponential.
-        let most = sigma * f64::from(scale);
+        let most = sigma * super::PROBE_COST;
         let upper = most * if thin { length } else { length.min(1.0 / rate) };
         if !(upper * f64::from(cost.max_saving()) > super::WALK_COST) {
             return false;
@@ -493,16 +488,18 @@ mod tests {
                 assert!(descent.opens(&dense.levels[top], 0, &rb), "plan at {sigma}");
             }
             assert!(!descent.root_pays(&dense, &rb, 1.0));
-            // Ratio tracking walks the whole ray and keeps the plan's decision.
-            let (ratio, _) = opens_root(&dense, sigma, LookupModel::Ratio);
-            assert!(matches!(
-                ratio,
-                Descent::BelowPrice {
-                    whole_ray: true,
-                    ..
-                }
-            ));
-            assert!(ratio.root_pays(&dense, &rb, 1.0));
+            // Other walks keep the plan's decision.
+            for model in [LookupModel::Ratio, LookupModel::Majorant] {
+                let (other, _) = opens_root(&dense, sigma, model);
+                assert!(matches!(
+                    other,
+                    Descent::BelowPrice {
+                        weigh_set_up: false,
+                        ..
+                    }
+                ));
+                assert!(other.root_pays(&dense, &rb, 1.0));
+            }
         }
     }
 
