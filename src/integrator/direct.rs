@@ -167,10 +167,11 @@ pub(super) struct GuidedPrev {
 /// With `only` = `Some(li)` light `li` is taken with probability 1 instead of being drawn
 /// from the scene's NEE distribution: an estimate of that light's part alone. `seen` receives
 /// the shadow ray's transmittance estimate (its largest channel) when a shadow ray was traced
-/// (`None` otherwise; 0 when it was ended by the roulette below). With `survival` =
-/// `Some((l, s))`, a shadow ray to light `l` is traced only with probability `s` (Russian
-/// roulette before any lookup; `s` must not depend on the random numbers it decides) and the
-/// estimate of the survivors is divided by `s`.
+/// (`None` otherwise; 0 when it was ended by the roulette below). With `survival` other than
+/// [`ShadowRoulette::Off`], the shadow ray is traced only with a probability `s` (Russian
+/// roulette before any lookup, once the light and its direction are drawn; `s` does not
+/// depend on the random numbers it decides) and the estimate of the survivors is divided by
+/// `s`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn estimate_direct(
     scene: &Scene,
@@ -184,7 +185,7 @@ pub(super) fn estimate_direct(
     chosen: &mut Option<usize>,
     only: Option<usize>,
     seen: &mut Option<f32>,
-    survival: Option<(usize, f32)>,
+    survival: ShadowRoulette,
 ) -> Rgb {
     let u_light = sampler.next_1d();
     let u = sampler.next_2d();
@@ -208,10 +209,21 @@ pub(super) fn estimate_direct(
     if f.is_black() {
         return Rgb::ZERO;
     }
+    let light_pdf = p_sel * ls.pdf;
+    let w = if ls.is_delta {
+        1.0
+    } else {
+        power_heuristic(light_pdf, scatter_pdf)
+    };
     // Russian roulette on the shadow ray before it is traced, with a survival probability
-    // that depends on the light alone (not on the random numbers it decides): unbiased.
+    // that depends on what is known before the ray (not on the random numbers it decides):
+    // unbiased.
     let survive = match survival {
-        Some((l, s)) if l == li && s > 0.0 => s.min(1.0),
+        ShadowRoulette::Light(l, s) if l == li && s > 0.0 => s.min(1.0),
+        ShadowRoulette::Contribution { beta, reference } => {
+            // The estimate were the transmittance 1.
+            contribution_survival(beta * f * ls.radiance * (w / light_pdf), reference)
+        }
         _ => 1.0,
     };
     if survive < 1.0 && !(sampler.next_1d() < survive) {
@@ -245,13 +257,58 @@ pub(super) fn estimate_direct(
     if tr.is_black() {
         return Rgb::ZERO;
     }
-    let light_pdf = p_sel * ls.pdf;
-    let w = if ls.is_delta {
-        1.0
-    } else {
-        power_heuristic(light_pdf, scatter_pdf)
-    };
     f * tr * ls.radiance * (w / (light_pdf * survive))
+}
+
+/// Russian roulette of a shadow ray before it is traced ([`estimate_direct`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) enum ShadowRoulette {
+    /// Every shadow ray is traced.
+    Off,
+    /// A shadow ray to light `.0` is traced with probability `.1`.
+    Light(usize, f32),
+    /// By the estimate's predicted contribution (path throughput `beta` × value per unit
+    /// transmittance) against the radiance `reference` the path has gathered so far.
+    Contribution {
+        /// The path throughput at the vertex.
+        beta: Rgb,
+        /// The radiance gathered so far.
+        reference: Rgb,
+    },
+}
+
+/// The predicted contribution, as a fraction of the radiance the path has gathered so far,
+/// below which a shadow ray from a fibre vertex is rouletted ([`contribution_survival`]):
+/// chosen on `scenes/draped_cloth.toml` (docs/BENCHMARKS.md, "draped_cloth: shadow rays
+/// rouletted by their predicted contribution").
+const CONTRIBUTION_ROULETTE_FRACTION: f32 = 0.5;
+
+/// The smallest survival probability of that roulette: a survivor's weight stays at most 20.
+const CONTRIBUTION_ROULETTE_FLOOR: f32 = 0.05;
+
+/// The survival probability of a shadow ray whose estimate, were its transmittance 1, would
+/// add `c` (path throughput included) to a path that has gathered `reference` so far: the
+/// largest over the channels of c / (f · reference), f =
+/// [`CONTRIBUTION_ROULETTE_FRACTION`], clamped to [[`CONTRIBUTION_ROULETTE_FLOOR`], 1]; 1
+/// where a channel of `c` is above 0 and the path has gathered nothing in it yet (the first
+/// vertex's rays are always traced). Shadow rays that could add little to what the path
+/// already carries (at a fibre vertex, directions off the fibre's narrow lobes, at deep
+/// vertices of low throughput) are traced only now and then; the ones on a lobe, which carry
+/// the large values, always.
+fn contribution_survival(c: Rgb, reference: Rgb) -> f32 {
+    let mut s: f32 = 0.0;
+    for ch in 0..3 {
+        let r = reference[ch] * CONTRIBUTION_ROULETTE_FRACTION;
+        if r > 0.0 {
+            s = s.max(c[ch] / r);
+        } else if c[ch] > 0.0 {
+            return 1.0;
+        }
+    }
+    if s.is_nan() {
+        return 1.0;
+    }
+    s.clamp(CONTRIBUTION_ROULETTE_FLOOR, 1.0)
 }
 
 /// Radiance arriving from lights hit by a sampled ray (sphere light `shape` or escaped rays),
@@ -454,5 +511,133 @@ impl SunLean {
             Some(_) => LEAN_PLAY_FLOOR,
             None => 1.0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::medium::RayFootprint;
+    use crate::scene::load_scene_str;
+
+    /// A sky and a 3° sun over an absorbing, scattering ball whose boundary lets shadow rays
+    /// through (an index-matched dielectric): NEE from a point inside it.
+    const BALL: &str = r#"
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 30
+[film]
+width = 4
+height = 4
+spp = 1
+[[light]]
+type = "environment"
+radiance = [0.3, 0.3, 0.35]
+[[light]]
+type = "distant"
+direction = [-0.45, 0.75, 0.5]
+irradiance = [3.2, 3.0, 2.8]
+angular_radius = 3.0
+[[object]]
+name = "ball"
+shape = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+surface = { type = "dielectric", ior = 1.0 }
+interior = { type = "homogeneous", albedo = [0.8, 0.5, 0.2], albedo_mode = "single", attenuation = [0.5, 1.0, 2.0], nee = "interior" }
+"#;
+
+    /// Mean and variance of the mean, per channel, of `n` NEE estimates from a point inside
+    /// the ball with a narrow lobe at the sun's centre (value up to ~5 within 1° of it, 0.05
+    /// elsewhere), sampler seed `seed`, and the fraction of shadow rays the roulette ended.
+    fn estimates(survival: ShadowRoulette, seed: u64, n: u32) -> ([f64; 3], [f64; 3], f64) {
+        let scene = load_scene_str(BALL, std::path::Path::new("ball.toml"))
+            .unwrap_or_else(|e| panic!("scene: {e}"));
+        let axis = Vec3::new(-0.45, 0.75, 0.5).normalize();
+        let p = Vec3::new(0.2, -0.1, 0.3);
+        let mut stack = InteriorStack::new();
+        stack.push(0);
+        let mut stats = TraceStats::default();
+        let (mut sum, mut sq, mut ended) = ([0.0f64; 3], [0.0f64; 3], 0u32);
+        for i in 0..n {
+            let mut sampler = PixelSampler::new(seed, 0, 0, i);
+            sampler.start_vertex();
+            let mut chosen = None;
+            let mut seen = None;
+            let c = estimate_direct(
+                &scene,
+                p,
+                |_| (p, stack),
+                |wi| {
+                    let lobe = (20_000.0 * (wi.dot(axis) - 1.0)).exp();
+                    (Rgb([0.9, 0.5, 0.2]) * (0.05 + 5.0 * lobe), 0.3)
+                },
+                ShadowMode::Transparent,
+                RayFootprint::POINT,
+                &mut sampler,
+                &mut stats,
+                &mut chosen,
+                None,
+                &mut seen,
+                survival,
+            );
+            if seen == Some(0.0) && c.is_black() {
+                ended += 1;
+            }
+            for ch in 0..3 {
+                let v = f64::from(c[ch]);
+                sum[ch] += v;
+                sq[ch] += v * v;
+            }
+        }
+        let n = f64::from(n);
+        let mean = sum.map(|s| s / n);
+        let var = [0, 1, 2].map(|ch| (sq[ch] / n - mean[ch] * mean[ch]) / n);
+        (mean, var, f64::from(ended) / n)
+    }
+
+    #[test]
+    fn shadow_rays_rouletted_by_contribution_keep_the_estimate_unbiased() {
+        let n = 40_000;
+        let (plain, plain_var, none_ended) = estimates(ShadowRoulette::Off, 11, n);
+        // A path that has gathered 3 already: the rays off the lobe (about 0.15) survive with
+        // about a tenth, the ones on it always.
+        let (rr, rr_var, ended) = estimates(
+            ShadowRoulette::Contribution {
+                beta: Rgb::ONE,
+                reference: Rgb([3.0, 2.0, 1.0]),
+            },
+            12,
+            n,
+        );
+        eprintln!("shadow rays ended by the roulette: {ended}");
+        assert_eq!(none_ended, 0.0);
+        assert!(ended > 0.3, "the roulette ended only {ended} of the rays");
+        for ch in 0..3 {
+            let z = (rr[ch] - plain[ch]) / (rr_var[ch] + plain_var[ch]).sqrt();
+            eprintln!(
+                "channel {ch}: plain {:.5} ± {:.5}, rouletted {:.5} ± {:.5}, z {z:+.2}",
+                plain[ch],
+                plain_var[ch].sqrt(),
+                rr[ch],
+                rr_var[ch].sqrt()
+            );
+            assert!(z.abs() < 4.0, "channel {ch}: z = {z}");
+        }
+    }
+
+    #[test]
+    fn contribution_survival_follows_the_largest_channel_against_the_gathered_radiance() {
+        let r = Rgb([1.0, 1.0, 0.0]);
+        // Nothing gathered yet in a channel the ray would light: always traced.
+        assert_eq!(contribution_survival(Rgb([0.0, 0.0, 0.01]), r), 1.0);
+        let s = contribution_survival(Rgb([0.1, 0.2, 0.0]), r);
+        assert!((s - 0.2 / CONTRIBUTION_ROULETTE_FRACTION).abs() < 1e-6);
+        assert_eq!(
+            contribution_survival(Rgb([1e-6, 0.0, 0.0]), r),
+            CONTRIBUTION_ROULETTE_FLOOR
+        );
+        assert_eq!(contribution_survival(Rgb([5.0, 0.0, 0.0]), r), 1.0);
     }
 }

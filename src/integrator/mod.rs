@@ -19,7 +19,7 @@ pub mod manifold;
 
 pub use interiors::{InteriorStack, MAX_NESTING};
 
-use direct::{emitted, estimate_direct, PrevVertex, ShadowMode, SunLean};
+use direct::{emitted, estimate_direct, PrevVertex, ShadowMode, ShadowRoulette, SunLean};
 use fibre_lean::FibreLean;
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
 
@@ -27,7 +27,7 @@ use crate::bsdf::Surface;
 use crate::film::MAX_LIGHT_LAYERS;
 use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
-use crate::medium::{Medium, NeeStrategy, PreparedPhase, ScatterVertex};
+use crate::medium::{Medium, NeeStrategy, PreparedPhase, ScatterVertex, VertexPhase};
 use crate::sampling::PixelSampler;
 use crate::scene::{Object, ObjectSurface, Roulette, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -483,12 +483,23 @@ impl PathState {
             .or(fibre_lean.as_ref().map(|l| l.light));
         let lean_weight = self.lean_weight.take();
         // The sun's shadow ray from here is rouletted by the sun's transmittance predicted
-        // from the medium's map (where the medium has one) before it is traced.
-        let survival = lean.and_then(|l| {
+        // from the medium's map (where the medium has one) before it is traced; at a fibre
+        // vertex, any shadow ray by its predicted contribution against the radiance the path
+        // has gathered so far.
+        let survival = match lean.and_then(|l| {
             medium
                 .sun_transmittance_hint(p, l.to_light())
-                .map(|t| (l.light, SunLean::shadow_survival(t)))
-        });
+                .map(|t| ShadowRoulette::Light(l.light, SunLean::shadow_survival(t)))
+        }) {
+            Some(r) => r,
+            None if matches!(vertex.phase, VertexPhase::Fibre { .. }) => {
+                ShadowRoulette::Contribution {
+                    beta: self.beta,
+                    reference: self.radiance,
+                }
+            }
+            None => ShadowRoulette::Off,
+        };
         let mut seen = None;
         if interior_nee {
             let st = self.stack;
@@ -625,9 +636,10 @@ impl PathState {
         let survival = match scene.lights.get(light) {
             Some(crate::light::Light::Distant { to_light, .. }) => medium
                 .sun_transmittance_hint(p2, *to_light)
-                .map(|t| (light, SunLean::shadow_survival(t))),
+                .map(|t| ShadowRoulette::Light(light, SunLean::shadow_survival(t))),
             _ => None,
-        };
+        }
+        .unwrap_or(ShadowRoulette::Off);
         let mut li = None;
         let c = estimate_direct(
             scene,
@@ -1013,7 +1025,7 @@ impl SurfaceVertex<'_> {
             chosen,
             None,
             &mut None,
-            None,
+            ShadowRoulette::Off,
         )
     }
 }
