@@ -27,6 +27,7 @@
 
 mod channels;
 mod delta;
+mod grey;
 mod homogeneous;
 mod march;
 mod march_estimators;
@@ -34,6 +35,8 @@ mod mixture;
 mod ratio;
 mod spectral;
 mod split;
+#[cfg(test)]
+mod test_support;
 
 pub use channels::{channel_probabilities, pick_channel};
 pub use delta::{decomposition_track, decomposition_track_local, delta_track, delta_track_local};
