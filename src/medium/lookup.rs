@@ -141,6 +141,14 @@ impl PointBounds for LocalProbe<'_> {
             LocalProbe::Shell(s) => s.at_out_of_line(t),
         }
     }
+
+    #[inline]
+    fn proven_minorant(&self) -> bool {
+        match self {
+            LocalProbe::Grid(g) => g.proven_minorant(),
+            LocalProbe::Shell(_) => false,
+        }
+    }
 }
 
 /// Point bounds along a ray from a grid's local-bounds table ([`LocalBounds`]), at the
@@ -185,6 +193,13 @@ impl PointBounds for GridProbe<'_> {
         } else {
             (a, b)
         })
+    }
+
+    /// The table's minima are the voxels' minima over each cell rounded down: no trilinear
+    /// lookup in the cell is lower (`majorant::LocalBounds`).
+    #[inline]
+    fn proven_minorant(&self) -> bool {
+        true
     }
 }
 

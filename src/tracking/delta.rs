@@ -74,6 +74,12 @@ where
 /// with the segment's majorant; the weights are those of delta tracking with the local
 /// majorant (identical for grey media). Unbiased for any bounds (weighted tracking where the
 /// local bounds are violated), as long as the local bounds are proven wherever they are zero.
+///
+/// In a grey medium without a constant part (one albedo everywhere), where the point bounds'
+/// minima are proven ([`PointBounds::proven_minorant`]) and lie strictly below the point's
+/// majorant, the collision takes a control part at the local minorant as in
+/// [`decomposition_track_local`]: a tentative collision below it is real without a lookup.
+/// The events are still those of delta tracking, and the weights too up to rounding.
 pub fn delta_track_local<S, D, P, U>(
     segments: S,
     coeff: &DensityCoefficients,
@@ -166,16 +172,33 @@ where
     P: PointBounds,
     U: FnMut() -> f32,
 {
-    let probs = hero_probabilities(beta, coeff);
-    let hero = pick_channel(probs, u());
-    let flight = HeroChoice {
-        probs,
-        hero,
-        decompose,
-    };
     match coeff.grey() {
-        Some(grey) => flight.track(segments, &grey, density, local_bounds, u, stats),
-        None => flight.track(segments, &coeff.rgb(), density, local_bounds, u, stats),
+        Some(grey) => {
+            // Every channel takes the same decisions and weights: the hero's number is drawn
+            // (the stream stays aligned) but not needed, and the mixture of the channels' path
+            // probabilities is the path probability itself.
+            let _ = u();
+            let flight = HeroChoice {
+                probs: [1.0, 0.0, 0.0],
+                hero: 0,
+                decompose,
+                local_control: grey.base_t == 0.0
+                    && grey.base_s == 0.0
+                    && local_bounds.proven_minorant(),
+            };
+            flight.track(segments, &grey, density, local_bounds, u, stats)
+        }
+        None => {
+            let probs = hero_probabilities(beta, coeff);
+            let hero = pick_channel(probs, u());
+            let flight = HeroChoice {
+                probs,
+                hero,
+                decompose,
+                local_control: false,
+            };
+            flight.track(segments, &coeff.rgb(), density, local_bounds, u, stats)
+        }
     }
 }
 
@@ -184,6 +207,10 @@ struct HeroChoice {
     probs: [f32; 3],
     hero: usize,
     decompose: bool,
+    /// Without decomposition: take a control part at the proven local minorant of each
+    /// point where it lies strictly below the local majorant (a grey medium of one albedo:
+    /// the events of delta tracking, and its weights up to rounding, at fewer lookups).
+    local_control: bool,
 }
 
 impl HeroChoice {
@@ -204,7 +231,8 @@ impl HeroChoice {
         P: PointBounds,
         U: FnMut() -> f32,
     {
-        let (probs, hero, decompose) = (self.probs, self.hero, self.decompose);
+        let (probs, hero) = (self.probs, self.hero);
+        let (decompose, local_control) = (self.decompose, self.local_control && !self.decompose);
         let mut chain = MisChain {
             f: V::ONE,
             p: V::ONE,
@@ -267,8 +295,9 @@ impl HeroChoice {
                 let mut hi = seg.max;
                 let mut major = majorant;
                 let (mut control_t, mut control_s) = (seg_control_t, seg_control_s);
-                if let Some((a, b)) = local_bounds.at(t) {
-                    let (a, b) = (a.max(seg.min), b.min(seg.max));
+                let mut controlled = decompose;
+                if let Some((a_local, b)) = local_bounds.at(t) {
+                    let (a, b) = (a_local.max(seg.min), b.min(seg.max));
                     if a <= b {
                         let m = coeff.sigma_t_at(b).max_channel().max(0.0);
                         if m < majorant {
@@ -285,12 +314,18 @@ impl HeroChoice {
                         if decompose {
                             control_t = coeff.sigma_t_at(a);
                             control_s = coeff.sigma_s_at(a);
+                        } else if local_control && a_local > 0.0 && a_local < b {
+                            // The proven minorant, not the segment's (an estimate may be
+                            // violated); below the majorant, so that the residual is sampled.
+                            control_t = coeff.sigma_t_at(a_local);
+                            control_s = coeff.sigma_s_at(a_local);
+                            controlled = true;
                         }
                     }
                 }
                 let p_control = control_t / major;
                 let p_rest = V::ONE - p_control;
-                if decompose {
+                if controlled {
                     if u_event < p_control.channel(hero) {
                         // A control collision: real, no lookup.
                         chain.f *= control_s;
@@ -353,6 +388,7 @@ impl HeroChoice {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::majorant::Bounds;
     use crate::tracking::test_support::{test_density, test_segments, Stream, TestBounds};
 
     #[test]
@@ -381,6 +417,7 @@ mod tests {
                             probs,
                             hero,
                             decompose,
+                            local_control: false,
                         };
                         let mut v = Stream::new(seed);
                         let _ = v.next();
@@ -447,6 +484,126 @@ mod tests {
 
     fn close(a: Rgb, b: Rgb, rel: f32) -> bool {
         (0..3).all(|k| (a[k] - b[k]).abs() <= rel * b[k].abs().max(1e-30))
+    }
+
+    /// Point bounds that hold: a band around the density, the whole range, or none.
+    struct ProvenBounds;
+
+    impl PointBounds for ProvenBounds {
+        fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+            let d = test_density(t);
+            match ((t * 13.0) as i32).rem_euclid(3) {
+                0 => None,
+                1 => Some(((d - 0.05).max(0.0), (d + 0.05).min(1.0))),
+                _ => Some((0.0, 1.0)),
+            }
+        }
+        fn proven_minorant(&self) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn grey_flights_without_a_constant_part_are_delta_tracking_up_to_rounding() {
+        // Proven bounds: the density (in [0.05, 0.95] beyond t = 0.6) never leaves them.
+        let b = |min, max| Bounds {
+            min,
+            max,
+            mean: 0.5,
+        };
+        let segments = || {
+            vec![
+                MajorantSegment::new(0.0, 0.4, b(0.0, 1.0), true),
+                MajorantSegment::constant(0.4, 0.6, 0.5),
+                MajorantSegment::new(0.6, 1.3, b(0.04, 0.96), true),
+                MajorantSegment::new(1.3, 3.0, b(0.04, 0.96), true),
+            ]
+        };
+        let coeff = DensityCoefficients::new(Rgb::splat(0.8), Rgb::splat(0.7));
+        let (mut lookups, mut delta_lookups, mut scatters) = (0, 0, 0);
+        for (bi, beta) in [Rgb::ONE, Rgb::new(0.2, 0.5, 0.9)].into_iter().enumerate() {
+            for seed in 0..2000u64 {
+                // The public tracker (grey, decomposed) against the RGB delta tracker.
+                let mut u = Stream::new(seed);
+                let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
+                let grey = if seed % 2 == 0 {
+                    delta_track_local(
+                        segments(),
+                        &coeff,
+                        test_density,
+                        ProvenBounds,
+                        beta,
+                        &mut || u.next(),
+                        &mut s1,
+                    )
+                } else {
+                    delta_track(
+                        segments(),
+                        &coeff,
+                        test_density,
+                        beta,
+                        &mut || u.next(),
+                        &mut s1,
+                    )
+                };
+                let probs = hero_probabilities(beta, &coeff);
+                let mut v = Stream::new(seed);
+                let hero = pick_channel(probs, v.next());
+                let choice = HeroChoice {
+                    probs,
+                    hero,
+                    decompose: false,
+                    local_control: false,
+                };
+                let rgb = if seed % 2 == 0 {
+                    choice.track(
+                        segments(),
+                        &coeff.rgb(),
+                        test_density,
+                        ProvenBounds,
+                        &mut || v.next(),
+                        &mut s2,
+                    )
+                } else {
+                    choice.track(
+                        segments(),
+                        &coeff.rgb(),
+                        test_density,
+                        NoPointBounds,
+                        &mut || v.next(),
+                        &mut s2,
+                    )
+                };
+                let case = format!("beta {bi}, seed {seed}");
+                assert_eq!(u.draws, v.draws, "{case}");
+                let (w1, w2) = match (grey, rgb) {
+                    (
+                        Flight::Scatter {
+                            t: t1, weight: w1, ..
+                        },
+                        Flight::Scatter {
+                            t: t2, weight: w2, ..
+                        },
+                    ) => {
+                        assert_eq!(t1, t2, "{case}");
+                        scatters += 1;
+                        (w1, w2)
+                    }
+                    (Flight::Escape { weight: w1 }, Flight::Escape { weight: w2 }) => (w1, w2),
+                    _ => panic!("{case}: {grey:?} against {rgb:?}"),
+                };
+                assert!(close(w1, w2, 1e-5), "{case}: {w1:?} against {w2:?}");
+                assert_eq!(s1.real_collisions, s2.real_collisions, "{case}");
+                lookups += s1.lookups;
+                delta_lookups += s2.lookups;
+            }
+        }
+        assert!(scatters > 1000 && scatters < 3000, "{scatters}");
+        // Real collisions below the proven local minorants need no lookup.
+        assert!(
+            lookups * 20 < delta_lookups * 19,
+            "{lookups} {delta_lookups}"
+        );
     }
 
     #[test]
