@@ -37,9 +37,19 @@ pub enum DensityLookup<'a> {
 }
 
 impl DensityLookup<'_> {
-    /// Density at distance `t`.
-    #[inline]
+    /// Density at distance `t`. Grid lookups, the trackers' common case, are inlined into
+    /// them; the other sources are dispatched out of line.
+    #[inline(always)]
     pub fn at(&mut self, t: f32) -> f32 {
+        match self {
+            DensityLookup::Grid(g) => g.at(t),
+            _ => self.at_other(t),
+        }
+    }
+
+    /// [`Self::at`] for the sources other than grids.
+    #[inline(never)]
+    fn at_other(&mut self, t: f32) -> f32 {
         match self {
             DensityLookup::Grid(g) => g.at(t),
             DensityLookup::Procedural { field, ray } => field.density_world(ray.at(t)),
@@ -91,7 +101,7 @@ impl<'a> GridLookup<'a> {
     }
 
     /// Trilinear density at distance `t`.
-    #[inline]
+    #[inline(always)]
     pub fn at(&mut self, t: f32) -> f32 {
         self.accessor.sample_trilinear(self.o + self.d * t)
     }
@@ -123,11 +133,20 @@ impl<'a> LocalProbe<'a> {
 }
 
 impl PointBounds for LocalProbe<'_> {
-    #[inline]
+    /// Grid tables, the common case, are read inline; fabric shells out of line.
+    #[inline(always)]
     fn at(&mut self, t: f32) -> Option<(f32, f32)> {
         match self {
             LocalProbe::Grid(g) => g.at(t),
-            LocalProbe::Shell(s) => s.at(t),
+            LocalProbe::Shell(s) => s.at_out_of_line(t),
+        }
+    }
+
+    #[inline]
+    fn proven_minorant(&self) -> bool {
+        match self {
+            LocalProbe::Grid(g) => g.proven_minorant(),
+            LocalProbe::Shell(_) => false,
         }
     }
 }
@@ -166,7 +185,7 @@ impl<'a> GridProbe<'a> {
 }
 
 impl PointBounds for GridProbe<'_> {
-    #[inline]
+    #[inline(always)]
     fn at(&mut self, t: f32) -> Option<(f32, f32)> {
         let (a, b) = self.table.at(self.o + self.d * t);
         Some(if self.zero_min {
@@ -174,6 +193,13 @@ impl PointBounds for GridProbe<'_> {
         } else {
             (a, b)
         })
+    }
+
+    /// The table's minima are the voxels' minima over each cell rounded down: no trilinear
+    /// lookup in the cell is lower (`majorant::LocalBounds`).
+    #[inline]
+    fn proven_minorant(&self) -> bool {
+        true
     }
 }
 
@@ -202,5 +228,13 @@ impl PointBounds for ShellProbe<'_> {
     #[inline]
     fn at(&mut self, t: f32) -> Option<(f32, f32)> {
         Some((0.0, self.shell.point_bound(self.ray.at(t), &mut self.hint)))
+    }
+}
+
+impl ShellProbe<'_> {
+    /// [`PointBounds::at`], not inlined into [`LocalProbe`]'s dispatch.
+    #[inline(never)]
+    fn at_out_of_line(&mut self, t: f32) -> Option<(f32, f32)> {
+        self.at(t)
     }
 }

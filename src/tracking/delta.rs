@@ -2,30 +2,34 @@
 //! weighted null-collision tracking, and its decomposition-tracking variant.
 
 use super::channels::hero_probabilities;
+use super::grey::{Channels, Coefficients};
 use super::{pick_channel, DensityCoefficients, Flight, NoPointBounds, PointBounds, TrackingStats};
 use crate::majorant::MajorantSegment;
 use crate::sampling::ONE_MINUS_EPSILON;
 use crate::spectrum::Rgb;
 
 /// Running numerator (per channel contribution) and per-hero-channel path probabilities of a
-/// one-sample-MIS free flight. Common factors (e^{-M Δt}) are omitted from both.
-pub(super) struct MisChain {
-    pub(super) f: Rgb,
-    pub(super) p: Rgb,
+/// one-sample-MIS free flight. Common factors (e^{-M Δt}) are omitted from both. In RGB, or
+/// one scalar for a grey medium (its three channels equal).
+pub(super) struct MisChain<V = Rgb> {
+    pub(super) f: V,
+    pub(super) p: V,
 }
 
-impl MisChain {
+impl<V: Channels> MisChain<V> {
+    #[inline]
     pub(super) fn renormalise(&mut self) {
-        let m = self.p.max_component();
+        let m = self.p.max_channel();
         if m > 0.0 && !(1e-20..=1e20).contains(&m) {
             self.f /= m;
             self.p /= m;
         }
     }
+    #[inline]
     pub(super) fn weight(&self, probs: [f32; 3]) -> Rgb {
-        let denom = probs[0] * self.p[0] + probs[1] * self.p[1] + probs[2] * self.p[2];
+        let denom = self.p.mix(probs);
         if denom > 0.0 && denom.is_finite() {
-            self.f / denom
+            (self.f / denom).to_rgb()
         } else {
             Rgb::ZERO
         }
@@ -70,6 +74,12 @@ where
 /// with the segment's majorant; the weights are those of delta tracking with the local
 /// majorant (identical for grey media). Unbiased for any bounds (weighted tracking where the
 /// local bounds are violated), as long as the local bounds are proven wherever they are zero.
+///
+/// In a grey medium without a constant part (one albedo everywhere), where the point bounds'
+/// minima are proven ([`PointBounds::proven_minorant`]) and lie strictly below the point's
+/// majorant, the collision takes a control part at the local minorant as in
+/// [`decomposition_track_local`]: a tentative collision below it is real without a lookup.
+/// The events are still those of delta tracking, and the weights too up to rounding.
 pub fn delta_track_local<S, D, P, U>(
     segments: S,
     coeff: &DensityCoefficients,
@@ -143,13 +153,14 @@ where
 }
 
 /// The delta tracker, with (`decompose`) or without a control part, and with or without point
-/// bounds.
+/// bounds: picks the hero channel, then tracks in one scalar when the medium is grey (the same
+/// decisions and weights, bit for bit) and in RGB otherwise.
 #[allow(clippy::too_many_arguments)]
 fn track<S, D, P, U>(
     segments: S,
     coeff: &DensityCoefficients,
-    mut density: D,
-    mut local_bounds: P,
+    density: D,
+    local_bounds: P,
     beta: Rgb,
     u: &mut U,
     stats: &mut TrackingStats,
@@ -161,157 +172,438 @@ where
     P: PointBounds,
     U: FnMut() -> f32,
 {
-    let probs = hero_probabilities(beta, coeff);
-    let hero = pick_channel(probs, u());
-    let mut chain = MisChain {
-        f: Rgb::ONE,
-        p: Rgb::ONE,
-    };
-    for seg in segments {
-        stats.segments += 1;
-        let len = seg.length();
-        if len <= 0.0 || coeff.is_void(&seg) {
-            continue;
-        }
-        if seg.is_homogeneous() {
-            // Closed form: constant density, no lookups.
-            let sigma_t = coeff.sigma_t_at(seg.max);
-            let sigma_hero = sigma_t[hero];
-            let t_local = if sigma_hero > 0.0 {
-                -(1.0 - u()).ln() / sigma_hero
-            } else {
-                f32::INFINITY
+    match coeff.grey() {
+        Some(grey) => {
+            // Every channel takes the same decisions and weights: the hero's number is drawn
+            // (the stream stays aligned) but not needed, and the mixture of the channels' path
+            // probabilities is the path probability itself.
+            let _ = u();
+            let flight = HeroChoice {
+                probs: [1.0, 0.0, 0.0],
+                hero: 0,
+                decompose,
+                local_control: grey.base_t == 0.0
+                    && grey.base_s == 0.0
+                    && local_bounds.proven_minorant(),
             };
-            if t_local < len {
-                let tr = (sigma_t * t_local).map(|x| (-x).exp());
-                chain.f *= coeff.sigma_s_at(seg.max) * tr;
-                chain.p *= sigma_t * tr;
-                stats.real_collisions += 1;
-                return Flight::Scatter {
-                    t: seg.t0 + t_local,
-                    weight: chain.weight(probs),
-                    density: seg.max,
-                };
-            }
-            let tr = (sigma_t * len).map(|x| (-x).exp());
-            chain.f *= tr;
-            chain.p *= tr;
-            chain.renormalise();
-            continue;
+            flight.track(segments, &grey, density, local_bounds, u, stats)
         }
-        let majorant = coeff.majorant(&seg);
-        if !(majorant > 0.0) || !majorant.is_finite() {
-            continue;
+        None => {
+            let probs = hero_probabilities(beta, coeff);
+            let hero = pick_channel(probs, u());
+            let flight = HeroChoice {
+                probs,
+                hero,
+                decompose,
+                local_control: false,
+            };
+            flight.track(segments, &coeff.rgb(), density, local_bounds, u, stats)
         }
-        // The control part (decomposition tracking) and each channel's probability, as hero,
-        // that a tentative collision belongs to it; zero for plain delta tracking.
-        let (seg_control_t, seg_control_s) = if decompose {
-            (coeff.sigma_t_at(seg.min), coeff.sigma_s_at(seg.min))
-        } else {
-            (Rgb::ZERO, Rgb::ZERO)
+    }
+}
+
+/// A free flight's channel choice: the hero channel, drawn with probabilities `probs`.
+struct HeroChoice {
+    probs: [f32; 3],
+    hero: usize,
+    decompose: bool,
+    /// Without decomposition: take a control part at the proven local minorant of each
+    /// point where it lies strictly below the local majorant (a grey medium of one albedo:
+    /// the events of delta tracking, and its weights up to rounding, at fewer lookups).
+    local_control: bool,
+}
+
+impl HeroChoice {
+    /// Tracks the flight over `segments` with coefficients in channel type `V`.
+    fn track<V, S, D, P, U>(
+        &self,
+        segments: S,
+        coeff: &Coefficients<V>,
+        mut density: D,
+        mut local_bounds: P,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Flight
+    where
+        V: Channels,
+        S: IntoIterator<Item = MajorantSegment>,
+        D: FnMut(f32) -> f32,
+        P: PointBounds,
+        U: FnMut() -> f32,
+    {
+        let (probs, hero) = (self.probs, self.hero);
+        let (decompose, local_control) = (self.decompose, self.local_control && !self.decompose);
+        let mut chain = MisChain {
+            f: V::ONE,
+            p: V::ONE,
         };
-        // Distance from the segment start: keeps advancing where a step is below half an ulp
-        // of the absolute distance (far from the origin).
-        let mut local = 0.0f32;
-        loop {
-            local += -(1.0 - u()).ln() / majorant;
-            if local >= len {
-                break;
+        for seg in segments {
+            stats.segments += 1;
+            let len = seg.length();
+            if len <= 0.0 || coeff.is_void(&seg) {
+                continue;
             }
-            let t = seg.t0 + local;
-            let mut u_event = u();
-            // The bounds at this point: the segment's, or tighter local ones (thinning).
-            let mut lo = seg.min;
-            let mut hi = seg.max;
-            let mut major = majorant;
-            let (mut control_t, mut control_s) = (seg_control_t, seg_control_s);
-            if let Some((a, b)) = local_bounds.at(t) {
-                let (a, b) = (a.max(seg.min), b.min(seg.max));
-                if a <= b {
-                    let m = coeff.sigma_t_at(b).max_component().max(0.0);
-                    if m < majorant {
-                        if u_event * majorant >= m {
-                            // Above the local majorant: null whatever the density.
-                            stats.probed += 1;
-                            continue;
+            if seg.is_homogeneous() {
+                // Closed form: constant density, no lookups.
+                let sigma_t = coeff.sigma_t_at(seg.max);
+                let sigma_hero = sigma_t.channel(hero);
+                let t_local = if sigma_hero > 0.0 {
+                    -(1.0 - u()).ln() / sigma_hero
+                } else {
+                    f32::INFINITY
+                };
+                if t_local < len {
+                    let tr = (sigma_t * t_local).map(|x| (-x).exp());
+                    chain.f *= coeff.sigma_s_at(seg.max) * tr;
+                    chain.p *= sigma_t * tr;
+                    stats.real_collisions += 1;
+                    return Flight::Scatter {
+                        t: seg.t0 + t_local,
+                        weight: chain.weight(probs),
+                        density: seg.max,
+                    };
+                }
+                let tr = (sigma_t * len).map(|x| (-x).exp());
+                chain.f *= tr;
+                chain.p *= tr;
+                chain.renormalise();
+                continue;
+            }
+            let majorant = coeff.majorant(&seg);
+            if !(majorant > 0.0) || !majorant.is_finite() {
+                continue;
+            }
+            // The control part (decomposition tracking) and each channel's probability, as
+            // hero, that a tentative collision belongs to it; zero for plain delta tracking.
+            let (seg_control_t, seg_control_s) = if decompose {
+                (coeff.sigma_t_at(seg.min), coeff.sigma_s_at(seg.min))
+            } else {
+                (V::splat(0.0), V::splat(0.0))
+            };
+            // Distance from the segment start: keeps advancing where a step is below half an
+            // ulp of the absolute distance (far from the origin).
+            let mut local = 0.0f32;
+            loop {
+                local += -(1.0 - u()).ln() / majorant;
+                if local >= len {
+                    break;
+                }
+                let t = seg.t0 + local;
+                let mut u_event = u();
+                // The bounds at this point: the segment's, or tighter local ones (thinning).
+                let mut lo = seg.min;
+                let mut hi = seg.max;
+                let mut major = majorant;
+                let (mut control_t, mut control_s) = (seg_control_t, seg_control_s);
+                let mut controlled = decompose;
+                if let Some((a_local, b)) = local_bounds.at(t) {
+                    let (a, b) = (a_local.max(seg.min), b.min(seg.max));
+                    if a <= b {
+                        let m = coeff.sigma_t_at(b).max_channel().max(0.0);
+                        if m < majorant {
+                            if u_event * majorant >= m {
+                                // Above the local majorant: null whatever the density.
+                                stats.probed += 1;
+                                continue;
+                            }
+                            u_event = (u_event * majorant / m).min(ONE_MINUS_EPSILON);
+                            major = m;
                         }
-                        u_event = (u_event * majorant / m).min(ONE_MINUS_EPSILON);
-                        major = m;
-                    }
-                    lo = a;
-                    hi = b;
-                    if decompose {
-                        control_t = coeff.sigma_t_at(a);
-                        control_s = coeff.sigma_s_at(a);
+                        lo = a;
+                        hi = b;
+                        if decompose {
+                            control_t = coeff.sigma_t_at(a);
+                            control_s = coeff.sigma_s_at(a);
+                        } else if local_control && a_local > 0.0 && a_local < b {
+                            // The proven minorant, not the segment's (an estimate may be
+                            // violated); below the majorant, so that the residual is sampled.
+                            control_t = coeff.sigma_t_at(a_local);
+                            control_s = coeff.sigma_s_at(a_local);
+                            controlled = true;
+                        }
                     }
                 }
-            }
-            let p_control = control_t / major;
-            let p_rest = Rgb::ONE - p_control;
-            if decompose {
-                if u_event < p_control[hero] {
-                    // A control collision: real, no lookup.
-                    chain.f *= control_s;
-                    chain.p *= control_t;
+                let p_control = control_t / major;
+                let p_rest = V::ONE - p_control;
+                if controlled {
+                    if u_event < p_control.channel(hero) {
+                        // A control collision: real, no lookup.
+                        chain.f *= control_s;
+                        chain.p *= control_t;
+                        stats.real_collisions += 1;
+                        return Flight::Scatter {
+                            t,
+                            weight: chain.weight(probs),
+                            density: lo,
+                        };
+                    }
+                    // The same number decides the residual's event.
+                    u_event = ((u_event - p_control.channel(hero)) / p_rest.channel(hero))
+                        .min(ONE_MINUS_EPSILON);
+                }
+                let d = density(t);
+                stats.lookups += 1;
+                if d > hi || d < lo {
+                    stats.violations += 1;
+                }
+                let sigma_t = coeff.sigma_t_at(d);
+                let sigma_n = V::splat(major) - sigma_t;
+                let sigma_r = sigma_t - control_t;
+                // Decision probabilities of each channel as hero (weighted tracking: the
+                // residual's |σ_r| against |σ_n|).
+                let p_real = sigma_r.zip(sigma_n, |r, n| {
+                    let a = r.abs();
+                    let b = n.abs();
+                    if a + b > 0.0 {
+                        a / (a + b)
+                    } else {
+                        0.0
+                    }
+                });
+                if u_event < p_real.channel(hero) {
+                    chain.f *= coeff.sigma_s_at(d) - control_s;
+                    chain.p *= p_rest * p_real * major;
                     stats.real_collisions += 1;
                     return Flight::Scatter {
                         t,
                         weight: chain.weight(probs),
-                        density: lo,
+                        density: d,
                     };
                 }
-                // The same number decides the residual's event.
-                u_event = ((u_event - p_control[hero]) / p_rest[hero]).min(ONE_MINUS_EPSILON);
-            }
-            let d = density(t);
-            stats.lookups += 1;
-            if d > hi || d < lo {
-                stats.violations += 1;
-            }
-            let sigma_t = coeff.sigma_t_at(d);
-            let sigma_n = Rgb::splat(major) - sigma_t;
-            let sigma_r = sigma_t - control_t;
-            // Decision probabilities of each channel as hero (weighted tracking: the
-            // residual's |σ_r| against |σ_n|).
-            let p_real = Rgb([0, 1, 2].map(|k| {
-                let a = sigma_r[k].abs();
-                let b = sigma_n[k].abs();
-                if a + b > 0.0 {
-                    a / (a + b)
-                } else {
-                    0.0
+                chain.f *= sigma_n;
+                chain.p *= p_rest * (V::ONE - p_real) * major;
+                chain.renormalise();
+                stats.null_collisions += 1;
+                if chain.p.is_zero() {
+                    return Flight::Escape { weight: Rgb::ZERO };
                 }
-            }));
-            if u_event < p_real[hero] {
-                chain.f *= coeff.sigma_s_at(d) - control_s;
-                chain.p *= p_rest * p_real * major;
-                stats.real_collisions += 1;
-                return Flight::Scatter {
-                    t,
-                    weight: chain.weight(probs),
-                    density: d,
-                };
-            }
-            chain.f *= sigma_n;
-            chain.p *= p_rest * (Rgb::ONE - p_real) * major;
-            chain.renormalise();
-            stats.null_collisions += 1;
-            if chain.p.is_black() {
-                return Flight::Escape { weight: Rgb::ZERO };
             }
         }
-    }
-    Flight::Escape {
-        weight: chain.weight(probs),
+        Flight::Escape {
+            weight: chain.weight(probs),
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::majorant::Bounds;
+    use crate::tracking::test_support::{test_density, test_segments, Stream, TestBounds};
+
+    #[test]
+    fn grey_flights_are_the_rgb_flights_bit_for_bit() {
+        let coeffs = [
+            DensityCoefficients::new(Rgb::splat(0.8), Rgb::splat(0.7)),
+            DensityCoefficients {
+                base_t: Rgb::splat(0.2),
+                base_s: Rgb::splat(0.1),
+                ..DensityCoefficients::new(Rgb::splat(1.0), Rgb::splat(0.5))
+            },
+        ];
+        let betas = [Rgb::ONE, Rgb::new(0.2, 0.5, 0.9), Rgb::new(1e-30, 0.0, 3.0)];
+        let (mut scatters, mut violations) = (0, 0);
+        for (ci, coeff) in coeffs.iter().enumerate() {
+            let Some(grey) = coeff.grey() else {
+                panic!("coefficients {ci} are grey");
+            };
+            for decompose in [false, true] {
+                for (bi, &beta) in betas.iter().enumerate() {
+                    for seed in 0..400u64 {
+                        let probs = hero_probabilities(beta, coeff);
+                        let mut u = Stream::new(seed);
+                        let hero = pick_channel(probs, u.next());
+                        let choice = HeroChoice {
+                            probs,
+                            hero,
+                            decompose,
+                            local_control: false,
+                        };
+                        let mut v = Stream::new(seed);
+                        let _ = v.next();
+                        let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
+                        let local = seed % 2 == 0;
+                        let (rgb, scalar) = if local {
+                            (
+                                choice.track(
+                                    test_segments(),
+                                    &coeff.rgb(),
+                                    test_density,
+                                    TestBounds,
+                                    &mut || u.next(),
+                                    &mut s1,
+                                ),
+                                choice.track(
+                                    test_segments(),
+                                    &grey,
+                                    test_density,
+                                    TestBounds,
+                                    &mut || v.next(),
+                                    &mut s2,
+                                ),
+                            )
+                        } else {
+                            (
+                                choice.track(
+                                    test_segments(),
+                                    &coeff.rgb(),
+                                    test_density,
+                                    NoPointBounds,
+                                    &mut || u.next(),
+                                    &mut s1,
+                                ),
+                                choice.track(
+                                    test_segments(),
+                                    &grey,
+                                    test_density,
+                                    NoPointBounds,
+                                    &mut || v.next(),
+                                    &mut s2,
+                                ),
+                            )
+                        };
+                        let case =
+                            format!("coeff {ci}, decompose {decompose}, beta {bi}, seed {seed}");
+                        assert_eq!(rgb, scalar, "{case}");
+                        assert_eq!(s1, s2, "{case}");
+                        assert_eq!(u.draws, v.draws, "{case}");
+                        violations += s1.violations;
+                        if matches!(rgb, Flight::Scatter { .. }) {
+                            scatters += 1;
+                        }
+                    }
+                }
+            }
+        }
+        // Both outcomes were exercised, and violations (negative weights) too.
+        assert!(
+            scatters > 500 && scatters < 4000 && violations > 100,
+            "{scatters} {violations}"
+        );
+    }
 
     fn close(a: Rgb, b: Rgb, rel: f32) -> bool {
         (0..3).all(|k| (a[k] - b[k]).abs() <= rel * b[k].abs().max(1e-30))
+    }
+
+    /// Point bounds that hold: a band around the density, the whole range, or none.
+    struct ProvenBounds;
+
+    impl PointBounds for ProvenBounds {
+        fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+            let d = test_density(t);
+            match ((t * 13.0) as i32).rem_euclid(3) {
+                0 => None,
+                1 => Some(((d - 0.05).max(0.0), (d + 0.05).min(1.0))),
+                _ => Some((0.0, 1.0)),
+            }
+        }
+        fn proven_minorant(&self) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn grey_flights_without_a_constant_part_are_delta_tracking_up_to_rounding() {
+        // Proven bounds: the density (in [0.05, 0.95] beyond t = 0.6) never leaves them.
+        let b = |min, max| Bounds {
+            min,
+            max,
+            mean: 0.5,
+        };
+        let segments = || {
+            vec![
+                MajorantSegment::new(0.0, 0.4, b(0.0, 1.0), true),
+                MajorantSegment::constant(0.4, 0.6, 0.5),
+                MajorantSegment::new(0.6, 1.3, b(0.04, 0.96), true),
+                MajorantSegment::new(1.3, 3.0, b(0.04, 0.96), true),
+            ]
+        };
+        let coeff = DensityCoefficients::new(Rgb::splat(0.8), Rgb::splat(0.7));
+        let (mut lookups, mut delta_lookups, mut scatters) = (0, 0, 0);
+        for (bi, beta) in [Rgb::ONE, Rgb::new(0.2, 0.5, 0.9)].into_iter().enumerate() {
+            for seed in 0..2000u64 {
+                // The public tracker (grey, decomposed) against the RGB delta tracker.
+                let mut u = Stream::new(seed);
+                let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
+                let grey = if seed % 2 == 0 {
+                    delta_track_local(
+                        segments(),
+                        &coeff,
+                        test_density,
+                        ProvenBounds,
+                        beta,
+                        &mut || u.next(),
+                        &mut s1,
+                    )
+                } else {
+                    delta_track(
+                        segments(),
+                        &coeff,
+                        test_density,
+                        beta,
+                        &mut || u.next(),
+                        &mut s1,
+                    )
+                };
+                let probs = hero_probabilities(beta, &coeff);
+                let mut v = Stream::new(seed);
+                let hero = pick_channel(probs, v.next());
+                let choice = HeroChoice {
+                    probs,
+                    hero,
+                    decompose: false,
+                    local_control: false,
+                };
+                let rgb = if seed % 2 == 0 {
+                    choice.track(
+                        segments(),
+                        &coeff.rgb(),
+                        test_density,
+                        ProvenBounds,
+                        &mut || v.next(),
+                        &mut s2,
+                    )
+                } else {
+                    choice.track(
+                        segments(),
+                        &coeff.rgb(),
+                        test_density,
+                        NoPointBounds,
+                        &mut || v.next(),
+                        &mut s2,
+                    )
+                };
+                let case = format!("beta {bi}, seed {seed}");
+                assert_eq!(u.draws, v.draws, "{case}");
+                let (w1, w2) = match (grey, rgb) {
+                    (
+                        Flight::Scatter {
+                            t: t1, weight: w1, ..
+                        },
+                        Flight::Scatter {
+                            t: t2, weight: w2, ..
+                        },
+                    ) => {
+                        assert_eq!(t1, t2, "{case}");
+                        scatters += 1;
+                        (w1, w2)
+                    }
+                    (Flight::Escape { weight: w1 }, Flight::Escape { weight: w2 }) => (w1, w2),
+                    _ => panic!("{case}: {grey:?} against {rgb:?}"),
+                };
+                assert!(close(w1, w2, 1e-5), "{case}: {w1:?} against {w2:?}");
+                assert_eq!(s1.real_collisions, s2.real_collisions, "{case}");
+                lookups += s1.lookups;
+                delta_lookups += s2.lookups;
+            }
+        }
+        assert!(scatters > 1000 && scatters < 3000, "{scatters}");
+        // Real collisions below the proven local minorants need no lookup.
+        assert!(
+            lookups * 20 < delta_lookups * 19,
+            "{lookups} {delta_lookups}"
+        );
     }
 
     #[test]

@@ -27,6 +27,7 @@
 
 mod channels;
 mod delta;
+mod grey;
 mod homogeneous;
 mod march;
 mod march_estimators;
@@ -34,6 +35,8 @@ mod mixture;
 mod ratio;
 mod spectral;
 mod split;
+#[cfg(test)]
+mod test_support;
 
 pub use channels::{channel_probabilities, pick_channel};
 pub use delta::{decomposition_track, decomposition_track_local, delta_track, delta_track_local};
@@ -113,6 +116,13 @@ pub trait PointBounds {
     /// `(min, max)` of every density a lookup at distance `t` can return, or `None` when
     /// unknown (the segment's bounds then apply).
     fn at(&mut self, t: f32) -> Option<(f32, f32)>;
+
+    /// True when the minima [`Self::at`] returns are proven: no lookup at that distance
+    /// returns less. The trackers then decide tentative collisions below them without a
+    /// lookup where that leaves the estimator unchanged (grey media of one albedo).
+    fn proven_minorant(&self) -> bool {
+        false
+    }
 }
 
 /// No point bounds: the trackers use the segments' bounds alone.

@@ -1,6 +1,7 @@
 //! Transmittance estimators over majorant segments: ratio tracking, residual ratio tracking
 //! with a per-segment control density, and fixed-step ray marching.
 
+use super::grey::{Channels, Coefficients};
 use super::{
     ControlVariate, DensityCoefficients, NoPointBounds, PointBounds, TrackingStats,
     TransmittanceMode,
@@ -61,8 +62,8 @@ where
 pub fn transmittance_local<S, D, P, U>(
     segments: S,
     coeff: &DensityCoefficients,
-    mut density: D,
-    mut local_bounds: P,
+    density: D,
+    local_bounds: P,
     mode: TransmittanceMode,
     u: &mut U,
     stats: &mut TrackingStats,
@@ -73,10 +74,56 @@ where
     P: PointBounds,
     U: FnMut() -> f32,
 {
+    match coeff.grey() {
+        Some(grey) => estimate(
+            segments,
+            coeff,
+            &grey,
+            density,
+            local_bounds,
+            mode,
+            u,
+            stats,
+        )
+        .to_rgb(),
+        None => estimate(
+            segments,
+            coeff,
+            &coeff.rgb(),
+            density,
+            local_bounds,
+            mode,
+            u,
+            stats,
+        ),
+    }
+}
+
+/// [`transmittance_local`] with the coefficients in channel type `V` (one scalar for a grey
+/// medium: the same estimate as in RGB, bit for bit). `rgb` is the same coefficients for the
+/// estimators that work in RGB only (unbiased ray marching, the jackknife).
+#[allow(clippy::too_many_arguments)]
+fn estimate<V, S, D, P, U>(
+    segments: S,
+    rgb: &DensityCoefficients,
+    coeff: &Coefficients<V>,
+    mut density: D,
+    mut local_bounds: P,
+    mode: TransmittanceMode,
+    u: &mut U,
+    stats: &mut TrackingStats,
+) -> V
+where
+    V: Channels,
+    S: IntoIterator<Item = MajorantSegment>,
+    D: FnMut(f32) -> f32,
+    P: PointBounds,
+    U: FnMut() -> f32,
+{
     let st = coeff.sigma_t;
-    let s_max = coeff.max_sigma_t();
-    let mut tr = Rgb::ONE;
-    if s_max <= 0.0 && coeff.base_t.is_black() {
+    let s_max = st.max_channel();
+    let mut tr = V::ONE;
+    if s_max <= 0.0 && coeff.base_t.is_zero() {
         return tr;
     }
     for seg in segments {
@@ -90,10 +137,16 @@ where
         } else {
             match mode {
                 TransmittanceMode::UnbiasedRayMarch => {
-                    tr *= super::unbiased_ray_march_segment(&seg, coeff, &mut density, u, stats);
+                    tr *= V::from_rgb(super::unbiased_ray_march_segment(
+                        &seg,
+                        rgb,
+                        &mut density,
+                        u,
+                        stats,
+                    ));
                 }
                 TransmittanceMode::Jackknife => {
-                    tr *= super::jackknife_segment(&seg, coeff, &mut density, u, stats);
+                    tr *= V::from_rgb(super::jackknife_segment(&seg, rgb, &mut density, u, stats));
                 }
                 TransmittanceMode::RayMarch { step } => {
                     let n = (len / step.max(1e-12)).ceil().clamp(1.0, 1e7) as u32;
@@ -113,7 +166,7 @@ where
                     };
                     let residual_bound = (seg.max - control).max(control - seg.min).max(0.0);
                     let analytic = coeff.sigma_t_at(control) * len;
-                    if !analytic.is_black() {
+                    if !analytic.is_zero() {
                         tr *= analytic.map(|x| (-x).exp());
                     }
                     let majorant = residual_bound * s_max;
@@ -146,10 +199,10 @@ where
                             if d > hi || d < lo {
                                 stats.violations += 1;
                             }
-                            tr *= Rgb::ONE - st * ((d - control) / major);
-                            if tr.max_component().abs() < 0.05 {
+                            tr *= V::ONE - st * ((d - control) / major);
+                            if tr.max_channel().abs() < 0.05 {
                                 if u() < 0.75 {
-                                    return Rgb::ZERO;
+                                    return V::splat(0.0);
                                 }
                                 tr /= 0.25;
                             }
@@ -158,7 +211,7 @@ where
                 }
             }
         }
-        if tr.is_black() {
+        if tr.is_zero() {
             return tr;
         }
     }
@@ -168,6 +221,96 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tracking::test_support::{test_density, test_segments, Stream, TestBounds};
+
+    #[test]
+    fn grey_transmittance_is_the_rgb_estimate_bit_for_bit() {
+        let coeffs = [
+            DensityCoefficients::new(Rgb::splat(4.0), Rgb::splat(3.6)),
+            DensityCoefficients {
+                base_t: Rgb::splat(0.7),
+                base_s: Rgb::splat(0.2),
+                ..DensityCoefficients::new(Rgb::splat(6.0), Rgb::splat(1.5))
+            },
+        ];
+        let modes = [
+            TransmittanceMode::Ratio,
+            TransmittanceMode::ResidualRatio(ControlVariate::Minorant),
+            TransmittanceMode::ResidualRatio(ControlVariate::Mean),
+            TransmittanceMode::ResidualRatio(ControlVariate::Novak),
+            TransmittanceMode::RayMarch { step: 0.1 },
+            TransmittanceMode::UnbiasedRayMarch,
+            TransmittanceMode::Jackknife,
+        ];
+        let (mut zero, mut negative) = (0, 0);
+        for (ci, coeff) in coeffs.iter().enumerate() {
+            let Some(grey) = coeff.grey() else {
+                panic!("coefficients {ci} are grey");
+            };
+            for mode in modes {
+                for seed in 0..300u64 {
+                    let (mut u, mut v) = (Stream::new(seed), Stream::new(seed));
+                    let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
+                    let (rgb, scalar) = if seed % 2 == 0 {
+                        (
+                            estimate(
+                                test_segments(),
+                                coeff,
+                                &coeff.rgb(),
+                                test_density,
+                                TestBounds,
+                                mode,
+                                &mut || u.next(),
+                                &mut s1,
+                            ),
+                            estimate(
+                                test_segments(),
+                                coeff,
+                                &grey,
+                                test_density,
+                                TestBounds,
+                                mode,
+                                &mut || v.next(),
+                                &mut s2,
+                            ),
+                        )
+                    } else {
+                        (
+                            estimate(
+                                test_segments(),
+                                coeff,
+                                &coeff.rgb(),
+                                test_density,
+                                NoPointBounds,
+                                mode,
+                                &mut || u.next(),
+                                &mut s1,
+                            ),
+                            estimate(
+                                test_segments(),
+                                coeff,
+                                &grey,
+                                test_density,
+                                NoPointBounds,
+                                mode,
+                                &mut || v.next(),
+                                &mut s2,
+                            ),
+                        )
+                    };
+                    let case = format!("coeff {ci}, {mode:?}, seed {seed}");
+                    assert_eq!(rgb, Rgb::splat(scalar), "{case}");
+                    assert_eq!(s1, s2, "{case}");
+                    assert_eq!(u.draws, v.draws, "{case}");
+                    zero += usize::from(scalar == 0.0);
+                    negative += usize::from(scalar < 0.0);
+                }
+            }
+        }
+        // Roulette ended some estimates, violated bounds made some negative.
+        assert!(zero > 100 && negative > 10, "{zero} {negative}");
+    }
+
     use crate::majorant::Bounds;
 
     fn seg(len: f32, min: f32, max: f32, mean: f32) -> MajorantSegment {
