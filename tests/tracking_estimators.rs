@@ -9,8 +9,8 @@ use velour::majorant::MajorantSegment;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
 use velour::tracking::{
-    delta_track, transmittance, ControlVariate, DensityCoefficients, Flight, TrackingStats,
-    TransmittanceMode,
+    decomposition_track, delta_track, transmittance, ControlVariate, DensityCoefficients, Flight,
+    TrackingStats, TransmittanceMode,
 };
 
 const L: f32 = 2.0;
@@ -232,6 +232,28 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
     });
     assert!(violations > 0, "the test must violate the bound");
     check(&m, expect, "violated delta tracking");
+    // Decomposition tracking: the last segments' estimated minimum lies above their maximum,
+    // so a control at the minimum would leave the residual nothing to sample.
+    let mut violations = 0;
+    let m = mean_se(300_000, |rng| {
+        let mut st = TrackingStats::default();
+        let mut u = || rng.next_f32();
+        let f = decomposition_track(
+            segments.iter().copied(),
+            &coeff,
+            ramp,
+            Rgb::ONE,
+            &mut u,
+            &mut st,
+        );
+        violations += st.violations;
+        match f {
+            Flight::Escape { weight } => weight,
+            Flight::Scatter { .. } => Rgb::ZERO,
+        }
+    });
+    assert!(violations > 0, "the test must violate the bound");
+    check(&m, expect, "violated decomposition tracking");
     let m = mean_se(300_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();

@@ -275,7 +275,13 @@ impl HeroChoice {
             }
             // The control part (decomposition tracking) and each channel's probability, as
             // hero, that a tentative collision belongs to it; zero for plain delta tracking.
-            let (seg_control_t, seg_control_s) = if decompose {
+            // Only a control strictly below the majorant leaves the residual a rate to be
+            // sampled at: estimated bounds may cross (min > max) or coincide while the density
+            // varies, and such a segment is tracked without a control.
+            let (seg_control_t, seg_control_s) = if decompose
+                && seg.min < seg.max
+                && coeff.sigma_t_at(seg.min).max_channel() < majorant
+            {
                 (coeff.sigma_t_at(seg.min), coeff.sigma_s_at(seg.min))
             } else {
                 (V::splat(0.0), V::splat(0.0))
@@ -312,8 +318,14 @@ impl HeroChoice {
                         lo = a;
                         hi = b;
                         if decompose {
-                            control_t = coeff.sigma_t_at(a);
-                            control_s = coeff.sigma_s_at(a);
+                            // As for the segment's control: strictly below the point's
+                            // majorant, else none.
+                            (control_t, control_s) =
+                                if a < b && coeff.sigma_t_at(a).max_channel() < major {
+                                    (coeff.sigma_t_at(a), coeff.sigma_s_at(a))
+                                } else {
+                                    (V::splat(0.0), V::splat(0.0))
+                                };
                         } else if local_control && a_local > 0.0 && a_local < b {
                             // The proven minorant, not the segment's (an estimate may be
                             // violated); below the majorant, so that the residual is sampled.
