@@ -87,11 +87,16 @@ fn decomposition_and_delta_tracking_agree() {
     assert!(z.consistent, "decomposition vs delta tracking: {z:?}");
     let per =
         |s: &RenderSummary| s.tracking.lookups as f64 / s.tracking.real_collisions.max(1) as f64;
+    // With local bounds (the default for this grey cloud of one albedo) delta tracking takes
+    // a tentative collision below the table's proven minimum as real without a lookup, as
+    // decomposition tracking does with its control: about the same lookups (before that it
+    // needed 2.3x decomposition's). Decomposition's own saving over plain delta tracking is
+    // tested on a smooth ramp (tests/tracking_decomposition.rs).
     assert!(
-        per(&sa) < per(&sb),
-        "decomposition should save lookups: {} vs {}",
-        per(&sa),
-        per(&sb)
+        per(&sb) < 1.1 * per(&sa),
+        "grey delta tracking should need about decomposition's lookups: {} vs {}",
+        per(&sb),
+        per(&sa)
     );
 }
 
