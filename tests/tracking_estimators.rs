@@ -212,48 +212,39 @@ fn weighted_tracking_stays_unbiased_with_a_violated_bound() {
     // Bounds at 60 % of the true maximum: violated over most of every segment.
     let segments = ramp_segments(3, 0.6);
     let expect = expected_ramp_tr(&coeff);
-    let mut violations = 0;
-    let m = mean_se(300_000, |rng| {
-        let mut st = TrackingStats::default();
-        let mut u = || rng.next_f32();
-        let f = delta_track(
-            segments.iter().copied(),
-            &coeff,
-            ramp,
-            Rgb::ONE,
-            &mut u,
-            &mut st,
-        );
-        violations += st.violations;
-        match f {
-            Flight::Escape { weight } => weight,
-            Flight::Scatter { .. } => Rgb::ZERO,
-        }
-    });
-    assert!(violations > 0, "the test must violate the bound");
-    check(&m, expect, "violated delta tracking");
-    // Decomposition tracking: the last segments' estimated minimum lies above their maximum,
-    // so a control at the minimum would leave the residual nothing to sample.
-    let mut violations = 0;
-    let m = mean_se(300_000, |rng| {
-        let mut st = TrackingStats::default();
-        let mut u = || rng.next_f32();
-        let f = decomposition_track(
-            segments.iter().copied(),
-            &coeff,
-            ramp,
-            Rgb::ONE,
-            &mut u,
-            &mut st,
-        );
-        violations += st.violations;
-        match f {
-            Flight::Escape { weight } => weight,
-            Flight::Scatter { .. } => Rgb::ZERO,
-        }
-    });
-    assert!(violations > 0, "the test must violate the bound");
-    check(&m, expect, "violated decomposition tracking");
+    // Delta tracking, and decomposition tracking: the last segments' estimated minimum lies
+    // above their maximum, so a control at the minimum would leave the residual nothing to
+    // sample.
+    for (decompose, name) in [
+        (false, "violated delta tracking"),
+        (true, "violated decomposition tracking"),
+    ] {
+        let mut violations = 0;
+        let m = mean_se(300_000, |rng| {
+            let mut st = TrackingStats::default();
+            let mut u = || rng.next_f32();
+            let track = if decompose {
+                decomposition_track
+            } else {
+                delta_track
+            };
+            let f = track(
+                segments.iter().copied(),
+                &coeff,
+                ramp,
+                Rgb::ONE,
+                &mut u,
+                &mut st,
+            );
+            violations += st.violations;
+            match f {
+                Flight::Escape { weight } => weight,
+                Flight::Scatter { .. } => Rgb::ZERO,
+            }
+        });
+        assert!(violations > 0, "the test must violate the bound");
+        check(&m, expect, name);
+    }
     let m = mean_se(300_000, |rng| {
         let mut st = TrackingStats::default();
         let mut u = || rng.next_f32();
