@@ -202,6 +202,18 @@ where
     }
 }
 
+/// Decomposition tracking's control part (σ_t, σ_s) at density `lo`, for bounds `[lo, hi]`
+/// under majorant `major`: only where it lies strictly below the majorant, which leaves the
+/// residual a rate to be sampled at. Estimated bounds may cross (`lo > hi`) or coincide while
+/// the density varies; there the flight takes no control (delta tracking's events).
+fn control_below<V: Channels>(coeff: &Coefficients<V>, lo: f32, hi: f32, major: f32) -> (V, V) {
+    if lo < hi && coeff.sigma_t_at(lo).max_channel() < major {
+        (coeff.sigma_t_at(lo), coeff.sigma_s_at(lo))
+    } else {
+        (V::splat(0.0), V::splat(0.0))
+    }
+}
+
 /// A free flight's channel choice: the hero channel, drawn with probabilities `probs`.
 struct HeroChoice {
     probs: [f32; 3],
@@ -275,14 +287,8 @@ impl HeroChoice {
             }
             // The control part (decomposition tracking) and each channel's probability, as
             // hero, that a tentative collision belongs to it; zero for plain delta tracking.
-            // Only a control strictly below the majorant leaves the residual a rate to be
-            // sampled at: estimated bounds may cross (min > max) or coincide while the density
-            // varies, and such a segment is tracked without a control.
-            let (seg_control_t, seg_control_s) = if decompose
-                && seg.min < seg.max
-                && coeff.sigma_t_at(seg.min).max_channel() < majorant
-            {
-                (coeff.sigma_t_at(seg.min), coeff.sigma_s_at(seg.min))
+            let (seg_control_t, seg_control_s) = if decompose {
+                control_below(coeff, seg.min, seg.max, majorant)
             } else {
                 (V::splat(0.0), V::splat(0.0))
             };
@@ -318,14 +324,7 @@ impl HeroChoice {
                         lo = a;
                         hi = b;
                         if decompose {
-                            // As for the segment's control: strictly below the point's
-                            // majorant, else none.
-                            (control_t, control_s) =
-                                if a < b && coeff.sigma_t_at(a).max_channel() < major {
-                                    (coeff.sigma_t_at(a), coeff.sigma_s_at(a))
-                                } else {
-                                    (V::splat(0.0), V::splat(0.0))
-                                };
+                            (control_t, control_s) = control_below(coeff, a, b, major);
                         } else if local_control && a_local > 0.0 && a_local < b {
                             // The proven minorant, not the segment's (an estimate may be
                             // violated); below the majorant, so that the residual is sampled.
