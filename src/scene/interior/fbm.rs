@@ -3,8 +3,7 @@
 
 use glam::DAffine3;
 
-use super::field_params::FieldParams;
-use super::heterogeneous::{field_textures, BaseParams, DensityKeys, DensityLook};
+use super::heterogeneous::{field_keys, FieldLook};
 use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
 use crate::math::Aabb;
@@ -23,29 +22,7 @@ pub(super) fn build(
     d: &FbmDesc,
     placement: &Placement<'_>,
 ) -> Result<BuiltInterior, SceneError> {
-    let params = FieldParams::read(
-        at,
-        d.albedo.as_ref(),
-        d.attenuation.as_ref(),
-        d.density.as_ref(),
-        d.nee.as_deref(),
-        d.projection.as_deref(),
-    )?;
-    params.refuse_unused_tracking(at, d.tracking.as_ref())?;
-    let base = BaseParams::read(at, d.base_albedo.as_ref(), d.base_attenuation.as_ref())?;
-    let (density, attenuation) = params.look_extinction();
-    let keys = DensityKeys {
-        albedo: params.look_albedo(d.albedo.as_ref()),
-        albedo_mode: d.albedo_mode.as_deref(),
-        phase: d.phase.as_ref(),
-        base_albedo: base.albedo(),
-        base_attenuation: base.attenuation(),
-        tracking: d.tracking.as_ref(),
-    };
-    let mut look = DensityLook::read(at, &keys, density, attenuation)?;
-    if params.surface.is_some() {
-        look = look.without_local_bounds();
-    }
+    let look = FieldLook::read(at, &field_keys!(d))?;
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let rest_bounds = placement.rest_bounds.ok_or_else(|| {
         at.invalid(format!(
@@ -54,15 +31,7 @@ pub(super) fn build(
         ))
     })?;
     let (field, pyramid) = fbm_field(at, d, xf, rest_bounds)?;
-    let mode = look.mode;
-    if base.is_textured() {
-        // The field and the base medium as a two-component mixture, the base (and the
-        // field's own textured parameters) read per walk.
-        let textures = vec![field_textures(&params, &look), base.textures(&look)];
-        let medium = look.into_mixture(at, field, pyramid, None, None, d.tracking.as_ref())?;
-        return super::mixture::with_base_textures(at, medium, textures, params.nee);
-    }
-    Ok(params.finish(look.into_medium(at, field, pyramid)?, mode))
+    look.build(at, field, pyramid, None, d.tracking.as_ref())
 }
 
 /// The noise field over the lattice of `voxel_size` spanning `rest_bounds`, baked, baked

@@ -2,9 +2,10 @@
 //! unit density, the optional homogeneous base medium of a combined interior, the phase
 //! function and the estimator choices.
 
+use super::field_params::FieldParams;
 use super::scattering::Scattering;
 use super::tracking::{build_tracking, default_local_bounds};
-use super::Site;
+use super::{BuiltInterior, Site};
 use crate::majorant::MajorantPyramid;
 use crate::math::Vec2;
 use crate::medium::{
@@ -13,7 +14,7 @@ use crate::medium::{
     MixtureMedium,
 };
 use crate::phase::PhaseFunction;
-use crate::scene::desc::{ColorInput, ColorValue, PhaseDesc, TrackingDesc};
+use crate::scene::desc::{ColorInput, ColorValue, PhaseDesc, ScalarInput, TrackingDesc};
 use crate::scene::validate::color;
 use crate::scene::SceneError;
 use crate::spectrum::Rgb;
@@ -115,12 +116,111 @@ impl BaseParams {
     }
 }
 
+/// The keys `voxel` and `fbm` interiors share besides their field (built from either
+/// description by [`field_keys`]).
+pub(super) struct FieldKeys<'a> {
+    pub albedo: Option<&'a ColorInput>,
+    pub albedo_mode: Option<&'a str>,
+    pub attenuation: Option<&'a ColorInput>,
+    pub density: Option<&'a ScalarInput>,
+    pub nee: Option<&'a str>,
+    pub projection: Option<&'a str>,
+    pub phase: Option<&'a PhaseDesc>,
+    pub base_albedo: Option<&'a ColorInput>,
+    pub base_attenuation: Option<&'a ColorInput>,
+    pub tracking: Option<&'a TrackingDesc>,
+}
+
+/// The [`FieldKeys`] of a `VoxelDesc` or `FbmDesc` (the same field names in both).
+macro_rules! field_keys {
+    ($d:expr) => {
+        super::heterogeneous::FieldKeys {
+            albedo: $d.albedo.as_ref(),
+            albedo_mode: $d.albedo_mode.as_deref(),
+            attenuation: $d.attenuation.as_ref(),
+            density: $d.density.as_ref(),
+            nee: $d.nee.as_deref(),
+            projection: $d.projection.as_deref(),
+            phase: $d.phase.as_ref(),
+            base_albedo: $d.base_albedo.as_ref(),
+            base_attenuation: $d.base_attenuation.as_ref(),
+            tracking: $d.tracking.as_ref(),
+        }
+    };
+}
+pub(super) use field_keys;
+
+/// A `voxel` or `fbm` interior's parameters read from its [`FieldKeys`]: the (possibly
+/// textured) field parameters, the base medium and the density look.
+pub(super) struct FieldLook {
+    pub params: FieldParams,
+    pub base: BaseParams,
+    pub look: DensityLook,
+}
+
+impl FieldLook {
+    /// Reads `keys` (errors name the object and key). A look whose parameters are projected
+    /// onto a surface keeps no local bounds (the coefficients vary per walk).
+    pub fn read(at: &Site, keys: &FieldKeys<'_>) -> Result<FieldLook, SceneError> {
+        let params = FieldParams::read(
+            at,
+            keys.albedo,
+            keys.attenuation,
+            keys.density,
+            keys.nee,
+            keys.projection,
+        )?;
+        params.refuse_unused_tracking(at, keys.tracking)?;
+        let base = BaseParams::read(at, keys.base_albedo, keys.base_attenuation)?;
+        let (density, attenuation) = params.look_extinction();
+        let density_keys = DensityKeys {
+            albedo: params.look_albedo(keys.albedo),
+            albedo_mode: keys.albedo_mode,
+            phase: keys.phase,
+            base_albedo: base.albedo(),
+            base_attenuation: base.attenuation(),
+            tracking: keys.tracking,
+        };
+        let mut look = DensityLook::read(at, &density_keys, density, attenuation)?;
+        if params.surface.is_some() {
+            look = look.without_local_bounds();
+        }
+        Ok(FieldLook { params, base, look })
+    }
+
+    /// The interior of `field` with its majorant `pyramid`: with a textured base medium, the
+    /// field and the base as a two-component mixture, the base (and the field's own textured
+    /// parameters) read per walk; with `grids` (a voxel interior's albedo and emission
+    /// grids), a mixture of the field alone; otherwise the heterogeneous medium.
+    pub fn build(
+        self,
+        at: &Site,
+        field: DensityField,
+        pyramid: MajorantPyramid,
+        grids: Option<(Option<AlbedoGrid>, Option<EmissionGrid>)>,
+        tracking: Option<&TrackingDesc>,
+    ) -> Result<BuiltInterior, SceneError> {
+        let FieldLook { params, base, look } = self;
+        let mode = look.mode;
+        if base.is_textured() {
+            let textures = vec![field_textures(&params, &look), base.textures(&look)];
+            let (albedo, emission) = grids.unwrap_or((None, None));
+            let medium = look.into_mixture(at, field, pyramid, albedo, emission, tracking)?;
+            return super::mixture::with_base_textures(at, medium, textures, params.nee);
+        }
+        let medium = match grids {
+            Some((albedo, emission)) => {
+                look.into_mixture(at, field, pyramid, albedo, emission, tracking)?
+            }
+            None => look.into_medium(at, field, pyramid)?,
+        };
+        Ok(params.finish(medium, mode))
+    }
+}
+
 /// How a walk reads a field's own coefficients per unit density: the textured `albedo`,
 /// `attenuation` and `density` of `params`, or fixed when none is a texture.
-pub(super) fn field_textures(
-    params: &super::field_params::FieldParams,
-    look: &DensityLook,
-) -> ComponentTextures {
+fn field_textures(params: &FieldParams, look: &DensityLook) -> ComponentTextures {
     if !params.is_textured() {
         return ComponentTextures::Fixed;
     }

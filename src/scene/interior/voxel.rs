@@ -3,9 +3,8 @@
 
 use glam::DAffine3;
 
-use super::field_params::FieldParams;
 use super::grids::{self, DensityGridRef};
-use super::heterogeneous::{field_textures, BaseParams, DensityKeys, DensityLook};
+use super::heterogeneous::{field_keys, FieldLook};
 use super::{BuiltInterior, Placement, Site};
 use crate::majorant::MajorantPyramid;
 use crate::medium::DensityField;
@@ -18,53 +17,23 @@ pub(super) fn build(
     d: &VoxelDesc,
     placement: &Placement<'_>,
 ) -> Result<BuiltInterior, SceneError> {
-    let params = FieldParams::read(
-        at,
-        d.albedo.as_ref(),
-        d.attenuation.as_ref(),
-        d.density.as_ref(),
-        d.nee.as_deref(),
-        d.projection.as_deref(),
-    )?;
-    params.refuse_unused_tracking(at, d.tracking.as_ref())?;
-    let base = BaseParams::read(at, d.base_albedo.as_ref(), d.base_attenuation.as_ref())?;
-    let (density, attenuation) = params.look_extinction();
-    let keys = DensityKeys {
-        albedo: params.look_albedo(d.albedo.as_ref()),
-        albedo_mode: d.albedo_mode.as_deref(),
-        phase: d.phase.as_ref(),
-        base_albedo: base.albedo(),
-        base_attenuation: base.attenuation(),
-        tracking: d.tracking.as_ref(),
-    };
-    let mut look = DensityLook::read(at, &keys, density, attenuation)?;
-    if params.surface.is_some() {
-        look = look.without_local_bounds();
-    }
+    let look = FieldLook::read(at, &field_keys!(d))?;
     let xf = DAffine3::from_mat4(placement.xf.as_dmat4());
     let (field, pyramid, density_ref) = voxel_field(at, d, xf)?;
-    let mode = look.mode;
-    if !grids::wanted(d) && !base.is_textured() {
-        return Ok(params.finish(look.into_medium(at, field, pyramid)?, mode));
-    }
-    if params.is_textured() && grids::wanted(d) {
-        return Err(at.invalid(format!(
-            "{}: textured albedo/attenuation/density cannot be combined with albedo or emission grids (use constant values, or the albedo grid alone)",
-            at.owner
-        )));
-    }
-    let albedo = grids::albedo_grid(at, d, &density_ref, xf, look.mode, look.mean_cosine())?;
-    let emission = grids::emission_grid(at, d, &density_ref, xf)?;
-    if base.is_textured() {
-        // The field and the base medium as a two-component mixture, the base (and the
-        // field's own textured parameters) read per walk.
-        let textures = vec![field_textures(&params, &look), base.textures(&look)];
-        let medium =
-            look.into_mixture(at, field, pyramid, albedo, emission, d.tracking.as_ref())?;
-        return super::mixture::with_base_textures(at, medium, textures, params.nee);
-    }
-    let medium = look.into_mixture(at, field, pyramid, albedo, emission, d.tracking.as_ref())?;
-    Ok(params.finish(medium, mode))
+    let grids = if grids::wanted(d) {
+        if look.params.is_textured() {
+            return Err(at.invalid(format!(
+                "{}: textured albedo/attenuation/density cannot be combined with albedo or emission grids (use constant values, or the albedo grid alone)",
+                at.owner
+            )));
+        }
+        let (mode, mean_cosine) = (look.look.mode, look.look.mean_cosine());
+        let albedo = grids::albedo_grid(at, d, &density_ref, xf, mode, mean_cosine)?;
+        Some((albedo, grids::emission_grid(at, d, &density_ref, xf)?))
+    } else {
+        None
+    };
+    look.build(at, field, pyramid, grids, d.tracking.as_ref())
 }
 
 /// The grid named by `grid` (default "density") of the file, checked (finite, scalar,
