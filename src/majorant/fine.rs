@@ -31,6 +31,8 @@ pub const MAX_LOCAL_CELLS: usize = 1 << 19;
 
 /// Edge of a block of cells in the table's layout.
 const BLOCK: i32 = 4;
+/// Cells in a block.
+const BLOCK_CELLS: usize = (BLOCK * BLOCK * BLOCK) as usize;
 
 /// Per-cell bounds of a grid channel over its dual lattice (see the module documentation).
 #[derive(Clone, Debug)]
@@ -48,6 +50,10 @@ pub struct LocalBounds {
     cells: Vec<[u16; 2]>,
     /// Blocks per axis.
     blocks: IVec3,
+    /// Per block: the largest maximum code of its cells. A few kilobytes that stay in the
+    /// first-level cache: most tentative collisions of a coarse segment lie above their
+    /// block's maximum already and need no read of `cells` ([`Self::probe`]).
+    block_max: Vec<u16>,
     /// The value outside the table's box (every voxel there is background).
     background: f32,
 }
@@ -153,6 +159,7 @@ impl LocalBounds {
             scale,
             cells: Vec::new(),
             blocks,
+            block_max: Vec::new(),
             background,
         };
         let fill = [table.encode_down(background), table.encode_up(background)];
@@ -167,6 +174,10 @@ impl LocalBounds {
                 *slot = [table.encode_down(mn), table.encode_up(mx)];
             }
         }
+        table.block_max = cells
+            .chunks(BLOCK_CELLS)
+            .map(|block| block.iter().map(|&[_, mx]| mx).max().unwrap_or(0))
+            .collect();
         table.cells = cells;
         Ok(table)
     }
@@ -182,6 +193,7 @@ impl LocalBounds {
             scale: 0.0,
             cells: Vec::new(),
             blocks: IVec3::ZERO,
+            block_max: Vec::new(),
             background,
         }
     }
@@ -189,13 +201,21 @@ impl LocalBounds {
     /// Index of cell `c` (inside `dims`) in the blocked layout.
     #[inline(always)]
     fn slot(&self, c: IVec3) -> usize {
+        let (block, within) = self.block_slot(c);
+        block * BLOCK_CELLS + within
+    }
+
+    /// The block of cell `c` (inside `dims`) and the cell's index within the block.
+    #[inline(always)]
+    fn block_slot(&self, c: IVec3) -> (usize, usize) {
         let b = c >> 2i32;
         let w = c & IVec3::splat(BLOCK - 1);
         let block = (b.z as usize * self.blocks.y as usize + b.y as usize) * self.blocks.x as usize
             + b.x as usize;
-        block * (BLOCK * BLOCK * BLOCK) as usize
-            + (w.z as usize * BLOCK as usize + w.y as usize) * BLOCK as usize
-            + w.x as usize
+        (
+            block,
+            (w.z as usize * BLOCK as usize + w.y as usize) * BLOCK as usize + w.x as usize,
+        )
     }
 
     fn decode(&self, code: u16) -> f32 {
@@ -244,6 +264,15 @@ impl LocalBounds {
     #[inline]
     #[must_use]
     pub fn at(&self, p: Vec3) -> (f32, f32) {
+        self.probe(p, |_| false)
+            .unwrap_or((self.background, self.background))
+    }
+
+    /// [`Self::at`], unless the largest maximum of the block of cells around `p` (a proven
+    /// upper bound of every lookup at `p`, read from a table small enough to stay cached)
+    /// satisfies `skip`: then `None`, without reading the cell.
+    #[inline(always)]
+    pub fn probe(&self, p: Vec3, skip: impl FnOnce(f32) -> bool) -> Option<(f32, f32)> {
         // floor(p) without a libm call, as the grid's trilinear lookup computes it.
         let t = p.as_ivec3();
         let tf = t.as_vec3();
@@ -256,11 +285,17 @@ impl LocalBounds {
         // beyond `dims` unsigned: one comparison for both sides.
         let c = i.wrapping_sub(self.origin) >> self.log2;
         if c.as_uvec3().cmpge(self.dims.as_uvec3()).any() {
-            return (self.background, self.background);
+            return Some((self.background, self.background));
         }
-        match self.cells.get(self.slot(c)) {
-            Some(&[a, b]) => (self.decode(a), self.decode(b)),
-            None => (self.background, self.background),
+        let (block, within) = self.block_slot(c);
+        if let Some(&code) = self.block_max.get(block) {
+            if skip(self.decode(code)) {
+                return None;
+            }
+        }
+        match self.cells.get(block * BLOCK_CELLS + within) {
+            Some(&[a, b]) => Some((self.decode(a), self.decode(b))),
+            None => Some((self.background, self.background)),
         }
     }
 }
@@ -279,6 +314,7 @@ mod tests {
             scale: 1.0 / 65535.0,
             cells: Vec::new(),
             blocks: IVec3::ZERO,
+            block_max: Vec::new(),
             background: 0.0,
         };
         for v in [0.0f32, 1e-7, 0.3, 0.5, 0.7777, 0.999_999, 1.0] {
