@@ -100,31 +100,40 @@ impl LocalBounds {
         }
         let s = 1i32 << log2;
         let plane = dims.x as usize * dims.y as usize;
-        // Exact f32 bounds first, one z-layer of cells per task.
+        // Exact f32 bounds first, one z-layer of cells per task: each voxel column's range over
+        // the layer's s + 1 voxel planes, then each cell's over its (s + 1)² columns (each voxel
+        // read once per layer instead of once per cell that holds it).
         let mut exact = vec![[0.0f32; 2]; count];
+        let (nx, ny) = ((dims.x * s + 1) as usize, (dims.y * s + 1) as usize);
+        let su = s as usize;
         exact
             .par_chunks_mut(plane)
             .enumerate()
             .for_each(|(z, layer)| {
                 let mut acc = grid.accessor(channel);
-                for y in 0..dims.y {
-                    for x in 0..dims.x {
-                        let c0 = first + IVec3::new(x, y, z as i32) * s;
-                        let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
-                        for vx in 0..=s {
-                            for vy in 0..=s {
-                                for vz in 0..=s {
-                                    let v = acc.value(c0 + IVec3::new(vx, vy, vz));
-                                    mn = mn.min(v);
-                                    mx = mx.max(v);
-                                }
-                            }
-                        }
-                        if let Some(cell) = layer.get_mut(y as usize * dims.x as usize + x as usize)
+                let mut columns = vec![[f32::INFINITY, f32::NEG_INFINITY]; nx * ny];
+                let z0 = first.z + z as i32 * s;
+                for (i, col) in columns.iter_mut().enumerate() {
+                    let v0 = first + IVec3::new((i / ny) as i32, (i % ny) as i32, 0);
+                    for vz in 0..=s {
+                        let v = acc.value(IVec3::new(v0.x, v0.y, z0 + vz));
+                        col[0] = col[0].min(v);
+                        col[1] = col[1].max(v);
+                    }
+                }
+                for (j, cell) in layer.iter_mut().enumerate() {
+                    let (x, y) = (j % dims.x as usize, j / dims.x as usize);
+                    let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
+                    for vx in x * su..=x * su + su {
+                        for &[a, b] in columns
+                            .get(vx * ny + y * su..=vx * ny + y * su + su)
+                            .unwrap_or(&[])
                         {
-                            *cell = [mn, mx];
+                            mn = mn.min(a);
+                            mx = mx.max(b);
                         }
                     }
+                    *cell = [mn, mx];
                 }
             });
         let (mut gmin, mut gmax) = (background, background);
