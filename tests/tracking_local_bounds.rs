@@ -21,14 +21,14 @@ use glam::{DAffine3, DVec3, IVec3, Vec3};
 use velour::grid::{ChannelKind, SparseGrid, SparseGridBuilder, Storage, BRICK_DIM};
 use velour::majorant::{Bounds, LocalBounds, MajorantPyramid, MajorantSegment};
 use velour::math::Ray;
-use velour::medium::{DensityField, HeterogeneousMedium, Medium};
+use velour::medium::{DensityField, GridLookup, HeterogeneousMedium, LocalProbe, Medium};
 use velour::phase::PhaseFunction;
 use velour::sampling::{sample_uniform_sphere, Rng};
 use velour::spectrum::Rgb;
 use velour::tracking::{
     decomposition_track_local, delta_track_local, transmittance_local, ControlVariate,
-    DensityCoefficients, Flight, FreeFlightMethod, PointBounds, TrackingConfig, TrackingStats,
-    TransmittanceMode,
+    DensityCoefficients, Flight, FreeFlightMethod, PointBounds, Probe, TrackingConfig,
+    TrackingStats, TransmittanceMode,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -223,6 +223,109 @@ fn large_grids_get_coarser_cells_within_the_cell_budget() {
         let (lo, hi) = table.at(p);
         assert!(v >= lo && v <= hi, "{v} at {p:?} outside [{lo}, {hi}]");
     }
+}
+
+/// Point bounds that read every cell: `probe` is the trait's default, without the table's
+/// block maxima.
+struct CellsOnly<P>(P);
+
+impl<P: PointBounds> PointBounds for CellsOnly<P> {
+    fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+        self.0.at(t)
+    }
+    fn proven_minorant(&self) -> bool {
+        self.0.proven_minorant()
+    }
+}
+
+/// Counts the tentative collisions the wrapped bounds' coarse level decided.
+struct Counting<'a, P>(P, &'a mut u64);
+
+impl<P: PointBounds> PointBounds for Counting<'_, P> {
+    fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+        self.0.at(t)
+    }
+    fn probe(&mut self, t: f32, skip: impl FnOnce(f32) -> bool) -> Probe {
+        let p = self.0.probe(t, skip);
+        *self.1 += u64::from(p == Probe::Skipped);
+        p
+    }
+    fn proven_minorant(&self) -> bool {
+        self.0.proven_minorant()
+    }
+}
+
+/// The table's block maxima (`LocalBounds::probe`) bound every cell of their block, and delta
+/// tracking that skips cell reads where its block's maximum already rejects a tentative
+/// collision takes the same flights, bit for bit, as the tracker reading every cell, while
+/// most rejections on the dense cloud need no cell read.
+#[test]
+fn block_maxima_skip_cell_reads_without_changing_flights() {
+    let g = grid(128, fbm_cloud);
+    let table = LocalBounds::from_grid(&g, 0).unwrap_or_else(|e| panic!("{e}"));
+    let mut rng = Rng::new(7, 1);
+    for _ in 0..100_000 {
+        let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 130.0 - 1.0;
+        let (lo, hi) = table.at(p);
+        let mut coarse = f32::NAN;
+        let skip_at = rng.next_f32();
+        let probed = table.probe(p, |ub| {
+            coarse = ub;
+            ub <= skip_at
+        });
+        assert!(
+            !(coarse < hi),
+            "block maximum {coarse} below the cell's {hi} at {p:?}"
+        );
+        match probed {
+            Some(b) => assert_eq!(b, (lo, hi)),
+            None => assert!(coarse <= skip_at),
+        }
+    }
+    let coeff = DensityCoefficients::new(Rgb::splat(40.0), Rgb::splat(36.0));
+    let (mut with, mut without) = (TrackingStats::default(), TrackingStats::default());
+    let mut skipped = 0u64;
+    let seg = MajorantSegment::new(
+        0.0,
+        2.5,
+        Bounds {
+            min: 0.0,
+            max: 1.0,
+            mean: 0.2,
+        },
+        true,
+    );
+    for i in 0..4_000u64 {
+        let ray = random_ray(&mut rng);
+        let mut run = |cells_only: bool, stats: &mut TrackingStats| -> Flight {
+            let mut lookup = GridLookup::new(&g, 0, &ray);
+            let probe = LocalProbe::new(&table, &g, &ray, false);
+            let mut r = Rng::new(100 + i, 3);
+            let mut u = || r.next_f32();
+            let density = |t: f32| lookup.at(t);
+            if cells_only {
+                let probe = CellsOnly(probe);
+                delta_track_local([seg], &coeff, density, probe, Rgb::ONE, &mut u, stats)
+            } else {
+                let probe = Counting(probe, &mut skipped);
+                delta_track_local([seg], &coeff, density, probe, Rgb::ONE, &mut u, stats)
+            }
+        };
+        let a = run(false, &mut with);
+        let b = run(true, &mut without);
+        assert_eq!(a, b, "ray {i}");
+    }
+    assert_eq!(with, without);
+    eprintln!(
+        "{} real collisions, {} tentative collisions rejected by the table, {skipped} of them by a block maximum",
+        with.real_collisions, with.probed
+    );
+    assert!(with.real_collisions > 1_000 && with.probed > 4 * with.real_collisions);
+    assert!(
+        4 * skipped > with.probed,
+        "{skipped} of {} skipped",
+        with.probed
+    );
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -31,6 +31,8 @@ pub const MAX_LOCAL_CELLS: usize = 1 << 19;
 
 /// Edge of a block of cells in the table's layout.
 const BLOCK: i32 = 4;
+/// Cells in a block.
+const BLOCK_CELLS: usize = (BLOCK * BLOCK * BLOCK) as usize;
 
 /// Per-cell bounds of a grid channel over its dual lattice (see the module documentation).
 #[derive(Clone, Debug)]
@@ -48,6 +50,10 @@ pub struct LocalBounds {
     cells: Vec<[u16; 2]>,
     /// Blocks per axis.
     blocks: IVec3,
+    /// Per block: the largest maximum code of its cells. A few kilobytes that stay in the
+    /// first-level cache: most tentative collisions of a coarse segment lie above their
+    /// block's maximum already and need no read of `cells` ([`Self::probe`]).
+    block_max: Vec<u16>,
     /// The value outside the table's box (every voxel there is background).
     background: f32,
 }
@@ -94,31 +100,40 @@ impl LocalBounds {
         }
         let s = 1i32 << log2;
         let plane = dims.x as usize * dims.y as usize;
-        // Exact f32 bounds first, one z-layer of cells per task.
+        // Exact f32 bounds first, one z-layer of cells per task: each voxel column's range over
+        // the layer's s + 1 voxel planes, then each cell's over its (s + 1)² columns (each voxel
+        // read once per layer instead of once per cell that holds it).
         let mut exact = vec![[0.0f32; 2]; count];
+        let (nx, ny) = ((dims.x * s + 1) as usize, (dims.y * s + 1) as usize);
+        let su = s as usize;
         exact
             .par_chunks_mut(plane)
             .enumerate()
             .for_each(|(z, layer)| {
                 let mut acc = grid.accessor(channel);
-                for y in 0..dims.y {
-                    for x in 0..dims.x {
-                        let c0 = first + IVec3::new(x, y, z as i32) * s;
-                        let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
-                        for vx in 0..=s {
-                            for vy in 0..=s {
-                                for vz in 0..=s {
-                                    let v = acc.value(c0 + IVec3::new(vx, vy, vz));
-                                    mn = mn.min(v);
-                                    mx = mx.max(v);
-                                }
-                            }
-                        }
-                        if let Some(cell) = layer.get_mut(y as usize * dims.x as usize + x as usize)
+                let mut columns = vec![[f32::INFINITY, f32::NEG_INFINITY]; nx * ny];
+                let z0 = first.z + z as i32 * s;
+                for (i, col) in columns.iter_mut().enumerate() {
+                    let v0 = first + IVec3::new((i / ny) as i32, (i % ny) as i32, 0);
+                    for vz in 0..=s {
+                        let v = acc.value(IVec3::new(v0.x, v0.y, z0 + vz));
+                        col[0] = col[0].min(v);
+                        col[1] = col[1].max(v);
+                    }
+                }
+                for (j, cell) in layer.iter_mut().enumerate() {
+                    let (x, y) = (j % dims.x as usize, j / dims.x as usize);
+                    let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
+                    for vx in x * su..=x * su + su {
+                        for &[a, b] in columns
+                            .get(vx * ny + y * su..=vx * ny + y * su + su)
+                            .unwrap_or(&[])
                         {
-                            *cell = [mn, mx];
+                            mn = mn.min(a);
+                            mx = mx.max(b);
                         }
                     }
+                    *cell = [mn, mx];
                 }
             });
         let (mut gmin, mut gmax) = (background, background);
@@ -153,6 +168,7 @@ impl LocalBounds {
             scale,
             cells: Vec::new(),
             blocks,
+            block_max: Vec::new(),
             background,
         };
         let fill = [table.encode_down(background), table.encode_up(background)];
@@ -167,6 +183,10 @@ impl LocalBounds {
                 *slot = [table.encode_down(mn), table.encode_up(mx)];
             }
         }
+        table.block_max = cells
+            .chunks(BLOCK_CELLS)
+            .map(|block| block.iter().map(|&[_, mx]| mx).max().unwrap_or(0))
+            .collect();
         table.cells = cells;
         Ok(table)
     }
@@ -182,6 +202,7 @@ impl LocalBounds {
             scale: 0.0,
             cells: Vec::new(),
             blocks: IVec3::ZERO,
+            block_max: Vec::new(),
             background,
         }
     }
@@ -189,13 +210,21 @@ impl LocalBounds {
     /// Index of cell `c` (inside `dims`) in the blocked layout.
     #[inline(always)]
     fn slot(&self, c: IVec3) -> usize {
+        let (block, within) = self.block_slot(c);
+        block * BLOCK_CELLS + within
+    }
+
+    /// The block of cell `c` (inside `dims`) and the cell's index within the block.
+    #[inline(always)]
+    fn block_slot(&self, c: IVec3) -> (usize, usize) {
         let b = c >> 2i32;
         let w = c & IVec3::splat(BLOCK - 1);
         let block = (b.z as usize * self.blocks.y as usize + b.y as usize) * self.blocks.x as usize
             + b.x as usize;
-        block * (BLOCK * BLOCK * BLOCK) as usize
-            + (w.z as usize * BLOCK as usize + w.y as usize) * BLOCK as usize
-            + w.x as usize
+        (
+            block,
+            (w.z as usize * BLOCK as usize + w.y as usize) * BLOCK as usize + w.x as usize,
+        )
     }
 
     fn decode(&self, code: u16) -> f32 {
@@ -244,6 +273,15 @@ impl LocalBounds {
     #[inline]
     #[must_use]
     pub fn at(&self, p: Vec3) -> (f32, f32) {
+        self.probe(p, |_| false)
+            .unwrap_or((self.background, self.background))
+    }
+
+    /// [`Self::at`], unless the largest maximum of the block of cells around `p` (a proven
+    /// upper bound of every lookup at `p`, read from a table small enough to stay cached)
+    /// satisfies `skip`: then `None`, without reading the cell.
+    #[inline(always)]
+    pub fn probe(&self, p: Vec3, skip: impl FnOnce(f32) -> bool) -> Option<(f32, f32)> {
         // floor(p) without a libm call, as the grid's trilinear lookup computes it.
         let t = p.as_ivec3();
         let tf = t.as_vec3();
@@ -256,11 +294,17 @@ impl LocalBounds {
         // beyond `dims` unsigned: one comparison for both sides.
         let c = i.wrapping_sub(self.origin) >> self.log2;
         if c.as_uvec3().cmpge(self.dims.as_uvec3()).any() {
-            return (self.background, self.background);
+            return Some((self.background, self.background));
         }
-        match self.cells.get(self.slot(c)) {
-            Some(&[a, b]) => (self.decode(a), self.decode(b)),
-            None => (self.background, self.background),
+        let (block, within) = self.block_slot(c);
+        if let Some(&code) = self.block_max.get(block) {
+            if skip(self.decode(code)) {
+                return None;
+            }
+        }
+        match self.cells.get(block * BLOCK_CELLS + within) {
+            Some(&[a, b]) => Some((self.decode(a), self.decode(b))),
+            None => Some((self.background, self.background)),
         }
     }
 }
@@ -279,6 +323,7 @@ mod tests {
             scale: 1.0 / 65535.0,
             cells: Vec::new(),
             blocks: IVec3::ZERO,
+            block_max: Vec::new(),
             background: 0.0,
         };
         for v in [0.0f32, 1e-7, 0.3, 0.5, 0.7777, 0.999_999, 1.0] {

@@ -8,7 +8,7 @@ use crate::grid::{Accessor, SparseGrid};
 use crate::majorant::LocalBounds;
 use crate::math::Ray;
 use crate::procedural::{FbmField, LazyFbmGrid};
-use crate::tracking::PointBounds;
+use crate::tracking::{PointBounds, Probe};
 
 /// Density lookups along one ray, by distance.
 pub enum DensityLookup<'a> {
@@ -142,6 +142,14 @@ impl PointBounds for LocalProbe<'_> {
         }
     }
 
+    #[inline(always)]
+    fn probe(&mut self, t: f32, skip: impl FnOnce(f32) -> bool) -> Probe {
+        match self {
+            LocalProbe::Grid(g) => g.probe(t, skip),
+            LocalProbe::Shell(s) => Probe::from_bounds(s.at_out_of_line(t)),
+        }
+    }
+
     #[inline]
     fn proven_minorant(&self) -> bool {
         match self {
@@ -184,15 +192,38 @@ impl<'a> GridProbe<'a> {
     }
 }
 
+impl GridProbe<'_> {
+    /// The table's bounds `(a, b)` as the probe returns them (0 inside for a scaled field).
+    #[inline(always)]
+    fn widen(&self, a: f32, b: f32) -> (f32, f32) {
+        if self.zero_min {
+            (a.min(0.0), b.max(0.0))
+        } else {
+            (a, b)
+        }
+    }
+}
+
 impl PointBounds for GridProbe<'_> {
     #[inline(always)]
     fn at(&mut self, t: f32) -> Option<(f32, f32)> {
         let (a, b) = self.table.at(self.o + self.d * t);
-        Some(if self.zero_min {
-            (a.min(0.0), b.max(0.0))
-        } else {
-            (a, b)
-        })
+        Some(self.widen(a, b))
+    }
+
+    /// The table's block maxima first (`LocalBounds::probe`).
+    #[inline(always)]
+    fn probe(&mut self, t: f32, skip: impl FnOnce(f32) -> bool) -> Probe {
+        let zero_min = self.zero_min;
+        match self.table.probe(self.o + self.d * t, |ub| {
+            skip(if zero_min { ub.max(0.0) } else { ub })
+        }) {
+            Some((a, b)) => {
+                let (a, b) = self.widen(a, b);
+                Probe::Bounds(a, b)
+            }
+            None => Probe::Skipped,
+        }
     }
 
     /// The table's minima are the voxels' minima over each cell rounded down: no trilinear

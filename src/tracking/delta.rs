@@ -3,7 +3,9 @@
 
 use super::channels::hero_probabilities;
 use super::grey::{Channels, Coefficients};
-use super::{pick_channel, DensityCoefficients, Flight, NoPointBounds, PointBounds, TrackingStats};
+use super::{
+    pick_channel, DensityCoefficients, Flight, NoPointBounds, PointBounds, Probe, TrackingStats,
+};
 use crate::majorant::MajorantSegment;
 use crate::sampling::ONE_MINUS_EPSILON;
 use crate::spectrum::Rgb;
@@ -308,7 +310,19 @@ impl HeroChoice {
                 let mut major = majorant;
                 let (mut control_t, mut control_s) = (seg_control_t, seg_control_s);
                 let mut controlled = decompose;
-                if let Some((a_local, b)) = local_bounds.at(t) {
+                // A coarser upper bound `ub` that already puts the point's local majorant at
+                // or below `u_event · majorant` decides the null collision as the point's own
+                // bounds would (σ_t is non-decreasing in the density, and b ≤ ub).
+                let skip = |ub: f32| {
+                    let m = coeff.sigma_t_at(ub.min(seg.max)).max_channel().max(0.0);
+                    m < majorant && u_event * majorant >= m
+                };
+                let probe = local_bounds.probe(t, skip);
+                if probe == Probe::Skipped {
+                    stats.probed += 1;
+                    continue;
+                }
+                if let Probe::Bounds(a_local, b) = probe {
                     let (a, b) = (a_local.max(seg.min), b.min(seg.max));
                     if a <= b {
                         let m = coeff.sigma_t_at(b).max_channel().max(0.0);

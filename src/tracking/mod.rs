@@ -117,11 +117,44 @@ pub trait PointBounds {
     /// unknown (the segment's bounds then apply).
     fn at(&mut self, t: f32) -> Option<(f32, f32)>;
 
+    /// [`Self::at`], unless a coarser proven upper bound `ub` on every density a lookup at `t`
+    /// can return, cheaper to read than the bounds themselves, already satisfies `skip(ub)`:
+    /// then [`Probe::Skipped`] without reading the finer bounds. The default has no coarser
+    /// bound and reads [`Self::at`].
+    #[inline(always)]
+    fn probe(&mut self, t: f32, skip: impl FnOnce(f32) -> bool) -> Probe {
+        let _ = skip;
+        Probe::from_bounds(self.at(t))
+    }
+
     /// True when the minima [`Self::at`] returns are proven: no lookup at that distance
     /// returns less. The trackers then decide tentative collisions below them without a
     /// lookup where that leaves the estimator unchanged (grey media of one albedo).
     fn proven_minorant(&self) -> bool {
         false
+    }
+}
+
+/// What [`PointBounds::probe`] found at a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Probe {
+    /// No bounds at the point (the segment's apply).
+    Unknown,
+    /// A coarser upper bound satisfied the caller's test; the finer bounds were not read.
+    Skipped,
+    /// The point's `(min, max)`, as [`PointBounds::at`] returns them.
+    Bounds(f32, f32),
+}
+
+impl Probe {
+    /// [`Probe::Bounds`] or [`Probe::Unknown`].
+    #[inline(always)]
+    #[must_use]
+    pub fn from_bounds(b: Option<(f32, f32)>) -> Self {
+        match b {
+            Some((lo, hi)) => Probe::Bounds(lo, hi),
+            None => Probe::Unknown,
+        }
     }
 }
 
