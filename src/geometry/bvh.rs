@@ -10,8 +10,8 @@ use super::aabox::{intersect_box, BoxHit};
 use super::empty_cells::EmptyCells;
 use super::levelset::LevelSetHit;
 use super::sphere::{intersect_sphere, SphereHit};
-use super::triangle::{ShearedRay, TriangleBlock, TriangleHit, TriangleSoa};
-use super::wide_bvh::{Leaf, WideBvh, MAX_PRIMITIVES};
+use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
+use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
 mod beyond;
@@ -42,10 +42,6 @@ pub struct SceneGeometry {
     /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
     /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB.
     verts: Vec<Vec4>,
-    /// Each leaf's triangles transposed for the four-lane test, by [`Leaf::id`] (144 bytes a
-    /// leaf; the traversal reads these, `tris` and `verts` serve the hit record and the exact
-    /// path of edge functions that are exactly zero).
-    blocks: Vec<TriangleBlock>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
     /// Analytic shapes, tested directly.
@@ -185,7 +181,7 @@ impl SceneGeometry {
                 Shape::LevelSet(_) => analytic.push(Analytic::LevelSet { shape: si as u32 }),
             }
         }
-        if prims.len() > MAX_PRIMITIVES as usize {
+        if prims.len() > (u32::MAX / 2) as usize {
             return Err(GeometryError::InvalidShape {
                 shape: 0,
                 message: "too many primitives".to_string(),
@@ -227,24 +223,11 @@ impl SceneGeometry {
                 })
             })
             .collect();
-        let blocks = bvh
-            .leaves()
-            .iter()
-            .map(|leaf| {
-                let order = &bvh.order()[leaf.first as usize..(leaf.first + leaf.count) as usize];
-                let tris: Vec<[Vec3; 3]> = order
-                    .iter()
-                    .map(|&i| corners[i as usize].map(|v| positions[v as usize]))
-                    .collect();
-                TriangleBlock::new(&tris)
-            })
-            .collect();
         Ok(SceneGeometry {
             bvh,
             prims: ordered,
             tris,
             verts,
-            blocks,
             empty,
             analytic,
             shapes,
@@ -292,32 +275,15 @@ impl SceneGeometry {
         }
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
-            self.bvh.traverse_leaves(
-                ray,
-                closest,
-                #[inline(always)]
-                |leaf, t_max| {
-                    let h = sr.intersect4(self.block(leaf), (1 << leaf.count) - 1, t_max);
-                    if h.unsure != 0 {
-                        // An edge function exactly zero: the leaf one triangle at a time, with
-                        // the exact path.
-                        let mut t_max = t_max;
-                        for slot in leaf.first..leaf.first + leaf.count {
-                            if let Some(h) = sr.intersect(&self.triangle(slot as usize), t_max) {
-                                best = Some(Best::Tri(slot as usize, h));
-                                t_max = h.t;
-                            }
-                        }
-                        t_max
-                    } else if h.hit != 0 {
-                        let (lane, h) = h.nearest();
-                        best = Some(Best::Tri(leaf.first as usize + lane, h));
+            self.bvh.traverse(ray, closest, |slot, t_max| {
+                match sr.intersect(&self.triangle(slot as usize), t_max) {
+                    Some(h) => {
+                        best = Some(Best::Tri(slot as usize, h));
                         h.t
-                    } else {
-                        t_max
                     }
-                },
-            );
+                    None => t_max,
+                }
+            });
         }
         best.map(|b| self.make_hit(ray, b))
     }
@@ -343,35 +309,16 @@ impl SceneGeometry {
         let mut found = false;
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
             let sr = ShearedRay::new(ray);
-            self.bvh.traverse_leaves(
-                ray,
-                t_max,
-                #[inline(always)]
-                |leaf, t| {
-                    let h = sr.intersect4(self.block(leaf), (1 << leaf.count) - 1, t);
-                    found = h.hit != 0
-                        || (h.unsure != 0
-                            && (leaf.first..leaf.first + leaf.count).any(|slot| {
-                                sr.intersect(&self.triangle(slot as usize), t).is_some()
-                            }));
-                    if found {
-                        0.0
-                    } else {
-                        t
-                    }
-                },
-            );
+            self.bvh.traverse(ray, t_max, |slot, t| {
+                if sr.intersect(&self.triangle(slot as usize), t).is_some() {
+                    found = true;
+                    0.0
+                } else {
+                    t
+                }
+            });
         }
         found
-    }
-
-    /// The four-lane block of `leaf`'s triangles.
-    #[inline(always)]
-    fn block(&self, leaf: Leaf) -> &TriangleBlock {
-        debug_assert!((leaf.id as usize) < self.blocks.len());
-        // SAFETY: the traversal reports leaves of `bvh`, whose ids are below
-        // `bvh.leaves().len() == blocks.len()`.
-        unsafe { self.blocks.get_unchecked(leaf.id as usize) }
     }
 
     /// The triangle at BVH position `slot`, transposed for the triangle test.

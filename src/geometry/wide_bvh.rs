@@ -26,27 +26,8 @@ use obvhs::{Boundable, BvhBuildParams};
 
 use crate::math::{Ray, Vec3};
 
-/// Leaves hold at most this many primitives (the four lanes of the leaf test in
-/// [`super::bvh`]).
-pub const MAX_LEAF_PRIMITIVES: u32 = 4;
-
-/// The most primitives a hierarchy takes (a leaf's id and count share 32 bits).
-pub const MAX_PRIMITIVES: u32 = u32::MAX >> LEAF_COUNT_BITS;
-
-/// Bits of [`Node8::count`] holding a leaf's primitive count (the rest hold its id).
-const LEAF_COUNT_BITS: u32 = 3;
-const LEAF_COUNT_MASK: u32 = (1 << LEAF_COUNT_BITS) - 1;
-
-/// A leaf of the hierarchy: its primitives are the positions `first..first + count`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Leaf {
-    /// Index of the leaf in [`WideBvh::leaves`] (numbered in build order).
-    pub id: u32,
-    /// Its first primitive position.
-    pub first: u32,
-    /// Its number of primitives (1 to [`MAX_LEAF_PRIMITIVES`]).
-    pub count: u32,
-}
+/// Leaves hold at most this many primitives.
+pub const MAX_LEAF_PRIMITIVES: u32 = 2;
 
 /// Entries of the traversal stack kept on the machine stack; deeper trees spill to the heap.
 const STACK_INLINE: usize = 48;
@@ -65,8 +46,7 @@ struct Node8 {
     planes: [[Vec4; 2]; 6],
     /// Child node index, or the first primitive of a leaf.
     child: [u32; WIDTH],
-    /// For a leaf child, its primitive count in the low [`LEAF_COUNT_BITS`] bits and its
-    /// [`Leaf::id`] above them (0 for an inner child or an empty slot).
+    /// Primitives of a leaf child (0 for an inner child or an empty slot).
     count: [u32; WIDTH],
 }
 
@@ -94,8 +74,6 @@ pub struct WideBvh {
     nodes: Vec<Node8>,
     /// Original primitive index of each position.
     order: Vec<u32>,
-    /// Every leaf, by id.
-    leaves: Vec<Leaf>,
     depth: usize,
     /// The CPU runs AVX2 (detected when the hierarchy is built): the 8-wide node test.
     avx2: bool,
@@ -407,7 +385,7 @@ impl WideBvh {
                 node.planes[k + 3][0][0] = f32::INFINITY;
             }
             node.child[0] = first;
-            node.count[0] = out.push_leaf(first);
+            node.count[0] = out.order.len() as u32 - first;
             out.nodes.push(node);
             out.depth = 1;
             return out;
@@ -428,7 +406,7 @@ impl WideBvh {
                     let first = out.order.len() as u32;
                     collect_primitives(&bvh2, c, &mut out.order);
                     node.child[slot] = first;
-                    node.count[slot] = out.push_leaf(first);
+                    node.count[slot] = out.order.len() as u32 - first;
                 } else {
                     let index = out.nodes.len();
                     out.nodes.push(Node8::empty());
@@ -439,19 +417,6 @@ impl WideBvh {
             out.nodes[w] = node;
         }
         out
-    }
-
-    /// Records the leaf of the positions from `first` to the end of `order`; returns its
-    /// [`Node8::count`] entry.
-    fn push_leaf(&mut self, first: u32) -> u32 {
-        let leaf = Leaf {
-            id: self.leaves.len() as u32,
-            first,
-            count: self.order.len() as u32 - first,
-        };
-        debug_assert!(leaf.count >= 1 && leaf.count <= LEAF_COUNT_MASK);
-        self.leaves.push(leaf);
-        leaf.count | leaf.id << LEAF_COUNT_BITS
     }
 
     /// Original primitive index of each position the traversal reports.
@@ -471,43 +436,22 @@ impl WideBvh {
     /// `t_max` (the distance of a closer hit, or the same value). Returns early when
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
     #[inline]
-    pub fn traverse(&self, ray: &Ray, t_max: f32, mut primitive: impl FnMut(u32, f32) -> f32) {
-        self.traverse_leaves(ray, t_max, |leaf, mut t_max| {
-            for i in leaf.first..leaf.first + leaf.count {
-                t_max = primitive(i, t_max);
-                if t_max <= 0.0 {
-                    break;
-                }
-            }
-            t_max
-        });
-    }
-
-    /// [`Self::traverse`] a leaf at a time: `leaf(leaf, t_max)` is called for every leaf the
-    /// ray enters, nearest first, and returns the new `t_max` (≤ 0 ends the traversal).
-    #[inline]
-    pub fn traverse_leaves(&self, ray: &Ray, t_max: f32, leaf: impl FnMut(Leaf, f32) -> f32) {
+    pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         if self.nodes.is_empty() {
             return;
         }
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only when the CPU reported AVX2.
-            unsafe { self.traverse_avx2(ray, t_max, leaf) };
+            unsafe { self.traverse_avx2(ray, t_max, primitive) };
             return;
         }
         let slab = SlabRay::new(ray);
         if self.shallow() {
-            self.traverse_with::<_, false>(&slab, t_max, leaf);
+            self.traverse_with::<_, false>(&slab, t_max, primitive);
         } else {
-            self.traverse_with::<_, true>(&slab, t_max, leaf);
+            self.traverse_with::<_, true>(&slab, t_max, primitive);
         }
-    }
-
-    /// The leaves, by [`Leaf::id`].
-    #[must_use]
-    pub fn leaves(&self) -> &[Leaf] {
-        &self.leaves
     }
 
     /// True when the traversal stack never holds more than its inline entries: a node pushes
@@ -524,13 +468,13 @@ impl WideBvh {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, leaf: impl FnMut(Leaf, f32) -> f32) {
+    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
         if self.shallow() {
-            self.traverse_with::<_, false>(&wide, t_max, leaf);
+            self.traverse_with::<_, false>(&wide, t_max, primitive);
         } else {
-            self.traverse_with::<_, true>(&wide, t_max, leaf);
+            self.traverse_with::<_, true>(&wide, t_max, primitive);
         }
     }
 
@@ -550,7 +494,7 @@ impl WideBvh {
         &self,
         slab: &T,
         mut t_max: f32,
-        mut leaf: impl FnMut(Leaf, f32) -> f32,
+        mut primitive: impl FnMut(u32, f32) -> f32,
     ) {
         let mut stack_entries = MaybeUninit::uninit();
         let mut stack = Stack::<SPILL>::new(&mut stack_entries);
@@ -560,20 +504,15 @@ impl WideBvh {
         let mut order = [(0u32, 0.0f32); WIDTH];
         let mut inner = [Entry::default(); WIDTH];
         // Tests the primitives of the leaf in slot `$slot` of `node`; returns from the
-        // traversal when `leaf` ends it.
+        // traversal when `primitive` ends it.
         macro_rules! leaf {
             ($node:expr, $slot:expr) => {{
-                let c = $node.count[$slot];
-                t_max = leaf(
-                    Leaf {
-                        id: c >> LEAF_COUNT_BITS,
-                        first: $node.child[$slot],
-                        count: c & LEAF_COUNT_MASK,
-                    },
-                    t_max,
-                );
-                if t_max <= 0.0 {
-                    return;
+                let first = $node.child[$slot];
+                for i in first..first + $node.count[$slot] {
+                    t_max = primitive(i, t_max);
+                    if t_max <= 0.0 {
+                        return;
+                    }
                 }
             }};
         }
@@ -888,14 +827,14 @@ mod tests {
             let ray = Ray::new(rng.vec() * 1.5, rng.vec().normalize_or(Vec3::X));
             let slab = SlabRay::new(&ray);
             let mut seen = (Vec::new(), Vec::new());
-            let shorten = |leaf: Leaf, t: f32| if leaf.first % 3 == 0 { t * 0.9 } else { t };
-            bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |leaf, t| {
-                seen.0.push((leaf, t.to_bits()));
-                shorten(leaf, t)
+            let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
+            bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t| {
+                seen.0.push((pos, t.to_bits()));
+                shorten(pos, t)
             });
-            bvh.traverse_with::<_, false>(&slab, f32::INFINITY, |leaf, t| {
-                seen.1.push((leaf, t.to_bits()));
-                shorten(leaf, t)
+            bvh.traverse_with::<_, false>(&slab, f32::INFINITY, |pos, t| {
+                seen.1.push((pos, t.to_bits()));
+                shorten(pos, t)
             });
             assert_eq!(seen.0, seen.1, "ray {i}");
         }
