@@ -9,7 +9,8 @@
 //! medium, traced only up to the sampled distance). Times are on-CPU times of the thread, best
 //! of five passes. `RAY_CASTING_SUBDIV=n` changes the icosphere's subdivision level (default 5),
 //! `RAY_CASTING_RAYS=n` the number of rays per set (default 200,000; fewer for callgrind).
-//! `RAY_CASTING_DUMP=path` writes the mesh and the three ray sets to `path` (little-endian:
+//! `RAY_CASTING_SET=k` times only set `k` (0, 1, 2 in the order above; for per-set callgrind
+//! counts). `RAY_CASTING_DUMP=path` writes the mesh and the three ray sets to `path` (little-endian:
 //! `u32` vertex count, `f32` xyz per vertex, `u32` triangle count, `u32` indices per
 //! triangle, `u32` set count, then per set `u32` ray count and `f32` origin xyz, direction xyz,
 //! `t_max` per ray) for the peer benches in `tools/peers/embree/`.
@@ -124,7 +125,13 @@ fn dump(
         }
     }
     u32s(&mut out, sets.len() as u32);
-    for set in sets {
+    let only: Option<usize> = std::env::var("RAY_CASTING_SET")
+        .ok()
+        .and_then(|s| s.parse().ok());
+    for (k, set) in sets.into_iter().enumerate() {
+        if only.is_some_and(|o| o != k) {
+            continue;
+        }
         u32s(&mut out, set.rays.len() as u32);
         for (r, t) in &set.rays {
             for c in [r.o.x, r.o.y, r.o.z, r.d.x, r.d.y, r.d.z, *t] {
@@ -174,7 +181,13 @@ fn main() {
         dump(&path, &mesh_positions, &mesh_indices, &sets).expect("ray dump");
         println!("wrote the mesh and the rays to {path}");
     }
-    for set in sets {
+    let only: Option<usize> = std::env::var("RAY_CASTING_SET")
+        .ok()
+        .and_then(|s| s.parse().ok());
+    for (k, set) in sets.into_iter().enumerate() {
+        if only.is_some_and(|o| o != k) {
+            continue;
+        }
         let (v, hv) = rate(&set.rays, 5, |r, t| geometry.intersect(r, t).is_some());
         let (o, _) = rate(&set.rays, 5, |r, t| geometry.occluded(r, t));
         let (s, hs) = rate(&set.rays, 5, |r, t| {

@@ -81,7 +81,10 @@ int main(int argc, char **argv) {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
 #endif
+  // RAY_CASTING_SET=k: only set k (as velour's bench; for per-set callgrind counts).
+  const char *only = getenv("RAY_CASTING_SET");
   for (uint32_t k = 0; k < nsets; k++) {
+    if (only && (uint32_t)atoi(only) != k) continue;
     const std::vector<float> &s = sets[k];
     size_t n = s.size() / 7;
     double best_c = INFINITY, best_o = INFINITY, tsum = 0;
