@@ -9,6 +9,11 @@
 //! medium, traced only up to the sampled distance). Times are on-CPU times of the thread, best
 //! of five passes. `RAY_CASTING_SUBDIV=n` changes the icosphere's subdivision level (default 5),
 //! `RAY_CASTING_RAYS=n` the number of rays per set (default 200,000; fewer for callgrind).
+//! `RAY_CASTING_SET=k` times only set `k` (0, 1, 2 in the order above; for per-set callgrind
+//! counts). `RAY_CASTING_DUMP=path` writes the mesh and the three ray sets to `path` (little-endian:
+//! `u32` vertex count, `f32` xyz per vertex, `u32` triangle count, `u32` indices per
+//! triangle, `u32` set count, then per set `u32` ray count and `f32` origin xyz, direction xyz,
+//! `t_max` per ray) for the peer benches in `tools/peers/embree/`.
 
 use std::time::Duration;
 
@@ -98,6 +103,45 @@ fn rate(rays: &[(Ray, f32)], repeats: usize, mut f: impl FnMut(&Ray, f32) -> boo
     (rays.len() as f64 / best, hits)
 }
 
+/// Writes the mesh and the ray sets for the peer benches (format in the module docs).
+fn dump(
+    path: &str,
+    positions: &[Vec3],
+    indices: &[[u32; 3]],
+    sets: &[RaySet],
+) -> std::io::Result<()> {
+    let mut out: Vec<u8> = Vec::new();
+    let u32s = |out: &mut Vec<u8>, v: u32| out.extend_from_slice(&v.to_le_bytes());
+    u32s(&mut out, positions.len() as u32);
+    for p in positions {
+        for c in [p.x, p.y, p.z] {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    u32s(&mut out, indices.len() as u32);
+    for t in indices {
+        for i in t {
+            u32s(&mut out, *i);
+        }
+    }
+    u32s(&mut out, sets.len() as u32);
+    let only: Option<usize> = std::env::var("RAY_CASTING_SET")
+        .ok()
+        .and_then(|s| s.parse().ok());
+    for (k, set) in sets.into_iter().enumerate() {
+        if only.is_some_and(|o| o != k) {
+            continue;
+        }
+        u32s(&mut out, set.rays.len() as u32);
+        for (r, t) in &set.rays {
+            for c in [r.o.x, r.o.y, r.o.z, r.d.x, r.d.y, r.d.z, *t] {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, out)
+}
+
 fn main() {
     let subdiv = std::env::var("RAY_CASTING_SUBDIV")
         .ok()
@@ -112,6 +156,7 @@ fn main() {
             RtTriangle::new(a, b, c)
         })
         .collect();
+    let (mesh_positions, mesh_indices) = (mesh.positions.clone(), mesh.indices.clone());
     let geometry = SceneGeometry::build(vec![Shape::Mesh(mesh)]).expect("icosphere geometry");
     let stock = build_cwbvh(
         &triangles,
@@ -131,7 +176,18 @@ fn main() {
         "{:<28} {:>14} {:>14} {:>14} {:>10}",
         "rays", "velour closest", "velour occl.", "obvhs closest", "velour/obvhs"
     );
-    for set in ray_sets(n) {
+    let sets = ray_sets(n);
+    if let Ok(path) = std::env::var("RAY_CASTING_DUMP") {
+        dump(&path, &mesh_positions, &mesh_indices, &sets).expect("ray dump");
+        println!("wrote the mesh and the rays to {path}");
+    }
+    let only: Option<usize> = std::env::var("RAY_CASTING_SET")
+        .ok()
+        .and_then(|s| s.parse().ok());
+    for (k, set) in sets.into_iter().enumerate() {
+        if only.is_some_and(|o| o != k) {
+            continue;
+        }
         let (v, hv) = rate(&set.rays, 5, |r, t| geometry.intersect(r, t).is_some());
         let (o, _) = rate(&set.rays, 5, |r, t| geometry.occluded(r, t));
         let (s, hs) = rate(&set.rays, 5, |r, t| {

@@ -677,8 +677,15 @@ fn collect_primitives(bvh2: &Bvh2, i: usize, order: &mut Vec<u32>) {
     }
 }
 
-/// Up to four bvh2 nodes that become the children of the wide node for bvh2 node `i`: its
-/// two children, then repeatedly the largest inner one (that is not to become a leaf) opened.
+/// Subtrees of at most this many primitives are opened first when a node collects its
+/// children: left as children, they would become nodes with two or three of their eight slots
+/// used (on the 20k icosphere, 2,781 nodes instead of 3,950, about 67 % of the slots used
+/// instead of 51 %).
+const SMALL_SUBTREE: u32 = 6;
+
+/// Up to eight bvh2 nodes that become the children of the wide node for bvh2 node `i`: its
+/// two children, then repeatedly an inner one (that is not to become a leaf) opened: the
+/// largest of the small subtrees ([`SMALL_SUBTREE`]) while there are any, else the largest.
 fn open_children(bvh2: &Bvh2, i: usize, counts: &[u32]) -> Vec<usize> {
     let first = bvh2.nodes[i].first_index as usize;
     let mut children = vec![first, first + 1];
@@ -688,10 +695,13 @@ fn open_children(bvh2: &Bvh2, i: usize, counts: &[u32]) -> Vec<usize> {
             .enumerate()
             .filter(|(_, &c)| bvh2.nodes[c].prim_count == 0 && counts[c] > MAX_LEAF_PRIMITIVES)
             .max_by(|(_, &a), (_, &b)| {
-                bvh2.nodes[a]
-                    .aabb
-                    .half_area()
-                    .total_cmp(&bvh2.nodes[b].aabb.half_area())
+                let small = |c: usize| counts[c] <= SMALL_SUBTREE;
+                small(a).cmp(&small(b)).then(
+                    bvh2.nodes[a]
+                        .aabb
+                        .half_area()
+                        .total_cmp(&bvh2.nodes[b].aabb.half_area()),
+                )
             })
             .map(|(k, _)| k);
         let Some(k) = candidate else { break };
