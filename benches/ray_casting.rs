@@ -124,14 +124,9 @@ fn dump(
             u32s(&mut out, *i);
         }
     }
+    // Every set, whatever RAY_CASTING_SET selects for timing: the Embree peer selects by index.
     u32s(&mut out, sets.len() as u32);
-    let only: Option<usize> = std::env::var("RAY_CASTING_SET")
-        .ok()
-        .and_then(|s| s.parse().ok());
-    for (k, set) in sets.into_iter().enumerate() {
-        if only.is_some_and(|o| o != k) {
-            continue;
-        }
+    for set in sets {
         u32s(&mut out, set.rays.len() as u32);
         for (r, t) in &set.rays {
             for c in [r.o.x, r.o.y, r.o.z, r.d.x, r.d.y, r.d.z, *t] {
