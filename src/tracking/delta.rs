@@ -416,6 +416,40 @@ mod tests {
     use crate::majorant::Bounds;
     use crate::tracking::test_support::{test_density, test_segments, Stream, TestBounds};
 
+    /// `choice`'s flight over the test segments tracked in RGB (stream `u`, statistics `s1`) and
+    /// in one scalar (`v`, `s2`), each with point bounds made by `bounds`.
+    #[allow(clippy::too_many_arguments)]
+    fn rgb_and_grey<P: PointBounds>(
+        choice: &HeroChoice,
+        coeff: &DensityCoefficients,
+        grey: &Coefficients<f32>,
+        bounds: impl Fn() -> P,
+        u: &mut Stream,
+        v: &mut Stream,
+        s1: &mut TrackingStats,
+        s2: &mut TrackingStats,
+    ) -> (Flight, Flight) {
+        let rgb = coeff.rgb();
+        (
+            choice.track(
+                test_segments(),
+                &rgb,
+                test_density,
+                bounds(),
+                &mut || u.next(),
+                s1,
+            ),
+            choice.track(
+                test_segments(),
+                grey,
+                test_density,
+                bounds(),
+                &mut || v.next(),
+                s2,
+            ),
+        )
+    }
+
     #[test]
     fn grey_flights_are_the_rgb_flights_bit_for_bit() {
         let coeffs = [
@@ -448,44 +482,11 @@ mod tests {
                         let _ = v.next();
                         let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
                         let local = seed % 2 == 0;
+                        let (u, v, s1, s2) = (&mut u, &mut v, &mut s1, &mut s2);
                         let (rgb, scalar) = if local {
-                            (
-                                choice.track(
-                                    test_segments(),
-                                    &coeff.rgb(),
-                                    test_density,
-                                    TestBounds,
-                                    &mut || u.next(),
-                                    &mut s1,
-                                ),
-                                choice.track(
-                                    test_segments(),
-                                    &grey,
-                                    test_density,
-                                    TestBounds,
-                                    &mut || v.next(),
-                                    &mut s2,
-                                ),
-                            )
+                            rgb_and_grey(&choice, coeff, &grey, || TestBounds, u, v, s1, s2)
                         } else {
-                            (
-                                choice.track(
-                                    test_segments(),
-                                    &coeff.rgb(),
-                                    test_density,
-                                    NoPointBounds,
-                                    &mut || u.next(),
-                                    &mut s1,
-                                ),
-                                choice.track(
-                                    test_segments(),
-                                    &grey,
-                                    test_density,
-                                    NoPointBounds,
-                                    &mut || v.next(),
-                                    &mut s2,
-                                ),
-                            )
+                            rgb_and_grey(&choice, coeff, &grey, || NoPointBounds, u, v, s1, s2)
                         };
                         let case =
                             format!("coeff {ci}, decompose {decompose}, beta {bi}, seed {seed}");

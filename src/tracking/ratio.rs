@@ -223,6 +223,44 @@ mod tests {
     use super::*;
     use crate::tracking::test_support::{test_density, test_segments, Stream, TestBounds};
 
+    /// The transmittance over the test segments estimated in RGB (stream `u`, statistics `s1`)
+    /// and in one scalar (`v`, `s2`) with `mode`, each with point bounds made by `bounds`.
+    #[allow(clippy::too_many_arguments)]
+    fn rgb_and_grey<P: PointBounds>(
+        coeff: &DensityCoefficients,
+        grey: &Coefficients<f32>,
+        mode: TransmittanceMode,
+        bounds: impl Fn() -> P,
+        u: &mut Stream,
+        v: &mut Stream,
+        s1: &mut TrackingStats,
+        s2: &mut TrackingStats,
+    ) -> (Rgb, f32) {
+        let rgb = coeff.rgb();
+        (
+            estimate(
+                test_segments(),
+                coeff,
+                &rgb,
+                test_density,
+                bounds(),
+                mode,
+                &mut || u.next(),
+                s1,
+            ),
+            estimate(
+                test_segments(),
+                coeff,
+                grey,
+                test_density,
+                bounds(),
+                mode,
+                &mut || v.next(),
+                s2,
+            ),
+        )
+    }
+
     #[test]
     fn grey_transmittance_is_the_rgb_estimate_bit_for_bit() {
         let coeffs = [
@@ -251,52 +289,11 @@ mod tests {
                 for seed in 0..300u64 {
                     let (mut u, mut v) = (Stream::new(seed), Stream::new(seed));
                     let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
+                    let (u, v, s1, s2) = (&mut u, &mut v, &mut s1, &mut s2);
                     let (rgb, scalar) = if seed % 2 == 0 {
-                        (
-                            estimate(
-                                test_segments(),
-                                coeff,
-                                &coeff.rgb(),
-                                test_density,
-                                TestBounds,
-                                mode,
-                                &mut || u.next(),
-                                &mut s1,
-                            ),
-                            estimate(
-                                test_segments(),
-                                coeff,
-                                &grey,
-                                test_density,
-                                TestBounds,
-                                mode,
-                                &mut || v.next(),
-                                &mut s2,
-                            ),
-                        )
+                        rgb_and_grey(coeff, &grey, mode, || TestBounds, u, v, s1, s2)
                     } else {
-                        (
-                            estimate(
-                                test_segments(),
-                                coeff,
-                                &coeff.rgb(),
-                                test_density,
-                                NoPointBounds,
-                                mode,
-                                &mut || u.next(),
-                                &mut s1,
-                            ),
-                            estimate(
-                                test_segments(),
-                                coeff,
-                                &grey,
-                                test_density,
-                                NoPointBounds,
-                                mode,
-                                &mut || v.next(),
-                                &mut s2,
-                            ),
-                        )
+                        rgb_and_grey(coeff, &grey, mode, || NoPointBounds, u, v, s1, s2)
                     };
                     let case = format!("coeff {ci}, {mode:?}, seed {seed}");
                     assert_eq!(rgb, Rgb::splat(scalar), "{case}");
