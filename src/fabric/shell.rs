@@ -508,7 +508,7 @@ impl FabricShell {
 
     /// The tetrahedron containing world point `p` and its barycentrics; `hint` (the last
     /// tetrahedron found) is tried first and updated.
-    #[inline]
+    #[inline(always)]
     fn find(&self, p: Vec3, hint: &mut u32) -> Option<(usize, Vec3)> {
         if let Some(t) = self.locators.get(*hint as usize) {
             let mut l = t.bary(p);
@@ -530,6 +530,14 @@ impl FabricShell {
                 next = n.towards(l);
             }
         }
+        self.find_in_cells(p, hint)
+    }
+
+    /// The search of [`FabricShell::find`] in the point-location grid's cell of `p`, after
+    /// the last tetrahedron and its neighbours missed. Out of line: [`FabricShell::find`]'s
+    /// common path, inlined into the lookups, returns its result in registers.
+    #[inline(never)]
+    fn find_in_cells(&self, p: Vec3, hint: &mut u32) -> Option<(usize, Vec3)> {
         let rel = (p - self.cell_origin) * self.inv_cell;
         if rel.min_element() < 0.0 || !rel.is_finite() {
             return None;
@@ -973,11 +981,16 @@ impl FabricShell {
     }
 }
 
-/// `x` modulo `n` (`n > 0`), without a division when `x` is already in `[0, n)`.
+/// `x` modulo `n` (`n > 0`), without a division when `x` lies within one period of
+/// `[0, n)` (a tetrahedron's patch coordinates start in the tile and span a few voxels).
 #[inline(always)]
 fn wrap_axis(x: i32, n: i32) -> i32 {
     if (0..n).contains(&x) {
         x
+    } else if x >= n && x - n < n {
+        x - n
+    } else if x < 0 && x >= -n {
+        x + n
     } else {
         x.rem_euclid(n)
     }
@@ -1268,6 +1281,20 @@ mod tests {
     };
     use crate::math::Vec2;
     use crate::sampling::Rng;
+
+    /// The division-free branches of `wrap_axis` agree with `rem_euclid` within a period
+    /// of the tile and beyond it.
+    #[test]
+    fn wrap_axis_matches_rem_euclid() {
+        for n in [1, 2, 3, 64, 65] {
+            for x in (-3 * n - 2)..(3 * n + 2) {
+                assert_eq!(wrap_axis(x, n), x.rem_euclid(n), "x {x} n {n}");
+            }
+            for x in [i32::MIN, i32::MIN + 1, i32::MAX - 1, i32::MAX] {
+                assert_eq!(wrap_axis(x, n), x.rem_euclid(n), "x {x} n {n}");
+            }
+        }
+    }
 
     /// The flat tables give the accessor's trilinear densities and nearest tangents bit for
     /// bit, at random patch points over several tiles (negative ones too), below, inside and
