@@ -203,6 +203,9 @@ pub struct FabricShell {
     flat_density: Vec<f32>,
     /// The patch's tangents on the layout of `flat_density`.
     flat_tangent: Vec<Vec3>,
+    /// The patch's yarn ids on the layout of `flat_density` (read once per scattering
+    /// vertex, [`FabricShell::fibre_at`]).
+    flat_id: Vec<f32>,
 }
 
 /// The fibre frame of a voxel: world tangent and yarn-family id (0 warp, 1 weft, 2 pile).
@@ -384,12 +387,14 @@ impl FabricShell {
             support_bits: Vec::new(),
             flat_density: Vec::new(),
             flat_tangent: Vec::new(),
+            flat_id: Vec::new(),
         };
         shell.link_neighbours(&tet_keys);
         shell.build_cells();
         shell.support_max = support_max(&shell.patch, dims, layer_lo);
         shell.support_bits = occupancy_bits(&shell.support_max);
-        (shell.flat_density, shell.flat_tangent) = flat_channels(&shell.patch, dims, layer_lo);
+        (shell.flat_density, shell.flat_tangent, shell.flat_id) =
+            flat_channels(&shell.patch, dims, layer_lo);
         Ok(shell)
     }
 
@@ -508,7 +513,7 @@ impl FabricShell {
 
     /// The tetrahedron containing world point `p` and its barycentrics; `hint` (the last
     /// tetrahedron found) is tried first and updated.
-    #[inline]
+    #[inline(always)]
     fn find(&self, p: Vec3, hint: &mut u32) -> Option<(usize, Vec3)> {
         if let Some(t) = self.locators.get(*hint as usize) {
             let mut l = t.bary(p);
@@ -530,6 +535,14 @@ impl FabricShell {
                 next = n.towards(l);
             }
         }
+        self.find_in_cells(p, hint)
+    }
+
+    /// The search of [`FabricShell::find`] in the point-location grid's cell of `p`, after
+    /// the last tetrahedron and its neighbours missed. Out of line: [`FabricShell::find`]'s
+    /// common path, inlined into the lookups, returns its result in registers.
+    #[inline(never)]
+    fn find_in_cells(&self, p: Vec3, hint: &mut u32) -> Option<(usize, Vec3)> {
         let rel = (p - self.cell_origin) * self.inv_cell;
         if rel.min_element() < 0.0 || !rel.is_finite() {
             return None;
@@ -810,21 +823,48 @@ impl FabricShell {
     }
 
     /// Fibre tangent (world space) and yarn id of the voxel nearest to world point `p`.
+    ///
+    /// Tangent and id are read from the shell's flat tables where the nearest voxel is a
+    /// corner of the lookup's cell inside the tables' layers (the same values, bit for bit,
+    /// as through the patch's accessors, which read the others).
     #[must_use]
     pub fn fibre_at(&self, p: Vec3) -> Option<FibreVoxel> {
         let mut hint = u32::MAX;
         let (i, l) = self.find(p, &mut hint)?;
         let t = &self.tets[i];
         let q = t.q0 + t.bary_to_q * l;
-        let ijk = self.wrap((q + Vec3::splat(0.5)).floor().as_ivec3());
-        let mut tangents = self.patch.accessor(TANGENT);
-        let tangent_patch = super::tangent_near(q, |c| tangents.value_vec3(self.wrap(c)));
-        let id = self.patch.accessor(ID).value(ijk);
+        let (tangent_patch, id) = self.fibre_voxel_at_q(q);
         let world = t.tangent_to_world * tangent_patch;
         Some(FibreVoxel {
             tangent: world.try_normalize().unwrap_or(Vec3::X),
             id,
         })
+    }
+
+    /// The patch-unit tangent ([`super::tangent_near`]) and the yarn id of the voxel nearest
+    /// to patch index point `q`: from the flat tables where that voxel is a corner of the
+    /// cell of `floor(q)` within their layers, else through the patch's accessors.
+    #[inline]
+    fn fibre_voxel_at_q(&self, q: Vec3) -> (Vec3, f32) {
+        let v = super::floor_ivec3(q);
+        let n = super::floor_ivec3(q + Vec3::splat(0.5)) - v;
+        if let Some((_, f)) = self.cell_at(v) {
+            if (n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
+                let mut tangents = self.patch.accessor(TANGENT);
+                let tangent = self.flat_tangent_near(q, v, f, q - v.as_vec3(), &mut tangents);
+                let rx = (self.dims.x + 1) as usize;
+                let layer = rx * (self.dims.y + 1) as usize;
+                let o = n.x as usize + n.y as usize * rx + n.z as usize * layer;
+                if let Some(&id) = self.flat_id.get(f + o) {
+                    return (tangent, id);
+                }
+            }
+        }
+        let mut tangents = self.patch.accessor(TANGENT);
+        let tangent = super::tangent_near(q, |c| tangents.value_vec3(self.wrap(c)));
+        let ijk = self.wrap((q + Vec3::splat(0.5)).floor().as_ivec3());
+        let id = self.patch.accessor(ID).value(ijk);
+        (tangent, id)
     }
 
     /// The closed boundary of the shell (bottom, top and side walls), outward-wound.
@@ -973,11 +1013,16 @@ impl FabricShell {
     }
 }
 
-/// `x` modulo `n` (`n > 0`), without a division when `x` is already in `[0, n)`.
+/// `x` modulo `n` (`n > 0`), without a division when `x` lies within one period of
+/// `[0, n)` (a tetrahedron's patch coordinates start in the tile and span a few voxels).
 #[inline(always)]
 fn wrap_axis(x: i32, n: i32) -> i32 {
     if (0..n).contains(&x) {
         x
+    } else if x >= n && x - n < n {
+        x - n
+    } else if x < 0 && x >= -n {
+        x + n
     } else {
         x.rem_euclid(n)
     }
@@ -1170,27 +1215,30 @@ fn support_max(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> Vec<f32> {
     out
 }
 
-/// The shell's flat copies of the patch's density (first component) and tangent channels:
+/// The shell's flat copies of the patch's density (first component), tangent and id channels:
 /// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, `(dims.x + 1) × (dims.y + 1)` voxels a
 /// layer (x fastest), voxel `(x, y)` holding the patch's `(x mod dims.x, y mod dims.y)`,
 /// read through accessors (the values lookups read, bit for bit).
-fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<f32>, Vec<Vec3>) {
+fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<f32>, Vec<Vec3>, Vec<f32>) {
     let (rx, ry, nz) = (dims.x + 1, dims.y + 1, dims.z + 3);
     let n = (rx * ry * nz) as usize;
     let mut density = Vec::with_capacity(n);
     let mut tangent = Vec::with_capacity(n);
+    let mut id = Vec::with_capacity(n);
     let mut dacc = grid.accessor(DENSITY);
     let mut tacc = grid.accessor(TANGENT);
+    let mut iacc = grid.accessor(ID);
     for z in 0..nz {
         for y in 0..ry {
             for x in 0..rx {
                 let ijk = IVec3::new(x % dims.x, y % dims.y, z + layer_lo - 1);
                 density.push(dacc.value(ijk));
                 tangent.push(tacc.value_vec3(ijk));
+                id.push(iacc.value(ijk));
             }
         }
     }
-    (density, tangent)
+    (density, tangent, id)
 }
 
 /// One bit per entry of `support`, set where the entry is above 0 (bit `k & 63` of word
@@ -1269,6 +1317,20 @@ mod tests {
     use crate::math::Vec2;
     use crate::sampling::Rng;
 
+    /// The division-free branches of `wrap_axis` agree with `rem_euclid` within a period
+    /// of the tile and beyond it.
+    #[test]
+    fn wrap_axis_matches_rem_euclid() {
+        for n in [1, 2, 3, 64, 65] {
+            for x in (-3 * n - 2)..(3 * n + 2) {
+                assert_eq!(wrap_axis(x, n), x.rem_euclid(n), "x {x} n {n}");
+            }
+            for x in [i32::MIN, i32::MIN + 1, i32::MAX - 1, i32::MAX] {
+                assert_eq!(wrap_axis(x, n), x.rem_euclid(n), "x {x} n {n}");
+            }
+        }
+    }
+
     /// The flat tables give the accessor's trilinear densities and nearest tangents bit for
     /// bit, at random patch points over several tiles (negative ones too), below, inside and
     /// above the shell's layers, a quarter of them on the voxel lattice and half-lattice
@@ -1342,5 +1404,65 @@ mod tests {
             occupied > 50_000 && tangents > 20_000,
             "{occupied} {tangents}"
         );
+    }
+
+    /// The nearest voxel's tangent and yarn id of `fibre_voxel_at_q` (flat tables where they
+    /// hold the voxel) are the accessors' bit for bit, at random patch points over several
+    /// tiles, below, inside and above the shell's layers, a quarter of them on the
+    /// half-lattice (nearest voxels on ties).
+    #[test]
+    fn fibre_voxel_reads_the_accessor_values_bit_for_bit() {
+        let yarn = YarnParams::preset("cotton1").expect("preset");
+        let mut wp = WeaveParams::new(WeavePattern::from_name("twill").expect("twill"), yarn);
+        wp.repeats = [1, 1];
+        let fp = generate_patch(&wp, 3).expect("patch");
+        let vp = voxelise(&fp, 32, &VoxeliseOptions::default()).expect("voxelise");
+        let mesh = TriangleMesh {
+            positions: vec![
+                Vec3::ZERO,
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+            ],
+            normals: None,
+            uvs: Some(vec![
+                Vec2::new(0.0, 0.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(0.0, 1.0),
+                Vec2::new(1.0, 1.0),
+            ]),
+            indices: vec![[0, 1, 2], [1, 3, 2]],
+        };
+        let shell =
+            FabricShell::new(&vp, &mesh, &ShellParams { tiles: [2.0, 2.0] }).expect("shell");
+        let d = shell.dims.as_vec3();
+        let mut tan = shell.tangent_accessor();
+        let mut ids = shell.patch.accessor(ID);
+        let mut rng = Rng::new(29, 0);
+        let mut seen = [0u32; 3];
+        for n in 0..200_000 {
+            let r = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let mut q = Vec3::new(
+                (r.x * 6.0 - 3.0) * d.x,
+                (r.y * 6.0 - 3.0) * d.y,
+                (shell.layer_lo - 3) as f32 + r.z * (d.z + 6.0),
+            );
+            if n % 4 == 0 {
+                q = (q * 2.0).floor() * 0.5;
+            }
+            let tangent = super::super::tangent_near(q, |c| tan.value_vec3(shell.wrap(c)));
+            let id = ids.value(shell.wrap((q + Vec3::splat(0.5)).floor().as_ivec3()));
+            let (t2, id2) = shell.fibre_voxel_at_q(q);
+            assert_eq!(
+                tangent.to_array().map(f32::to_bits),
+                t2.to_array().map(f32::to_bits),
+                "tangent at {q}: {tangent} against {t2}"
+            );
+            assert_eq!(id.to_bits(), id2.to_bits(), "id at {q}: {id} against {id2}");
+            if tangent != Vec3::ZERO {
+                seen[(id as usize).min(2)] += 1;
+            }
+        }
+        assert!(seen[0] > 5_000 && seen[1] > 5_000, "{seen:?}");
     }
 }
