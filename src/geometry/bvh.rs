@@ -275,25 +275,15 @@ impl SceneGeometry {
         }
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
-            // One closure per triangle test, so that each stays small enough to be inlined
-            // into the traversal.
-            macro_rules! closest_hits {
-                ($test:expr) => {
-                    self.bvh
-                        .traverse(ray, closest, |slot, t_max| match $test(slot, t_max) {
-                            Some(h) => {
-                                best = Some(Best::Tri(slot as usize, h));
-                                h.t
-                            }
-                            None => t_max,
-                        })
-                };
-            }
-            if self.bvh.avx2() {
-                closest_hits!(|slot: u32, t: f32| self.test_triangle(&sr, slot as usize, t, true));
-            } else {
-                closest_hits!(|slot: u32, t: f32| sr.intersect(&self.triangle(slot as usize), t));
-            }
+            self.bvh.traverse(ray, closest, |slot, t_max| {
+                match sr.intersect(&self.triangle(slot as usize), t_max) {
+                    Some(h) => {
+                        best = Some(Best::Tri(slot as usize, h));
+                        h.t
+                    }
+                    None => t_max,
+                }
+            });
         }
         best.map(|b| self.make_hit(ray, b))
     }
@@ -319,57 +309,16 @@ impl SceneGeometry {
         let mut found = false;
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
             let sr = ShearedRay::new(ray);
-            macro_rules! any_hit {
-                ($test:expr) => {
-                    self.bvh.traverse(ray, t_max, |slot, t| {
-                        if $test(slot, t).is_some() {
-                            found = true;
-                            0.0
-                        } else {
-                            t
-                        }
-                    })
-                };
-            }
-            if self.bvh.avx2() {
-                any_hit!(|slot: u32, t: f32| self.test_triangle(&sr, slot as usize, t, true));
-            } else {
-                any_hit!(|slot: u32, t: f32| sr.intersect(&self.triangle(slot as usize), t));
-            }
+            self.bvh.traverse(ray, t_max, |slot, t| {
+                if sr.intersect(&self.triangle(slot as usize), t).is_some() {
+                    found = true;
+                    0.0
+                } else {
+                    t
+                }
+            });
         }
         found
-    }
-
-    /// The watertight test of the triangle at BVH position `slot`; `avx` is the hierarchy's
-    /// AVX2 flag ([`WideBvh::avx2`]): the vertices' lanes are then permuted in registers
-    /// ([`ShearedRay::intersect_vertices_avx`], the same hits bit for bit).
-    #[inline(always)]
-    fn test_triangle(
-        &self,
-        sr: &ShearedRay,
-        slot: usize,
-        t_max: f32,
-        avx: bool,
-    ) -> Option<TriangleHit> {
-        #[cfg(target_arch = "x86_64")]
-        if avx {
-            debug_assert!(slot < self.tris.len());
-            // SAFETY: `avx` is set only when the CPU reported AVX2 (which includes AVX); the
-            // traversal reports positions below `tris.len()`, and `build` numbers every vertex
-            // a triangle names below `verts.len()`.
-            return unsafe {
-                let [a, b, c] = *self.tris.get_unchecked(slot);
-                sr.intersect_vertices_avx(
-                    *self.verts.get_unchecked(a as usize),
-                    *self.verts.get_unchecked(b as usize),
-                    *self.verts.get_unchecked(c as usize),
-                    t_max,
-                )
-            };
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = avx;
-        sr.intersect(&self.triangle(slot), t_max)
     }
 
     /// The triangle at BVH position `slot`, transposed for the triangle test.

@@ -90,10 +90,6 @@ pub(crate) struct ShearedRay {
     sxv: Vec4,
     syv: Vec4,
     sz: f32,
-    /// `(kx, ky, kz, 3)`: the lane permutation that puts a vertex's coordinates in the test's
-    /// order ([`ShearedRay::intersect_vertices_avx`]).
-    #[cfg(target_arch = "x86_64")]
-    perm: std::arch::x86_64::__m128i,
 }
 
 impl ShearedRay {
@@ -124,50 +120,7 @@ impl ShearedRay {
             sxv: Vec4::splat(s.x),
             syv: Vec4::splat(s.y),
             sz: s.z,
-            // SAFETY: SSE2 is part of the x86-64 baseline.
-            #[cfg(target_arch = "x86_64")]
-            perm: unsafe { std::arch::x86_64::_mm_setr_epi32(kx as i32, ky as i32, kz as i32, 3) },
         }
-    }
-
-    /// [`Self::intersect`] on the triangle with vertices `a`, `b`, `c` stored as `(x, y, z, _)`
-    /// (the compact layout): each vertex's lanes are permuted to `(kx, ky, kz)` in a register
-    /// before the transposition, instead of transposing first and loading the permuted lanes
-    /// by index. The lanes are the very values [`Self::intersect`] reads from
-    /// [`TriangleSoa::from_vertices`], so the hits are the same bit for bit.
-    ///
-    /// # Safety
-    /// The CPU must support AVX.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    pub(crate) unsafe fn intersect_vertices_avx(
-        &self,
-        a: Vec4,
-        b: Vec4,
-        c: Vec4,
-        t_max: f32,
-    ) -> Option<TriangleHit> {
-        use std::arch::x86_64::__m128;
-        // `vpermilps` written out: the intrinsic would not be inlined into a caller compiled
-        // without AVX (the traversal's closure), and a call per vertex costs more than it saves.
-        let permute = |v: Vec4| {
-            let v = __m128::from(v);
-            let out: __m128;
-            // SAFETY: the caller guarantees AVX; `perm` holds lane indices below 4; the
-            // instruction reads and writes registers only.
-            unsafe {
-                std::arch::asm!(
-                    "vpermilps {out}, {v}, {perm}",
-                    out = lateout(xmm_reg) out,
-                    v = in(xmm_reg) v,
-                    perm = in(xmm_reg) self.perm,
-                    options(pure, nomem, nostack, preserves_flags),
-                );
-            }
-            Vec4::from(out)
-        };
-        let t = TriangleSoa::from_vertices(permute(a), permute(b), permute(c));
-        self.intersect_lanes(t.v[0], t.v[1], t.v[2], t_max)
     }
 
     /// The watertight test. Edge functions are evaluated as `E(P,Q) = Qx·Py − Qy·Px` on
@@ -189,13 +142,6 @@ impl ShearedRay {
                 *tri.v.get_unchecked(self.kz),
             )
         };
-        self.intersect_lanes(vx, vy, vz, t_max)
-    }
-
-    /// The watertight test on the triangle's coordinates `kx`, `ky`, `kz` of its three
-    /// vertices (lanes 0, 1, 2 of `vx`, `vy`, `vz`).
-    #[inline(always)]
-    fn intersect_lanes(&self, vx: Vec4, vy: Vec4, vz: Vec4, t_max: f32) -> Option<TriangleHit> {
         // Lanes: vertices 0, 1, 2 (a, b, c) relative to the origin, permuted and sheared.
         let px = vx - self.okx;
         let py = vy - self.oky;

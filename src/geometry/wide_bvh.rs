@@ -452,13 +452,6 @@ impl WideBvh {
         &self.order
     }
 
-    /// Whether the traversal runs its AVX2 node test (the CPU reported AVX2 when the
-    /// hierarchy was built).
-    #[inline(always)]
-    pub(crate) fn avx2(&self) -> bool {
-        self.avx2
-    }
-
     /// Depth in nodes (0 when empty).
     #[must_use]
     pub fn depth(&self) -> usize {
