@@ -4,8 +4,9 @@
 //! is large only where the direction between the two vertices lies on that vertex's narrow
 //! fibre cone around the sun; the path's own lobe, centred on where the path came from,
 //! rarely picks such a direction. So at each fibre vertex one more direction is drawn from
-//! the vertex's own fibre phase function prepared for the outgoing direction −sun (the sun's
-//! light arriving along its own direction). The fibre phase function is reciprocal and,
+//! the vertex's yarn family's fibre phase function prepared for the outgoing direction −sun
+//! (the sun's light arriving along its own direction), around the vertex's tangent quantised
+//! to a grid cell ([`FibrePhase::quantised_lobe`], prepared once per cell, not per vertex). The fibre phase function is reciprocal and,
 //! across the fibre's two ends, nearly symmetric under reversing both directions, so that
 //! lobe follows the sun term of a next vertex whose fibre runs alike. The drawn direction is
 //! followed by a free flight and, where it collides, the sun's NEE there is added. That
