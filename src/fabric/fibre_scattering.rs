@@ -349,6 +349,48 @@ pub struct FibrePhase {
     /// batched terms of [`FibrePhase::prepare`].
     node_h: [f32; CACHED_NODES],
     node_cos_go: [f32; CACHED_NODES],
+    /// Prepared vertices for one fixed `wo` over a grid of quantised tangents
+    /// ([`FibrePhase::quantised_lobe`]), built on first use.
+    quantised: QuantisedLobes,
+}
+
+/// Cells per side of the tangent grid of [`FibrePhase::quantised_lobe`]: the tangent's
+/// hemisphere (`t` and `−t` share a cell) is mapped octahedrally onto a square of
+/// `QUANTISED_GRID²` cells. Chosen on `scenes/draped_cloth.toml` (docs/BENCHMARKS.md).
+pub const QUANTISED_GRID: usize = 8;
+
+/// The table of [`FibrePhase::quantised_lobe`]: the outgoing direction it was built for and
+/// one prepared vertex per tangent cell.
+#[derive(Clone, Debug, Default)]
+struct QuantisedLobes(std::sync::OnceLock<(Vec3, Vec<PreparedFibre>)>);
+
+impl PartialEq for QuantisedLobes {
+    /// A cache: equal whatever it holds (it is a function of the phase function's parameters).
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+/// The tangent-grid cell of `t` (any length; `t` and `−t` share a cell): `None` for a zero or
+/// non-finite tangent. The upper hemisphere is mapped octahedrally onto `[−1, 1]²` (rotated by
+/// 45°) and cut into `n × n` cells.
+fn tangent_cell(t: Vec3, n: usize) -> Option<usize> {
+    let t = if t.z < 0.0 { -t } else { t };
+    let s = t.x.abs() + t.y.abs() + t.z;
+    if !(s.is_finite() && s > 0.0) {
+        return None;
+    }
+    let (px, py) = (t.x / s, t.y / s);
+    let cell = |c: f32| (((c + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
+    Some(cell(px + py) * n + cell(px - py))
+}
+
+/// The unit tangent at the centre of cell `k` of [`tangent_cell`]'s `n × n` grid.
+fn cell_tangent(k: usize, n: usize) -> Vec3 {
+    let centre = |i: usize| (i as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+    let (u, v) = (centre(k / n), centre(k % n));
+    let (px, py) = (0.5 * (u + v), 0.5 * (u - v));
+    Vec3::new(px, py, (1.0 - px.abs() - py.abs()).max(0.0)).normalize()
 }
 
 /// Per-`h` lobe data for one `wo`.
@@ -612,6 +654,7 @@ impl FibrePhase {
             avx2: crate::math::avx2_enabled(),
             node_h,
             node_cos_go,
+            quantised: QuantisedLobes::default(),
             s,
             v: [v0, 0.25 * v0, 4.0 * v0, 4.0 * v0],
             params,
@@ -776,6 +819,28 @@ impl FibrePhase {
     #[must_use]
     pub fn prepare_coloured(&self, wo: Vec3, tangent: Vec3, colour: &FibreColour) -> PreparedFibre {
         self.prepare_with(wo, tangent, colour.sigma_a, colour.diffuse_albedo)
+    }
+
+    /// A prepared vertex for `wo` around a tangent near `tangent`: the one of the tangent's
+    /// cell in a [`QUANTISED_GRID`]² grid over the tangent's hemisphere (`t` and `−t` share
+    /// a cell), prepared at the cell's centre in this phase function's own colour. The
+    /// table is built for the first `wo` asked for (every cell at once, thread-safely) and
+    /// kept; `None` for another `wo` or a zero or non-finite tangent. For a lobe that only
+    /// has to resemble the vertex's own (the sun lean): its samples and pdf are exact for
+    /// the cell's tangent.
+    #[must_use]
+    pub fn quantised_lobe(&self, wo: Vec3, tangent: Vec3) -> Option<&PreparedFibre> {
+        let n = QUANTISED_GRID;
+        let (built_for, cells) = self.quantised.0.get_or_init(|| {
+            let cells = (0..n * n)
+                .map(|k| self.prepare(wo, cell_tangent(k, n)))
+                .collect();
+            (wo, cells)
+        });
+        if *built_for != wo {
+            return None;
+        }
+        cells.get(tangent_cell(tangent, n)?)
     }
 
     /// [`FibrePhase::prepare`] with absorption `sigma_a` and diffuse albedo `albedo`.
@@ -1264,6 +1329,109 @@ mod tests {
                         "value {v:?} vs {rv:?} ({colour:?}, {h_nodes})"
                     );
                 }
+            }
+        }
+    }
+
+    /// Every cell of the tangent grid maps back to itself from its centre, `t` and `−t` share
+    /// a cell, and a tangent's cell centre is within the cell size of it.
+    #[test]
+    fn tangent_cells_round_trip_and_lie_near_their_tangents() {
+        for n in [1, 2, 8, QUANTISED_GRID] {
+            for k in 0..n * n {
+                let c = cell_tangent(k, n);
+                assert!((c.length() - 1.0).abs() < 1e-5);
+                assert_eq!(tangent_cell(c, n), Some(k), "cell {k} of {n}²");
+            }
+        }
+        let mut rng = crate::sampling::Rng::new(3, 1);
+        let n = 8;
+        let mut worst = 1.0f32;
+        for _ in 0..20_000 {
+            let z = 2.0 * rng.next_f32() - 1.0;
+            let a = 2.0 * PI * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let t = Vec3::new(r * a.cos(), r * a.sin(), z);
+            let k = tangent_cell(t, n).unwrap();
+            if z != 0.0 {
+                assert_eq!(tangent_cell(-t, n), Some(k));
+            }
+            worst = worst.min(cell_tangent(k, n).dot(t).abs());
+        }
+        // The octahedral cells of an 8² grid over the hemisphere are at most ~0.3 rad across.
+        assert!(
+            worst > 0.3f32.cos(),
+            "farthest cell centre: {} rad",
+            worst.acos()
+        );
+        assert_eq!(tangent_cell(Vec3::ZERO, n), None);
+        assert_eq!(tangent_cell(Vec3::new(f32::NAN, 0.0, 1.0), n), None);
+    }
+
+    /// The quantised lobe is the vertex prepared around its cell's centre, kept for the first
+    /// `wo` only; its pdf integrates to 1 over the sphere and its samples fall where its pdf
+    /// says (coarse bins, 5σ).
+    #[test]
+    fn quantised_lobe_pdf_integrates_to_one_and_matches_its_samples() {
+        let phase =
+            FibrePhase::new(FibrePhaseParams::default().with_colour(Rgb::new(0.72, 0.1, 0.09)))
+                .unwrap();
+        let wo = Vec3::new(0.45, -0.75, -0.5).normalize();
+        let mut rng = crate::sampling::Rng::new(11, 2);
+        for t in [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.6, -0.1, -0.79),
+            Vec3::new(-0.3, 0.95, 0.05),
+        ] {
+            let lobe = phase.quantised_lobe(wo, t).unwrap();
+            let n = QUANTISED_GRID;
+            let centre = cell_tangent(tangent_cell(t, n).unwrap(), n);
+            let own = phase.prepare(wo, centre);
+            let probe = Vec3::new(0.2, 0.3, -0.93).normalize();
+            assert_eq!(
+                phase.eval_pdf_prepared(lobe, probe),
+                phase.eval_pdf_prepared(&own, probe)
+            );
+            assert!(phase.quantised_lobe(-wo, t).is_none());
+            // Bins: 6 bands of sin θ along the cell's tangent × 8 of the azimuth around it.
+            let frame = lobe.frame.unwrap();
+            let bin = |w: Vec3| {
+                let a = angles(&frame, w);
+                let band = (((a.sin_t + 1.0) * 3.0) as usize).min(5);
+                let sector = (((a.phi + PI) / (2.0 * PI) * 8.0) as usize).min(7);
+                band * 8 + sector
+            };
+            // Midpoint rule in (sin θ, φ): dω = d(sin θ) dφ.
+            let (ns, nphi) = (600, 600);
+            let mut mass = [0.0f64; 48];
+            for i in 0..ns {
+                let sin_t = -1.0 + (i as f32 + 0.5) * 2.0 / ns as f32;
+                let cos_t = (1.0 - sin_t * sin_t).max(0.0).sqrt();
+                for j in 0..nphi {
+                    let phi = -PI + (j as f32 + 0.5) * 2.0 * PI / nphi as f32;
+                    let w = frame.to_world(Vec3::new(cos_t * phi.cos(), cos_t * phi.sin(), sin_t));
+                    let d = (2.0 / ns as f64) * (2.0 * std::f64::consts::PI / nphi as f64);
+                    mass[bin(w)] += phase.eval_pdf_prepared(lobe, w).1 as f64 * d;
+                }
+            }
+            let total: f64 = mass.iter().sum();
+            assert!((total - 1.0).abs() < 0.01, "∫ pdf = {total} ({t:?})");
+            let count = 100_000;
+            let mut hits = [0u32; 48];
+            for _ in 0..count {
+                let u = std::array::from_fn(|_| rng.next_f32());
+                let s = phase.sample_prepared(lobe, u).unwrap();
+                let (_, pdf) = phase.eval_pdf_prepared(lobe, s.wi);
+                assert!((s.pdf - pdf).abs() <= 1e-5 * pdf);
+                hits[bin(s.wi)] += 1;
+            }
+            for (b, (&h, &m)) in hits.iter().zip(&mass).enumerate() {
+                let f = h as f64 / count as f64;
+                let sigma = (m.max(1e-4) * (1.0 - m) / count as f64).sqrt();
+                assert!(
+                    (f - m).abs() < 5.0 * sigma + 2e-3 * m,
+                    "bin {b}: samples {f} vs pdf mass {m} ({t:?})"
+                );
             }
         }
     }

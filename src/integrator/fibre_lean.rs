@@ -4,8 +4,9 @@
 //! is large only where the direction between the two vertices lies on that vertex's narrow
 //! fibre cone around the sun; the path's own lobe, centred on where the path came from,
 //! rarely picks such a direction. So at each fibre vertex one more direction is drawn from
-//! the vertex's own fibre phase function prepared for the outgoing direction −sun (the sun's
-//! light arriving along its own direction). The fibre phase function is reciprocal and,
+//! the vertex's yarn family's fibre phase function prepared for the outgoing direction −sun
+//! (the sun's light arriving along its own direction), around the vertex's tangent quantised
+//! to a grid cell ([`FibrePhase::quantised_lobe`], prepared once per cell, not per vertex). The fibre phase function is reciprocal and,
 //! across the fibre's two ends, nearly symmetric under reversing both directions, so that
 //! lobe follows the sun term of a next vertex whose fibre runs alike. The drawn direction is
 //! followed by a free flight and, where it collides, the sun's NEE there is added. That
@@ -16,6 +17,7 @@
 //! the Henyey–Greenstein lean it also serves disc suns (the NEE at either vertex samples the
 //! disc; the lobe is centred on the disc's centre).
 
+use crate::fabric::{FibrePhase, PreparedFibre};
 use crate::light::Light;
 use crate::math::Vec3;
 use crate::medium::{PreparedPhase, VertexPhase};
@@ -24,12 +26,15 @@ use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
 /// The fibre lean at one vertex: the light it leans towards and the vertex's phase function
-/// prepared for the outgoing direction −sun.
+/// prepared for the outgoing direction −sun around the vertex's quantised tangent.
 pub(super) struct FibreLean<'a> {
     /// The sun's index in the scene.
     pub light: usize,
-    /// The vertex's fibre phase function with outgoing direction −sun.
-    lobe: PreparedPhase<'a>,
+    /// The vertex's yarn family's fibre phase function.
+    phase: &'a FibrePhase,
+    /// Its lobe with outgoing direction −sun ([`FibrePhase::quantised_lobe`]: the tangent's
+    /// cell, the family's own colour), shared by every vertex of that cell.
+    lobe: &'a PreparedFibre,
 }
 
 /// The lean's play probability per unit of the vertex's sun transmittance estimate
@@ -44,16 +49,17 @@ impl<'a> FibreLean<'a> {
     /// The lean at a vertex whose phase function is `phase`: `None` unless it is a fibre
     /// phase function and the scene has a distant light.
     pub(super) fn at_vertex(scene: &Scene, phase: &VertexPhase<'a>) -> Option<FibreLean<'a>> {
-        if !matches!(phase, VertexPhase::Fibre { .. }) {
+        let VertexPhase::Fibre { phase, tangent, .. } = *phase else {
             return None;
-        }
+        };
         let light = scene.brightest_sun?;
         let Some(Light::Distant { to_light, .. }) = scene.lights.get(light) else {
             return None;
         };
         Some(FibreLean {
             light,
-            lobe: phase.prepare(-*to_light),
+            phase,
+            lobe: phase.quantised_lobe(-*to_light, tangent)?,
         })
     }
 
@@ -74,7 +80,7 @@ impl<'a> FibreLean<'a> {
     /// vertex's own lobe, where the lean was played with probability `play` = P.
     #[inline]
     pub(super) fn main_weight(&self, p: f32, wi: Vec3, play: f32) -> f32 {
-        let q = play * self.lobe.eval(wi).1;
+        let q = play * self.phase.eval_pdf_prepared(self.lobe, wi).1;
         if p + q > 0.0 && q.is_finite() {
             p / (p + q)
         } else {
@@ -92,7 +98,13 @@ impl<'a> FibreLean<'a> {
         play: f32,
         sampler: &mut PixelSampler,
     ) -> Option<(Vec3, Rgb, f32)> {
-        let s = self.lobe.sample(sampler)?;
+        let u = [
+            sampler.next_1d(),
+            sampler.next_1d(),
+            sampler.next_1d(),
+            sampler.next_1d(),
+        ];
+        let s = self.phase.sample_prepared(self.lobe, u)?;
         let q = s.pdf;
         let (value, p) = main.eval(s.wi);
         (q > 0.0 && q.is_finite()).then(|| (s.wi, value * (1.0 / q), play * q / (p + play * q)))
