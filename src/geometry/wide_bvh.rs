@@ -36,145 +36,35 @@ const STACK_INLINE: usize = 48;
 /// Children per node.
 const WIDTH: usize = 8;
 
-/// One node: the boxes of up to eight children, quantised, and what each child is. 128
-/// bytes, two cache lines (full-precision boxes took 256): the first holds the boxes, the
-/// second the box grid's scales and the children.
-///
-/// The boxes are stored as in the compressed wide BVH of Ylitie, Karras and Laine 2017
-/// ("Efficient incoherent ray traversal on GPUs through compressed wide BVHs"): per axis an
-/// origin `p` and a power-of-two scale `s`, and per child and plane an 8-bit grid coordinate
-/// `q`, the plane being `p + q·s` in `f32` (one rounding: `q·s` is exact, so a fused
-/// multiply-add and a multiply then an add give the same value). The coordinates are rounded
-/// outwards and checked with that very arithmetic when the node is built ([`quantise`]), so
-/// every child's box contains its full-precision box, and the node test stays conservative.
+/// One node: the boxes of up to eight children, per axis in two 4-wide halves, and what each
+/// child is.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node8 {
-    /// Grid coordinates of the children's box planes: minima x, y, z (empty slots hold 255),
-    /// then maxima x, y, z (empty slots hold 0). One array, so that a ray picks its near and
-    /// far plane per axis by index instead of by a branch.
-    q: [[u8; WIDTH]; 6],
-    /// Per axis, the grid's origin `p`.
-    origin: [f32; 3],
-    /// Mask of the used slots (bit `i` for slot `i`).
-    valid: u32,
-    /// Per axis, the grid's power-of-two scale `s`.
-    scale: [f32; 3],
-    /// Primitives of a leaf child (0 for an inner child or an empty slot).
-    count: [u8; WIDTH],
+    /// Box planes of the children: minima x, y, z (empty slots hold +∞), then maxima x, y, z
+    /// (empty slots hold −∞). One array, so that a ray picks its near and far plane per axis
+    /// by index instead of by a branch.
+    planes: [[Vec4; 2]; 6],
     /// Child node index, or the first primitive of a leaf.
     child: [u32; WIDTH],
+    /// Primitives of a leaf child (0 for an inner child or an empty slot).
+    count: [u32; WIDTH],
 }
 
 impl Node8 {
     fn empty() -> Self {
         Node8 {
-            q: [
-                [255; WIDTH],
-                [255; WIDTH],
-                [255; WIDTH],
-                [0; WIDTH],
-                [0; WIDTH],
-                [0; WIDTH],
+            planes: [
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
             ],
-            origin: [0.0; 3],
-            valid: 0,
-            scale: [1.0; 3],
-            count: [0; WIDTH],
             child: [0; WIDTH],
+            count: [0; WIDTH],
         }
-    }
-
-    /// The box plane `k` (minima x, y, z, then maxima) of `slot` as the node tests read it.
-    #[cfg(test)]
-    fn plane(&self, k: usize, slot: usize) -> f32 {
-        dequantise(self.q[k][slot], self.origin[k % 3], self.scale[k % 3])
-    }
-
-    /// Sets the children's boxes (`None`: an empty slot) to the conservative quantised boxes
-    /// of [`quantise`].
-    fn set_boxes(&mut self, boxes: &ChildBoxes) {
-        for k in 0..3 {
-            let axis = boxes.map(|b| b.map(|(lo, hi)| (lo[k], hi[k])));
-            let (origin, scale, lo, hi) = quantise(&axis);
-            self.origin[k] = origin;
-            self.scale[k] = scale;
-            self.q[k] = lo;
-            self.q[k + 3] = hi;
-        }
-        self.valid = 0;
-        for (slot, b) in boxes.iter().enumerate() {
-            if b.is_some() {
-                self.valid |= 1 << slot;
-            }
-        }
-    }
-}
-
-/// A quantised plane: `p + q·s` in `f32`, the value both node tests use (`q·s` is exact).
-#[inline(always)]
-fn dequantise(q: u8, p: f32, s: f32) -> f32 {
-    f32::from(q) * s + p
-}
-
-/// Quantises one axis of a node's child boxes (`(min, max)` per slot, `None` for an empty
-/// slot; finite values): the grid origin (the smallest minimum), the smallest power-of-two
-/// scale (at least the smallest normal `f32`) with which every maximum is covered within 255
-/// steps, and per slot the largest coordinate whose plane ([`dequantise`]) is at most the
-/// minimum and the smallest whose plane is at least the maximum. Empty slots get 255 and 0.
-fn quantise(axis: &[Option<(f32, f32)>; WIDTH]) -> (f32, f32, [u8; WIDTH], [u8; WIDTH]) {
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &(a, b) in axis.iter().flatten() {
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    let (mut q_lo, mut q_hi) = ([255u8; WIDTH], [0u8; WIDTH]);
-    if !(lo <= hi) {
-        return (0.0, 1.0, q_lo, q_hi);
-    }
-    debug_assert!(lo.is_finite() && hi.is_finite(), "non-finite box {lo} {hi}");
-    let p = lo;
-    let mut scale = f32::MIN_POSITIVE;
-    let extent = (f64::from(hi) - f64::from(lo)) / 255.0;
-    while f64::from(scale) < extent && scale < f32::MAX / 4.0 {
-        scale *= 2.0;
-    }
-    'grow: loop {
-        for (slot, b) in axis.iter().enumerate() {
-            let Some((a, b)) = *b else { continue };
-            // Lower plane: the largest q with p + q·s ≤ a.
-            let mut q = ((f64::from(a) - f64::from(p)) / f64::from(scale))
-                .floor()
-                .clamp(0.0, 255.0) as u32;
-            while q > 0 && dequantise(q as u8, p, scale) > a {
-                q -= 1;
-            }
-            while q < 255 && dequantise(q as u8 + 1, p, scale) <= a {
-                q += 1;
-            }
-            q_lo[slot] = q as u8;
-            // Upper plane: the smallest q with p + q·s ≥ b.
-            let mut q = ((f64::from(b) - f64::from(p)) / f64::from(scale))
-                .ceil()
-                .clamp(0.0, 256.0) as u32;
-            while q <= 255 && dequantise(q as u8, p, scale) < b {
-                q += 1;
-            }
-            if q > 255 {
-                if scale < f32::MAX / 4.0 {
-                    // (Only when rounding ate the last step: a coarser grid.)
-                    scale *= 2.0;
-                    continue 'grow;
-                }
-                // (Non-finite boxes only, which the build never passes.)
-                q = 255;
-            }
-            while q > 0 && dequantise(q as u8 - 1, p, scale) >= b {
-                q -= 1;
-            }
-            q_hi[slot] = q as u8;
-        }
-        return (p, scale, q_lo, q_hi);
     }
 }
 
@@ -186,16 +76,9 @@ pub struct WideBvh {
     /// Original primitive index of each position.
     order: Vec<u32>,
     depth: usize,
-    /// The CPU runs AVX2 and FMA (detected when the hierarchy is built): the 8-wide node
-    /// test.
+    /// The CPU runs AVX2 (detected when the hierarchy is built): the 8-wide node test.
     avx2: bool,
-    /// The full-precision boxes of every node's children, before quantisation (tests only).
-    #[cfg(test)]
-    exact: Vec<ChildBoxes>,
 }
-
-/// The `(min, max)` boxes of a node's children, `None` for an empty slot.
-type ChildBoxes = [Option<([f32; 3], [f32; 3])>; WIDTH];
 
 struct BoxPrim(OAabb);
 
@@ -211,7 +94,7 @@ struct SlabRay {
     o: [Vec4; 3],
     /// Capped reciprocal direction, splatted per axis.
     inv: [Vec4; 3],
-    /// Per axis: index in [`Node8::q`] of the plane the ray enters by (the maximum
+    /// Per axis: index in [`Node8::planes`] of the plane the ray enters by (the maximum
     /// when the direction is negative) and of the one it leaves by.
     near: [usize; 3],
     far: [usize; 3],
@@ -243,22 +126,12 @@ impl SlabRay {
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
         for k in 0..3 {
-            let plane = |i: usize| {
-                let q = &node.q[i][4 * h..4 * h + 4];
-                Vec4::new(
-                    f32::from(q[0]),
-                    f32::from(q[1]),
-                    f32::from(q[2]),
-                    f32::from(q[3]),
-                ) * node.scale[k]
-                    + Vec4::splat(node.origin[k])
-            };
-            let n = plane(self.near[k]);
-            let f = plane(self.far[k]);
+            let n = node.planes[self.near[k]][h];
+            let f = node.planes[self.far[k]][h];
             near = near.max((n - self.o[k]) * self.inv[k]);
             far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
         }
-        (near, near.cmple(far).bitmask() & (node.valid >> (4 * h)))
+        (near, near.cmple(far).bitmask())
     }
 }
 
@@ -300,9 +173,9 @@ impl NodeTest for SlabRay {
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m128i, __m256, _mm256_cmp_ps, _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32, _mm256_fmadd_ps,
-        _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps,
-        _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps, _mm_loadl_epi64, _CMP_LE_OS,
+        __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
+        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        _CMP_LE_OS,
     };
 
     #[cfg(test)]
@@ -321,8 +194,8 @@ mod avx2 {
 
     impl AvxSlab {
         /// # Safety
-        /// The CPU must support AVX2 and FMA.
-        #[target_feature(enable = "avx2,fma")]
+        /// The CPU must support AVX2.
+        #[target_feature(enable = "avx2")]
         #[cfg(test)]
         pub(super) unsafe fn new(s: &SlabRay) -> Self {
             AvxSlab {
@@ -345,8 +218,8 @@ mod avx2 {
         /// splats in between.
         ///
         /// # Safety
-        /// The CPU must support AVX2 and FMA.
-        #[target_feature(enable = "avx2,fma")]
+        /// The CPU must support AVX2.
+        #[target_feature(enable = "avx2")]
         #[inline]
         pub(super) unsafe fn from_ray(ray: &Ray) -> Self {
             let (inv, neg) = slab_constants(ray);
@@ -372,25 +245,26 @@ mod avx2 {
     impl NodeTest for AvxSlab {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
-            // SAFETY: an `AvxSlab` exists only where AVX2 and FMA are available (its
-            // constructor needs them); the plane indices are `k` or `k + 3` (below 6, set by
-            // `SlabRay::new`); the 8-byte loads read the 8 coordinates of a plane, the store
+            // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
+            // it); the plane indices are `k` or `k + 3` (below 6, set by `SlabRay::new`); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
             // writes the 8 floats of `out`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
                 for k in 0..3 {
-                    let p = _mm256_set1_ps(*node.origin.get_unchecked(k));
-                    let s = _mm256_set1_ps(*node.scale.get_unchecked(k));
-                    // p + q·s: `q·s` is exact, so the fused operation rounds as the 4-wide
-                    // test's multiply then add.
-                    let plane = |i: usize| {
-                        let q = _mm_loadl_epi64(node.q.get_unchecked(i).as_ptr().cast::<__m128i>());
-                        _mm256_fmadd_ps(_mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(q)), s, p)
-                    };
                     // (`near[k]` and `far[k]` are `k` and `k + 3`, below 6.)
-                    let n = plane(self.near[k]);
-                    let f = plane(self.far[k]);
+                    let n = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.near[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
+                    let f = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.far[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
                     near = _mm256_max_ps(
                         near,
                         _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
@@ -403,8 +277,7 @@ mod avx2 {
                         ),
                     );
                 }
-                let mask =
-                    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)) as u32 & node.valid;
+                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)) as u32;
                 let mut out = [0.0f32; WIDTH];
                 _mm256_storeu_ps(out.as_mut_ptr(), near);
                 (out, mask)
@@ -506,23 +379,21 @@ impl WideBvh {
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
-            avx2: avx2_and_fma(),
+            avx2: crate::math::avx2_enabled(),
             ..WideBvh::default()
         };
         if counts[0] <= MAX_LEAF_PRIMITIVES {
             let first = out.order.len() as u32;
             collect_primitives(&bvh2, 0, &mut out.order);
-            // One node with one leaf child, the root's box.
+            // One node with one leaf child whose box is all of space (always entered).
             let mut node = Node8::empty();
-            let bb = bvh2.nodes[0].aabb;
-            let mut boxes = [None; WIDTH];
-            boxes[0] = Some((bb.min.to_array(), bb.max.to_array()));
-            node.set_boxes(&boxes);
+            for k in 0..3 {
+                node.planes[k][0][0] = f32::NEG_INFINITY;
+                node.planes[k + 3][0][0] = f32::INFINITY;
+            }
             node.child[0] = first;
-            node.count[0] = (out.order.len() as u32 - first) as u8;
+            node.count[0] = out.order.len() as u32 - first;
             out.nodes.push(node);
-            #[cfg(test)]
-            out.exact.push(boxes);
             out.depth = 1;
             return (out, f32::NAN);
         }
@@ -547,10 +418,12 @@ impl WideBvh {
                 Strategy::Greedy => children.extend(open_children(bvh2, b, counts)),
             }
             let mut node = Node8::empty();
-            let mut boxes = [None; WIDTH];
             for (slot, &c) in children.iter().enumerate() {
                 let bb = bvh2.nodes[c].aabb;
-                boxes[slot] = Some((bb.min.to_array(), bb.max.to_array()));
+                for k in 0..3 {
+                    node.planes[k][slot / 4][slot % 4] = bb.min[k];
+                    node.planes[k + 3][slot / 4][slot % 4] = bb.max[k];
+                }
                 let leaf = match strategy {
                     Strategy::Sah => sah.is_leaf(c),
                     #[cfg(test)]
@@ -560,7 +433,7 @@ impl WideBvh {
                     let first = self.order.len() as u32;
                     collect_primitives(bvh2, c, &mut self.order);
                     node.child[slot] = first;
-                    node.count[slot] = (self.order.len() as u32 - first) as u8;
+                    node.count[slot] = self.order.len() as u32 - first;
                 } else {
                     let index = self.nodes.len();
                     self.nodes.push(Node8::empty());
@@ -568,13 +441,7 @@ impl WideBvh {
                     work.push((c, index, depth + 1));
                 }
             }
-            node.set_boxes(&boxes);
             self.nodes[w] = node;
-            #[cfg(test)]
-            {
-                self.exact.resize(self.nodes.len(), [None; WIDTH]);
-                self.exact[w] = boxes;
-            }
         }
         sah.root_cost
     }
@@ -627,7 +494,7 @@ impl WideBvh {
     /// # Safety
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
@@ -668,7 +535,7 @@ impl WideBvh {
         macro_rules! leaf {
             ($node:expr, $slot:expr) => {{
                 let first = $node.child[$slot];
-                for i in first..first + u32::from($node.count[$slot]) {
+                for i in first..first + $node.count[$slot] {
                     t_max = primitive(i, t_max);
                     if t_max <= 0.0 {
                         return;
@@ -793,19 +660,6 @@ impl WideBvh {
                 }
             }
         }
-    }
-}
-
-/// Whether the CPU runs the 8-wide node test: AVX2 ([`crate::math::avx2_enabled`], which
-/// `VELOUR_NO_AVX2=1` turns off) and FMA.
-fn avx2_and_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        crate::math::avx2_enabled() && std::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
 
@@ -1083,7 +937,7 @@ mod tests {
 
     #[test]
     fn the_8_wide_and_4_wide_node_tests_visit_the_same_leaves_in_the_same_order() {
-        if !avx2_and_fma() {
+        if !crate::math::avx2_enabled() {
             eprintln!("no AVX2 on this CPU: only the 4-wide test runs");
             return;
         }
@@ -1148,16 +1002,21 @@ mod tests {
         let mut cost = 0.0;
         for (i, node) in bvh.nodes.iter().enumerate() {
             for slot in 0..WIDTH {
-                let Some((lo, hi)) = bvh.exact[i][slot] else {
+                let plane = |k: usize| node.planes[k][slot / 4][slot % 4];
+                if plane(0) == f32::INFINITY {
                     continue; // an empty slot
-                };
+                }
+                let (lo, hi) = (
+                    [plane(0), plane(1), plane(2)],
+                    [plane(3), plane(4), plane(5)],
+                );
                 if i == 0 {
                     for k in 0..3 {
                         root_lo[k] = root_lo[k].min(lo[k]);
                         root_hi[k] = root_hi[k].max(hi[k]);
                     }
                 }
-                let count = u32::from(node.count[slot]);
+                let count = node.count[slot];
                 assert!(count <= MAX_LEAF_PRIMITIVES, "a leaf of {count} primitives");
                 cost += half_area(lo, hi)
                     * if count > 0 {
@@ -1269,217 +1128,6 @@ mod tests {
                     0.0
                 });
                 assert!(calls <= 1, "an any-hit query continues after a hit");
-            }
-        }
-    }
-
-    #[test]
-    fn quantised_boxes_contain_their_children_and_every_leaf_primitive() {
-        let mut rng = Lcg(41);
-        // Random meshes (triangle soups) at several scales and offsets, so that the grid's
-        // origin and scale see large and small magnitudes, and flat boxes.
-        for (n, size, offset, scale) in [
-            (5usize, 0.3f32, 0.0f32, 1.0f32),
-            (60, 0.2, 0.0, 1.0),
-            (800, 0.05, 3.0, 1.0),
-            (3000, 0.02, -7.0, 1e3),
-            (2000, 0.03, 0.5, 1e-4),
-            (500, 0.0, 0.0, 1.0),
-        ] {
-            let boxes: Vec<(Vec3, Vec3)> = (0..n)
-                .map(|_| {
-                    let c = rng.vec();
-                    let tri = [c, c + rng.vec() * size, c + rng.vec() * size]
-                        .map(|v| (v + Vec3::splat(offset)) * scale);
-                    (
-                        tri[0].min(tri[1]).min(tri[2]),
-                        tri[0].max(tri[1]).max(tri[2]),
-                    )
-                })
-                .collect();
-            let bvh = WideBvh::build(&boxes);
-            let mut leaves = 0;
-            for (i, node) in bvh.nodes.iter().enumerate() {
-                for slot in 0..WIDTH {
-                    let Some((lo, hi)) = bvh.exact[i][slot] else {
-                        assert_eq!(node.valid & (1 << slot), 0, "empty slot marked used");
-                        continue;
-                    };
-                    assert_ne!(node.valid & (1 << slot), 0, "used slot marked empty");
-                    let (qlo, qhi) = (
-                        [0, 1, 2].map(|k| node.plane(k, slot)),
-                        [3, 4, 5].map(|k| node.plane(k, slot)),
-                    );
-                    for k in 0..3 {
-                        assert!(
-                            qlo[k] <= lo[k] && hi[k] <= qhi[k],
-                            "{n} boxes, node {i} slot {slot} axis {k}: [{}, {}] not in [{}, {}]",
-                            lo[k],
-                            hi[k],
-                            qlo[k],
-                            qhi[k]
-                        );
-                        // Not coarser than the grid needs: within two steps of the box.
-                        let step = node.scale[k];
-                        assert!(lo[k] - qlo[k] <= 2.0 * step && qhi[k] - hi[k] <= 2.0 * step);
-                    }
-                    let count = u32::from(node.count[slot]);
-                    let first = node.child[slot];
-                    for pos in first..first + count {
-                        leaves += 1;
-                        let (plo, phi) = boxes[bvh.order()[pos as usize] as usize];
-                        for k in 0..3 {
-                            assert!(
-                                qlo[k] <= plo[k] && phi[k] <= qhi[k],
-                                "{n} boxes: primitive {pos} outside its leaf's box on axis {k}"
-                            );
-                        }
-                    }
-                }
-            }
-            assert_eq!(leaves, n, "every primitive in one leaf");
-        }
-        // The quantiser on its own, on random axes: the planes as the node tests compute
-        // them contain every box.
-        for _ in 0..20_000 {
-            let mag = 10f32.powi((rng.next() * 12.0) as i32 - 6);
-            let centre = (rng.next() - 0.5) * 10.0 * mag;
-            let mut axis = [None; WIDTH];
-            for b in axis.iter_mut() {
-                if rng.next() < 0.8 {
-                    let a = centre + (rng.next() - 0.5) * mag;
-                    let w = if rng.next() < 0.2 {
-                        0.0
-                    } else {
-                        rng.next() * mag * 0.1
-                    };
-                    *b = Some((a, a + w));
-                }
-            }
-            let (p, s, lo, hi) = quantise(&axis);
-            for (slot, b) in axis.iter().enumerate() {
-                if let Some((a, b)) = *b {
-                    assert!(dequantise(lo[slot], p, s) <= a && b <= dequantise(hi[slot], p, s));
-                }
-            }
-        }
-    }
-
-    /// Closest hit of a ray with a triangle (Möller–Trumbore in f64), or `None`.
-    fn hit_triangle(ray: &Ray, tri: &[Vec3; 3]) -> Option<f64> {
-        let f = |v: Vec3| [f64::from(v.x), f64::from(v.y), f64::from(v.z)];
-        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-        let cross = |a: [f64; 3], b: [f64; 3]| {
-            [
-                a[1] * b[2] - a[2] * b[1],
-                a[2] * b[0] - a[0] * b[2],
-                a[0] * b[1] - a[1] * b[0],
-            ]
-        };
-        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        let (v0, v1, v2) = (f(tri[0]), f(tri[1]), f(tri[2]));
-        let (o, d) = (f(ray.o), f(ray.d));
-        let (e1, e2) = (sub(v1, v0), sub(v2, v0));
-        let p = cross(d, e2);
-        let det = dot(e1, p);
-        if det.abs() < 1e-300 {
-            return None;
-        }
-        let s = sub(o, v0);
-        let u = dot(s, p) / det;
-        let q = cross(s, e1);
-        let v = dot(d, q) / det;
-        let t = dot(e2, q) / det;
-        (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0).then_some(t)
-    }
-
-    #[test]
-    fn traversal_finds_the_brute_force_hits_over_random_rays() {
-        let mut rng = Lcg(77);
-        for n in [1usize, 4, 5, 37, 600, 4000] {
-            let tris: Vec<[Vec3; 3]> = (0..n)
-                .map(|_| {
-                    let c = rng.vec();
-                    [c, c + rng.vec() * 0.15, c + rng.vec() * 0.15]
-                })
-                .collect();
-            let boxes: Vec<(Vec3, Vec3)> = tris
-                .iter()
-                .map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
-                .collect();
-            let bvh = WideBvh::build(&boxes);
-            for narrow in [false, true] {
-                let bvh = if narrow {
-                    bvh.clone().without_avx2()
-                } else {
-                    bvh.clone()
-                };
-                for i in 0..2000 {
-                    // Half from outside towards the triangles, half from inside the cloud.
-                    let o = if i % 2 == 0 {
-                        rng.vec() * 3.0
-                    } else {
-                        rng.vec() * 0.8
-                    };
-                    let d = (rng.vec() * 0.9 - o * if i % 2 == 0 { 0.3 } else { 0.0 })
-                        .normalize_or(Vec3::X);
-                    let ray = Ray::new(o, d);
-                    let t_max = if i % 4 == 3 {
-                        rng.next() * 2.0
-                    } else {
-                        f32::INFINITY
-                    };
-                    // Brute force: the nearest hit below `t_max` (f32 distances, as the
-                    // traversal's closure sees them), lowest index on a tie.
-                    let mut best: Option<(f32, u32)> = None;
-                    for (k, tri) in tris.iter().enumerate() {
-                        if let Some(t) = hit_triangle(&ray, tri) {
-                            let t = t as f32;
-                            if t < t_max && best.is_none_or(|b| t < b.0) {
-                                best = Some((t, k as u32));
-                            }
-                        }
-                    }
-                    let mut found: Option<(f32, u32)> = None;
-                    bvh.traverse(&ray, t_max, |pos, t_cur| {
-                        let k = bvh.order()[pos as usize];
-                        match hit_triangle(&ray, &tris[k as usize]) {
-                            Some(t) if (t as f32) < t_cur => {
-                                let t = t as f32;
-                                if found.is_none_or(|f| t < f.0 || (t == f.0 && k < f.1)) {
-                                    found = Some((t, k));
-                                }
-                                t
-                            }
-                            Some(t) if t as f32 == t_cur => {
-                                if found.is_some_and(|f| k < f.1) {
-                                    found = Some((t as f32, k));
-                                }
-                                t_cur
-                            }
-                            _ => t_cur,
-                        }
-                    });
-                    let bits = |h: Option<(f32, u32)>| h.map(|(t, k)| (t.to_bits(), k));
-                    assert_eq!(
-                        bits(found),
-                        bits(best),
-                        "{n} triangles, ray {i}, narrow {narrow}"
-                    );
-                    // Any hit: stops at once, and finds one exactly when there is one.
-                    let mut any = false;
-                    bvh.traverse(&ray, t_max, |pos, t_cur| {
-                        let k = bvh.order()[pos as usize];
-                        match hit_triangle(&ray, &tris[k as usize]) {
-                            Some(t) if (t as f32) < t_cur => {
-                                any = true;
-                                0.0
-                            }
-                            _ => t_cur,
-                        }
-                    });
-                    assert_eq!(any, best.is_some(), "{n} triangles, ray {i}: any hit");
-                }
             }
         }
     }
