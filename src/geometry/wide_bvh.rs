@@ -1140,4 +1140,123 @@ mod tests {
             }
         }
     }
+
+    /// Closest hit of a ray with a triangle (Möller–Trumbore in f64), or `None`.
+    fn hit_triangle(ray: &Ray, tri: &[Vec3; 3]) -> Option<f64> {
+        let f = |v: Vec3| [f64::from(v.x), f64::from(v.y), f64::from(v.z)];
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let (v0, v1, v2) = (f(tri[0]), f(tri[1]), f(tri[2]));
+        let (o, d) = (f(ray.o), f(ray.d));
+        let (e1, e2) = (sub(v1, v0), sub(v2, v0));
+        let p = cross(d, e2);
+        let det = dot(e1, p);
+        if det.abs() < 1e-300 {
+            return None;
+        }
+        let s = sub(o, v0);
+        let u = dot(s, p) / det;
+        let q = cross(s, e1);
+        let v = dot(d, q) / det;
+        let t = dot(e2, q) / det;
+        (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0).then_some(t)
+    }
+
+    #[test]
+    fn traversal_finds_the_brute_force_hits_over_random_rays() {
+        let mut rng = Lcg(77);
+        for n in [1usize, 4, 5, 37, 600, 4000] {
+            let tris: Vec<[Vec3; 3]> = (0..n)
+                .map(|_| {
+                    let c = rng.vec();
+                    [c, c + rng.vec() * 0.15, c + rng.vec() * 0.15]
+                })
+                .collect();
+            let boxes: Vec<(Vec3, Vec3)> = tris
+                .iter()
+                .map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
+                .collect();
+            let bvh = WideBvh::build(&boxes);
+            for narrow in [false, true] {
+                let bvh = if narrow {
+                    bvh.clone().without_avx2()
+                } else {
+                    bvh.clone()
+                };
+                for i in 0..2000 {
+                    // Half from outside towards the triangles, half from inside the cloud.
+                    let o = if i % 2 == 0 {
+                        rng.vec() * 3.0
+                    } else {
+                        rng.vec() * 0.8
+                    };
+                    let d = (rng.vec() * 0.9 - o * if i % 2 == 0 { 0.3 } else { 0.0 })
+                        .normalize_or(Vec3::X);
+                    let ray = Ray::new(o, d);
+                    let t_max = if i % 4 == 3 {
+                        rng.next() * 2.0
+                    } else {
+                        f32::INFINITY
+                    };
+                    // Brute force: the nearest hit below `t_max` (f32 distances, as the
+                    // traversal's closure sees them), lowest index on a tie.
+                    let mut best: Option<(f32, u32)> = None;
+                    for (k, tri) in tris.iter().enumerate() {
+                        if let Some(t) = hit_triangle(&ray, tri) {
+                            let t = t as f32;
+                            if t < t_max && best.is_none_or(|b| t < b.0) {
+                                best = Some((t, k as u32));
+                            }
+                        }
+                    }
+                    let mut found: Option<(f32, u32)> = None;
+                    bvh.traverse(&ray, t_max, |pos, t_cur| {
+                        let k = bvh.order()[pos as usize];
+                        match hit_triangle(&ray, &tris[k as usize]) {
+                            Some(t) if (t as f32) < t_cur => {
+                                let t = t as f32;
+                                if found.is_none_or(|f| t < f.0 || (t == f.0 && k < f.1)) {
+                                    found = Some((t, k));
+                                }
+                                t
+                            }
+                            Some(t) if t as f32 == t_cur => {
+                                if found.is_some_and(|f| k < f.1) {
+                                    found = Some((t as f32, k));
+                                }
+                                t_cur
+                            }
+                            _ => t_cur,
+                        }
+                    });
+                    let bits = |h: Option<(f32, u32)>| h.map(|(t, k)| (t.to_bits(), k));
+                    assert_eq!(
+                        bits(found),
+                        bits(best),
+                        "{n} triangles, ray {i}, narrow {narrow}"
+                    );
+                    // Any hit: stops at once, and finds one exactly when there is one.
+                    let mut any = false;
+                    bvh.traverse(&ray, t_max, |pos, t_cur| {
+                        let k = bvh.order()[pos as usize];
+                        match hit_triangle(&ray, &tris[k as usize]) {
+                            Some(t) if (t as f32) < t_cur => {
+                                any = true;
+                                0.0
+                            }
+                            _ => t_cur,
+                        }
+                    });
+                    assert_eq!(any, best.is_some(), "{n} triangles, ray {i}: any hit");
+                }
+            }
+        }
+    }
 }
