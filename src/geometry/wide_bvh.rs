@@ -45,159 +45,36 @@ const STACK_INLINE: usize = 48;
 /// Children per node.
 const WIDTH: usize = 8;
 
-/// One node: the boxes of up to eight children as half-precision floats, per axis in one
-/// 8-lane row, and what each child is: 128 bytes, two cache lines (full-precision boxes took
-/// 256). The planes are those of the hierarchy's scaled space (coordinates × [`WideBvh`]'s
-/// power-of-two `scale`), rounded outwards to `f16` when built, so every stored box contains
-/// its full-precision box; the slab test reads them as `f32` and runs on the ray scaled by the
-/// same power of two, which gives the very IEEE results of the unscaled test on the rounded
-/// box (scaling by a power of two is exact), so the test stays conservative.
+/// One node: the boxes of up to eight children, per axis in two 4-wide halves, and what each
+/// child is.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Node8 {
-    /// Box planes of the children, `f16` bits: minima x, y, z (empty slots hold +∞), then
-    /// maxima x, y, z (empty slots hold −∞). One array, so that a ray picks its near and far
-    /// plane per axis by index instead of by a branch.
-    planes: [[u16; WIDTH]; 6],
-    /// Per child: the child node's index (inner child), or the first primitive of a leaf in
-    /// the low [`LINK_BITS`] bits and its primitive count above them.
-    link: [u32; WIDTH],
+    /// Box planes of the children: minima x, y, z (empty slots hold +∞), then maxima x, y, z
+    /// (empty slots hold −∞). One array, so that a ray picks its near and far plane per axis
+    /// by index instead of by a branch.
+    planes: [[Vec4; 2]; 6],
+    /// Child node index, or the first primitive of a leaf.
+    child: [u32; WIDTH],
+    /// Primitives of a leaf child (0 for an inner child or an empty slot).
+    count: [u32; WIDTH],
 }
-
-/// Bits of [`Node8::link`] holding a node index or a leaf's first primitive.
-const LINK_BITS: u32 = 29;
-
-/// `f16` +∞ and −∞.
-const F16_INF: u16 = 0x7c00;
-const F16_NEG_INF: u16 = 0xfc00;
 
 impl Node8 {
     fn empty() -> Self {
         Node8 {
             planes: [
-                [F16_INF; WIDTH],
-                [F16_INF; WIDTH],
-                [F16_INF; WIDTH],
-                [F16_NEG_INF; WIDTH],
-                [F16_NEG_INF; WIDTH],
-                [F16_NEG_INF; WIDTH],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
+                [Vec4::splat(f32::NEG_INFINITY); 2],
             ],
-            link: [0; WIDTH],
+            child: [0; WIDTH],
+            count: [0; WIDTH],
         }
     }
-
-    /// Primitives of the leaf in `slot` (0 for an inner child or an empty slot).
-    #[inline(always)]
-    fn count(&self, slot: usize) -> u32 {
-        self.link[slot] >> LINK_BITS
-    }
-
-    /// The first primitive of the leaf in `slot`.
-    #[inline(always)]
-    fn first(&self, slot: usize) -> u32 {
-        self.link[slot] & ((1 << LINK_BITS) - 1)
-    }
-
-    /// Sets `slot` to the box `lo..hi` (scaled coordinates), rounded outwards.
-    fn set_box(&mut self, slot: usize, lo: [f32; 3], hi: [f32; 3]) {
-        for k in 0..3 {
-            self.planes[k][slot] = f16_at_most(lo[k]);
-            self.planes[k + 3][slot] = f16_at_least(hi[k]);
-        }
-    }
-
-    /// Plane `k` of `slot` as `f32` (tests).
-    #[cfg(test)]
-    fn plane(&self, k: usize, slot: usize) -> f32 {
-        f16_to_f32(self.planes[k][slot])
-    }
-}
-
-/// The `f32` value of the `f16` with bits `h` (exact; NaNs stay NaN).
-#[inline]
-fn f16_to_f32(h: u16) -> f32 {
-    let exp = u32::from(h >> 10) & 0x1f;
-    let man = u32::from(h & 0x3ff);
-    let mag = match exp {
-        0 => man as f32 * (1.0 / 16_777_216.0), // subnormal: man × 2⁻²⁴
-        31 if man == 0 => f32::INFINITY,
-        31 => f32::NAN,
-        _ => f32::from_bits(((exp + 112) << 23) | (man << 13)),
-    };
-    if h & 0x8000 != 0 {
-        -mag
-    } else {
-        mag
-    }
-}
-
-/// The `f16` bits of the `k`-th non-NaN `f16` in increasing order (`k` ≤ 2·0x7c00 + 1: −∞,
-/// …, −0, +0, …, +∞).
-fn f16_ordered(k: u32) -> u16 {
-    if k <= u32::from(F16_INF) {
-        0x8000 | (F16_INF - k as u16)
-    } else {
-        (k - u32::from(F16_INF) - 1) as u16
-    }
-}
-
-/// The largest `f16` at most `x` (bits; −∞ for NaN).
-fn f16_at_most(x: f32) -> u16 {
-    if x.is_nan() {
-        return F16_NEG_INF;
-    }
-    // The largest k with value(k) ≤ x; value(0) = −∞ ≤ x.
-    let (mut lo, mut hi) = (0u32, 2 * u32::from(F16_INF) + 1);
-    while lo < hi {
-        let mid = (lo + hi).div_ceil(2);
-        if f16_to_f32(f16_ordered(mid)) <= x {
-            lo = mid;
-        } else {
-            hi = mid - 1;
-        }
-    }
-    f16_ordered(lo)
-}
-
-/// The smallest `f16` at least `x` (bits; +∞ for NaN).
-fn f16_at_least(x: f32) -> u16 {
-    if x.is_nan() {
-        return F16_INF;
-    }
-    let (mut lo, mut hi) = (0u32, 2 * u32::from(F16_INF) + 1);
-    while lo < hi {
-        let mid = (lo + hi) / 2;
-        if f16_to_f32(f16_ordered(mid)) >= x {
-            hi = mid;
-        } else {
-            lo = mid + 1;
-        }
-    }
-    f16_ordered(lo)
-}
-
-/// The power of two the hierarchy's coordinates are scaled by before they are rounded to
-/// `f16`: the largest magnitude `m` of the boxes maps into [2¹⁴, 2¹⁵) (`f16`'s largest finite
-/// value is 65,504), clamped to 2^±60 so that the scaled ray's origin and reciprocal direction
-/// neither overflow nor lose bits to underflow in practice.
-fn coordinate_scale(boxes: &[(Vec3, Vec3)]) -> f32 {
-    let mut m = 0.0f32;
-    for (lo, hi) in boxes {
-        let b = lo.abs().max(hi.abs()).max_element();
-        if b.is_finite() {
-            m = m.max(b);
-        }
-    }
-    let mut e = 0i32;
-    if m > 0.0 {
-        while e > -60 && m * 2f32.powi(e) >= 32_768.0 {
-            e -= 1;
-        }
-        while e < 60 && m * 2f32.powi(e + 1) < 32_768.0 {
-            e += 1;
-        }
-    }
-    2f32.powi(e)
 }
 
 /// A wide BVH over primitive boxes. Primitive indices it reports are positions in
@@ -208,15 +85,8 @@ pub struct WideBvh {
     /// Original primitive index of each position.
     order: Vec<u32>,
     depth: usize,
-    /// The CPU runs AVX2 and F16C (detected when the hierarchy is built): the 8-wide node
-    /// test.
+    /// The CPU runs AVX2 (detected when the hierarchy is built): the 8-wide node test.
     avx2: bool,
-    /// The power of two the node planes are scaled by ([`coordinate_scale`]); the node test
-    /// scales the ray by it.
-    scale: f32,
-    /// The full-precision boxes of every node's children, unscaled (tests only).
-    #[cfg(test)]
-    exact: Vec<[Option<([f32; 3], [f32; 3])>; WIDTH]>,
 }
 
 struct BoxPrim(OAabb);
@@ -244,13 +114,16 @@ impl SlabRay {
     /// (sign kept, `-0` treated as `+0`), so that slab tests never produce `0·∞`; the three
     /// reciprocals are one vector division (the same IEEE quotients as three scalar ones).
     #[inline]
-    fn new(ray: &Ray, scale: f32) -> Self {
+    fn new(ray: &Ray) -> Self {
         let (inv, neg) = slab_constants(ray);
-        let (o, inv) = (ray.o * scale, inv * (1.0 / scale));
         let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
         let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
         SlabRay {
-            o: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
+            o: [
+                Vec4::splat(ray.o.x),
+                Vec4::splat(ray.o.y),
+                Vec4::splat(ray.o.z),
+            ],
             inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
             near: [near(0), near(1), near(2)],
             far: [far(0), far(1), far(2)],
@@ -262,17 +135,8 @@ impl SlabRay {
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
         for k in 0..3 {
-            let plane = |i: usize| {
-                let q = &node.planes[i][4 * h..4 * h + 4];
-                Vec4::new(
-                    f16_to_f32(q[0]),
-                    f16_to_f32(q[1]),
-                    f16_to_f32(q[2]),
-                    f16_to_f32(q[3]),
-                )
-            };
-            let n = plane(self.near[k]);
-            let f = plane(self.far[k]);
+            let n = node.planes[self.near[k]][h];
+            let f = node.planes[self.far[k]][h];
             near = near.max((n - self.o[k]) * self.inv[k]);
             far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
         }
@@ -318,9 +182,9 @@ impl NodeTest for SlabRay {
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m128i, __m256, _mm256_cmp_ps, _mm256_cvtph_ps, _mm256_max_ps, _mm256_min_ps,
-        _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
-        _mm256_sub_ps, _mm_loadu_si128, _CMP_LE_OS,
+        __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
+        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        _CMP_LE_OS,
     };
 
     #[cfg(test)]
@@ -339,8 +203,8 @@ mod avx2 {
 
     impl AvxSlab {
         /// # Safety
-        /// The CPU must support AVX2 and F16C.
-        #[target_feature(enable = "avx2,f16c")]
+        /// The CPU must support AVX2.
+        #[target_feature(enable = "avx2")]
         #[cfg(test)]
         pub(super) unsafe fn new(s: &SlabRay) -> Self {
             AvxSlab {
@@ -363,19 +227,18 @@ mod avx2 {
         /// splats in between.
         ///
         /// # Safety
-        /// The CPU must support AVX2 and F16C.
-        #[target_feature(enable = "avx2,f16c")]
+        /// The CPU must support AVX2.
+        #[target_feature(enable = "avx2")]
         #[inline]
-        pub(super) unsafe fn from_ray(ray: &Ray, scale: f32) -> Self {
+        pub(super) unsafe fn from_ray(ray: &Ray) -> Self {
             let (inv, neg) = slab_constants(ray);
-            let (o, inv) = (ray.o * scale, inv * (1.0 / scale));
             let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
             let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
             AvxSlab {
                 o: [
-                    _mm256_set1_ps(o.x),
-                    _mm256_set1_ps(o.y),
-                    _mm256_set1_ps(o.z),
+                    _mm256_set1_ps(ray.o.x),
+                    _mm256_set1_ps(ray.o.y),
+                    _mm256_set1_ps(ray.o.z),
                 ],
                 inv: [
                     _mm256_set1_ps(inv.x),
@@ -391,22 +254,26 @@ mod avx2 {
     impl NodeTest for AvxSlab {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
-            // SAFETY: an `AvxSlab` exists only where AVX2 and F16C are available (its
-            // constructor needs them); the plane indices are `k` or `k + 3` (below 6, set by
-            // `SlabRay::new`); the loads read the 8 `f16` (16 bytes) of a plane, the store
+            // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
+            // it); the plane indices are `k` or `k + 3` (below 6, set by `SlabRay::new`); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
             // writes the 8 floats of `out`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
                 for k in 0..3 {
                     // (`near[k]` and `far[k]` are `k` and `k + 3`, below 6.)
-                    let plane = |i: usize| {
-                        _mm256_cvtph_ps(_mm_loadu_si128(
-                            node.planes.get_unchecked(i).as_ptr().cast::<__m128i>(),
-                        ))
-                    };
-                    let n = plane(self.near[k]);
-                    let f = plane(self.far[k]);
+                    let n = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.near[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
+                    let f = _mm256_loadu_ps(
+                        node.planes
+                            .get_unchecked(self.far[k])
+                            .as_ptr()
+                            .cast::<f32>(),
+                    );
                     near = _mm256_max_ps(
                         near,
                         _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
@@ -521,8 +388,7 @@ impl WideBvh {
         ReinsertionOptimizer::default().run(&mut bvh2, REINSERTION_BATCH_RATIO, None);
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
-            avx2: avx2_and_f16c(),
-            scale: coordinate_scale(boxes),
+            avx2: crate::math::avx2_enabled(),
             ..WideBvh::default()
         };
         if counts[0] <= MAX_LEAF_PRIMITIVES {
@@ -531,20 +397,15 @@ impl WideBvh {
             // One node with one leaf child whose box is all of space (always entered).
             let mut node = Node8::empty();
             for k in 0..3 {
-                node.planes[k][0] = F16_NEG_INF;
-                node.planes[k + 3][0] = F16_INF;
+                node.planes[k][0][0] = f32::NEG_INFINITY;
+                node.planes[k + 3][0][0] = f32::INFINITY;
             }
-            node.link[0] = first | ((out.order.len() as u32 - first) << LINK_BITS);
+            node.child[0] = first;
+            node.count[0] = out.order.len() as u32 - first;
             out.nodes.push(node);
-            #[cfg(test)]
-            out.exact.push([None; WIDTH]);
             out.depth = 1;
             return (out, f32::NAN);
         }
-        assert!(
-            n < 1 << LINK_BITS,
-            "the wide BVH holds fewer than 2^29 primitives"
-        );
         let cost = out.collapse(&bvh2, &counts, strategy);
         (out, cost)
     }
@@ -566,18 +427,11 @@ impl WideBvh {
                 Strategy::Greedy => children.extend(open_children(bvh2, b, counts)),
             }
             let mut node = Node8::empty();
-            #[cfg(test)]
-            let mut exact = [None; WIDTH];
             for (slot, &c) in children.iter().enumerate() {
                 let bb = bvh2.nodes[c].aabb;
-                let (lo, hi) = (
-                    (bb.min * self.scale).to_array(),
-                    (bb.max * self.scale).to_array(),
-                );
-                node.set_box(slot, lo, hi);
-                #[cfg(test)]
-                {
-                    exact[slot] = Some((bb.min.to_array(), bb.max.to_array()));
+                for k in 0..3 {
+                    node.planes[k][slot / 4][slot % 4] = bb.min[k];
+                    node.planes[k + 3][slot / 4][slot % 4] = bb.max[k];
                 }
                 let leaf = match strategy {
                     Strategy::Sah => sah.is_leaf(c),
@@ -587,20 +441,16 @@ impl WideBvh {
                 if leaf {
                     let first = self.order.len() as u32;
                     collect_primitives(bvh2, c, &mut self.order);
-                    node.link[slot] = first | ((self.order.len() as u32 - first) << LINK_BITS);
+                    node.child[slot] = first;
+                    node.count[slot] = self.order.len() as u32 - first;
                 } else {
                     let index = self.nodes.len();
                     self.nodes.push(Node8::empty());
-                    node.link[slot] = index as u32;
+                    node.child[slot] = index as u32;
                     work.push((c, index, depth + 1));
                 }
             }
             self.nodes[w] = node;
-            #[cfg(test)]
-            {
-                self.exact.resize(self.nodes.len(), [None; WIDTH]);
-                self.exact[w] = exact;
-            }
         }
         sah.root_cost
     }
@@ -632,7 +482,7 @@ impl WideBvh {
             unsafe { self.traverse_avx2(ray, t_max, primitive) };
             return;
         }
-        let slab = SlabRay::new(ray, self.scale);
+        let slab = SlabRay::new(ray);
         if self.shallow() {
             self.traverse_with::<_, false>(&slab, t_max, primitive);
         } else {
@@ -653,10 +503,10 @@ impl WideBvh {
     /// # Safety
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,f16c")]
+    #[target_feature(enable = "avx2")]
     unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         // SAFETY: this function runs only with AVX2.
-        let wide = unsafe { avx2::AvxSlab::from_ray(ray, self.scale) };
+        let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
         if self.shallow() {
             self.traverse_with::<_, false>(&wide, t_max, primitive);
         } else {
@@ -693,8 +543,8 @@ impl WideBvh {
         // traversal when `primitive` ends it.
         macro_rules! leaf {
             ($node:expr, $slot:expr) => {{
-                let first = $node.first($slot);
-                for i in first..first + $node.count($slot) {
+                let first = $node.child[$slot];
+                for i in first..first + $node.count[$slot] {
                     t_max = primitive(i, t_max);
                     if t_max <= 0.0 {
                         return;
@@ -715,8 +565,8 @@ impl WideBvh {
             } else if rest == 0 {
                 // One child.
                 if !(near[s0] > t_max) {
-                    if node.count(s0) == 0 {
-                        current = node.link[s0];
+                    if node.count[s0] == 0 {
+                        current = node.child[s0];
                         continue;
                     }
                     leaf!(node, s0);
@@ -731,30 +581,30 @@ impl WideBvh {
                 };
                 let (ta, tb) = (near[a], near[b]);
                 if !(ta > t_max) {
-                    if node.count(a) > 0 {
+                    if node.count[a] > 0 {
                         leaf!(node, a);
                         if !(tb > t_max) {
-                            if node.count(b) > 0 {
+                            if node.count[b] > 0 {
                                 leaf!(node, b);
                             } else {
-                                current = node.link[b];
+                                current = node.child[b];
                                 continue;
                             }
                         }
                     } else {
                         if !(tb > t_max) {
-                            if node.count(b) > 0 {
+                            if node.count[b] > 0 {
                                 leaf!(node, b);
                             } else {
                                 stack.push(Entry {
-                                    node: node.link[b],
+                                    node: node.child[b],
                                     t: tb,
                                 });
                             }
                         }
                         // (A leaf after it may have shortened the ray.)
                         if !(ta > t_max) {
-                            current = node.link[a];
+                            current = node.child[a];
                             continue;
                         }
                     }
@@ -785,11 +635,11 @@ impl WideBvh {
                         break;
                     }
                     let slot = (slot & 7) as usize;
-                    if node.count(slot) > 0 {
+                    if node.count[slot] > 0 {
                         leaf!(node, slot);
                     } else {
                         inner[m] = Entry {
-                            node: node.link[slot],
+                            node: node.child[slot],
                             t,
                         };
                         m += 1;
@@ -819,19 +669,6 @@ impl WideBvh {
                 }
             }
         }
-    }
-}
-
-/// Whether the CPU runs the 8-wide node test: AVX2 ([`crate::math::avx2_enabled`], which
-/// `VELOUR_NO_AVX2=1` turns off) and F16C.
-fn avx2_and_f16c() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        crate::math::avx2_enabled() && std::is_x86_feature_detected!("f16c")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
 
@@ -1109,7 +946,7 @@ mod tests {
 
     #[test]
     fn the_8_wide_and_4_wide_node_tests_visit_the_same_leaves_in_the_same_order() {
-        if !avx2_and_f16c() {
+        if !crate::math::avx2_enabled() {
             eprintln!("no AVX2 on this CPU: only the 4-wide test runs");
             return;
         }
@@ -1130,12 +967,12 @@ mod tests {
             } else {
                 f32::INFINITY
             };
-            let slab = SlabRay::new(&ray, wide.scale);
+            let slab = SlabRay::new(&ray);
             // SAFETY: AVX2 was detected above.
             let avx = unsafe { avx2::AvxSlab::new(&slab) };
             let node = &wide.nodes[i % wide.nodes.len()];
             // SAFETY: AVX2 was detected above.
-            let direct = unsafe { avx2::AvxSlab::from_ray(&ray, wide.scale) };
+            let direct = unsafe { avx2::AvxSlab::from_ray(&ray) };
             let (a, ma) = slab.test(node, t_max);
             let (b, mb) = avx.test(node, t_max);
             let (c, mc) = direct.test(node, t_max);
@@ -1174,16 +1011,21 @@ mod tests {
         let mut cost = 0.0;
         for (i, node) in bvh.nodes.iter().enumerate() {
             for slot in 0..WIDTH {
-                let Some((lo, hi)) = bvh.exact[i][slot] else {
+                let plane = |k: usize| node.planes[k][slot / 4][slot % 4];
+                if plane(0) == f32::INFINITY {
                     continue; // an empty slot
-                };
+                }
+                let (lo, hi) = (
+                    [plane(0), plane(1), plane(2)],
+                    [plane(3), plane(4), plane(5)],
+                );
                 if i == 0 {
                     for k in 0..3 {
                         root_lo[k] = root_lo[k].min(lo[k]);
                         root_hi[k] = root_hi[k].max(hi[k]);
                     }
                 }
-                let count = node.count(slot);
+                let count = node.count[slot];
                 assert!(count <= MAX_LEAF_PRIMITIVES, "a leaf of {count} primitives");
                 cost += half_area(lo, hi)
                     * if count > 0 {
@@ -1246,7 +1088,7 @@ mod tests {
         assert!(bvh.shallow());
         for i in 0..5000 {
             let ray = Ray::new(rng.vec() * 1.5, rng.vec().normalize_or(Vec3::X));
-            let slab = SlabRay::new(&ray, bvh.scale);
+            let slab = SlabRay::new(&ray);
             let mut seen = (Vec::new(), Vec::new());
             let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
             bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t| {
