@@ -164,6 +164,18 @@ const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32
 /// the ray enters within `[0, t_max]` (bit `i` for child `i`).
 trait NodeTest {
     fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32);
+
+    /// The masks of the children whose entry distance in `near` is below `t` and equal to
+    /// it (bit `j` for child `j`; entry distances are never NaN where a child is entered).
+    #[inline(always)]
+    fn before(&self, near: &[f32; WIDTH], t: f32) -> (u32, u32) {
+        let (a, b) = (Vec4::from_slice(&near[..4]), Vec4::from_slice(&near[4..]));
+        let t = Vec4::splat(t);
+        (
+            a.cmplt(t).bitmask() | (b.cmplt(t).bitmask() << 4),
+            a.cmpeq(t).bitmask() | (b.cmpeq(t).bitmask() << 4),
+        )
+    }
 }
 
 impl NodeTest for SlabRay {
@@ -184,7 +196,7 @@ mod avx2 {
     use std::arch::x86_64::{
         __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
         _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
-        _CMP_LE_OS,
+        _CMP_EQ_OQ, _CMP_LE_OS, _CMP_LT_OQ,
     };
 
     #[cfg(test)]
@@ -292,6 +304,19 @@ mod avx2 {
                 (out, mask)
             }
         }
+
+        #[inline(always)]
+        fn before(&self, near: &[f32; WIDTH], t: f32) -> (u32, u32) {
+            // SAFETY: AVX2 is available (see `test`); the load reads the 8 floats of `near`.
+            unsafe {
+                let v = _mm256_loadu_ps(near.as_ptr());
+                let t = _mm256_set1_ps(t);
+                (
+                    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, t)) as u32,
+                    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_EQ_OQ>(v, t)) as u32,
+                )
+            }
+        }
     }
 }
 
@@ -388,7 +413,7 @@ impl WideBvh {
         ReinsertionOptimizer::default().run(&mut bvh2, REINSERTION_BATCH_RATIO, None);
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
-            avx2: crate::math::avx2_enabled(),
+            avx2: avx2_and_popcnt(),
             ..WideBvh::default()
         };
         if counts[0] <= MAX_LEAF_PRIMITIVES {
@@ -503,7 +528,7 @@ impl WideBvh {
     /// # Safety
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,popcnt")]
     unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
@@ -611,20 +636,17 @@ impl WideBvh {
                 }
             } else {
                 // Three or more: the entered children sorted by entry distance, nearest
-                // first.
-                let mut mask = mask;
-                let mut n = 0;
-                while mask != 0 {
-                    let slot = (mask.trailing_zeros() & 7) as usize;
-                    mask &= mask - 1;
+                // first, ties by slot, each put at its rank (the entered children nearer
+                // than it, or as near in a lower slot) without a data-dependent loop.
+                let n = mask.count_ones() as usize;
+                let mut rest = mask;
+                while rest != 0 {
+                    let slot = (rest.trailing_zeros() & 7) as usize;
+                    rest &= rest - 1;
                     let t = near[slot];
-                    let mut j = n;
-                    while j > 0 && order[j - 1].1 > t {
-                        order[j] = order[j - 1];
-                        j -= 1;
-                    }
-                    order[j] = (slot as u32, t);
-                    n += 1;
+                    let (lt, eq) = slab.before(&near, t);
+                    let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
+                    order[rank & 7] = (slot as u32, t);
                 }
                 // Leaves are intersected at once, nearest first (a hit shortens the ray for
                 // the rest); inner children are pushed farthest first, so the nearest is
@@ -669,6 +691,19 @@ impl WideBvh {
                 }
             }
         }
+    }
+}
+
+/// Whether the CPU runs the 8-wide node test: AVX2 ([`crate::math::avx2_enabled`], which
+/// `VELOUR_NO_AVX2=1` turns off) and POPCNT (the ranks of the children it orders).
+fn avx2_and_popcnt() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        crate::math::avx2_enabled() && std::is_x86_feature_detected!("popcnt")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -946,7 +981,7 @@ mod tests {
 
     #[test]
     fn the_8_wide_and_4_wide_node_tests_visit_the_same_leaves_in_the_same_order() {
-        if !crate::math::avx2_enabled() {
+        if !avx2_and_popcnt() {
             eprintln!("no AVX2 on this CPU: only the 4-wide test runs");
             return;
         }
@@ -996,6 +1031,47 @@ mod tests {
                 shorten(pos, t)
             });
             assert_eq!(seen.0, seen.1, "ray {i}");
+        }
+    }
+
+    /// The rank placement of the traversal's three-or-more case against a stable sort by
+    /// entry distance (ties by slot), with both node tests' `before`.
+    #[test]
+    fn children_placed_at_their_rank_are_in_stable_sorted_order() {
+        let mut rng = Lcg(91);
+        let ray = Ray::new(Vec3::ZERO, Vec3::X);
+        let slab = SlabRay::new(&ray);
+        #[cfg(target_arch = "x86_64")]
+        let avx = avx2_and_popcnt().then(|| {
+            // SAFETY: AVX2 was detected.
+            unsafe { avx2::AvxSlab::from_ray(&ray) }
+        });
+        for _ in 0..20_000 {
+            // Few distinct values, so that ties are common.
+            let near: [f32; WIDTH] = std::array::from_fn(|_| (rng.next() * 4.0).floor() * 0.5);
+            let mask = (rng.next() * 256.0) as u32 & 0xff;
+            let mut expected: Vec<(u32, f32)> = (0..WIDTH as u32)
+                .filter(|&s| mask & (1 << s) != 0)
+                .map(|s| (s, near[s as usize]))
+                .collect();
+            expected.sort_by(|a, b| a.1.total_cmp(&b.1)); // stable: ties keep slot order
+            let place = |before: &dyn Fn(&[f32; WIDTH], f32) -> (u32, u32)| {
+                let mut order = [(0u32, 0.0f32); WIDTH];
+                let mut rest = mask;
+                while rest != 0 {
+                    let slot = (rest.trailing_zeros() & 7) as usize;
+                    rest &= rest - 1;
+                    let (lt, eq) = before(&near, near[slot]);
+                    let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
+                    order[rank] = (slot as u32, near[slot]);
+                }
+                order[..mask.count_ones() as usize].to_vec()
+            };
+            assert_eq!(place(&|n, t| slab.before(n, t)), expected);
+            #[cfg(target_arch = "x86_64")]
+            if let Some(avx) = &avx {
+                assert_eq!(place(&|n, t| avx.before(n, t)), expected);
+            }
         }
     }
 
