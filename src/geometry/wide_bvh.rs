@@ -563,6 +563,7 @@ impl WideBvh {
         // Scratch for the children of a node with three or more entered (only entries below
         // the counts are read), initialised once per ray.
         let mut order = [(0u32, 0.0f32); WIDTH];
+        let mut inner = [Entry::default(); WIDTH];
         // Tests the primitives of the leaf in slot `$slot` of `node`; returns from the
         // traversal when `primitive` ends it.
         macro_rules! leaf {
@@ -636,16 +637,7 @@ impl WideBvh {
             } else {
                 // Three or more: the entered children sorted by entry distance, nearest
                 // first, ties by slot, each put at its rank (the entered children nearer
-                // than it, or as near in a lower slot) without a data-dependent loop; the
-                // leaves first (`order[..nl]`), then the inner children (`order[nl..n]`),
-                // each kind in that order.
-                let mut leaves = 0u32;
-                for k in 0..WIDTH {
-                    leaves |= u32::from(node.count[k] > 0) << k;
-                }
-                let leaves = leaves & mask;
-                let inners = mask & !leaves;
-                let nl = leaves.count_ones() as usize;
+                // than it, or as near in a lower slot) without a data-dependent loop.
                 let n = mask.count_ones() as usize;
                 let mut rest = mask;
                 while rest != 0 {
@@ -653,34 +645,37 @@ impl WideBvh {
                     rest &= rest - 1;
                     let t = near[slot];
                     let (lt, eq) = slab.before(&near, t);
-                    let nearer = lt | (eq & ((1 << slot) - 1));
-                    let rank = if leaves & (1 << slot) != 0 {
-                        (leaves & nearer).count_ones() as usize
-                    } else {
-                        nl + (inners & nearer).count_ones() as usize
-                    };
+                    let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
                     order[rank & 7] = (slot as u32, t);
                 }
                 // Leaves are intersected at once, nearest first (a hit shortens the ray for
-                // the rest; the first beyond it ends them, as every later child is farther).
-                for &(slot, t) in &order[..nl] {
+                // the rest); inner children are pushed farthest first, so the nearest is
+                // visited next.
+                let mut m = 0;
+                for &(slot, t) in &order[..n] {
                     if t > t_max {
                         break;
                     }
-                    leaf!(node, (slot & 7) as usize);
+                    let slot = (slot & 7) as usize;
+                    if node.count[slot] > 0 {
+                        leaf!(node, slot);
+                    } else {
+                        inner[m] = Entry {
+                            node: node.child[slot],
+                            t,
+                        };
+                        m += 1;
+                    }
                 }
                 // The nearest inner child is visited next; the others wait, farthest
-                // deepest (those a leaf's hit put beyond the ray are dropped when popped).
-                if n > nl {
-                    for &(slot, t) in order[nl + 1..n].iter().rev() {
-                        stack.push(Entry {
-                            node: node.child[(slot & 7) as usize],
-                            t,
-                        });
+                // deepest.
+                if m > 0 {
+                    for e in inner[1..m].iter().rev() {
+                        stack.push(*e);
                     }
-                    let (slot, t) = order[nl & 7];
-                    if !(t > t_max) {
-                        current = node.child[(slot & 7) as usize];
+                    // (A leaf after it may have shortened the ray.)
+                    if !(inner[0].t > t_max) {
+                        current = inner[0].node;
                         continue;
                     }
                 }
