@@ -70,29 +70,6 @@ pub(super) fn asin_fast(x: f32) -> f32 {
     y.copysign(x)
 }
 
-/// `atan2(y, x)` in `[−π, π]` without a library call: the ratio of the smaller to the larger
-/// of `|x|`, `|y|` in `[0, 1]`, Cephes' `atanf` on it (Moshier 1992: one reduction by
-/// `tan(π/8)`, a degree-4 polynomial in `z²`), then the octant and the sign of `y`. Within
-/// 3 ulp of the library's `atan2f` away from the origin (unit test); `(0, 0)` gives `±0`.
-#[inline(always)]
-pub(super) fn atan2_fast(y: f32, x: f32) -> f32 {
-    use std::f32::consts::{FRAC_PI_2, FRAC_PI_4};
-    let (ax, ay) = (x.abs(), y.abs());
-    let swap = ay > ax;
-    let (num, den) = if swap { (ax, ay) } else { (ay, ax) };
-    let t = if den > 0.0 { num / den } else { 0.0 };
-    let big = t > 0.414_213_57;
-    let r = if big { (t - 1.0) / (t + 1.0) } else { t };
-    let z = r * r;
-    let p =
-        (((8.053_744_5e-2 * z - 1.387_768_5e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1) * z * r
-            + r;
-    let a = if big { FRAC_PI_4 + p } else { p };
-    let a = if swap { FRAC_PI_2 - a } else { a };
-    let a = if x < 0.0 { PI - a } else { a };
-    a.copysign(y)
-}
-
 /// Unpolarised Fresnel reflectance for `cos_i ∈ [0, 1]` and `eta ≥ 1` (no total internal
 /// reflection): the fibre model's dielectric Fresnel arithmetic on that branch, branch-free.
 #[inline(always)]
@@ -132,49 +109,5 @@ mod tests {
         assert_eq!(exp_neg(-0.0), 1.0);
         assert!(exp_neg(-1e4) > 0.0 && exp_neg(-1e4) < 1e-37);
         assert_eq!(asin_fast(1.0), std::f32::consts::FRAC_PI_2);
-    }
-
-    /// `atan2_fast` against the library's `atan2f` over the circle (every octant, both signs
-    /// of each coordinate, radii from 1e-6 to 1e3, the axes and diagonals): within 3 ulp.
-    #[test]
-    fn fast_atan2_is_within_a_few_ulp() {
-        let mut worst = (0u32, 0.0f32, 0.0f32);
-        let mut check = |y: f32, x: f32| {
-            let (got, want) = (atan2_fast(y, x), y.atan2(x));
-            let u = if got.signum() == want.signum() {
-                ulps(got, want)
-            } else {
-                u32::MAX
-            };
-            if u > worst.0 {
-                worst = (u, y, x);
-            }
-        };
-        for i in 0..400_000 {
-            let a = (i as f32 / 400_000.0 * 2.0 - 1.0) * PI;
-            for r in [1e-6, 0.3, 1.0, 1e3] {
-                check(r * a.sin(), r * a.cos());
-            }
-        }
-        for (y, x) in [
-            (0.0, 1.0),
-            (1.0, 0.0),
-            (0.0, -1.0),
-            (-1.0, 0.0),
-            (1.0, 1.0),
-            (-1.0, -1.0),
-        ] {
-            check(y, x);
-        }
-        assert!(
-            worst.0 <= 3,
-            "worst {} ulp at (y, x) = ({}, {})",
-            worst.0,
-            worst.1,
-            worst.2
-        );
-        assert_eq!(atan2_fast(0.0, 0.0), 0.0);
-        assert!(atan2_fast(1e-30, -1.0) > 3.14);
-        assert!(atan2_fast(-1e-30, -1.0) < -3.14);
     }
 }

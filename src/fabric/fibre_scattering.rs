@@ -26,9 +26,7 @@
 //! [`SggxFibrePhase`]: the SGGX microflake alternative (Heitz et al. 2015, §7.4) with
 //! `S = σ² t tᵀ + (I − t tᵀ)`, specular flakes.
 
-use super::fibre_fast_math::{
-    asin_fast, atan2_fast, exp_neg, fresnel_entering, logistic_unscaled, wrap_fast,
-};
+use super::fibre_fast_math::{asin_fast, exp_neg, fresnel_entering, logistic_unscaled, wrap_fast};
 use super::{check_range, invalid, FabricError};
 use crate::math::{Frame, Mat3, Vec3, PI};
 use crate::spectrum::Rgb;
@@ -375,9 +373,7 @@ fn angles(frame: &Frame, w: Vec3) -> Angles {
     Angles {
         sin_t,
         cos_t: (1.0 - sin_t * sin_t).max(0.0).sqrt(),
-        // Cephes' polynomial (within 3 ulp of `atan2f`), not a library call: one per prepared
-        // vertex and one per evaluation.
-        phi: atan2_fast(l.y, l.x),
+        phi: l.y.atan2(l.x),
     }
 }
 
