@@ -397,6 +397,10 @@ pub struct FibrePhase {
     nodes: Vec<(f32, f32, f32)>,
     /// Whether [`FibrePhase::eval_pdf_prepared`] sums the azimuthal lobes with AVX2.
     avx2: bool,
+    /// Which of the three azimuthal lobes can be non-zero: off ([`FibreLobes`]) or with a
+    /// diffuse weight of 1, a lobe's attenuations and shares are all 0 and its sums exactly
+    /// `+0`, so [`azimuthal_sums`] skips it (the same bits).
+    azimuthal_active: [bool; 3],
     /// `h_k` and `cos γ_o(h_k)` of the first [`CACHED_NODES`] nodes (0 past the count), for the
     /// batched terms of [`FibrePhase::prepare`].
     node_h: [f32; CACHED_NODES],
@@ -597,6 +601,7 @@ const TAIL_LANES: usize = (6 * TAIL_NODES).div_ceil(LANES) * LANES;
 fn azimuthal_sums<const N: usize>(
     t: &LobeTable<N>,
     unique: usize,
+    active: [bool; 3],
     dphi: f32,
     neg_inv_s: f32,
 ) -> [[f32; 4]; 3] {
@@ -629,6 +634,10 @@ fn azimuthal_sums<const N: usize>(
     }
     let mut out = [[0.0f32; 4]; 3];
     for (p, o) in out.iter_mut().enumerate() {
+        if !active[p] {
+            // Every attenuation and share of the lobe is 0: its sums are +0, as `out` holds.
+            continue;
+        }
         let (mut r, mut g, mut b, mut w) =
             ([0.0f32; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
         for batch in 0..full {
@@ -718,10 +727,11 @@ fn azimuthal_sums_reference<const N: usize>(
 unsafe fn azimuthal_sums_avx2<const N: usize>(
     t: &LobeTable<N>,
     unique: usize,
+    active: [bool; 3],
     dphi: f32,
     neg_inv_s: f32,
 ) -> [[f32; 4]; 3] {
-    azimuthal_sums(t, unique, dphi, neg_inv_s)
+    azimuthal_sums(t, unique, active, dphi, neg_inv_s)
 }
 
 /// [`FibrePhase::fill_table`] compiled for AVX2 (eight nodes at once; no FMA contraction, so
@@ -818,6 +828,9 @@ impl FibrePhase {
             lon: LongitudinalConsts::new(v),
             nodes,
             avx2: crate::math::avx2_enabled(),
+            azimuthal_active: std::array::from_fn(|p| {
+                params.lobes.on(p) && params.diffuse_weight < 1.0
+            }),
             node_h,
             node_cos_go,
             node_gamma_o,
@@ -1199,12 +1212,12 @@ impl FibrePhase {
             // SAFETY: `avx2` is set only where the CPU has AVX2 (`FibrePhase::new`).
             #[cfg(target_arch = "x86_64")]
             unsafe {
-                azimuthal_sums_avx2(table, unique, dphi, neg_inv_s)
+                azimuthal_sums_avx2(table, unique, self.azimuthal_active, dphi, neg_inv_s)
             }
             #[cfg(not(target_arch = "x86_64"))]
-            azimuthal_sums(table, unique, dphi, neg_inv_s)
+            azimuthal_sums(table, unique, self.azimuthal_active, dphi, neg_inv_s)
         } else {
-            azimuthal_sums(table, unique, dphi, neg_inv_s)
+            azimuthal_sums(table, unique, self.azimuthal_active, dphi, neg_inv_s)
         }
     }
 
@@ -1615,19 +1628,52 @@ mod tests {
         }
     }
 
-    /// The azimuthal sums with the nodes past the last full batch packed into shared batches
-    /// give the bits of one batch per lobe and sign, for every unique node count from 1 to
-    /// 64 (both table sizes), with and without AVX2.
+    /// The azimuthal sums with the nodes past the last full batch packed into shared batches,
+    /// and lobes that are off (or a diffuse weight of 1) skipped, give the bits of one batch
+    /// per lobe and sign over every lobe, for every unique node count from 1 to 64 (both table
+    /// sizes), with and without AVX2.
     #[test]
     fn packed_tail_gives_the_batched_sums_bit_for_bit() {
         let mut rng = crate::sampling::Rng::new(9, 4);
-        for h_nodes in (1..=128).filter(|n| n % 2 == 0 || *n < 20) {
+        let lobe_sets = [
+            (FibreLobes::default(), 0.3),
+            (
+                FibreLobes {
+                    tt: false,
+                    ..FibreLobes::default()
+                },
+                0.3,
+            ),
+            (
+                FibreLobes {
+                    r: false,
+                    trt: false,
+                    ..FibreLobes::default()
+                },
+                0.0,
+            ),
+            (FibreLobes::default(), 1.0),
+        ];
+        for (i, h_nodes) in (1..=128).filter(|n| n % 2 == 0 || *n < 20).enumerate() {
+            let (lobes, diffuse_weight) = lobe_sets[i % lobe_sets.len()];
             let params = FibrePhaseParams {
                 h_nodes,
+                lobes,
+                diffuse_weight,
                 ..FibrePhaseParams::default()
             }
             .with_colour(Rgb::new(0.7, 0.3, 0.1));
             let phase = FibrePhase::new(params).unwrap();
+            let active = phase.azimuthal_active;
+            assert_eq!(
+                active.iter().filter(|a| **a).count(),
+                match i % 4 {
+                    0 => 3,
+                    1 => 2,
+                    2 => 1,
+                    _ => 0,
+                }
+            );
             let unique = phase.h_node_count().div_ceil(2);
             let neg_inv_s = -1.0 / phase.s;
             for _ in 0..40 {
@@ -1641,12 +1687,12 @@ mod tests {
                 match &prepared.table {
                     NodeTable::Inline(t) => {
                         let old = azimuthal_sums_reference(t, batches, dphi, neg_inv_s);
-                        check(azimuthal_sums(t, unique, dphi, neg_inv_s), old);
+                        check(azimuthal_sums(t, unique, active, dphi, neg_inv_s), old);
                         check(phase.sums(t, unique, dphi, neg_inv_s), old);
                     }
                     NodeTable::Boxed(t) => {
                         let old = azimuthal_sums_reference(&**t, batches, dphi, neg_inv_s);
-                        check(azimuthal_sums(&**t, unique, dphi, neg_inv_s), old);
+                        check(azimuthal_sums(&**t, unique, active, dphi, neg_inv_s), old);
                         check(phase.sums(&**t, unique, dphi, neg_inv_s), old);
                     }
                     NodeTable::Uncached => panic!("{h_nodes} nodes are cached"),
