@@ -1701,6 +1701,71 @@ mod tests {
         }
     }
 
+    /// The node terms filled by the vectorised `fill_table` (with and without AVX2) are the
+    /// bits of the loop that filled them before, for odd and even node counts, both table
+    /// sizes, black and saturated colours and lobes switched off.
+    #[test]
+    fn vectorised_node_terms_give_the_reference_bits() {
+        fn bits<const N: usize>(t: &LobeTable<N>) -> Vec<u32> {
+            let mut v: Vec<f32> = Vec::new();
+            v.extend(t.phi.iter().flatten());
+            v.extend(t.a.iter().flatten().flatten());
+            v.extend(t.share.iter().flatten());
+            v.extend(&t.mirror);
+            v.extend(t.a3.iter().flatten());
+            v.extend(&t.gamma_t);
+            v.into_iter().map(f32::to_bits).collect()
+        }
+        fn sums_bits((v, p, d): (Rgb, f32, f32)) -> [u32; 5] {
+            [v[0], v[1], v[2], p, d].map(f32::to_bits)
+        }
+        fn check<const N: usize>(phase: &FibrePhase, o: &Angles, sigma_a: Rgb, wd: f32) {
+            let unique = phase.h_node_count().div_ceil(2);
+            let mut want = LobeTable::<N>::ZERO;
+            let want_sums = phase.fill_table_reference(&mut want, unique, o, sigma_a, wd);
+            let mut got = LobeTable::<N>::ZERO;
+            let got_sums = phase.fill_table(&mut got, unique, o, sigma_a, wd);
+            assert_eq!(bits(&got), bits(&want), "{unique} unique nodes");
+            assert_eq!(sums_bits(got_sums), sums_bits(want_sums));
+            let mut got = LobeTable::<N>::ZERO;
+            let got_sums = phase.fill_table_dispatch(&mut got, unique, o, sigma_a, wd);
+            assert_eq!(bits(&got), bits(&want), "{unique} unique nodes (dispatch)");
+            assert_eq!(sums_bits(got_sums), sums_bits(want_sums));
+        }
+        let mut rng = crate::sampling::Rng::new(13, 2);
+        let colours = [
+            Rgb::new(0.72, 0.1, 0.09),
+            Rgb::ONE,
+            Rgb::new(1e-4, 0.5, 0.99),
+        ];
+        for h_nodes in [0, 1, 2, 7, 8, 9, 16, 17, 33, 34, 63, 64, 65, 100, 127, 128] {
+            for (ci, colour) in colours.into_iter().enumerate() {
+                let lobes = FibreLobes {
+                    trt: ci != 1,
+                    ..FibreLobes::default()
+                };
+                let params = FibrePhaseParams {
+                    h_nodes,
+                    lobes,
+                    diffuse_weight: if ci == 2 { 0.0 } else { 0.3 },
+                    ..FibrePhaseParams::default()
+                }
+                .with_colour(colour);
+                let phase = FibrePhase::new(params.clone()).unwrap();
+                let frame = Frame::from_normal(random_dir(&mut rng));
+                for _ in 0..50 {
+                    let o = angles(&frame, random_dir(&mut rng));
+                    let wd = lobe_weight(params.diffuse_albedo * params.diffuse_weight);
+                    if phase.h_node_count().div_ceil(2) <= INLINE_NODES {
+                        check::<INLINE_NODES>(&phase, &o, params.sigma_a, wd);
+                    } else {
+                        check::<CACHED_NODES>(&phase, &o, params.sigma_a, wd);
+                    }
+                }
+            }
+        }
+    }
+
     /// The batched evaluation (fast `exp`/`asin`, lobes summed per lobe) against the node by
     /// node quadrature with the library's `exp` and `asin`: the same function to float
     /// precision, for saturated and grey colours, odd and even node counts, and lobes off.
