@@ -173,6 +173,52 @@ pub fn azimuthal_scale(beta_n: f32) -> f32 {
     (PI / 8.0).sqrt() * (0.265 * beta_n + 1.194 * beta_n * beta_n + 5.372 * beta_n.powi(22))
 }
 
+/// The per-lobe constants of [`longitudinal_lobe`] for the four variances `v_p`: `1/v`,
+/// `ln 2v` (log form, `v <= 0.1`), `sinh(1/v)·2v` (the direct form's normaliser) and
+/// `exp(−2/v)` (the sampler's), each computed by the same expression as where it is used.
+#[derive(Clone, Debug, PartialEq)]
+struct LongitudinalConsts {
+    inv_v: [f32; 4],
+    ln_2v: [f32; 4],
+    sinh_norm: [f32; 4],
+    exp_neg_2_over_v: [f32; 4],
+}
+
+impl LongitudinalConsts {
+    fn new(v: [f32; 4]) -> Self {
+        LongitudinalConsts {
+            inv_v: v.map(|v| 1.0 / v),
+            ln_2v: v.map(|v| (2.0 * v).ln()),
+            sinh_norm: v.map(|v| (1.0 / v).sinh() * 2.0 * v),
+            exp_neg_2_over_v: v.map(|v| (-2.0 / v).exp()),
+        }
+    }
+}
+
+/// [`i0`] of four arguments at once (the same operations per lane, so the same bits): the
+/// four lobes' series share one vector loop, whose divisions are the series' cost.
+#[inline]
+fn i0_lanes(x: [f32; 4]) -> [f32; 4] {
+    let q = x.map(|x| 0.25 * x * x);
+    let mut term = [1.0f32; 4];
+    let mut val = [1.0f32; 4];
+    for k in 1..20 {
+        let kk = (k * k) as f32;
+        for l in 0..4 {
+            term[l] *= q[l] / kk;
+            val[l] += term[l];
+        }
+    }
+    val
+}
+
+/// `ln I₀(x)` for `x > 12` ([`log_i0`]'s asymptotic branch).
+#[inline]
+fn log_i0_asymptotic(x: f32) -> f32 {
+    let r = 1.0 / x;
+    x - 0.5 * (2.0 * PI * x).ln() + (1.0 + r * (0.125 + r * (9.0 / 128.0))).ln()
+}
+
 fn i0(x: f32) -> f32 {
     // Σ_k (x²/4)^k / (k!)², by the term recurrence (no overflow). 20 terms: the 10 of pbrt
     // are 2 % low near x = 12, where `log_i0` switches to the asymptotic form.
@@ -190,8 +236,7 @@ fn log_i0(x: f32) -> f32 {
     if x > 12.0 {
         // I₀(x) ≈ eˣ/√(2πx)·(1 + 1/(8x) + 9/(128x²)) (pbrt's form has 1/(16x) in the
         // exponent, 0.5 % low at x = 12).
-        let r = 1.0 / x;
-        x - 0.5 * (2.0 * PI * x).ln() + (1.0 + r * (0.125 + r * (9.0 / 128.0))).ln()
+        log_i0_asymptotic(x)
     } else {
         i0(x).ln()
     }
@@ -232,9 +277,10 @@ fn trimmed_logistic_norm(x: f32, s: f32, inv_norm: f32) -> f32 {
     logistic(x, s) * inv_norm
 }
 
-fn sample_trimmed_logistic(u: f32, s: f32) -> f32 {
-    let k = logistic_cdf(PI, s) - logistic_cdf(-PI, s);
-    let x = -s * (1.0 / (u * k + logistic_cdf(-PI, s)) - 1.0).ln();
+/// Samples the trimmed logistic of scale `s` given its mass `k = F(π) − F(−π)` and
+/// `cdf_neg_pi = F(−π)` (constants of the phase function).
+fn sample_trimmed_logistic(u: f32, s: f32, k: f32, cdf_neg_pi: f32) -> f32 {
+    let x = -s * (1.0 / (u * k + cdf_neg_pi) - 1.0).ln();
     x.clamp(-PI, PI)
 }
 
@@ -337,7 +383,13 @@ fn angles(frame: &Frame, w: Vec3) -> Angles {
 pub struct FibrePhase {
     params: FibrePhaseParams,
     v: [f32; 4],
+    /// Per-lobe constants of [`longitudinal_lobe`] that depend only on `v` (computed once
+    /// with the same operations, so [`FibrePhase::mp`] gives its bits).
+    lon: LongitudinalConsts,
     s: f32,
+    /// `F(π) − F(−π)` and `F(−π)` of the logistic of scale `s` (the sampler's constants).
+    logistic_mass: f32,
+    logistic_cdf_neg_pi: f32,
     sin2k_alpha: [f32; 3],
     cos2k_alpha: [f32; 3],
     inv_logistic_norm: f32,
@@ -345,10 +397,17 @@ pub struct FibrePhase {
     nodes: Vec<(f32, f32, f32)>,
     /// Whether [`FibrePhase::eval_pdf_prepared`] sums the azimuthal lobes with AVX2.
     avx2: bool,
+    /// Which of the three azimuthal lobes can be non-zero: off ([`FibreLobes`]) or with a
+    /// diffuse weight of 1, a lobe's attenuations and shares are all 0 and its sums exactly
+    /// `+0`, so [`azimuthal_sums`] skips it (the same bits).
+    azimuthal_active: [bool; 3],
     /// `h_k` and `cos γ_o(h_k)` of the first [`CACHED_NODES`] nodes (0 past the count), for the
     /// batched terms of [`FibrePhase::prepare`].
     node_h: [f32; CACHED_NODES],
     node_cos_go: [f32; CACHED_NODES],
+    /// `γ_o(h_k) = asin h_k` of the first [`CACHED_NODES`] nodes, contiguous for the batched
+    /// terms.
+    node_gamma_o: [f32; CACHED_NODES],
     /// Prepared vertices for one fixed `wo` over a grid of quantised tangents
     /// ([`FibrePhase::quantised_lobe`]), built on first use.
     quantised: QuantisedLobes,
@@ -520,13 +579,106 @@ impl PreparedFibre {
 /// Lanes of the batched azimuthal sum (the node arrays are a multiple of it long).
 const LANES: usize = 8;
 
-/// For the three azimuthal lobes, the sums over the cached nodes (and their mirrored twins)
+/// Most unpaired-batch nodes: the nodes past the last full batch of [`LANES`].
+const TAIL_NODES: usize = LANES - 1;
+
+/// Lanes of the packed tail of [`azimuthal_sums`]: both signs of the three lobes of up to
+/// [`TAIL_NODES`] nodes, rounded up to whole batches.
+const TAIL_LANES: usize = (6 * TAIL_NODES).div_ceil(LANES) * LANES;
+
+/// For the three azimuthal lobes, the sums over the first `unique` cached nodes (and their
+/// mirrored twins) of `A_p(h_k)·L` per channel and of the lobe's sampling share × `L`, where
+/// `L` is the unscaled logistic ([`logistic_unscaled`]) at `dphi − Φ(p, ±h_k)`. Nodes in
+/// batches of [`LANES`] with one accumulator per lane, summed in a fixed order at the end:
+/// the same value whatever instruction set the loop is compiled for. The `r = unique mod 8`
+/// nodes past the last full batch are not given a batch of their own per lobe and sign
+/// (mostly zero lanes: at the default 17 unique nodes, a third of the work): their `6r`
+/// logistics are packed into `⌈6r/8⌉` batches shared by the three lobes, and each adds to
+/// its lane's accumulator exactly what its lane of a full batch would have added (lanes past
+/// `r` added `0·L = +0`), so the sums are bit for bit those of one batch per lobe and sign
+/// (`azimuthal_sums_reference` in the tests).
+#[inline(always)]
+fn azimuthal_sums<const N: usize>(
+    t: &LobeTable<N>,
+    unique: usize,
+    active: [bool; 3],
+    dphi: f32,
+    neg_inv_s: f32,
+) -> [[f32; 4]; 3] {
+    let unique = unique.min(N);
+    let full = unique / LANES;
+    let rest = unique % LANES;
+    let lanes = |x: &[f32; N], batch: usize| -> [f32; LANES] {
+        let start = (batch * LANES).min(N - LANES);
+        let mut v = [0.0f32; LANES];
+        v.copy_from_slice(&x[start..start + LANES]);
+        v
+    };
+    // The tail's arguments: lobe p's `+Φ` of node `8·full + j` at `2pr + j`, its `−Φ` at
+    // `2pr + r + j` (dphi − (−Φ) is dphi + Φ exactly); the unused lanes are 0.
+    let mut tail_phi = [0.0f32; TAIL_LANES];
+    let base = full * LANES;
+    for p in 0..3 {
+        for j in 0..rest {
+            let phi = t.phi[p][base + j];
+            tail_phi[2 * p * rest + j] = phi;
+            tail_phi[2 * p * rest + rest + j] = -phi;
+        }
+    }
+    let mut tail_l = [0.0f32; TAIL_LANES];
+    for batch in 0..(6 * rest).div_ceil(LANES) {
+        for j in 0..LANES {
+            let i = batch * LANES + j;
+            tail_l[i] = logistic_unscaled(wrap_fast(dphi - tail_phi[i]), neg_inv_s);
+        }
+    }
+    let mut out = [[0.0f32; 4]; 3];
+    for (p, o) in out.iter_mut().enumerate() {
+        if !active[p] {
+            // Every attenuation and share of the lobe is 0: its sums are +0, as `out` holds.
+            continue;
+        }
+        let (mut r, mut g, mut b, mut w) =
+            ([0.0f32; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for batch in 0..full {
+            let (phi, mirror) = (lanes(&t.phi[p], batch), lanes(&t.mirror, batch));
+            let (ar, ag, ab) = (
+                lanes(&t.a[p][0], batch),
+                lanes(&t.a[p][1], batch),
+                lanes(&t.a[p][2], batch),
+            );
+            let share = lanes(&t.share[p], batch);
+            for j in 0..LANES {
+                let l = logistic_unscaled(wrap_fast(dphi - phi[j]), neg_inv_s)
+                    + mirror[j] * logistic_unscaled(wrap_fast(dphi + phi[j]), neg_inv_s);
+                r[j] += ar[j] * l;
+                g[j] += ag[j] * l;
+                b[j] += ab[j] * l;
+                w[j] += share[j] * l;
+            }
+        }
+        for j in 0..rest {
+            let k = base + j;
+            let l = tail_l[2 * p * rest + j] + t.mirror[k] * tail_l[2 * p * rest + rest + j];
+            r[j] += t.a[p][0][k] * l;
+            g[j] += t.a[p][1][k] * l;
+            b[j] += t.a[p][2][k] * l;
+            w[j] += t.share[p][k] * l;
+        }
+        let sum = |x: [f32; LANES]| x.iter().sum::<f32>();
+        *o = [sum(r), sum(g), sum(b), sum(w)];
+    }
+    out
+}
+
+/// The batched sums before the tail was packed ([`azimuthal_sums`] gives its bits): kept as
+/// the tests' reference. For the three azimuthal lobes, the sums over the cached nodes (and their mirrored twins)
 /// of `A_p(h_k)·L` per channel and of the lobe's sampling share × `L`, where `L` is the
 /// unscaled logistic ([`logistic_unscaled`]) at `dphi − Φ(p, ±h_k)`. Nodes in batches of
 /// [`LANES`] with one accumulator per lane, summed in a fixed order at the end: the same
 /// value whatever instruction set the loop is compiled for.
-#[inline(always)]
-fn azimuthal_sums<const N: usize>(
+#[cfg(test)]
+fn azimuthal_sums_reference<const N: usize>(
     t: &LobeTable<N>,
     batches: usize,
     dphi: f32,
@@ -574,11 +726,30 @@ fn azimuthal_sums<const N: usize>(
 #[target_feature(enable = "avx2")]
 unsafe fn azimuthal_sums_avx2<const N: usize>(
     t: &LobeTable<N>,
-    batches: usize,
+    unique: usize,
+    active: [bool; 3],
     dphi: f32,
     neg_inv_s: f32,
 ) -> [[f32; 4]; 3] {
-    azimuthal_sums(t, batches, dphi, neg_inv_s)
+    azimuthal_sums(t, unique, active, dphi, neg_inv_s)
+}
+
+/// [`FibrePhase::fill_table`] compiled for AVX2 (eight nodes at once; no FMA contraction, so
+/// the same bits as the baseline build).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_table_avx2<const N: usize>(
+    phase: &FibrePhase,
+    table: &mut LobeTable<N>,
+    unique: usize,
+    o: &Angles,
+    sigma_a: Rgb,
+    wd: f32,
+) -> (Rgb, f32, f32) {
+    phase.fill_table(table, unique, o, sigma_a, wd)
 }
 
 impl FibrePhase {
@@ -648,15 +819,24 @@ impl FibrePhase {
             .collect();
         let node_h = std::array::from_fn(|k| nodes.get(k).map_or(0.0, |n| n.0));
         let node_cos_go = std::array::from_fn(|k| nodes.get(k).map_or(0.0, |n| n.2));
+        let node_gamma_o = std::array::from_fn(|k| nodes.get(k).map_or(0.0, |n| n.1));
+        let v = [v0, 0.25 * v0, 4.0 * v0, 4.0 * v0];
         Ok(FibrePhase {
             inv_logistic_norm: 1.0 / (logistic_cdf(PI, s) - logistic_cdf(-PI, s)),
+            logistic_mass: logistic_cdf(PI, s) - logistic_cdf(-PI, s),
+            logistic_cdf_neg_pi: logistic_cdf(-PI, s),
+            lon: LongitudinalConsts::new(v),
             nodes,
             avx2: crate::math::avx2_enabled(),
+            azimuthal_active: std::array::from_fn(|p| {
+                params.lobes.on(p) && params.diffuse_weight < 1.0
+            }),
             node_h,
             node_cos_go,
+            node_gamma_o,
             quantised: QuantisedLobes::default(),
             s,
-            v: [v0, 0.25 * v0, 4.0 * v0, 4.0 * v0],
+            v,
             params,
             sin2k_alpha,
             cos2k_alpha,
@@ -737,14 +917,35 @@ impl FibrePhase {
         2.0 * p as f32 * n.gamma_t - 2.0 * n.gamma_o + p as f32 * PI
     }
 
-    /// `M_p` for the four lobes.
+    /// `M_p` for the four lobes: [`longitudinal_lobe`] bit for bit, with its `v`-only terms
+    /// precomputed ([`LongitudinalConsts`]), the four `I₀` series in one vector loop
+    /// ([`i0_lanes`]), and the residual lobe's `M_3` taken from TRT's where their tilted
+    /// angles are the same (no cuticle tilt: `v_2 = v_3`).
     fn mp(&self, o: &Angles, i: &Angles) -> [f32; 4] {
-        let mut m = [0.0; 4];
-        for (p, mp) in m.iter_mut().enumerate() {
-            let (s, c) = self.tilted(p, o.sin_t, o.cos_t);
-            *mp = longitudinal_lobe(i.cos_t, i.sin_t, c, s, self.v[p]);
-        }
-        m
+        let tilt: [(f32, f32); 4] = std::array::from_fn(|p| self.tilted(p, o.sin_t, o.cos_t));
+        let a: [f32; 4] = std::array::from_fn(|p| i.cos_t * tilt[p].1 / self.v[p]);
+        let b: [f32; 4] = std::array::from_fn(|p| i.sin_t * tilt[p].0 / self.v[p]);
+        let series = i0_lanes(a);
+        let lon = &self.lon;
+        let lobe = |p: usize| {
+            if self.v[p] <= 0.1 {
+                let log_i0 = if a[p] > 12.0 {
+                    log_i0_asymptotic(a[p])
+                } else {
+                    series[p].ln()
+                };
+                (log_i0 - b[p] - lon.inv_v[p] + std::f32::consts::LN_2 - lon.ln_2v[p]).exp()
+            } else {
+                (-b[p]).exp() * series[p] / lon.sinh_norm[p]
+            }
+        };
+        let (m0, m1, m2) = (lobe(0), lobe(1), lobe(2));
+        let m3 = if tilt[3] == tilt[2] && self.v[3] == self.v[2] {
+            m2
+        } else {
+            lobe(3)
+        };
+        [m0, m1, m2, m3]
     }
 
     fn diffuse_density(o: &Angles, i: &Angles) -> f32 {
@@ -767,6 +968,7 @@ impl FibrePhase {
     /// The attenuations `A_p(h_k)` (mixed, inactive lobes zeroed) and `γ_t(h_k)` of the first
     /// `unique` nodes for the outgoing angles `o`: [`FibrePhase::node`]'s arithmetic in one
     /// branch-free loop over the nodes, with [`asin_fast`] and [`exp_neg`] for `asin` and `exp`.
+    #[inline(always)]
     fn fill_lobes<const N: usize>(
         &self,
         table: &mut LobeTable<N>,
@@ -872,12 +1074,12 @@ impl FibrePhase {
         if unique <= INLINE_NODES {
             prepared.table = NodeTable::Inline(LobeTable::ZERO);
             if let NodeTable::Inline(table) = &mut prepared.table {
-                let sums = self.fill_table(table, unique, &o, sigma_a, wd);
+                let sums = self.fill_table_dispatch(table, unique, &o, sigma_a, wd);
                 prepared.set_sums(sums);
             }
         } else if unique <= CACHED_NODES {
             let mut table = Box::new(LobeTable::ZERO);
-            let sums = self.fill_table(&mut table, unique, &o, sigma_a, wd);
+            let sums = self.fill_table_dispatch(&mut table, unique, &o, sigma_a, wd);
             prepared.set_sums(sums);
             prepared.table = NodeTable::Boxed(table);
         }
@@ -886,8 +1088,83 @@ impl FibrePhase {
 
     /// Fills `table` with the terms of the first `unique` nodes (at most `N`) for the
     /// outgoing angles `o` and returns the `wi`-independent sums of [`PreparedFibre`]:
-    /// (residual value, residual pdf, diffuse pdf).
+    /// (residual value, residual pdf, diffuse pdf). Every per-node term in loops without
+    /// branches over contiguous arrays (so that they vectorise, eight nodes at a time with
+    /// AVX2: [`fill_table_avx2`]), then the three sums over the nodes in node order, as one
+    /// loop doing both gave them (the same bits: `fill_table_reference` in the tests).
+    #[inline(always)]
     fn fill_table<const N: usize>(
+        &self,
+        table: &mut LobeTable<N>,
+        unique: usize,
+        o: &Angles,
+        sigma_a: Rgb,
+        wd: f32,
+    ) -> (Rgb, f32, f32) {
+        let n_nodes = self.nodes.len();
+        let unique = unique.min(N);
+        self.fill_lobes(table, unique, o, sigma_a);
+        let mut value = [[0.0f32; N]; 3];
+        let mut pdf = [0.0f32; N];
+        let mut diffuse = [0.0f32; N];
+        for k in 0..unique {
+            let weight = |ch: &[[f32; N]; 3]| ch[0][k].max(ch[1][k]).max(ch[2][k]);
+            let w = [
+                weight(&table.a[0]),
+                weight(&table.a[1]),
+                weight(&table.a[2]),
+                weight(&table.a3),
+            ];
+            let total = w[0] + w[1] + w[2] + w[3] + wd;
+            let count = if n_nodes - 1 - k != k { 2.0 } else { 1.0 };
+            table.mirror[k] = count - 1.0;
+            let inv_total = if total > 0.0 { 1.0 / total } else { 0.0 };
+            let gamma_t = table.gamma_t[k];
+            let gamma_o = self.node_gamma_o[k];
+            for p in 0..3 {
+                table.phi[p][k] = 2.0 * p as f32 * gamma_t - 2.0 * gamma_o + p as f32 * PI;
+                table.share[p][k] = w[p] * inv_total;
+            }
+            for (c, v) in value.iter_mut().enumerate() {
+                v[k] = table.a3[c][k] * (count * INV_2PI);
+            }
+            pdf[k] = count * w[3] * inv_total * INV_2PI;
+            diffuse[k] = count * wd * inv_total;
+        }
+        let (mut residual_value, mut residual_pdf, mut diffuse_pdf) = (Rgb::ZERO, 0.0, 0.0);
+        for k in 0..unique {
+            residual_value += Rgb::new(value[0][k], value[1][k], value[2][k]);
+            residual_pdf += pdf[k];
+            diffuse_pdf += diffuse[k];
+        }
+        (residual_value, residual_pdf, diffuse_pdf)
+    }
+
+    /// [`FibrePhase::fill_table`] with AVX2 where the CPU has it (the same bits).
+    fn fill_table_dispatch<const N: usize>(
+        &self,
+        table: &mut LobeTable<N>,
+        unique: usize,
+        o: &Angles,
+        sigma_a: Rgb,
+        wd: f32,
+    ) -> (Rgb, f32, f32) {
+        if self.avx2 {
+            // SAFETY: `avx2` is set only where the CPU has AVX2 (`FibrePhase::new`).
+            #[cfg(target_arch = "x86_64")]
+            unsafe {
+                return fill_table_avx2(self, table, unique, o, sigma_a, wd);
+            }
+        }
+        self.fill_table(table, unique, o, sigma_a, wd)
+    }
+
+    /// The node terms as they were filled before [`FibrePhase::fill_table`] was written to
+    /// vectorise (the tests' reference for its bits). Fills `table` with the terms of the first `unique` nodes (at most `N`) for the
+    /// outgoing angles `o` and returns the `wi`-independent sums of [`PreparedFibre`]:
+    /// (residual value, residual pdf, diffuse pdf).
+    #[cfg(test)]
+    fn fill_table_reference<const N: usize>(
         &self,
         table: &mut LobeTable<N>,
         unique: usize,
@@ -921,13 +1198,13 @@ impl FibrePhase {
         (residual_value, residual_pdf, diffuse_pdf)
     }
 
-    /// The three azimuthal lobes' sums of [`azimuthal_sums`] over the first `batches` batches
+    /// The three azimuthal lobes' sums of [`azimuthal_sums`] over the first `unique` nodes
     /// of `table`, with AVX2 where the CPU has it.
     #[inline]
     fn sums<const N: usize>(
         &self,
         table: &LobeTable<N>,
-        batches: usize,
+        unique: usize,
         dphi: f32,
         neg_inv_s: f32,
     ) -> [[f32; 4]; 3] {
@@ -935,12 +1212,12 @@ impl FibrePhase {
             // SAFETY: `avx2` is set only where the CPU has AVX2 (`FibrePhase::new`).
             #[cfg(target_arch = "x86_64")]
             unsafe {
-                azimuthal_sums_avx2(table, batches, dphi, neg_inv_s)
+                azimuthal_sums_avx2(table, unique, self.azimuthal_active, dphi, neg_inv_s)
             }
             #[cfg(not(target_arch = "x86_64"))]
-            azimuthal_sums(table, batches, dphi, neg_inv_s)
+            azimuthal_sums(table, unique, self.azimuthal_active, dphi, neg_inv_s)
         } else {
-            azimuthal_sums(table, batches, dphi, neg_inv_s)
+            azimuthal_sums(table, unique, self.azimuthal_active, dphi, neg_inv_s)
         }
     }
 
@@ -963,11 +1240,11 @@ impl FibrePhase {
         let dphi = i.phi - o.phi;
         let dd = Self::diffuse_density(o, &i);
         let n_nodes = self.nodes.len();
-        let batches = n_nodes.div_ceil(2).div_ceil(LANES);
+        let unique = n_nodes.div_ceil(2);
         let neg_inv_s = -1.0 / self.s;
         let sums = match &prepared.table {
-            NodeTable::Inline(t) => self.sums(t, batches, dphi, neg_inv_s),
-            NodeTable::Boxed(t) => self.sums(&**t, batches, dphi, neg_inv_s),
+            NodeTable::Inline(t) => self.sums(t, unique, dphi, neg_inv_s),
+            NodeTable::Boxed(t) => self.sums(&**t, unique, dphi, neg_inv_s),
             NodeTable::Uncached => return self.eval_pdf_uncached(prepared, m, dphi, dd),
         };
         let scale = self.inv_logistic_norm / self.s;
@@ -1098,13 +1375,20 @@ impl FibrePhase {
             let p = lobe;
             let (sin_op, cos_op) = self.tilted(p, o.sin_t, o.cos_t);
             let v = self.v[p];
-            let cos_th = 1.0 + v * (u[1].max(1e-5) + (1.0 - u[1]) * (-2.0 / v).exp()).ln();
+            let cos_th =
+                1.0 + v * (u[1].max(1e-5) + (1.0 - u[1]) * self.lon.exp_neg_2_over_v[p]).ln();
             let sin_th = (1.0 - cos_th * cos_th).max(0.0).sqrt();
             let sin_i =
                 (-cos_th * sin_op + sin_th * (2.0 * PI * u[2]).cos() * cos_op).clamp(-1.0, 1.0);
             let cos_i = (1.0 - sin_i * sin_i).max(0.0).sqrt();
             let dphi = if p < 3 {
-                Self::phi_p(p, &node) + sample_trimmed_logistic(u[3], self.s)
+                Self::phi_p(p, &node)
+                    + sample_trimmed_logistic(
+                        u[3],
+                        self.s,
+                        self.logistic_mass,
+                        self.logistic_cdf_neg_pi,
+                    )
             } else {
                 2.0 * PI * u[3]
             };
@@ -1272,6 +1556,213 @@ mod tests {
                 (w - wrap(x)).abs() < 1e-5 || (w.abs() - PI).abs() < 1e-5,
                 "{x}"
             );
+        }
+    }
+
+    fn random_dir(rng: &mut crate::sampling::Rng) -> Vec3 {
+        let z = 2.0 * rng.next_f32() - 1.0;
+        let a = 2.0 * PI * rng.next_f32();
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * a.cos(), r * a.sin(), z)
+    }
+
+    /// `mp` (precomputed `v` terms, the four `I₀` series in one loop, `M_3` shared with
+    /// `M_2`) gives `longitudinal_lobe`'s bits for every lobe, in both of its forms
+    /// (`v <= 0.1` and above, `I₀` series and asymptotic), with and without cuticle tilt.
+    #[test]
+    fn mp_gives_longitudinal_lobe_bit_for_bit() {
+        let mut rng = crate::sampling::Rng::new(5, 3);
+        for beta_m in [0.01, 0.05, 0.15, 0.3, 0.45, 0.7, 1.0] {
+            for alpha in [0.0, 0.05, -0.2] {
+                let phase = FibrePhase::new(FibrePhaseParams {
+                    beta_m,
+                    alpha,
+                    ..FibrePhaseParams::default()
+                })
+                .unwrap();
+                let frame = Frame::from_normal(random_dir(&mut rng));
+                for _ in 0..2000 {
+                    let o = angles(&frame, random_dir(&mut rng));
+                    let i = angles(&frame, random_dir(&mut rng));
+                    let m = phase.mp(&o, &i);
+                    for (p, &mp) in m.iter().enumerate() {
+                        let (s, c) = phase.tilted(p, o.sin_t, o.cos_t);
+                        let want = longitudinal_lobe(i.cos_t, i.sin_t, c, s, phase.v[p]);
+                        assert_eq!(
+                            mp.to_bits(),
+                            want.to_bits(),
+                            "lobe {p}, β_m {beta_m}, α {alpha}: {mp} vs {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// The sampler's precomputed constants give the bits of the expressions they replace.
+    #[test]
+    fn sampler_constants_give_the_per_sample_bits() {
+        for beta in [0.01, 0.1, 0.3, 0.6, 1.0] {
+            let phase = FibrePhase::new(FibrePhaseParams {
+                beta_m: beta,
+                beta_n: beta,
+                ..FibrePhaseParams::default()
+            })
+            .unwrap();
+            let s = phase.s;
+            for i in 0..=1000 {
+                let u = i as f32 / 1000.0;
+                let k = logistic_cdf(PI, s) - logistic_cdf(-PI, s);
+                let old = (-s * (1.0 / (u * k + logistic_cdf(-PI, s)) - 1.0).ln()).clamp(-PI, PI);
+                let new =
+                    sample_trimmed_logistic(u, s, phase.logistic_mass, phase.logistic_cdf_neg_pi);
+                assert_eq!(old.to_bits(), new.to_bits(), "u {u}, β {beta}");
+            }
+            for p in 0..4 {
+                let v = phase.v[p];
+                assert_eq!(
+                    phase.lon.exp_neg_2_over_v[p].to_bits(),
+                    (-2.0 / v).exp().to_bits()
+                );
+            }
+        }
+    }
+
+    /// The azimuthal sums with the nodes past the last full batch packed into shared batches,
+    /// and lobes that are off (or a diffuse weight of 1) skipped, give the bits of one batch
+    /// per lobe and sign over every lobe, for every unique node count from 1 to 64 (both table
+    /// sizes), with and without AVX2.
+    #[test]
+    fn packed_tail_gives_the_batched_sums_bit_for_bit() {
+        let mut rng = crate::sampling::Rng::new(9, 4);
+        let lobe_sets = [
+            (FibreLobes::default(), 0.3),
+            (
+                FibreLobes {
+                    tt: false,
+                    ..FibreLobes::default()
+                },
+                0.3,
+            ),
+            (
+                FibreLobes {
+                    r: false,
+                    trt: false,
+                    ..FibreLobes::default()
+                },
+                0.0,
+            ),
+            (FibreLobes::default(), 1.0),
+        ];
+        for (i, h_nodes) in (1..=128).filter(|n| n % 2 == 0 || *n < 20).enumerate() {
+            let (lobes, diffuse_weight) = lobe_sets[i % lobe_sets.len()];
+            let params = FibrePhaseParams {
+                h_nodes,
+                lobes,
+                diffuse_weight,
+                ..FibrePhaseParams::default()
+            }
+            .with_colour(Rgb::new(0.7, 0.3, 0.1));
+            let phase = FibrePhase::new(params).unwrap();
+            let active = phase.azimuthal_active;
+            assert_eq!(
+                active.iter().filter(|a| **a).count(),
+                match i % 4 {
+                    0 => 3,
+                    1 => 2,
+                    2 => 1,
+                    _ => 0,
+                }
+            );
+            let unique = phase.h_node_count().div_ceil(2);
+            let neg_inv_s = -1.0 / phase.s;
+            for _ in 0..40 {
+                let prepared = phase.prepare(random_dir(&mut rng), random_dir(&mut rng));
+                let dphi = (rng.next_f32() * 4.0 - 2.0) * PI;
+                let check = |new: [[f32; 4]; 3], old: [[f32; 4]; 3]| {
+                    let bits = |x: [[f32; 4]; 3]| x.map(|l| l.map(f32::to_bits));
+                    assert_eq!(bits(new), bits(old), "{h_nodes} nodes, dphi {dphi}");
+                };
+                let batches = unique.div_ceil(LANES);
+                match &prepared.table {
+                    NodeTable::Inline(t) => {
+                        let old = azimuthal_sums_reference(t, batches, dphi, neg_inv_s);
+                        check(azimuthal_sums(t, unique, active, dphi, neg_inv_s), old);
+                        check(phase.sums(t, unique, dphi, neg_inv_s), old);
+                    }
+                    NodeTable::Boxed(t) => {
+                        let old = azimuthal_sums_reference(&**t, batches, dphi, neg_inv_s);
+                        check(azimuthal_sums(&**t, unique, active, dphi, neg_inv_s), old);
+                        check(phase.sums(&**t, unique, dphi, neg_inv_s), old);
+                    }
+                    NodeTable::Uncached => panic!("{h_nodes} nodes are cached"),
+                }
+            }
+        }
+    }
+
+    /// The node terms filled by the vectorised `fill_table` (with and without AVX2) are the
+    /// bits of the loop that filled them before, for odd and even node counts, both table
+    /// sizes, black and saturated colours and lobes switched off.
+    #[test]
+    fn vectorised_node_terms_give_the_reference_bits() {
+        fn bits<const N: usize>(t: &LobeTable<N>) -> Vec<u32> {
+            let mut v: Vec<f32> = Vec::new();
+            v.extend(t.phi.iter().flatten());
+            v.extend(t.a.iter().flatten().flatten());
+            v.extend(t.share.iter().flatten());
+            v.extend(&t.mirror);
+            v.extend(t.a3.iter().flatten());
+            v.extend(&t.gamma_t);
+            v.into_iter().map(f32::to_bits).collect()
+        }
+        fn sums_bits((v, p, d): (Rgb, f32, f32)) -> [u32; 5] {
+            [v[0], v[1], v[2], p, d].map(f32::to_bits)
+        }
+        fn check<const N: usize>(phase: &FibrePhase, o: &Angles, sigma_a: Rgb, wd: f32) {
+            let unique = phase.h_node_count().div_ceil(2);
+            let mut want = LobeTable::<N>::ZERO;
+            let want_sums = phase.fill_table_reference(&mut want, unique, o, sigma_a, wd);
+            let mut got = LobeTable::<N>::ZERO;
+            let got_sums = phase.fill_table(&mut got, unique, o, sigma_a, wd);
+            assert_eq!(bits(&got), bits(&want), "{unique} unique nodes");
+            assert_eq!(sums_bits(got_sums), sums_bits(want_sums));
+            let mut got = LobeTable::<N>::ZERO;
+            let got_sums = phase.fill_table_dispatch(&mut got, unique, o, sigma_a, wd);
+            assert_eq!(bits(&got), bits(&want), "{unique} unique nodes (dispatch)");
+            assert_eq!(sums_bits(got_sums), sums_bits(want_sums));
+        }
+        let mut rng = crate::sampling::Rng::new(13, 2);
+        let colours = [
+            Rgb::new(0.72, 0.1, 0.09),
+            Rgb::ONE,
+            Rgb::new(1e-4, 0.5, 0.99),
+        ];
+        for h_nodes in [0, 1, 2, 7, 8, 9, 16, 17, 33, 34, 63, 64, 65, 100, 127, 128] {
+            for (ci, colour) in colours.into_iter().enumerate() {
+                let lobes = FibreLobes {
+                    trt: ci != 1,
+                    ..FibreLobes::default()
+                };
+                let params = FibrePhaseParams {
+                    h_nodes,
+                    lobes,
+                    diffuse_weight: if ci == 2 { 0.0 } else { 0.3 },
+                    ..FibrePhaseParams::default()
+                }
+                .with_colour(colour);
+                let phase = FibrePhase::new(params.clone()).unwrap();
+                let frame = Frame::from_normal(random_dir(&mut rng));
+                for _ in 0..50 {
+                    let o = angles(&frame, random_dir(&mut rng));
+                    let wd = lobe_weight(params.diffuse_albedo * params.diffuse_weight);
+                    if phase.h_node_count().div_ceil(2) <= INLINE_NODES {
+                        check::<INLINE_NODES>(&phase, &o, params.sigma_a, wd);
+                    } else {
+                        check::<CACHED_NODES>(&phase, &o, params.sigma_a, wd);
+                    }
+                }
+            }
         }
     }
 
