@@ -30,6 +30,8 @@
 //! Points in no tetrahedron have zero density. Majorants come from a world-space pyramid of
 //! bricks that overlap the shell, bounded by the patch's maximum density.
 
+use std::cell::Cell;
+
 use glam::{DMat3, DVec3, IVec3, Mat3, Vec3};
 
 use super::voxelise::{VoxelisedPatch, DENSITY, ID, TANGENT};
@@ -37,7 +39,7 @@ use super::FabricError;
 use crate::geometry::TriangleMesh;
 use crate::grid::{Accessor, SparseGrid};
 use crate::majorant::{Bounds, MajorantPyramid};
-use crate::math::Aabb;
+use crate::math::{Aabb, Ray};
 
 /// Largest number of tetrahedra a shell may have (three per triangle).
 pub const MAX_SHELL_TETS: usize = 30_000_000;
@@ -215,6 +217,133 @@ pub struct FibreVoxel {
     pub tangent: Vec3,
     /// Yarn family id as stored in the patch's `id` channel.
     pub id: f32,
+}
+
+/// A world point located in the shell: its tetrahedron and its patch index coordinates
+/// (`x`, `y` not yet wrapped), as [`FabricShell::locate`] finds them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShellPoint {
+    tet: u32,
+    q: Vec3,
+}
+
+impl ShellPoint {
+    /// The tetrahedron the point was found in.
+    #[must_use]
+    pub fn tet(&self) -> usize {
+        self.tet as usize
+    }
+
+    /// Patch index coordinates (`x`, `y` not wrapped).
+    #[must_use]
+    pub fn q(&self) -> Vec3 {
+        self.q
+    }
+}
+
+/// Point location along one ray through a shell, shared by the ray's density lookups and
+/// point bounds (both take `&self`).
+///
+/// * The first point is searched from the tetrahedron remembered at the ray's origin
+///   ([`FabricShell::vertex_hint`]: a ray leaving a scattering vertex starts in the
+///   tetrahedron the flight that ended there found), later ones from the last tetrahedron
+///   found, as in [`FabricShell::locate`].
+/// * The last point located is kept: a free flight's density lookup follows the point bound
+///   of its tentative collision at the same distance, and takes the bound's tetrahedron and
+///   patch coordinates instead of locating the point again (the same values: a search from
+///   that tetrahedron finds it first, with the same arithmetic).
+/// * When the cursor is dropped, the last point and its tetrahedron are remembered
+///   ([`FabricShell::remember_vertex`]) for the rays that leave it.
+#[derive(Debug)]
+pub struct ShellCursor<'a> {
+    shell: &'a FabricShell,
+    ray: Ray,
+    hint: Cell<u32>,
+    /// The distance of the last point located (NaN before the first) and where it was.
+    last: Cell<(f32, Option<ShellPoint>)>,
+}
+
+impl<'a> ShellCursor<'a> {
+    /// Point location along `ray` (world space) through `shell`.
+    #[must_use]
+    pub fn new(shell: &'a FabricShell, ray: &Ray) -> Self {
+        ShellCursor {
+            shell,
+            ray: *ray,
+            hint: Cell::new(shell.vertex_hint(ray.o)),
+            last: Cell::new((f32::NAN, None)),
+        }
+    }
+
+    /// The shell.
+    #[inline(always)]
+    #[must_use]
+    pub fn shell(&self) -> &'a FabricShell {
+        self.shell
+    }
+
+    /// The ray.
+    #[inline(always)]
+    #[must_use]
+    pub fn ray(&self) -> &Ray {
+        &self.ray
+    }
+
+    /// The point at distance `t` located ([`FabricShell::locate`]); `None` outside the shell.
+    #[inline(always)]
+    pub fn locate(&self, t: f32) -> Option<ShellPoint> {
+        let (last_t, last) = self.last.get();
+        if last_t == t {
+            return last;
+        }
+        let mut hint = self.hint.get();
+        let found = self.shell.locate(self.ray.at(t), &mut hint);
+        self.hint.set(hint);
+        self.last.set((t, found));
+        found
+    }
+}
+
+impl Drop for ShellCursor<'_> {
+    fn drop(&mut self) {
+        if let (t, Some(s)) = self.last.get() {
+            self.shell.remember_vertex(self.ray.at(t), s.tet);
+        }
+    }
+}
+
+/// One entry of the per-thread cache of [`FabricShell::remember_vertex`].
+#[derive(Clone, Copy, Debug)]
+struct VertexTet {
+    /// The shell's address (0: empty).
+    shell: usize,
+    /// The point's bits.
+    p: [u32; 3],
+    tet: u32,
+}
+
+/// Entries of the per-thread vertex cache (direct-mapped by the point's bits).
+const VERTEX_SLOTS: usize = 8;
+
+thread_local! {
+    /// Tetrahedra found at the last points of this thread's rays through shells (where a
+    /// path's next rays start), by point: see [`FabricShell::remember_vertex`].
+    static VERTEX_TETS: [Cell<VertexTet>; VERTEX_SLOTS] = const {
+        [const {
+            Cell::new(VertexTet {
+                shell: 0,
+                p: [0; 3],
+                tet: u32::MAX,
+            })
+        }; VERTEX_SLOTS]
+    };
+}
+
+/// The slot of point bits `p` in [`VERTEX_TETS`].
+#[inline(always)]
+fn vertex_slot(p: [u32; 3]) -> usize {
+    let h = (p[0] ^ p[1].rotate_left(11) ^ p[2].rotate_left(22)).wrapping_mul(0x9E37_79B1);
+    (h >> 29) as usize % VERTEX_SLOTS
 }
 
 impl FabricShell {
@@ -570,9 +699,60 @@ impl FabricShell {
     /// the shell. `hint` caches the last tetrahedron.
     #[inline]
     pub fn patch_coordinates(&self, p: Vec3, hint: &mut u32) -> Option<Vec3> {
+        self.locate(p, hint).map(|s| s.q)
+    }
+
+    /// World point `p` located: its tetrahedron and patch index coordinates, or `None`
+    /// outside the shell. `hint` (the last tetrahedron found) is tried first and updated.
+    #[inline(always)]
+    pub fn locate(&self, p: Vec3, hint: &mut u32) -> Option<ShellPoint> {
         let (i, l) = self.find(p, hint)?;
         let t = &self.tets[i];
-        Some(t.q0 + t.bary_to_q * l)
+        Some(ShellPoint {
+            tet: i as u32,
+            q: t.q0 + t.bary_to_q * l,
+        })
+    }
+
+    /// The tetrahedron remembered at world point `p` on this thread
+    /// ([`FabricShell::remember_vertex`]), or `u32::MAX` (no hint).
+    #[inline]
+    #[must_use]
+    pub fn vertex_hint(&self, p: Vec3) -> u32 {
+        let bits = p.to_array().map(f32::to_bits);
+        let id = std::ptr::from_ref(self) as usize;
+        VERTEX_TETS.with(|slots| {
+            let e = slots[vertex_slot(bits)].get();
+            if e.shell == id && e.p == bits {
+                e.tet
+            } else {
+                u32::MAX
+            }
+        })
+    }
+
+    /// Remembers, on this thread, that world point `p` was found in tetrahedron `tet`: the
+    /// last point of a ray ([`ShellCursor`] when dropped), where a free flight ends in a
+    /// scattering vertex and the path's next rays (shadow rays, the next flight) and its
+    /// fibre frame ([`FabricShell::fibre_at`]) start. They take it as their first hint
+    /// ([`FabricShell::vertex_hint`]) instead of searching the point-location grid.
+    ///
+    /// A hint only changes which tetrahedron is tried first, so a point within the inside
+    /// test's tolerance of two tetrahedra (on a shared face) can land in the other one. What
+    /// a ray reads depends only on its own path: the cache is keyed by the shell and the
+    /// point's exact bits, and a path's rays read only what earlier rays of the same path
+    /// wrote (another path would have to reach the very same point).
+    #[inline]
+    pub fn remember_vertex(&self, p: Vec3, tet: u32) {
+        let bits = p.to_array().map(f32::to_bits);
+        let id = std::ptr::from_ref(self) as usize;
+        VERTEX_TETS.with(|slots| {
+            slots[vertex_slot(bits)].set(VertexTet {
+                shell: id,
+                p: bits,
+                tet,
+            });
+        });
     }
 
     /// Trilinear density of the patch at index point `q`, periodic in `x` and `y`, read
@@ -620,9 +800,17 @@ impl FabricShell {
     /// bit, as a trilinear lookup through [`Self::density_accessor`]).
     #[inline]
     pub fn density(&self, p: Vec3, hint: &mut u32) -> f32 {
-        let Some(q) = self.patch_coordinates(p, hint) else {
-            return 0.0;
-        };
+        match self.locate(p, hint) {
+            Some(s) => self.density_at(s),
+            None => 0.0,
+        }
+    }
+
+    /// [`FabricShell::density`] at a located point.
+    #[inline(always)]
+    #[must_use]
+    pub fn density_at(&self, s: ShellPoint) -> f32 {
+        let q = s.q;
         let i = super::floor_ivec3(q);
         match self.cell_at(i) {
             // Between the yarns the eight voxels are all empty: no table reads.
@@ -647,11 +835,23 @@ impl FabricShell {
         dir: Vec3,
         hint: &mut u32,
     ) -> f32 {
-        let Some((i, l)) = self.find(p, hint) else {
-            return 0.0;
-        };
-        let t = &self.tets[i];
-        let q = t.q0 + t.bary_to_q * l;
+        match self.locate(p, hint) {
+            Some(s) => self.projected_density_at(Some(tangents), s, dir),
+            None => 0.0,
+        }
+    }
+
+    /// [`FabricShell::projected_density`] at a located point. `tangents` is read only where
+    /// the nearest voxel is not a corner of the lookup's cell (coordinates beyond 2²²
+    /// voxels); without it, an accessor is made there.
+    #[inline(always)]
+    pub fn projected_density_at(
+        &self,
+        tangents: Option<&mut Accessor<'_>>,
+        s: ShellPoint,
+        dir: Vec3,
+    ) -> f32 {
+        let q = s.q;
         let v = super::floor_ivec3(q);
         // Between the yarns the eight voxels the filter reads are all empty (densities are
         // never negative): the trilinear value would be 0, so neither it nor the tangent is
@@ -668,6 +868,9 @@ impl FabricShell {
             return density;
         }
         let local = self.flat_tangent_near(q, v, f, frac, tangents);
+        let Some(t) = self.tets.get(s.tet as usize) else {
+            return density;
+        };
         density * super::look::projected_width(dir, t.tangent_to_world * local)
     }
 
@@ -679,11 +882,17 @@ impl FabricShell {
     /// exceeded (weighted tracking) and count it as a violation.
     #[inline]
     pub fn point_bound(&self, p: Vec3, hint: &mut u32) -> f32 {
-        let Some((i, l)) = self.find(p, hint) else {
-            return 0.0;
-        };
-        let t = &self.tets[i];
-        self.support_at_q(t.q0 + t.bary_to_q * l)
+        match self.locate(p, hint) {
+            Some(s) => self.point_bound_at(s),
+            None => 0.0,
+        }
+    }
+
+    /// [`FabricShell::point_bound`] at a located point.
+    #[inline(always)]
+    #[must_use]
+    pub fn point_bound_at(&self, s: ShellPoint) -> f32 {
+        self.support_at_q(s.q)
     }
 
     /// The largest density of the eight voxels a trilinear lookup at patch index point `q`
@@ -768,11 +977,17 @@ impl FabricShell {
         v: IVec3,
         f: usize,
         t: Vec3,
-        tangents: &mut Accessor<'_>,
+        tangents: Option<&mut Accessor<'_>>,
     ) -> Vec3 {
         let n = super::floor_ivec3(q + Vec3::splat(0.5)) - v;
         if !(n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
-            return super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
+            return match tangents {
+                Some(a) => super::tangent_near(q, |ijk| a.value_vec3(self.wrap(ijk))),
+                None => {
+                    let mut a = self.patch.accessor(TANGENT);
+                    super::tangent_near(q, |ijk| a.value_vec3(self.wrap(ijk)))
+                }
+            };
         }
         let rx = (self.dims.x + 1) as usize;
         let layer = rx * (self.dims.y + 1) as usize;
@@ -827,9 +1042,11 @@ impl FabricShell {
     /// Tangent and id are read from the shell's flat tables where the nearest voxel is a
     /// corner of the lookup's cell inside the tables' layers (the same values, bit for bit,
     /// as through the patch's accessors, which read the others).
+    /// The search starts from the tetrahedron remembered at `p` ([`FabricShell::vertex_hint`]:
+    /// at a scattering vertex, the one the free flight found there).
     #[must_use]
     pub fn fibre_at(&self, p: Vec3) -> Option<FibreVoxel> {
-        let mut hint = u32::MAX;
+        let mut hint = self.vertex_hint(p);
         let (i, l) = self.find(p, &mut hint)?;
         let t = &self.tets[i];
         let q = t.q0 + t.bary_to_q * l;
@@ -851,7 +1068,7 @@ impl FabricShell {
         if let Some((_, f)) = self.cell_at(v) {
             if (n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
                 let mut tangents = self.patch.accessor(TANGENT);
-                let tangent = self.flat_tangent_near(q, v, f, q - v.as_vec3(), &mut tangents);
+                let tangent = self.flat_tangent_near(q, v, f, q - v.as_vec3(), Some(&mut tangents));
                 let rx = (self.dims.x + 1) as usize;
                 let layer = rx * (self.dims.y + 1) as usize;
                 let o = n.x as usize + n.y as usize * rx + n.z as usize * layer;
@@ -1392,7 +1609,7 @@ mod tests {
                 "density at {q}: {old} against {new}"
             );
             let old = super::super::tangent_near(q, |c| tan.value_vec3(shell.wrap(c)));
-            let new = shell.flat_tangent_near(q, i, f, t, &mut tan2);
+            let new = shell.flat_tangent_near(q, i, f, t, Some(&mut tan2));
             assert_eq!(
                 old.to_array().map(f32::to_bits),
                 new.to_array().map(f32::to_bits),
