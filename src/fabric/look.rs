@@ -152,7 +152,7 @@ impl YarnColours {
 }
 
 /// `sin∠(dir, tangent)` for a unit `dir`; 1 when the tangent is zero (no fibre direction).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn projected_width(dir: Vec3, tangent: Vec3) -> f32 {
     match tangent.try_normalize() {

@@ -900,7 +900,7 @@ impl FabricShell {
     /// patch holds no fibre).
     /// About half the entries are 0 (between the yarns); their bit is read first, from the
     /// small table, and only the others read the large one.
-    #[inline]
+    #[inline(always)]
     fn support_at_q(&self, q: Vec3) -> f32 {
         let Some(k) = self.support_index(q) else {
             return 0.0;
