@@ -1682,4 +1682,162 @@ mod tests {
         }
         assert!(seen[0] > 5_000 && seen[1] > 5_000, "{seen:?}");
     }
+
+    /// A twill shell over a bumpy 12 × 12 grid of the unit square (no creases: its prisms
+    /// do not overlap), 2 × 2 tiles of a 32-voxel patch.
+    fn bumpy_shell() -> FabricShell {
+        let yarn = YarnParams::preset("cotton1").expect("preset");
+        let mut wp = WeaveParams::new(WeavePattern::from_name("twill").expect("twill"), yarn);
+        wp.repeats = [1, 1];
+        let fp = generate_patch(&wp, 3).expect("patch");
+        let vp = voxelise(&fp, 32, &VoxeliseOptions::default()).expect("voxelise");
+        let n = 12u32;
+        let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::new());
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                let z = 0.04
+                    * (std::f32::consts::TAU * x).sin()
+                    * (std::f32::consts::TAU * y * 0.5).cos();
+                positions.push(Vec3::new(x, y, z));
+                uvs.push(Vec2::new(x, y));
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                indices.push([a, a + 1, a + n + 1]);
+                indices.push([a + 1, a + n + 2, a + n + 1]);
+            }
+        }
+        let mesh = TriangleMesh {
+            positions,
+            normals: None,
+            uvs: Some(uvs),
+            indices,
+        };
+        FabricShell::new(&vp, &mesh, &ShellParams { tiles: [2.0, 2.0] }).expect("shell")
+    }
+
+    /// A random point of the bumpy shell's box, a little beyond it.
+    fn point_in_box(shell: &FabricShell, rng: &mut Rng) -> Vec3 {
+        let r = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let e = shell.bounds.extent();
+        shell.bounds.min - e * 0.05 + r * e * 1.1
+    }
+
+    /// Point location from any hint (the tetrahedron of a nearby point, a random one, one
+    /// remembered at the point) finds what the search of the point-location grid finds: the
+    /// same tetrahedron and patch coordinates bit for bit where the point is inside one
+    /// tetrahedron by more than the tolerance, and patch coordinates within 1e-3 voxels where
+    /// it lies on a shared face (where either tetrahedron may take it).
+    #[test]
+    fn hinted_point_location_finds_what_the_grid_search_finds() {
+        let shell = bumpy_shell();
+        let mut rng = Rng::new(5, 1);
+        let (mut inside, mut on_faces) = (0u32, 0u32);
+        for n in 0..200_000 {
+            let p = point_in_box(&shell, &mut rng);
+            let mut none = u32::MAX;
+            let cells = shell.locate(p, &mut none);
+            let mut hint = match n % 3 {
+                0 => {
+                    let near = p
+                        + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
+                            * shell.thickness;
+                    let mut h = u32::MAX;
+                    shell.locate(near, &mut h);
+                    h
+                }
+                1 => (rng.next_f32() * shell.tet_count() as f32) as u32,
+                _ => {
+                    if let Some(c) = cells {
+                        shell.remember_vertex(p, c.tet);
+                    }
+                    shell.vertex_hint(p)
+                }
+            };
+            let hinted = shell.locate(p, &mut hint);
+            let (Some(a), Some(b)) = (cells, hinted) else {
+                assert_eq!(cells, hinted, "at {p}");
+                continue;
+            };
+            let l = shell.locators[a.tet()].bary(p);
+            let margin = l.min_element().min(1.0 - l.x - l.y - l.z);
+            if margin > 1e-4 {
+                inside += 1;
+                assert_eq!(a, b, "at {p}");
+            } else {
+                on_faces += 1;
+                assert!(
+                    (a.q() - b.q()).abs().max_element() < 1e-3,
+                    "at {p}: {a:?} {b:?}"
+                );
+            }
+            assert_eq!(hint, b.tet, "the hint is the tetrahedron found");
+        }
+        assert!(inside > 20_000, "{inside} {on_faces}");
+    }
+
+    /// A cursor's locations along a ray are those of `locate` from the running hint (the
+    /// origin's remembered tetrahedron first, then the last one found), bit for bit, when the
+    /// same distance is asked twice in a row (a point bound, then the lookup) and when not;
+    /// dropping the cursor remembers its last point.
+    #[test]
+    fn a_cursor_locates_as_the_running_hint_does_and_remembers_its_last_point() {
+        let shell = bumpy_shell();
+        let mut rng = Rng::new(9, 2);
+        let mut found = 0u32;
+        for _ in 0..2_000 {
+            let o = point_in_box(&shell, &mut rng);
+            let d = (point_in_box(&shell, &mut rng) - o).normalize_or_zero();
+            let ray = Ray::new(o, d);
+            if rng.next_f32() < 0.5 {
+                let mut h = u32::MAX;
+                if let Some(s) = shell.locate(o, &mut h) {
+                    shell.remember_vertex(o, s.tet);
+                }
+            }
+            let mut hint = shell.vertex_hint(o);
+            let cursor = ShellCursor::new(&shell, &ray);
+            let step = shell.thickness * 0.05;
+            let mut t = 0.0f32;
+            let mut last = None;
+            for _ in 0..100 {
+                t += step * rng.next_f32();
+                let repeats = if rng.next_f32() < 0.5 { 2 } else { 1 };
+                for _ in 0..repeats {
+                    let want = shell.locate(ray.at(t), &mut hint);
+                    let got = cursor.locate(t);
+                    assert_eq!(
+                        want.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
+                        got.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
+                        "at t = {t}"
+                    );
+                    found += u32::from(got.is_some());
+                    last = got.map(|s| (t, s.tet));
+                }
+            }
+            drop(cursor);
+            if let Some((t, tet)) = last {
+                assert_eq!(shell.vertex_hint(ray.at(t)), tet);
+            }
+        }
+        assert!(found > 20_000, "{found}");
+    }
+
+    /// The per-thread vertex cache answers only for the same shell and the same point bits.
+    #[test]
+    fn the_vertex_cache_answers_only_for_its_shell_and_point() {
+        let a = bumpy_shell();
+        let b = bumpy_shell();
+        let p = Vec3::new(0.3, 0.4, 0.01);
+        a.remember_vertex(p, 17);
+        assert_eq!(a.vertex_hint(p), 17);
+        assert_eq!(b.vertex_hint(p), u32::MAX);
+        let next = Vec3::new(f32::from_bits(p.x.to_bits() + 1), p.y, p.z);
+        assert_eq!(a.vertex_hint(next), u32::MAX);
+        a.remember_vertex(p, 18);
+        assert_eq!(a.vertex_hint(p), 18);
+    }
 }
