@@ -207,14 +207,9 @@ pub struct FabricShell {
     /// `dims.x` repeats column 0, row `dims.y` row 0): the eight corners of every lookup that
     /// passes the occupancy bit lie at fixed offsets from one index, with no brick
     /// resolution and no wrapping ([`FabricShell::flat_index`]).
-    /// Stored as 16-bit codes rounded to the nearest multiple of `density_step` (1/65535 of
-    /// the largest density): half the 32-bit floats' memory.
-    flat_density: Vec<u16>,
-    /// The value of one step of `flat_density`.
-    density_step: f32,
-    /// The patch's tangent directions on the layout of `flat_density`, octahedral 16-bit
-    /// codes ([`oct_encode`]; 4 bytes an entry where three floats took 12).
-    flat_tangent: Vec<[i16; 2]>,
+    flat_density: Vec<f32>,
+    /// The patch's tangents on the layout of `flat_density`.
+    flat_tangent: Vec<Vec3>,
     /// The patch's yarn ids on the layout of `flat_density` (read once per scattering
     /// vertex, [`FabricShell::fibre_at`]).
     flat_id: Vec<f32>,
@@ -526,20 +521,16 @@ impl FabricShell {
             support_step: 0.0,
             support_bits: Vec::new(),
             flat_density: Vec::new(),
-            density_step: 0.0,
             flat_tangent: Vec::new(),
             flat_id: Vec::new(),
         };
         shell.link_neighbours(&tet_keys);
         shell.build_cells();
-        let (density, tangent, id) = flat_channels(&shell.patch, dims, layer_lo);
-        (shell.flat_density, shell.density_step) = quantise_nearest(&density);
-        shell.flat_tangent = tangent.iter().map(|&t| oct_encode(t)).collect();
-        shell.flat_id = id;
-        // The point bounds bound the densities lookups read: the coded ones.
-        let support = shell.support_of_flat();
+        let support = support_max(&shell.patch, dims, layer_lo);
         shell.support_bits = occupancy_bits(&support);
         (shell.support_codes, shell.support_step) = quantise_up(&support);
+        (shell.flat_density, shell.flat_tangent, shell.flat_id) =
+            flat_channels(&shell.patch, dims, layer_lo);
         Ok(shell)
     }
 
@@ -929,42 +920,6 @@ impl FabricShell {
             .map_or(0.0, |&c| f32::from(c) * self.support_step)
     }
 
-    /// The largest coded density of the eight voxels of each lookup cell (the layout of
-    /// `support_max`, from the flat table).
-    fn support_of_flat(&self) -> Vec<f32> {
-        let (nx, ny, nz) = (
-            self.dims.x as usize,
-            self.dims.y as usize,
-            self.dims.z as usize,
-        );
-        let rx = nx + 1;
-        let layer = rx * (ny + 1);
-        let mut out = vec![0.0f32; nx * ny * (nz + 3)];
-        for z in 0..nz + 2 {
-            for y in 0..ny {
-                for x in 0..nx {
-                    let f = (z * (ny + 1) + y) * rx + x;
-                    let mut m = 0.0f32;
-                    for o in [
-                        0,
-                        1,
-                        rx,
-                        rx + 1,
-                        layer,
-                        layer + 1,
-                        layer + rx,
-                        layer + rx + 1,
-                    ] {
-                        let c = self.flat_density.get(f + o).copied().unwrap_or(0);
-                        m = m.max(f32::from(c) * self.density_step);
-                    }
-                    out[(z * ny + y) * nx + x] = m;
-                }
-            }
-        }
-        out
-    }
-
     /// Bit `k` of `support_bits`.
     #[inline(always)]
     fn bit(&self, k: usize) -> bool {
@@ -1012,7 +967,7 @@ impl FabricShell {
             // layer `z ≤ dims.z + 1` from `layer_lo − 1`; the table holds `dims.z + 3`
             // layers of `(dims.x + 1) × (dims.y + 1)` voxels, so `f` plus one step in each
             // of x, y, z (`off[7]`) is inside it.
-            *ck = f32::from(unsafe { *self.flat_density.get_unchecked(f + o) }) * self.density_step;
+            *ck = unsafe { *self.flat_density.get_unchecked(f + o) };
         }
         let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
         let y0 = lerp(lerp(c[0], c[4], t.x), lerp(c[2], c[6], t.x), t.y);
@@ -1050,7 +1005,7 @@ impl FabricShell {
             debug_assert!(f + o < self.flat_tangent.len());
             // SAFETY: `d` is in {0, 1}³ and `f` comes from `cell_at`: inside the table, as
             // in `flat_trilinear`.
-            oct_decode(unsafe { *self.flat_tangent.get_unchecked(f + o) })
+            unsafe { *self.flat_tangent.get_unchecked(f + o) }
         };
         let nearest = at(n);
         if nearest != Vec3::ZERO {
@@ -1486,53 +1441,6 @@ fn support_max(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> Vec<f32> {
     out
 }
 
-/// `values` (non-negative) as 16-bit codes rounded to the nearest multiple of `step`
-/// (1/65535 of the largest value; 0 stays 0); returns the codes and `step`.
-fn quantise_nearest(values: &[f32]) -> (Vec<u16>, f32) {
-    let top = values.iter().copied().fold(0.0f32, f32::max);
-    if !(top > 0.0) || !top.is_finite() {
-        return (vec![0; values.len()], 1.0);
-    }
-    let step = top / 65535.0;
-    let codes = values
-        .iter()
-        .map(|&v| (v / step).round().clamp(0.0, 65535.0) as u16)
-        .collect();
-    (codes, step)
-}
-
-/// The code of a zero tangent in [`oct_encode`].
-const OCT_ZERO: [i16; 2] = [i16::MIN, i16::MIN];
-
-/// A tangent direction as an octahedral code of two 16-bit integers ([`OCT_ZERO`] for a
-/// zero vector); [`oct_decode`] gives the direction back to about 5e-5 rad.
-fn oct_encode(v: Vec3) -> [i16; 2] {
-    let n = v.x.abs() + v.y.abs() + v.z.abs();
-    if !(n > 0.0) || !n.is_finite() {
-        return OCT_ZERO;
-    }
-    let (mut x, mut y) = (v.x / n, v.y / n);
-    if v.z < 0.0 {
-        let (ax, ay) = (x.abs(), y.abs());
-        x = (1.0 - ay) * x.signum();
-        y = (1.0 - ax) * y.signum();
-    }
-    [(x * 32767.0).round() as i16, (y * 32767.0).round() as i16]
-}
-
-/// The direction of an [`oct_encode`] code (not normalised: every reader of tangents uses
-/// their direction only), or zero.
-#[inline(always)]
-fn oct_decode(c: [i16; 2]) -> Vec3 {
-    if c == OCT_ZERO {
-        return Vec3::ZERO;
-    }
-    let (x, y) = (f32::from(c[0]), f32::from(c[1]));
-    let z = 32767.0 - x.abs() - y.abs();
-    let t = (-z).max(0.0);
-    Vec3::new(x - t.copysign(x), y - t.copysign(y), z)
-}
-
 /// `values` (non-negative) as byte codes `c` with `c · step ≥ v` (the smallest such code,
 /// 0 exactly for 0), `step` about 1/255 of the largest value; returns the codes and `step`.
 fn quantise_up(values: &[f32]) -> (Vec<u8>, f32) {
@@ -1665,14 +1573,6 @@ mod tests {
     use crate::math::Vec2;
     use crate::sampling::Rng;
 
-    /// Both zero, or directions within 2e-4 rad.
-    fn same_direction(a: Vec3, b: Vec3) -> bool {
-        if a == Vec3::ZERO || b == Vec3::ZERO {
-            return a == b;
-        }
-        a.normalize().dot(b.normalize()) > (2e-4f32).cos()
-    }
-
     /// The division-free branches of `wrap_axis` agree with `rem_euclid` within a period
     /// of the tile and beyond it.
     #[test]
@@ -1742,14 +1642,16 @@ mod tests {
             let t = q - i.as_vec3();
             let old = shell.density_at_q(&mut acc, q);
             let new = shell.flat_trilinear(f, t);
-            assert!(
-                (old - new).abs() <= 0.51 * shell.density_step + 1e-6,
+            assert_eq!(
+                old.to_bits(),
+                new.to_bits(),
                 "density at {q}: {old} against {new}"
             );
             let old = super::super::tangent_near(q, |c| tan.value_vec3(shell.wrap(c)));
             let new = shell.flat_tangent_near(q, i, f, t, Some(&mut tan2));
-            assert!(
-                same_direction(old, new),
+            assert_eq!(
+                old.to_array().map(f32::to_bits),
+                new.to_array().map(f32::to_bits),
                 "tangent at {q}: {old} against {new}"
             );
             tangents += u32::from(old != Vec3::ZERO);
@@ -1807,8 +1709,9 @@ mod tests {
             let tangent = super::super::tangent_near(q, |c| tan.value_vec3(shell.wrap(c)));
             let id = ids.value(shell.wrap((q + Vec3::splat(0.5)).floor().as_ivec3()));
             let (t2, id2) = shell.fibre_voxel_at_q(q);
-            assert!(
-                same_direction(tangent, t2),
+            assert_eq!(
+                tangent.to_array().map(f32::to_bits),
+                t2.to_array().map(f32::to_bits),
                 "tangent at {q}: {tangent} against {t2}"
             );
             assert_eq!(id.to_bits(), id2.to_bits(), "id at {q}: {id} against {id2}");
