@@ -264,6 +264,8 @@ pub struct ShellCursor<'a> {
     shell: &'a FabricShell,
     ray: Ray,
     hint: Cell<u32>,
+    /// The affine maps along the ray in the last tetrahedron found.
+    span: Cell<TetSpan>,
     /// The distance of the last point located (NaN before the first) and where it was.
     last: Cell<(f32, Option<ShellPoint>)>,
 }
@@ -276,6 +278,7 @@ impl<'a> ShellCursor<'a> {
             shell,
             ray: *ray,
             hint: Cell::new(shell.vertex_hint(ray.o)),
+            span: Cell::new(TetSpan::NONE),
             last: Cell::new((f32::NAN, None)),
         }
     }
@@ -301,12 +304,54 @@ impl<'a> ShellCursor<'a> {
         if last_t == t {
             return last;
         }
+        let span = self.span.get();
+        if span.tet != u32::MAX {
+            // Inside the last tetrahedron both maps are affine in `t`.
+            let s = t - span.t_ref;
+            if TetLocator::inside(span.l + span.dl * s) {
+                let found = Some(ShellPoint {
+                    tet: span.tet,
+                    q: span.q + span.dq * s,
+                });
+                self.last.set((t, found));
+                return found;
+            }
+        }
         let mut hint = self.hint.get();
-        let found = self.shell.locate(self.ray.at(t), &mut hint);
+        let found = self.shell.locate_with_bary(self.ray.at(t), &mut hint);
         self.hint.set(hint);
+        if let Some((s, l)) = found {
+            self.span.set(self.shell.span(s, l, t, self.ray.d));
+        }
+        let found = found.map(|(s, _)| s);
         self.last.set((t, found));
         found
     }
+}
+
+/// A ray's barycentrics and patch coordinates inside one tetrahedron, affine in the
+/// distance: `l + dl·(t − t_ref)` and `q + dq·(t − t_ref)`, from the point at `t_ref`
+/// where the tetrahedron was found.
+#[derive(Clone, Copy, Debug)]
+struct TetSpan {
+    /// The tetrahedron (`u32::MAX`: none yet).
+    tet: u32,
+    t_ref: f32,
+    l: Vec3,
+    dl: Vec3,
+    q: Vec3,
+    dq: Vec3,
+}
+
+impl TetSpan {
+    const NONE: TetSpan = TetSpan {
+        tet: u32::MAX,
+        t_ref: 0.0,
+        l: Vec3::ZERO,
+        dl: Vec3::ZERO,
+        q: Vec3::ZERO,
+        dq: Vec3::ZERO,
+    };
 }
 
 impl Drop for ShellCursor<'_> {
@@ -713,12 +758,42 @@ impl FabricShell {
     /// outside the shell. `hint` (the last tetrahedron found) is tried first and updated.
     #[inline(always)]
     pub fn locate(&self, p: Vec3, hint: &mut u32) -> Option<ShellPoint> {
+        self.locate_with_bary(p, hint).map(|(s, _)| s)
+    }
+
+    /// [`FabricShell::locate`] with the point's barycentrics.
+    #[inline(always)]
+    fn locate_with_bary(&self, p: Vec3, hint: &mut u32) -> Option<(ShellPoint, Vec3)> {
         let (i, l) = self.find(p, hint)?;
         let t = &self.tets[i];
-        Some(ShellPoint {
-            tet: i as u32,
-            q: t.q0 + t.bary_to_q * l,
-        })
+        Some((
+            ShellPoint {
+                tet: i as u32,
+                q: t.q0 + t.bary_to_q * l,
+            },
+            l,
+        ))
+    }
+
+    /// The affine maps along direction `d` in the tetrahedron of `s` (barycentrics `l`),
+    /// found at distance `t`.
+    #[inline]
+    fn span(&self, s: ShellPoint, l: Vec3, t: f32, d: Vec3) -> TetSpan {
+        let (Some(loc), Some(tet)) = (
+            self.locators.get(s.tet as usize),
+            self.tets.get(s.tet as usize),
+        ) else {
+            return TetSpan::NONE;
+        };
+        let dl = loc.world_to_bary * d;
+        TetSpan {
+            tet: s.tet,
+            t_ref: t,
+            l,
+            dl,
+            q: s.q,
+            dq: tet.bary_to_q * dl,
+        }
     }
 
     /// The tetrahedron remembered at world point `p` on this thread
@@ -1819,14 +1894,16 @@ mod tests {
     }
 
     /// A cursor's locations along a ray are those of `locate` from the running hint (the
-    /// origin's remembered tetrahedron first, then the last one found), bit for bit, when the
-    /// same distance is asked twice in a row (a point bound, then the lookup) and when not;
-    /// dropping the cursor remembers its last point.
+    /// origin's remembered tetrahedron first, then the last one found): the same tetrahedron
+    /// where the point is inside one by more than the tolerance, and patch coordinates within
+    /// 1e-3 voxels (the cursor follows the ray's affine maps inside a tetrahedron, which round
+    /// differently). The same distance asked twice in a row (a point bound, then the lookup)
+    /// gives the same answer bit for bit; dropping the cursor remembers its last point.
     #[test]
     fn a_cursor_locates_as_the_running_hint_does_and_remembers_its_last_point() {
         let shell = bumpy_shell();
         let mut rng = Rng::new(9, 2);
-        let mut found = 0u32;
+        let (mut found, mut spans) = (0u32, 0u32);
         for _ in 0..2_000 {
             let o = point_in_box(&shell, &mut rng);
             let d = (point_in_box(&shell, &mut rng) - o).normalize_or_zero();
@@ -1844,25 +1921,50 @@ mod tests {
             let mut last = None;
             for _ in 0..100 {
                 t += step * rng.next_f32();
-                let repeats = if rng.next_f32() < 0.5 { 2 } else { 1 };
-                for _ in 0..repeats {
-                    let want = shell.locate(ray.at(t), &mut hint);
-                    let got = cursor.locate(t);
+                let p = ray.at(t);
+                let want = shell.locate(p, &mut hint);
+                let got = cursor.locate(t);
+                spans += u32::from(cursor.span.get().t_ref != t);
+                if rng.next_f32() < 0.5 {
+                    let again = cursor.locate(t);
                     assert_eq!(
-                        want.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
+                        again.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
                         got.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
-                        "at t = {t}"
+                        "asked again at t = {t}"
                     );
-                    found += u32::from(got.is_some());
-                    last = got.map(|s| (t, s.tet));
                 }
+                match (want, got) {
+                    (None, None) => {}
+                    (Some(a), Some(b)) => {
+                        found += 1;
+                        let l = shell.locators[a.tet()].bary(p);
+                        if l.min_element().min(1.0 - l.x - l.y - l.z) > 1e-4 {
+                            assert_eq!(a.tet, b.tet, "at t = {t}");
+                        }
+                        assert!(
+                            (a.q - b.q).abs().max_element() < 1e-3,
+                            "at t = {t}: {a:?} {b:?}"
+                        );
+                        hint = b.tet;
+                    }
+                    _ => {
+                        // Only within the tolerance of the shell's boundary.
+                        let s = want.or(got).map_or(0, |s| s.tet as usize);
+                        let l = shell.locators[s].bary(p);
+                        assert!(
+                            l.min_element().min(1.0 - l.x - l.y - l.z) < 1e-4,
+                            "at t = {t}: {want:?} {got:?}"
+                        );
+                    }
+                }
+                last = got.map(|s| (t, s.tet));
             }
             drop(cursor);
             if let Some((t, tet)) = last {
                 assert_eq!(shell.vertex_hint(ray.at(t)), tet);
             }
         }
-        assert!(found > 20_000, "{found}");
+        assert!(found > 20_000 && spans > 10_000, "{found} {spans}");
     }
 
     /// The per-thread vertex cache answers only for the same shell and the same point bits.
