@@ -26,7 +26,9 @@
 //! # Lookups
 //! A uniform grid over the shell's box lists the tetrahedra overlapping each cell; a lookup
 //! tests the last tetrahedron first (tracking steps are short), then walks a few tetrahedra
-//! across the faces the point lies beyond, then searches the cell's list.
+//! across the faces the point lies beyond, then searches the cell's list. Along one ray a
+//! [`ShellCursor`] follows the affine maps of the last tetrahedron, shares its locations between
+//! point bounds and lookups, and starts from the tetrahedron remembered at the ray's origin.
 //! Points in no tetrahedron have zero density. Majorants come from a world-space pyramid of
 //! bricks that overlap the shell, bounded by the patch's maximum density.
 
