@@ -8,7 +8,7 @@
 use glam::{DMat3, DVec3, Mat3, Vec3};
 
 use super::fibre_scattering::extinction_scale;
-use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, YarnId};
+use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, ShellCursor, YarnId};
 use crate::grid::{Accessor, SparseGrid};
 use crate::math::{Ray, Vec2};
 use crate::spectrum::Rgb;
@@ -152,7 +152,7 @@ impl YarnColours {
 }
 
 /// `sin∠(dir, tangent)` for a unit `dir`; 1 when the tangent is zero (no fibre direction).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn projected_width(dir: Vec3, tangent: Vec3) -> f32 {
     match tangent.try_normalize() {
@@ -205,14 +205,12 @@ impl<'a> FibreGridLookup<'a> {
 
 /// Density lookups along a ray through a fabric shell (notes §3.3): each point is mapped to
 /// the patch; with fibre-projected extinction the density is scaled by sin∠(ray, fibre).
+/// Point location goes through a [`ShellCursor`], which a free flight's point bounds share
+/// ([`ShellLookup::bound`]).
 pub struct ShellLookup<'a> {
-    shell: &'a FabricShell,
-    ray: Ray,
-    /// The last tetrahedron found.
-    hint: u32,
-    /// For fibre-projected extinction: an accessor on the patch's tangents and the unit
-    /// direction of the ray.
-    tangents: Option<(Accessor<'a>, Vec3)>,
+    cursor: ShellCursor<'a>,
+    /// For fibre-projected extinction: the unit direction of the ray.
+    dir: Option<Vec3>,
 }
 
 impl<'a> ShellLookup<'a> {
@@ -220,20 +218,37 @@ impl<'a> ShellLookup<'a> {
     #[must_use]
     pub fn new(shell: &'a FabricShell, ray: &Ray, projected: bool) -> Self {
         ShellLookup {
-            tangents: projected.then(|| (shell.tangent_accessor(), ray.d.normalize_or_zero())),
-            shell,
-            ray: *ray,
-            hint: u32::MAX,
+            dir: projected.then(|| ray.d.normalize_or_zero()),
+            cursor: ShellCursor::new(shell, ray),
         }
     }
 
     /// The (projected) density at distance `t`.
     #[inline]
-    pub fn at(&mut self, t: f32) -> f32 {
-        let p = self.ray.at(t);
-        match &mut self.tangents {
-            None => self.shell.density(p, &mut self.hint),
-            Some((tan, dir)) => self.shell.projected_density(tan, p, *dir, &mut self.hint),
+    pub fn at(&self, t: f32) -> f32 {
+        let Some(s) = self.cursor.locate(t) else {
+            return 0.0;
+        };
+        let shell = self.cursor.shell();
+        match self.dir {
+            None => shell.density_at(s),
+            Some(dir) => shell.projected_density_at(None, s, dir),
+        }
+    }
+
+    /// [`ShellLookup::at`], out of line (for trackers that take the lookup as a closure).
+    #[inline(never)]
+    pub fn at_out_of_line(&self, t: f32) -> f32 {
+        self.at(t)
+    }
+
+    /// The point bound at distance `t` ([`FabricShell::point_bound`]): a lookup at the same
+    /// distance next reuses its point location.
+    #[inline]
+    pub fn bound(&self, t: f32) -> f32 {
+        match self.cursor.locate(t) {
+            Some(s) => self.cursor.shell().point_bound_at(s),
+            None => 0.0,
         }
     }
 }

@@ -26,9 +26,13 @@
 //! # Lookups
 //! A uniform grid over the shell's box lists the tetrahedra overlapping each cell; a lookup
 //! tests the last tetrahedron first (tracking steps are short), then walks a few tetrahedra
-//! across the faces the point lies beyond, then searches the cell's list.
+//! across the faces the point lies beyond, then searches the cell's list. Along one ray a
+//! [`ShellCursor`] follows the affine maps of the last tetrahedron, shares its locations between
+//! point bounds and lookups, and starts from the tetrahedron remembered at the ray's origin.
 //! Points in no tetrahedron have zero density. Majorants come from a world-space pyramid of
 //! bricks that overlap the shell, bounded by the patch's maximum density.
+
+use std::cell::Cell;
 
 use glam::{DMat3, DVec3, IVec3, Mat3, Vec3};
 
@@ -37,7 +41,7 @@ use super::FabricError;
 use crate::geometry::TriangleMesh;
 use crate::grid::{Accessor, SparseGrid};
 use crate::majorant::{Bounds, MajorantPyramid};
-use crate::math::Aabb;
+use crate::math::{Aabb, Ray};
 
 /// Largest number of tetrahedra a shell may have (three per triangle).
 pub const MAX_SHELL_TETS: usize = 30_000_000;
@@ -188,9 +192,14 @@ pub struct FabricShell {
     tiles: [f32; 2],
     /// Point bounds of trilinear lookups ([`FabricShell::point_bound`]): per patch voxel `v`
     /// of layers `layer_lo − 1 ..= layer_lo + dims.z` (x fastest), the largest density of
-    /// the eight voxels `v .. v + 1` (wrapped in x, y) a lookup in the cell above `v` reads.
-    support_max: Vec<f32>,
-    /// One bit per entry of `support_max`, set where it is above 0: the test "are all eight
+    /// the eight voxels `v .. v + 1` (wrapped in x, y) a lookup in the cell above `v` reads,
+    /// rounded up to a multiple `code · support_step` of 1/255 of the largest
+    /// ([`quantise_up`]): one byte an entry (150 KiB for the draped cloth's patch where 32-bit
+    /// floats took 600 KiB and missed the second-level cache), still a bound.
+    support_codes: Vec<u8>,
+    /// The value of one step of `support_codes`.
+    support_step: f32,
+    /// One bit per entry of `support_codes`, set where the largest density is above 0: the test "are all eight
     /// voxels of this lookup empty" from a table of 1/32 the size (19 KiB for the draped
     /// cloth's patch against 600 KiB), which stays in the first-level cache. Shadow rays,
     /// which make most of the lookups, need only that test before reading the bricks.
@@ -215,6 +224,178 @@ pub struct FibreVoxel {
     pub tangent: Vec3,
     /// Yarn family id as stored in the patch's `id` channel.
     pub id: f32,
+}
+
+/// A world point located in the shell: its tetrahedron and its patch index coordinates
+/// (`x`, `y` not yet wrapped), as [`FabricShell::locate`] finds them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShellPoint {
+    tet: u32,
+    q: Vec3,
+}
+
+impl ShellPoint {
+    /// The tetrahedron the point was found in.
+    #[must_use]
+    pub fn tet(&self) -> usize {
+        self.tet as usize
+    }
+
+    /// Patch index coordinates (`x`, `y` not wrapped).
+    #[must_use]
+    pub fn q(&self) -> Vec3 {
+        self.q
+    }
+}
+
+/// Point location along one ray through a shell, shared by the ray's density lookups and
+/// point bounds (both take `&self`).
+///
+/// * The first point is searched from the tetrahedron remembered at the ray's origin
+///   ([`FabricShell::vertex_hint`]: a ray leaving a scattering vertex starts in the
+///   tetrahedron the flight that ended there found), later ones from the last tetrahedron
+///   found, as in [`FabricShell::locate`].
+/// * The last point located is kept: a free flight's density lookup follows the point bound
+///   of its tentative collision at the same distance, and takes the bound's tetrahedron and
+///   patch coordinates instead of locating the point again (the same values: a search from
+///   that tetrahedron finds it first, with the same arithmetic).
+/// * When the cursor is dropped, the last point and its tetrahedron are remembered
+///   ([`FabricShell::remember_vertex`]) for the rays that leave it.
+#[derive(Debug)]
+pub struct ShellCursor<'a> {
+    shell: &'a FabricShell,
+    ray: Ray,
+    hint: Cell<u32>,
+    /// The affine maps along the ray in the last tetrahedron found.
+    span: Cell<TetSpan>,
+    /// The distance of the last point located (NaN before the first) and where it was.
+    last: Cell<(f32, Option<ShellPoint>)>,
+}
+
+impl<'a> ShellCursor<'a> {
+    /// Point location along `ray` (world space) through `shell`.
+    #[must_use]
+    pub fn new(shell: &'a FabricShell, ray: &Ray) -> Self {
+        ShellCursor {
+            shell,
+            ray: *ray,
+            hint: Cell::new(shell.vertex_hint(ray.o)),
+            span: Cell::new(TetSpan::NONE),
+            last: Cell::new((f32::NAN, None)),
+        }
+    }
+
+    /// The shell.
+    #[inline(always)]
+    #[must_use]
+    pub fn shell(&self) -> &'a FabricShell {
+        self.shell
+    }
+
+    /// The ray.
+    #[inline(always)]
+    #[must_use]
+    pub fn ray(&self) -> &Ray {
+        &self.ray
+    }
+
+    /// The point at distance `t` located ([`FabricShell::locate`]); `None` outside the shell.
+    #[inline(always)]
+    pub fn locate(&self, t: f32) -> Option<ShellPoint> {
+        let (last_t, last) = self.last.get();
+        if last_t == t {
+            return last;
+        }
+        let span = self.span.get();
+        if span.tet != u32::MAX {
+            // Inside the last tetrahedron both maps are affine in `t`.
+            let s = t - span.t_ref;
+            if TetLocator::inside(span.l + span.dl * s) {
+                let found = Some(ShellPoint {
+                    tet: span.tet,
+                    q: span.q + span.dq * s,
+                });
+                self.last.set((t, found));
+                return found;
+            }
+        }
+        let mut hint = self.hint.get();
+        let found = self.shell.locate_with_bary(self.ray.at(t), &mut hint);
+        self.hint.set(hint);
+        if let Some((s, l)) = found {
+            self.span.set(self.shell.span(s, l, t, self.ray.d));
+        }
+        let found = found.map(|(s, _)| s);
+        self.last.set((t, found));
+        found
+    }
+}
+
+/// A ray's barycentrics and patch coordinates inside one tetrahedron, affine in the
+/// distance: `l + dl·(t − t_ref)` and `q + dq·(t − t_ref)`, from the point at `t_ref`
+/// where the tetrahedron was found.
+#[derive(Clone, Copy, Debug)]
+struct TetSpan {
+    /// The tetrahedron (`u32::MAX`: none yet).
+    tet: u32,
+    t_ref: f32,
+    l: Vec3,
+    dl: Vec3,
+    q: Vec3,
+    dq: Vec3,
+}
+
+impl TetSpan {
+    const NONE: TetSpan = TetSpan {
+        tet: u32::MAX,
+        t_ref: 0.0,
+        l: Vec3::ZERO,
+        dl: Vec3::ZERO,
+        q: Vec3::ZERO,
+        dq: Vec3::ZERO,
+    };
+}
+
+impl Drop for ShellCursor<'_> {
+    fn drop(&mut self) {
+        if let (t, Some(s)) = self.last.get() {
+            self.shell.remember_vertex(self.ray.at(t), s.tet);
+        }
+    }
+}
+
+/// One entry of the per-thread cache of [`FabricShell::remember_vertex`].
+#[derive(Clone, Copy, Debug)]
+struct VertexTet {
+    /// The shell's address (0: empty).
+    shell: usize,
+    /// The point's bits.
+    p: [u32; 3],
+    tet: u32,
+}
+
+/// Entries of the per-thread vertex cache (direct-mapped by the point's bits).
+const VERTEX_SLOTS: usize = 8;
+
+thread_local! {
+    /// Tetrahedra found at the last points of this thread's rays through shells (where a
+    /// path's next rays start), by point: see [`FabricShell::remember_vertex`].
+    static VERTEX_TETS: [Cell<VertexTet>; VERTEX_SLOTS] = const {
+        [const {
+            Cell::new(VertexTet {
+                shell: 0,
+                p: [0; 3],
+                tet: u32::MAX,
+            })
+        }; VERTEX_SLOTS]
+    };
+}
+
+/// The slot of point bits `p` in [`VERTEX_TETS`].
+#[inline(always)]
+fn vertex_slot(p: [u32; 3]) -> usize {
+    let h = (p[0] ^ p[1].rotate_left(11) ^ p[2].rotate_left(22)).wrapping_mul(0x9E37_79B1);
+    (h >> 29) as usize % VERTEX_SLOTS
 }
 
 impl FabricShell {
@@ -383,7 +564,8 @@ impl FabricShell {
             layer_lo,
             layers,
             tiles: params.tiles,
-            support_max: Vec::new(),
+            support_codes: Vec::new(),
+            support_step: 0.0,
             support_bits: Vec::new(),
             flat_density: Vec::new(),
             flat_tangent: Vec::new(),
@@ -391,8 +573,9 @@ impl FabricShell {
         };
         shell.link_neighbours(&tet_keys);
         shell.build_cells();
-        shell.support_max = support_max(&shell.patch, dims, layer_lo);
-        shell.support_bits = occupancy_bits(&shell.support_max);
+        let support = support_max(&shell.patch, dims, layer_lo);
+        shell.support_bits = occupancy_bits(&support);
+        (shell.support_codes, shell.support_step) = quantise_up(&support);
         (shell.flat_density, shell.flat_tangent, shell.flat_id) =
             flat_channels(&shell.patch, dims, layer_lo);
         Ok(shell)
@@ -570,9 +753,90 @@ impl FabricShell {
     /// the shell. `hint` caches the last tetrahedron.
     #[inline]
     pub fn patch_coordinates(&self, p: Vec3, hint: &mut u32) -> Option<Vec3> {
+        self.locate(p, hint).map(|s| s.q)
+    }
+
+    /// World point `p` located: its tetrahedron and patch index coordinates, or `None`
+    /// outside the shell. `hint` (the last tetrahedron found) is tried first and updated.
+    #[inline(always)]
+    pub fn locate(&self, p: Vec3, hint: &mut u32) -> Option<ShellPoint> {
+        self.locate_with_bary(p, hint).map(|(s, _)| s)
+    }
+
+    /// [`FabricShell::locate`] with the point's barycentrics.
+    #[inline(always)]
+    fn locate_with_bary(&self, p: Vec3, hint: &mut u32) -> Option<(ShellPoint, Vec3)> {
         let (i, l) = self.find(p, hint)?;
         let t = &self.tets[i];
-        Some(t.q0 + t.bary_to_q * l)
+        Some((
+            ShellPoint {
+                tet: i as u32,
+                q: t.q0 + t.bary_to_q * l,
+            },
+            l,
+        ))
+    }
+
+    /// The affine maps along direction `d` in the tetrahedron of `s` (barycentrics `l`),
+    /// found at distance `t`.
+    #[inline]
+    fn span(&self, s: ShellPoint, l: Vec3, t: f32, d: Vec3) -> TetSpan {
+        let (Some(loc), Some(tet)) = (
+            self.locators.get(s.tet as usize),
+            self.tets.get(s.tet as usize),
+        ) else {
+            return TetSpan::NONE;
+        };
+        let dl = loc.world_to_bary * d;
+        TetSpan {
+            tet: s.tet,
+            t_ref: t,
+            l,
+            dl,
+            q: s.q,
+            dq: tet.bary_to_q * dl,
+        }
+    }
+
+    /// The tetrahedron remembered at world point `p` on this thread
+    /// ([`FabricShell::remember_vertex`]), or `u32::MAX` (no hint).
+    #[inline]
+    #[must_use]
+    pub fn vertex_hint(&self, p: Vec3) -> u32 {
+        let bits = p.to_array().map(f32::to_bits);
+        let id = std::ptr::from_ref(self) as usize;
+        VERTEX_TETS.with(|slots| {
+            let e = slots[vertex_slot(bits)].get();
+            if e.shell == id && e.p == bits {
+                e.tet
+            } else {
+                u32::MAX
+            }
+        })
+    }
+
+    /// Remembers, on this thread, that world point `p` was found in tetrahedron `tet`: the
+    /// last point of a ray ([`ShellCursor`] when dropped), where a free flight ends in a
+    /// scattering vertex and the path's next rays (shadow rays, the next flight) and its
+    /// fibre frame ([`FabricShell::fibre_at`]) start. They take it as their first hint
+    /// ([`FabricShell::vertex_hint`]) instead of searching the point-location grid.
+    ///
+    /// A hint only changes which tetrahedron is tried first, so a point within the inside
+    /// test's tolerance of two tetrahedra (on a shared face) can land in the other one. What
+    /// a ray reads depends only on its own path: the cache is keyed by the shell and the
+    /// point's exact bits, and a path's rays read only what earlier rays of the same path
+    /// wrote (another path would have to reach the very same point).
+    #[inline]
+    pub fn remember_vertex(&self, p: Vec3, tet: u32) {
+        let bits = p.to_array().map(f32::to_bits);
+        let id = std::ptr::from_ref(self) as usize;
+        VERTEX_TETS.with(|slots| {
+            slots[vertex_slot(bits)].set(VertexTet {
+                shell: id,
+                p: bits,
+                tet,
+            });
+        });
     }
 
     /// Trilinear density of the patch at index point `q`, periodic in `x` and `y`, read
@@ -620,9 +884,17 @@ impl FabricShell {
     /// bit, as a trilinear lookup through [`Self::density_accessor`]).
     #[inline]
     pub fn density(&self, p: Vec3, hint: &mut u32) -> f32 {
-        let Some(q) = self.patch_coordinates(p, hint) else {
-            return 0.0;
-        };
+        match self.locate(p, hint) {
+            Some(s) => self.density_at(s),
+            None => 0.0,
+        }
+    }
+
+    /// [`FabricShell::density`] at a located point.
+    #[inline(always)]
+    #[must_use]
+    pub fn density_at(&self, s: ShellPoint) -> f32 {
+        let q = s.q;
         let i = super::floor_ivec3(q);
         match self.cell_at(i) {
             // Between the yarns the eight voxels are all empty: no table reads.
@@ -647,11 +919,23 @@ impl FabricShell {
         dir: Vec3,
         hint: &mut u32,
     ) -> f32 {
-        let Some((i, l)) = self.find(p, hint) else {
-            return 0.0;
-        };
-        let t = &self.tets[i];
-        let q = t.q0 + t.bary_to_q * l;
+        match self.locate(p, hint) {
+            Some(s) => self.projected_density_at(Some(tangents), s, dir),
+            None => 0.0,
+        }
+    }
+
+    /// [`FabricShell::projected_density`] at a located point. `tangents` is read only where
+    /// the nearest voxel is not a corner of the lookup's cell (coordinates beyond 2²²
+    /// voxels); without it, an accessor is made there.
+    #[inline(always)]
+    pub fn projected_density_at(
+        &self,
+        tangents: Option<&mut Accessor<'_>>,
+        s: ShellPoint,
+        dir: Vec3,
+    ) -> f32 {
+        let q = s.q;
         let v = super::floor_ivec3(q);
         // Between the yarns the eight voxels the filter reads are all empty (densities are
         // never negative): the trilinear value would be 0, so neither it nor the tangent is
@@ -668,6 +952,9 @@ impl FabricShell {
             return density;
         }
         let local = self.flat_tangent_near(q, v, f, frac, tangents);
+        let Some(t) = self.tets.get(s.tet as usize) else {
+            return density;
+        };
         density * super::look::projected_width(dir, t.tangent_to_world * local)
     }
 
@@ -679,19 +966,25 @@ impl FabricShell {
     /// exceeded (weighted tracking) and count it as a violation.
     #[inline]
     pub fn point_bound(&self, p: Vec3, hint: &mut u32) -> f32 {
-        let Some((i, l)) = self.find(p, hint) else {
-            return 0.0;
-        };
-        let t = &self.tets[i];
-        self.support_at_q(t.q0 + t.bary_to_q * l)
+        match self.locate(p, hint) {
+            Some(s) => self.point_bound_at(s),
+            None => 0.0,
+        }
+    }
+
+    /// [`FabricShell::point_bound`] at a located point.
+    #[inline(always)]
+    #[must_use]
+    pub fn point_bound_at(&self, s: ShellPoint) -> f32 {
+        self.support_at_q(s.q)
     }
 
     /// The largest density of the eight voxels a trilinear lookup at patch index point `q`
-    /// reads (one read of the [`support_max`] table; 0 outside the shell's layers, where the
+    /// reads, rounded up (one byte of the [`support_max`] table; 0 outside the shell's layers, where the
     /// patch holds no fibre).
     /// About half the entries are 0 (between the yarns); their bit is read first, from the
     /// small table, and only the others read the large one.
-    #[inline]
+    #[inline(always)]
     fn support_at_q(&self, q: Vec3) -> f32 {
         let Some(k) = self.support_index(q) else {
             return 0.0;
@@ -699,7 +992,9 @@ impl FabricShell {
         if !self.bit(k) {
             return 0.0;
         }
-        self.support_max.get(k).copied().unwrap_or(0.0)
+        self.support_codes
+            .get(k)
+            .map_or(0.0, |&c| f32::from(c) * self.support_step)
     }
 
     /// Bit `k` of `support_bits`.
@@ -768,11 +1063,17 @@ impl FabricShell {
         v: IVec3,
         f: usize,
         t: Vec3,
-        tangents: &mut Accessor<'_>,
+        tangents: Option<&mut Accessor<'_>>,
     ) -> Vec3 {
         let n = super::floor_ivec3(q + Vec3::splat(0.5)) - v;
         if !(n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
-            return super::tangent_near(q, |ijk| tangents.value_vec3(self.wrap(ijk)));
+            return match tangents {
+                Some(a) => super::tangent_near(q, |ijk| a.value_vec3(self.wrap(ijk))),
+                None => {
+                    let mut a = self.patch.accessor(TANGENT);
+                    super::tangent_near(q, |ijk| a.value_vec3(self.wrap(ijk)))
+                }
+            };
         }
         let rx = (self.dims.x + 1) as usize;
         let layer = rx * (self.dims.y + 1) as usize;
@@ -827,9 +1128,11 @@ impl FabricShell {
     /// Tangent and id are read from the shell's flat tables where the nearest voxel is a
     /// corner of the lookup's cell inside the tables' layers (the same values, bit for bit,
     /// as through the patch's accessors, which read the others).
+    /// The search starts from the tetrahedron remembered at `p` ([`FabricShell::vertex_hint`]:
+    /// at a scattering vertex, the one the free flight found there).
     #[must_use]
     pub fn fibre_at(&self, p: Vec3) -> Option<FibreVoxel> {
-        let mut hint = u32::MAX;
+        let mut hint = self.vertex_hint(p);
         let (i, l) = self.find(p, &mut hint)?;
         let t = &self.tets[i];
         let q = t.q0 + t.bary_to_q * l;
@@ -851,7 +1154,7 @@ impl FabricShell {
         if let Some((_, f)) = self.cell_at(v) {
             if (n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
                 let mut tangents = self.patch.accessor(TANGENT);
-                let tangent = self.flat_tangent_near(q, v, f, q - v.as_vec3(), &mut tangents);
+                let tangent = self.flat_tangent_near(q, v, f, q - v.as_vec3(), Some(&mut tangents));
                 let rx = (self.dims.x + 1) as usize;
                 let layer = rx * (self.dims.y + 1) as usize;
                 let o = n.x as usize + n.y as usize * rx + n.z as usize * layer;
@@ -1215,6 +1518,36 @@ fn support_max(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> Vec<f32> {
     out
 }
 
+/// `values` (non-negative) as byte codes `c` with `c · step ≥ v` (the smallest such code,
+/// 0 exactly for 0), `step` about 1/255 of the largest value; returns the codes and `step`.
+fn quantise_up(values: &[f32]) -> (Vec<u8>, f32) {
+    let top = values.iter().copied().fold(0.0f32, f32::max);
+    if !(top > 0.0) || !top.is_finite() {
+        return (vec![0; values.len()], 1.0);
+    }
+    let mut step = top / 255.0;
+    while 255.0 * step < top {
+        step = f32::from_bits(step.to_bits() + 1);
+    }
+    let codes = values
+        .iter()
+        .map(|&v| {
+            if !(v > 0.0) {
+                return 0;
+            }
+            let mut c = (v / step).ceil().clamp(1.0, 255.0) as u8;
+            while c > 1 && f32::from(c - 1) * step >= v {
+                c -= 1;
+            }
+            while c < 255 && f32::from(c) * step < v {
+                c += 1;
+            }
+            c
+        })
+        .collect();
+    (codes, step)
+}
+
 /// The shell's flat copies of the patch's density (first component), tangent and id channels:
 /// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, `(dims.x + 1) × (dims.y + 1)` voxels a
 /// layer (x fastest), voxel `(x, y)` holding the patch's `(x mod dims.x, y mod dims.y)`,
@@ -1392,7 +1725,7 @@ mod tests {
                 "density at {q}: {old} against {new}"
             );
             let old = super::super::tangent_near(q, |c| tan.value_vec3(shell.wrap(c)));
-            let new = shell.flat_tangent_near(q, i, f, t, &mut tan2);
+            let new = shell.flat_tangent_near(q, i, f, t, Some(&mut tan2));
             assert_eq!(
                 old.to_array().map(f32::to_bits),
                 new.to_array().map(f32::to_bits),
@@ -1464,5 +1797,221 @@ mod tests {
             }
         }
         assert!(seen[0] > 5_000 && seen[1] > 5_000, "{seen:?}");
+    }
+
+    /// A twill shell over a bumpy 12 × 12 grid of the unit square (no creases: its prisms
+    /// do not overlap), 2 × 2 tiles of a 32-voxel patch.
+    fn bumpy_shell() -> FabricShell {
+        let yarn = YarnParams::preset("cotton1").expect("preset");
+        let mut wp = WeaveParams::new(WeavePattern::from_name("twill").expect("twill"), yarn);
+        wp.repeats = [1, 1];
+        let fp = generate_patch(&wp, 3).expect("patch");
+        let vp = voxelise(&fp, 32, &VoxeliseOptions::default()).expect("voxelise");
+        let n = 12u32;
+        let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::new());
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                let z = 0.04
+                    * (std::f32::consts::TAU * x).sin()
+                    * (std::f32::consts::TAU * y * 0.5).cos();
+                positions.push(Vec3::new(x, y, z));
+                uvs.push(Vec2::new(x, y));
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                indices.push([a, a + 1, a + n + 1]);
+                indices.push([a + 1, a + n + 2, a + n + 1]);
+            }
+        }
+        let mesh = TriangleMesh {
+            positions,
+            normals: None,
+            uvs: Some(uvs),
+            indices,
+        };
+        FabricShell::new(&vp, &mesh, &ShellParams { tiles: [2.0, 2.0] }).expect("shell")
+    }
+
+    /// A random point of the bumpy shell's box, a little beyond it.
+    fn point_in_box(shell: &FabricShell, rng: &mut Rng) -> Vec3 {
+        let r = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let e = shell.bounds.extent();
+        shell.bounds.min - e * 0.05 + r * e * 1.1
+    }
+
+    /// Point location from any hint (the tetrahedron of a nearby point, a random one, one
+    /// remembered at the point) finds what the search of the point-location grid finds: the
+    /// same tetrahedron and patch coordinates bit for bit where the point is inside one
+    /// tetrahedron by more than the tolerance, and patch coordinates within 1e-3 voxels where
+    /// it lies on a shared face (where either tetrahedron may take it).
+    #[test]
+    fn hinted_point_location_finds_what_the_grid_search_finds() {
+        let shell = bumpy_shell();
+        let mut rng = Rng::new(5, 1);
+        let (mut inside, mut on_faces) = (0u32, 0u32);
+        for n in 0..200_000 {
+            let p = point_in_box(&shell, &mut rng);
+            let mut none = u32::MAX;
+            let cells = shell.locate(p, &mut none);
+            let mut hint = match n % 3 {
+                0 => {
+                    let near = p
+                        + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
+                            * shell.thickness;
+                    let mut h = u32::MAX;
+                    shell.locate(near, &mut h);
+                    h
+                }
+                1 => (rng.next_f32() * shell.tet_count() as f32) as u32,
+                _ => {
+                    if let Some(c) = cells {
+                        shell.remember_vertex(p, c.tet);
+                    }
+                    shell.vertex_hint(p)
+                }
+            };
+            let hinted = shell.locate(p, &mut hint);
+            let (Some(a), Some(b)) = (cells, hinted) else {
+                assert_eq!(cells, hinted, "at {p}");
+                continue;
+            };
+            let l = shell.locators[a.tet()].bary(p);
+            let margin = l.min_element().min(1.0 - l.x - l.y - l.z);
+            if margin > 1e-4 {
+                inside += 1;
+                assert_eq!(a, b, "at {p}");
+            } else {
+                on_faces += 1;
+                assert!(
+                    (a.q() - b.q()).abs().max_element() < 1e-3,
+                    "at {p}: {a:?} {b:?}"
+                );
+            }
+            assert_eq!(hint, b.tet, "the hint is the tetrahedron found");
+        }
+        assert!(inside > 20_000, "{inside} {on_faces}");
+    }
+
+    /// A cursor's locations along a ray are those of `locate` from the running hint (the
+    /// origin's remembered tetrahedron first, then the last one found): the same tetrahedron
+    /// where the point is inside one by more than the tolerance, and patch coordinates within
+    /// 1e-3 voxels (the cursor follows the ray's affine maps inside a tetrahedron, which round
+    /// differently). The same distance asked twice in a row (a point bound, then the lookup)
+    /// gives the same answer bit for bit; dropping the cursor remembers its last point.
+    #[test]
+    fn a_cursor_locates_as_the_running_hint_does_and_remembers_its_last_point() {
+        let shell = bumpy_shell();
+        let mut rng = Rng::new(9, 2);
+        let (mut found, mut spans) = (0u32, 0u32);
+        for _ in 0..2_000 {
+            let o = point_in_box(&shell, &mut rng);
+            let d = (point_in_box(&shell, &mut rng) - o).normalize_or_zero();
+            let ray = Ray::new(o, d);
+            if rng.next_f32() < 0.5 {
+                let mut h = u32::MAX;
+                if let Some(s) = shell.locate(o, &mut h) {
+                    shell.remember_vertex(o, s.tet);
+                }
+            }
+            let mut hint = shell.vertex_hint(o);
+            let cursor = ShellCursor::new(&shell, &ray);
+            let step = shell.thickness * 0.05;
+            let mut t = 0.0f32;
+            let mut last = None;
+            for _ in 0..100 {
+                t += step * rng.next_f32();
+                let p = ray.at(t);
+                let want = shell.locate(p, &mut hint);
+                let got = cursor.locate(t);
+                spans += u32::from(cursor.span.get().t_ref != t);
+                if rng.next_f32() < 0.5 {
+                    let again = cursor.locate(t);
+                    assert_eq!(
+                        again.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
+                        got.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
+                        "asked again at t = {t}"
+                    );
+                }
+                match (want, got) {
+                    (None, None) => {}
+                    (Some(a), Some(b)) => {
+                        found += 1;
+                        let l = shell.locators[a.tet()].bary(p);
+                        if l.min_element().min(1.0 - l.x - l.y - l.z) > 1e-4 {
+                            assert_eq!(a.tet, b.tet, "at t = {t}");
+                        }
+                        assert!(
+                            (a.q - b.q).abs().max_element() < 1e-3,
+                            "at t = {t}: {a:?} {b:?}"
+                        );
+                        hint = b.tet;
+                    }
+                    _ => {
+                        // Only within the tolerance of the shell's boundary.
+                        let s = want.or(got).map_or(0, |s| s.tet as usize);
+                        let l = shell.locators[s].bary(p);
+                        assert!(
+                            l.min_element().min(1.0 - l.x - l.y - l.z) < 1e-4,
+                            "at t = {t}: {want:?} {got:?}"
+                        );
+                    }
+                }
+                last = got.map(|s| (t, s.tet));
+            }
+            drop(cursor);
+            if let Some((t, tet)) = last {
+                assert_eq!(shell.vertex_hint(ray.at(t)), tet);
+            }
+        }
+        assert!(found > 20_000 && spans > 10_000, "{found} {spans}");
+    }
+
+    /// The per-thread vertex cache answers only for the same shell and the same point bits.
+    #[test]
+    fn the_vertex_cache_answers_only_for_its_shell_and_point() {
+        let a = bumpy_shell();
+        let b = bumpy_shell();
+        let p = Vec3::new(0.3, 0.4, 0.01);
+        a.remember_vertex(p, 17);
+        assert_eq!(a.vertex_hint(p), 17);
+        assert_eq!(b.vertex_hint(p), u32::MAX);
+        let next = Vec3::new(f32::from_bits(p.x.to_bits() + 1), p.y, p.z);
+        assert_eq!(a.vertex_hint(next), u32::MAX);
+        a.remember_vertex(p, 18);
+        assert_eq!(a.vertex_hint(p), 18);
+    }
+
+    /// The byte codes of the point bounds are the smallest whose value bounds the float:
+    /// 0 exactly for 0, at most one step above, never below.
+    #[test]
+    fn quantised_support_bounds_from_above_within_a_step() {
+        let mut rng = Rng::new(3, 3);
+        let mut values: Vec<f32> = (0..100_000)
+            .map(|n| match n % 5 {
+                0 => 0.0,
+                1 => rng.next_f32() * 1e-6,
+                _ => rng.next_f32() * 0.73,
+            })
+            .collect();
+        values.push(0.73);
+        let (codes, step) = quantise_up(&values);
+        for (&v, &c) in values.iter().zip(&codes) {
+            let b = f32::from(c) * step;
+            assert!(b >= v, "{v} coded {c} decodes to {b}");
+            assert_eq!(c == 0, v == 0.0, "{v} coded {c}");
+            assert!(
+                c <= 1 || f32::from(c - 1) * step < v,
+                "{v} coded {c}: not the smallest"
+            );
+        }
+        let shell = bumpy_shell();
+        let support = support_max(&shell.patch, shell.dims, shell.layer_lo);
+        for (k, &v) in support.iter().enumerate() {
+            let c = shell.support_codes[k];
+            assert!(f32::from(c) * shell.support_step >= v && shell.bit(k) == (c > 0));
+        }
     }
 }

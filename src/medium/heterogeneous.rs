@@ -6,7 +6,9 @@
 use glam::Vec3;
 
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
-use super::lookup::{index_ray, DensityLookup, GridLookup, LocalProbe, ShellProbe};
+use super::lookup::{
+    index_ray, DensityLookup, GridLookup, LocalProbe, SharedShellProbe, ShellProbe,
+};
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
 use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments, SegmentsStart};
@@ -519,6 +521,19 @@ impl HeterogeneousMedium {
         S: Iterator<Item = MajorantSegment>,
         U: FnMut() -> f32,
     {
+        if let (DensityField::Shell(shell), true) = (&self.field, self.uses_local_bounds()) {
+            // The shell's point bounds and lookups share point location (a lookup takes the
+            // bound's tetrahedron at the same distance).
+            let lookup = ShellLookup::new(shell, ray, self.projected_fibres().is_some());
+            let probe = SharedShellProbe::new(&lookup);
+            let density = |t| lookup.at_out_of_line(t);
+            return match self.tracking.free_flight {
+                FreeFlightMethod::Decomposition => {
+                    decomposition_track_local(segments, c, density, probe, beta, u, stats)
+                }
+                _ => delta_track_local(segments, c, density, probe, beta, u, stats),
+            };
+        }
         let (mut lookup, probe) = self.lookups_along(ray);
         match (self.tracking.free_flight, probe) {
             (FreeFlightMethod::DeltaTracking, Some(probe)) => {

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::fabric::{FabricShell, FibreGridLookup, ShellLookup};
+use crate::fabric::{FabricShell, FibreGridLookup, ShellCursor, ShellLookup};
 use crate::grid::{Accessor, SparseGrid};
 use crate::majorant::LocalBounds;
 use crate::math::Ray;
@@ -237,10 +237,7 @@ impl PointBounds for GridProbe<'_> {
 /// Point bounds along a ray through a fabric shell: `(0, the largest voxel the lookup's
 /// trilinear filter reads)`, which bounds the fibre-projected density too.
 pub struct ShellProbe<'a> {
-    shell: &'a FabricShell,
-    ray: Ray,
-    /// The last tetrahedron found.
-    hint: u32,
+    cursor: ShellCursor<'a>,
 }
 
 impl<'a> ShellProbe<'a> {
@@ -248,9 +245,7 @@ impl<'a> ShellProbe<'a> {
     #[must_use]
     pub fn new(shell: &'a FabricShell, ray: &Ray) -> Self {
         ShellProbe {
-            shell,
-            ray: *ray,
-            hint: u32::MAX,
+            cursor: ShellCursor::new(shell, ray),
         }
     }
 }
@@ -258,7 +253,11 @@ impl<'a> ShellProbe<'a> {
 impl PointBounds for ShellProbe<'_> {
     #[inline]
     fn at(&mut self, t: f32) -> Option<(f32, f32)> {
-        Some((0.0, self.shell.point_bound(self.ray.at(t), &mut self.hint)))
+        let b = match self.cursor.locate(t) {
+            Some(s) => self.cursor.shell().point_bound_at(s),
+            None => 0.0,
+        };
+        Some((0.0, b))
     }
 }
 
@@ -267,5 +266,33 @@ impl ShellProbe<'_> {
     #[inline(never)]
     fn at_out_of_line(&mut self, t: f32) -> Option<(f32, f32)> {
         self.at(t)
+    }
+}
+
+/// The point bounds of a free flight through a fabric shell that share point location with
+/// the flight's density lookups ([`ShellLookup::bound`]): the lookup that follows a bound
+/// at the same distance takes its tetrahedron and patch coordinates.
+pub struct SharedShellProbe<'l, 'a> {
+    lookup: &'l ShellLookup<'a>,
+}
+
+impl<'l, 'a> SharedShellProbe<'l, 'a> {
+    /// Point bounds through the shell of `lookup`, along its ray.
+    #[must_use]
+    pub fn new(lookup: &'l ShellLookup<'a>) -> Self {
+        SharedShellProbe { lookup }
+    }
+
+    /// The bound at `t`, out of line (called at every tentative collision).
+    #[inline(never)]
+    fn bound(&self, t: f32) -> f32 {
+        self.lookup.bound(t)
+    }
+}
+
+impl PointBounds for SharedShellProbe<'_, '_> {
+    #[inline(always)]
+    fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+        Some((0.0, self.bound(t)))
     }
 }
