@@ -246,9 +246,6 @@ impl<'a> ShellLookup<'a> {
     /// distance next reuses its point location.
     #[inline]
     pub fn bound(&self, t: f32) -> f32 {
-        match self.cursor.locate(t) {
-            Some(s) => self.cursor.shell().point_bound_at(s),
-            None => 0.0,
-        }
+        self.cursor.point_bound(t)
     }
 }

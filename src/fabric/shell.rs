@@ -329,6 +329,14 @@ impl<'a> ShellCursor<'a> {
         self.last.set((t, found));
         found
     }
+
+    /// The point bound at distance `t` ([`FabricShell::point_bound_at`]); 0 outside the
+    /// shell. A lookup at the same distance next reuses this point location.
+    #[inline(always)]
+    #[must_use]
+    pub fn point_bound(&self, t: f32) -> f32 {
+        self.locate(t).map_or(0.0, |s| self.shell.point_bound_at(s))
+    }
 }
 
 /// A ray's barycentrics and patch coordinates inside one tetrahedron, affine in the

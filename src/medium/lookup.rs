@@ -253,11 +253,7 @@ impl<'a> ShellProbe<'a> {
 impl PointBounds for ShellProbe<'_> {
     #[inline]
     fn at(&mut self, t: f32) -> Option<(f32, f32)> {
-        let b = match self.cursor.locate(t) {
-            Some(s) => self.cursor.shell().point_bound_at(s),
-            None => 0.0,
-        };
-        Some((0.0, b))
+        Some((0.0, self.cursor.point_bound(t)))
     }
 }
 
