@@ -204,15 +204,17 @@ pub struct FabricShell {
     /// cloth's patch against 600 KiB), which stays in the first-level cache. Shadow rays,
     /// which make most of the lookups, need only that test before reading the bricks.
     support_bits: Vec<u64>,
-    /// Flat copy of the patch's density (first component, as the accessor reads it) over
-    /// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, x and y padded by one voxel (column
+    /// Flat copy of the patch's density (first component, as the accessor reads it) and
+    /// tangent, interleaved ([`FlatVoxel`], 16 bytes a voxel), over layers
+    /// `layer_lo − 1 ..= layer_lo + dims.z + 1`, x and y padded by one voxel (column
     /// `dims.x` repeats column 0, row `dims.y` row 0): the eight corners of every lookup that
     /// passes the occupancy bit lie at fixed offsets from one index, with no brick
-    /// resolution and no wrapping ([`FabricShell::flat_index`]).
-    flat_density: Vec<f32>,
-    /// The patch's tangents on the layout of `flat_density`.
-    flat_tangent: Vec<Vec3>,
-    /// The patch's yarn ids on the layout of `flat_density` (read once per scattering
+    /// resolution and no wrapping ([`FabricShell::cell_at`]). The nearest voxel's tangent
+    /// (and the other corners' where it is zero) lies on the cache lines the density corners
+    /// were read from: one pass over four rows of voxels instead of four rows of densities
+    /// plus one to four lines of a separate tangent table.
+    flat_voxels: Vec<FlatVoxel>,
+    /// The patch's yarn ids on the layout of `flat_voxels` (read once per scattering
     /// vertex, [`FabricShell::fibre_at`]).
     flat_id: Vec<f32>,
 }
@@ -224,6 +226,16 @@ pub struct FibreVoxel {
     pub tangent: Vec3,
     /// Yarn family id as stored in the patch's `id` channel.
     pub id: f32,
+}
+
+/// One voxel of [`FabricShell`]'s flat tables: the density (the channel's first component)
+/// and the tangent, side by side so that a lookup's corners and its nearest tangent share
+/// cache lines (16-byte aligned: four voxels a 64-byte line, none straddling two).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+struct FlatVoxel {
+    density: f32,
+    tangent: [f32; 3],
 }
 
 /// A world point located in the shell: its tetrahedron and its patch index coordinates
@@ -575,8 +587,7 @@ impl FabricShell {
             support_codes: Vec::new(),
             support_step: 0.0,
             support_bits: Vec::new(),
-            flat_density: Vec::new(),
-            flat_tangent: Vec::new(),
+            flat_voxels: Vec::new(),
             flat_id: Vec::new(),
         };
         shell.link_neighbours(&tet_keys);
@@ -584,8 +595,7 @@ impl FabricShell {
         let support = support_max(&shell.patch, dims, layer_lo);
         shell.support_bits = occupancy_bits(&support);
         (shell.support_codes, shell.support_step) = quantise_up(&support);
-        (shell.flat_density, shell.flat_tangent, shell.flat_id) =
-            flat_channels(&shell.patch, dims, layer_lo);
+        (shell.flat_voxels, shell.flat_id) = flat_channels(&shell.patch, dims, layer_lo);
         Ok(shell)
     }
 
@@ -1014,7 +1024,7 @@ impl FabricShell {
     }
 
     /// For a lookup whose lower corner is voxel `i` (unwrapped): its entry `k` in the
-    /// support table and bits, and the index in `flat_density` / `flat_tangent` of its
+    /// support table and bits, and the index in `flat_voxels` of its
     /// lower corner; `None` outside the shell's layers (as [`FabricShell::support_index`]).
     #[inline(always)]
     fn cell_at(&self, i: IVec3) -> Option<(usize, usize)> {
@@ -1045,14 +1055,14 @@ impl FabricShell {
             1 + rx,
             1 + rx + layer,
         ];
-        debug_assert!(f + off[7] < self.flat_density.len());
+        debug_assert!(f + off[7] < self.flat_voxels.len());
         let mut c = [0.0f32; 8];
         for (ck, o) in c.iter_mut().zip(off) {
             // SAFETY: `cell_at` gives `f` for a wrapped voxel (x < dims.x, y < dims.y) of a
             // layer `z ≤ dims.z + 1` from `layer_lo − 1`; the table holds `dims.z + 3`
             // layers of `(dims.x + 1) × (dims.y + 1)` voxels, so `f` plus one step in each
             // of x, y, z (`off[7]`) is inside it.
-            *ck = unsafe { *self.flat_density.get_unchecked(f + o) };
+            *ck = unsafe { self.flat_voxels.get_unchecked(f + o).density };
         }
         let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
         let y0 = lerp(lerp(c[0], c[4], t.x), lerp(c[2], c[6], t.x), t.y);
@@ -1061,7 +1071,7 @@ impl FabricShell {
     }
 
     /// [`super::tangent_near`] at patch index point `q` (lower corner `v = floor(q)`, flat
-    /// index `f`, fraction `t = q − v`) from `flat_tangent`: the same voxels in the same order.
+    /// index `f`, fraction `t = q − v`) from `flat_voxels`: the same voxels in the same order.
     /// Where the nearest voxel is not one of the cell's corners (`q` so large that `q + 0.5`
     /// rounds past `v + 1`), the accessor `tangents` is read as before.
     #[inline(always)]
@@ -1087,10 +1097,10 @@ impl FabricShell {
         let layer = rx * (self.dims.y + 1) as usize;
         let at = |d: IVec3| {
             let o = d.x as usize + d.y as usize * rx + d.z as usize * layer;
-            debug_assert!(f + o < self.flat_tangent.len());
+            debug_assert!(f + o < self.flat_voxels.len());
             // SAFETY: `d` is in {0, 1}³ and `f` comes from `cell_at`: inside the table, as
             // in `flat_trilinear`.
-            unsafe { *self.flat_tangent.get_unchecked(f + o) }
+            Vec3::from_array(unsafe { self.flat_voxels.get_unchecked(f + o).tangent })
         };
         let nearest = at(n);
         if nearest != Vec3::ZERO {
@@ -1556,15 +1566,15 @@ fn quantise_up(values: &[f32]) -> (Vec<u8>, f32) {
     (codes, step)
 }
 
-/// The shell's flat copies of the patch's density (first component), tangent and id channels:
-/// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, `(dims.x + 1) × (dims.y + 1)` voxels a
-/// layer (x fastest), voxel `(x, y)` holding the patch's `(x mod dims.x, y mod dims.y)`,
-/// read through accessors (the values lookups read, bit for bit).
-fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<f32>, Vec<Vec3>, Vec<f32>) {
+/// The shell's flat copies of the patch's density (first component) and tangent channels,
+/// interleaved, and of its id channel: layers `layer_lo − 1 ..= layer_lo + dims.z + 1`,
+/// `(dims.x + 1) × (dims.y + 1)` voxels a layer (x fastest), voxel `(x, y)` holding the
+/// patch's `(x mod dims.x, y mod dims.y)`, read through accessors (the values lookups read,
+/// bit for bit).
+fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<FlatVoxel>, Vec<f32>) {
     let (rx, ry, nz) = (dims.x + 1, dims.y + 1, dims.z + 3);
     let n = (rx * ry * nz) as usize;
-    let mut density = Vec::with_capacity(n);
-    let mut tangent = Vec::with_capacity(n);
+    let mut voxels = Vec::with_capacity(n);
     let mut id = Vec::with_capacity(n);
     let mut dacc = grid.accessor(DENSITY);
     let mut tacc = grid.accessor(TANGENT);
@@ -1573,13 +1583,15 @@ fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<f32>, Ve
         for y in 0..ry {
             for x in 0..rx {
                 let ijk = IVec3::new(x % dims.x, y % dims.y, z + layer_lo - 1);
-                density.push(dacc.value(ijk));
-                tangent.push(tacc.value_vec3(ijk));
+                voxels.push(FlatVoxel {
+                    density: dacc.value(ijk),
+                    tangent: tacc.value_vec3(ijk).to_array(),
+                });
                 id.push(iacc.value(ijk));
             }
         }
     }
-    (density, tangent, id)
+    (voxels, id)
 }
 
 /// One bit per entry of `support`, set where the entry is above 0 (bit `k & 63` of word
