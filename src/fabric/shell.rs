@@ -204,15 +204,22 @@ pub struct FabricShell {
     /// cloth's patch against 600 KiB), which stays in the first-level cache. Shadow rays,
     /// which make most of the lookups, need only that test before reading the bricks.
     support_bits: Vec<u64>,
-    /// Flat copy of the patch's density (first component, as the accessor reads it) over
-    /// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, x and y padded by one voxel (column
-    /// `dims.x` repeats column 0, row `dims.y` row 0): the eight corners of every lookup that
-    /// passes the occupancy bit lie at fixed offsets from one index, with no brick
-    /// resolution and no wrapping ([`FabricShell::flat_index`]).
-    flat_density: Vec<f32>,
-    /// The patch's tangents on the layout of `flat_density`.
-    flat_tangent: Vec<Vec3>,
-    /// The patch's yarn ids on the layout of `flat_density` (read once per scattering
+    /// Flat copy of the patch's density (first component, as the accessor reads it) and
+    /// tangent, interleaved ([`FlatVoxel`], 16 bytes a voxel), over layers
+    /// `layer_lo − 1 ..= layer_lo + dims.z + 1`, x and y padded by one voxel (column
+    /// `dims.x` repeats column 0, row `dims.y` row 0), in tiles of 2 × 2 voxels of a layer,
+    /// one 64-byte cache line each ([`flat_index`]): the eight corners of every lookup that
+    /// passes the occupancy bit lie at offsets from one index that depend only on the
+    /// corner's parity, with no brick resolution and no wrapping ([`FabricShell::cell_at`]).
+    /// The nearest voxel's tangent (and the other corners' where it is zero) lies on the
+    /// cache lines the density corners were read from, and the corners span 2 to 8 lines
+    /// (4.5 on average; rows of voxels took 5 and a separate tangent table one to four more).
+    flat_tiles: Vec<FlatTile>,
+    /// Tiles per row of `flat_tiles` (`⌈(dims.x + 1) / 2⌉`).
+    flat_row_tiles: usize,
+    /// Voxels per layer of `flat_tiles` (4 × tiles per layer).
+    flat_layer: usize,
+    /// The patch's yarn ids on the layout of `flat_tiles` (read once per scattering
     /// vertex, [`FabricShell::fibre_at`]).
     flat_id: Vec<f32>,
 }
@@ -224,6 +231,60 @@ pub struct FibreVoxel {
     pub tangent: Vec3,
     /// Yarn family id as stored in the patch's `id` channel.
     pub id: f32,
+}
+
+/// One voxel of [`FabricShell`]'s flat tables: the density (the channel's first component)
+/// and the tangent, side by side so that a lookup's corners and its nearest tangent share
+/// cache lines (16-byte aligned: four voxels a 64-byte line, none straddling two).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(16))]
+struct FlatVoxel {
+    density: f32,
+    tangent: [f32; 3],
+}
+
+/// Four [`FlatVoxel`]s, 2 × 2 of a layer (`x` fastest), on one 64-byte cache line.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(64))]
+struct FlatTile([FlatVoxel; 4]);
+
+/// Where a lookup's cell lies in [`FabricShell`]'s flat tables: the index of its lower
+/// corner and the steps to the next voxel in `x`, `y` and `z` from there (in 2 × 2 tiles
+/// they depend on the corner's parity: [`flat_index`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct FlatCell {
+    f: usize,
+    dx: usize,
+    dy: usize,
+    dz: usize,
+}
+
+impl FlatCell {
+    /// The cell whose lower corner is voxel `(x, y, z)` (table coordinates) of flat tables of
+    /// `row_tiles` tiles a row and `layer` voxels a layer.
+    #[inline(always)]
+    fn new(x: usize, y: usize, z: usize, row_tiles: usize, layer: usize) -> FlatCell {
+        FlatCell {
+            f: flat_index(x, y, z, row_tiles, layer),
+            dx: 1 + ((x & 1) << 1),
+            dy: if y & 1 == 0 { 2 } else { 4 * row_tiles - 2 },
+            dz: layer,
+        }
+    }
+
+    /// The index of corner `d ∈ {0, 1}³` of the cell.
+    #[inline(always)]
+    fn corner(&self, d: IVec3) -> usize {
+        self.f + d.x as usize * self.dx + d.y as usize * self.dy + d.z as usize * self.dz
+    }
+}
+
+/// The index of voxel `(x, y, z)` (non-negative, table coordinates) in flat tables of
+/// `row_tiles` tiles a row and `layer` voxels a layer, tiled 2 × 2 in `x`, `y`: tile
+/// `(x / 2, y / 2)` of layer `z`, voxel `2 (y mod 2) + x mod 2` in it.
+#[inline(always)]
+fn flat_index(x: usize, y: usize, z: usize, row_tiles: usize, layer: usize) -> usize {
+    z * layer + ((y >> 1) * row_tiles + (x >> 1)) * 4 + ((y & 1) << 1) + (x & 1)
 }
 
 /// A world point located in the shell: its tetrahedron and its patch index coordinates
@@ -575,8 +636,9 @@ impl FabricShell {
             support_codes: Vec::new(),
             support_step: 0.0,
             support_bits: Vec::new(),
-            flat_density: Vec::new(),
-            flat_tangent: Vec::new(),
+            flat_tiles: Vec::new(),
+            flat_row_tiles: 0,
+            flat_layer: 0,
             flat_id: Vec::new(),
         };
         shell.link_neighbours(&tet_keys);
@@ -584,8 +646,9 @@ impl FabricShell {
         let support = support_max(&shell.patch, dims, layer_lo);
         shell.support_bits = occupancy_bits(&support);
         (shell.support_codes, shell.support_step) = quantise_up(&support);
-        (shell.flat_density, shell.flat_tangent, shell.flat_id) =
-            flat_channels(&shell.patch, dims, layer_lo);
+        let flat = flat_channels(&shell.patch, dims, layer_lo);
+        (shell.flat_tiles, shell.flat_id) = (flat.tiles, flat.id);
+        (shell.flat_row_tiles, shell.flat_layer) = (flat.row_tiles, flat.layer);
         Ok(shell)
     }
 
@@ -906,7 +969,7 @@ impl FabricShell {
         let i = super::floor_ivec3(q);
         match self.cell_at(i) {
             // Between the yarns the eight voxels are all empty: no table reads.
-            Some((k, f)) if self.bit(k) => self.flat_trilinear(f, q - i.as_vec3()),
+            Some((k, c)) if self.bit(k) => self.flat_trilinear(c, q - i.as_vec3()),
             _ => 0.0,
         }
     }
@@ -948,18 +1011,18 @@ impl FabricShell {
         // Between the yarns the eight voxels the filter reads are all empty (densities are
         // never negative): the trilinear value would be 0, so neither it nor the tangent is
         // read. The same value.
-        let Some((k, f)) = self.cell_at(v) else {
+        let Some((k, c)) = self.cell_at(v) else {
             return 0.0;
         };
         if !self.bit(k) {
             return 0.0;
         }
         let frac = q - v.as_vec3();
-        let density = self.flat_trilinear(f, frac);
+        let density = self.flat_trilinear(c, frac);
         if density.is_nan() || density <= 0.0 {
             return density;
         }
-        let local = self.flat_tangent_near(q, v, f, frac, tangents);
+        let local = self.flat_tangent_near(q, v, c, frac, tangents);
         let Some(t) = self.tets.get(s.tet as usize) else {
             return density;
         };
@@ -1014,54 +1077,58 @@ impl FabricShell {
     }
 
     /// For a lookup whose lower corner is voxel `i` (unwrapped): its entry `k` in the
-    /// support table and bits, and the index in `flat_density` / `flat_tangent` of its
-    /// lower corner; `None` outside the shell's layers (as [`FabricShell::support_index`]).
+    /// support table and bits, and where its cell lies in `flat_tiles` / `flat_id`; `None`
+    /// outside the shell's layers (as [`FabricShell::support_index`]).
     #[inline(always)]
-    fn cell_at(&self, i: IVec3) -> Option<(usize, usize)> {
+    fn cell_at(&self, i: IVec3) -> Option<(usize, FlatCell)> {
         let v = self.wrap(i);
         let z = v.z - (self.layer_lo - 1);
         if z < 0 || z > self.dims.z + 1 {
             return None;
         }
         let k = ((z * self.dims.y + v.y) * self.dims.x + v.x) as usize;
-        let (rx, ry) = (self.dims.x + 1, self.dims.y + 1);
-        let f = ((z * ry + v.y) * rx + v.x) as usize;
-        Some((k, f))
+        let (x, y) = (v.x as usize, v.y as usize);
+        let c = FlatCell::new(x, y, z as usize, self.flat_row_tiles, self.flat_layer);
+        Some((k, c))
     }
 
-    /// Trilinear density at fractional position `t` in the cell whose lower corner is flat
-    /// index `f` (from [`FabricShell::cell_at`]): the accessor's order of operations.
+    /// The flat voxels of `flat_tiles`, in [`flat_index`] order.
     #[inline(always)]
-    fn flat_trilinear(&self, f: usize, t: Vec3) -> f32 {
-        let rx = (self.dims.x + 1) as usize;
-        let layer = rx * (self.dims.y + 1) as usize;
-        let off = [
-            0,
-            layer,
-            rx,
-            rx + layer,
-            1,
-            1 + layer,
-            1 + rx,
-            1 + rx + layer,
-        ];
-        debug_assert!(f + off[7] < self.flat_density.len());
-        let mut c = [0.0f32; 8];
-        for (ck, o) in c.iter_mut().zip(off) {
-            // SAFETY: `cell_at` gives `f` for a wrapped voxel (x < dims.x, y < dims.y) of a
+    fn flat_voxels(&self) -> &[FlatVoxel] {
+        // SAFETY: `FlatTile` is `repr(C)` around four `FlatVoxel`s of 16 bytes (64 bytes, its
+        // alignment, no padding), so `n` tiles are `4 n` contiguous, aligned voxels.
+        unsafe {
+            std::slice::from_raw_parts(
+                self.flat_tiles.as_ptr().cast::<FlatVoxel>(),
+                self.flat_tiles.len() * 4,
+            )
+        }
+    }
+
+    /// Trilinear density at fractional position `t` in the cell `c` (from
+    /// [`FabricShell::cell_at`]): the accessor's order of operations.
+    #[inline(always)]
+    fn flat_trilinear(&self, c: FlatCell, t: Vec3) -> f32 {
+        let (dx, dy, dz) = (c.dx, c.dy, c.dz);
+        let off = [0, dz, dy, dy + dz, dx, dx + dz, dx + dy, dx + dy + dz];
+        let voxels = self.flat_voxels();
+        debug_assert!(c.f + off[7] < voxels.len());
+        let mut v = [0.0f32; 8];
+        for (vk, o) in v.iter_mut().zip(off) {
+            // SAFETY: `cell_at` gives `c` for a wrapped voxel (x < dims.x, y < dims.y) of a
             // layer `z ≤ dims.z + 1` from `layer_lo − 1`; the table holds `dims.z + 3`
-            // layers of `(dims.x + 1) × (dims.y + 1)` voxels, so `f` plus one step in each
-            // of x, y, z (`off[7]`) is inside it.
-            *ck = unsafe { *self.flat_density.get_unchecked(f + o) };
+            // layers of tiles covering `(dims.x + 1) × (dims.y + 1)` voxels, so the voxel one
+            // step on in each of x, y, z (`off[7]`) is inside it.
+            *vk = unsafe { voxels.get_unchecked(c.f + o).density };
         }
         let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
-        let y0 = lerp(lerp(c[0], c[4], t.x), lerp(c[2], c[6], t.x), t.y);
-        let y1 = lerp(lerp(c[1], c[5], t.x), lerp(c[3], c[7], t.x), t.y);
+        let y0 = lerp(lerp(v[0], v[4], t.x), lerp(v[2], v[6], t.x), t.y);
+        let y1 = lerp(lerp(v[1], v[5], t.x), lerp(v[3], v[7], t.x), t.y);
         lerp(y0, y1, t.z)
     }
 
     /// [`super::tangent_near`] at patch index point `q` (lower corner `v = floor(q)`, flat
-    /// index `f`, fraction `t = q − v`) from `flat_tangent`: the same voxels in the same order.
+    /// cell `c`, fraction `t = q − v`) from `flat_tiles`: the same voxels in the same order.
     /// Where the nearest voxel is not one of the cell's corners (`q` so large that `q + 0.5`
     /// rounds past `v + 1`), the accessor `tangents` is read as before.
     #[inline(always)]
@@ -1069,7 +1136,7 @@ impl FabricShell {
         &self,
         q: Vec3,
         v: IVec3,
-        f: usize,
+        c: FlatCell,
         t: Vec3,
         tangents: Option<&mut Accessor<'_>>,
     ) -> Vec3 {
@@ -1083,14 +1150,13 @@ impl FabricShell {
                 }
             };
         }
-        let rx = (self.dims.x + 1) as usize;
-        let layer = rx * (self.dims.y + 1) as usize;
+        let voxels = self.flat_voxels();
         let at = |d: IVec3| {
-            let o = d.x as usize + d.y as usize * rx + d.z as usize * layer;
-            debug_assert!(f + o < self.flat_tangent.len());
-            // SAFETY: `d` is in {0, 1}³ and `f` comes from `cell_at`: inside the table, as
+            let i = c.corner(d);
+            debug_assert!(i < voxels.len());
+            // SAFETY: `d` is in {0, 1}³ and `c` comes from `cell_at`: inside the table, as
             // in `flat_trilinear`.
-            unsafe { *self.flat_tangent.get_unchecked(f + o) }
+            Vec3::from_array(unsafe { voxels.get_unchecked(i).tangent })
         };
         let nearest = at(n);
         if nearest != Vec3::ZERO {
@@ -1159,14 +1225,11 @@ impl FabricShell {
     fn fibre_voxel_at_q(&self, q: Vec3) -> (Vec3, f32) {
         let v = super::floor_ivec3(q);
         let n = super::floor_ivec3(q + Vec3::splat(0.5)) - v;
-        if let Some((_, f)) = self.cell_at(v) {
+        if let Some((_, c)) = self.cell_at(v) {
             if (n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
                 let mut tangents = self.patch.accessor(TANGENT);
-                let tangent = self.flat_tangent_near(q, v, f, q - v.as_vec3(), Some(&mut tangents));
-                let rx = (self.dims.x + 1) as usize;
-                let layer = rx * (self.dims.y + 1) as usize;
-                let o = n.x as usize + n.y as usize * rx + n.z as usize * layer;
-                if let Some(&id) = self.flat_id.get(f + o) {
+                let tangent = self.flat_tangent_near(q, v, c, q - v.as_vec3(), Some(&mut tangents));
+                if let Some(&id) = self.flat_id.get(c.corner(n)) {
                     return (tangent, id);
                 }
             }
@@ -1556,16 +1619,27 @@ fn quantise_up(values: &[f32]) -> (Vec<u8>, f32) {
     (codes, step)
 }
 
-/// The shell's flat copies of the patch's density (first component), tangent and id channels:
-/// layers `layer_lo − 1 ..= layer_lo + dims.z + 1`, `(dims.x + 1) × (dims.y + 1)` voxels a
-/// layer (x fastest), voxel `(x, y)` holding the patch's `(x mod dims.x, y mod dims.y)`,
-/// read through accessors (the values lookups read, bit for bit).
-fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<f32>, Vec<Vec3>, Vec<f32>) {
+/// The shell's flat tables ([`flat_channels`]).
+struct FlatTables {
+    tiles: Vec<FlatTile>,
+    id: Vec<f32>,
+    row_tiles: usize,
+    layer: usize,
+}
+
+/// The shell's flat copies of the patch's density (first component) and tangent channels,
+/// interleaved, and of its id channel: layers `layer_lo − 1 ..= layer_lo + dims.z + 1`,
+/// `(dims.x + 1) × (dims.y + 1)` voxels a layer in 2 × 2 tiles ([`flat_index`]; a row or
+/// column of tiles past the last voxel when that count is odd holds zeros), voxel `(x, y)`
+/// holding the patch's `(x mod dims.x, y mod dims.y)`, read through accessors (the values
+/// lookups read, bit for bit).
+fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> FlatTables {
     let (rx, ry, nz) = (dims.x + 1, dims.y + 1, dims.z + 3);
-    let n = (rx * ry * nz) as usize;
-    let mut density = Vec::with_capacity(n);
-    let mut tangent = Vec::with_capacity(n);
-    let mut id = Vec::with_capacity(n);
+    let row_tiles = (rx as usize).div_ceil(2);
+    let layer = 4 * row_tiles * (ry as usize).div_ceil(2);
+    let n = layer * nz as usize;
+    let mut tiles = vec![FlatTile::default(); n / 4];
+    let mut id = vec![0.0f32; n];
     let mut dacc = grid.accessor(DENSITY);
     let mut tacc = grid.accessor(TANGENT);
     let mut iacc = grid.accessor(ID);
@@ -1573,13 +1647,21 @@ fn flat_channels(grid: &SparseGrid, dims: IVec3, layer_lo: i32) -> (Vec<f32>, Ve
         for y in 0..ry {
             for x in 0..rx {
                 let ijk = IVec3::new(x % dims.x, y % dims.y, z + layer_lo - 1);
-                density.push(dacc.value(ijk));
-                tangent.push(tacc.value_vec3(ijk));
-                id.push(iacc.value(ijk));
+                let i = flat_index(x as usize, y as usize, z as usize, row_tiles, layer);
+                tiles[i / 4].0[i % 4] = FlatVoxel {
+                    density: dacc.value(ijk),
+                    tangent: tacc.value_vec3(ijk).to_array(),
+                };
+                id[i] = iacc.value(ijk);
             }
         }
     }
-    (density, tangent, id)
+    FlatTables {
+        tiles,
+        id,
+        row_tiles,
+        layer,
+    }
 }
 
 /// One bit per entry of `support`, set where the entry is above 0 (bit `k & 63` of word
@@ -1720,20 +1802,20 @@ mod tests {
             let i = super::super::floor_ivec3(q);
             let flat = shell.cell_at(i).filter(|&(k, _)| shell.bit(k));
             assert_eq!(shell.occupied_at_q(q), flat.is_some(), "at {q}");
-            let Some((_, f)) = flat else {
+            let Some((_, c)) = flat else {
                 continue;
             };
             occupied += 1;
             let t = q - i.as_vec3();
             let old = shell.density_at_q(&mut acc, q);
-            let new = shell.flat_trilinear(f, t);
+            let new = shell.flat_trilinear(c, t);
             assert_eq!(
                 old.to_bits(),
                 new.to_bits(),
                 "density at {q}: {old} against {new}"
             );
             let old = super::super::tangent_near(q, |c| tan.value_vec3(shell.wrap(c)));
-            let new = shell.flat_tangent_near(q, i, f, t, Some(&mut tan2));
+            let new = shell.flat_tangent_near(q, i, c, t, Some(&mut tan2));
             assert_eq!(
                 old.to_array().map(f32::to_bits),
                 new.to_array().map(f32::to_bits),
@@ -1745,6 +1827,44 @@ mod tests {
             occupied > 50_000 && tangents > 20_000,
             "{occupied} {tangents}"
         );
+    }
+
+    /// A cell's corner steps ([`FlatCell`]) reach the [`flat_index`] of each neighbour, for
+    /// every parity and at the tables' edges, and the tiled tables hold each voxel's density
+    /// and tangent once, on its own 64-byte line.
+    #[test]
+    fn tiled_flat_cells_step_to_their_neighbours() {
+        for (rx, ry) in [(5usize, 4usize), (33, 33), (65, 64)] {
+            let row_tiles = rx.div_ceil(2);
+            let layer = 4 * row_tiles * ry.div_ceil(2);
+            let mut seen = vec![false; layer * 3];
+            for z in 0..3 {
+                for y in 0..ry {
+                    for x in 0..rx {
+                        let i = flat_index(x, y, z, row_tiles, layer);
+                        assert!(!seen[i], "({x}, {y}, {z}) shares {i}");
+                        seen[i] = true;
+                        assert_eq!(i / 4, flat_index(x & !1, y & !1, z, row_tiles, layer) / 4);
+                        if x + 1 >= rx || y + 1 >= ry || z + 1 >= 3 {
+                            continue;
+                        }
+                        let c = FlatCell::new(x, y, z, row_tiles, layer);
+                        assert_eq!(c.f, i);
+                        for k in 0..8 {
+                            let d = IVec3::new(k >> 2, (k >> 1) & 1, k & 1);
+                            let (a, b, e) = (d.x as usize, d.y as usize, d.z as usize);
+                            assert_eq!(
+                                c.corner(d),
+                                flat_index(x + a, y + b, z + e, row_tiles, layer),
+                                "corner {d} of ({x}, {y}, {z})"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(std::mem::size_of::<FlatTile>(), 64);
+        assert_eq!(std::mem::align_of::<FlatTile>(), 64);
     }
 
     /// The nearest voxel's tangent and yarn id of `fibre_voxel_at_q` (flat tables where they
