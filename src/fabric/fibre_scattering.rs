@@ -1335,23 +1335,6 @@ impl FibrePhase {
     /// and tangent).
     #[must_use]
     pub fn sample_prepared(&self, prepared: &PreparedFibre, u: [f32; 4]) -> Option<FibreSample> {
-        let wi = self.sample_direction_prepared(prepared, u)?;
-        let (value, pdf) = self.eval_pdf_prepared(prepared, wi);
-        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
-            return None;
-        }
-        Some(FibreSample {
-            wi,
-            weight: value * (1.0 / pdf),
-            pdf,
-        })
-    }
-
-    /// The direction [`FibrePhase::sample_prepared`] draws for `u`, without evaluating the
-    /// phase function there (`None` where it fails before its evaluation); for a caller
-    /// that needs the pdf only later, if at all ([`FibrePhase::eval_pdf_prepared`] gives it).
-    #[must_use]
-    pub fn sample_direction_prepared(&self, prepared: &PreparedFibre, u: [f32; 4]) -> Option<Vec3> {
         let frame = prepared.frame?;
         let o = prepared.o;
         let n_nodes = self.nodes.len();
@@ -1420,7 +1403,18 @@ impl FibrePhase {
             Frame::from_normal(n).to_world(c)
         };
         let wi = frame.to_world(local).normalize();
-        wi.is_finite().then_some(wi)
+        if !wi.is_finite() {
+            return None;
+        }
+        let (value, pdf) = self.eval_pdf_prepared(prepared, wi);
+        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
+            return None;
+        }
+        Some(FibreSample {
+            wi,
+            weight: value * (1.0 / pdf),
+            pdf,
+        })
     }
 }
 

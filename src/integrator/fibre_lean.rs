@@ -99,33 +99,16 @@ impl<'a> FibreLean<'a> {
         play: f32,
         sampler: &mut PixelSampler,
     ) -> Option<(Vec3, Rgb, f32)> {
-        let d = self.draw(sampler)?;
-        self.weigh(main, d, play)
-            .map(|(f_over_q, w)| (d, f_over_q, w))
-    }
-
-    /// The leaned direction alone ([`FibreLean::sample`] without its evaluations): the same
-    /// random numbers and direction.
-    pub(super) fn draw(&self, sampler: &mut PixelSampler) -> Option<Vec3> {
         let u = [
             sampler.next_1d(),
             sampler.next_1d(),
             sampler.next_1d(),
             sampler.next_1d(),
         ];
-        self.phase.sample_direction_prepared(self.lobe, u)
-    }
-
-    /// [`FibreLean::sample`]'s (main phase value / q, balance weight) for a direction `d`
-    /// drawn by [`FibreLean::draw`]: `None` where it returned `None` (a pdf that is not
-    /// positive and finite).
-    pub(super) fn weigh(&self, main: &PreparedPhase<'_>, d: Vec3, play: f32) -> Option<(Rgb, f32)> {
-        let q = self.phase.eval_pdf_prepared(self.lobe, d).1;
-        if q.is_nan() || q <= 0.0 || !q.is_finite() {
-            return None;
-        }
-        let (value, p) = main.eval(d);
-        Some((value * (1.0 / q), play * q / (p + play * q)))
+        let s = self.phase.sample_prepared(self.lobe, u)?;
+        let q = s.pdf;
+        let (value, p) = main.eval(s.wi);
+        (q > 0.0 && q.is_finite()).then(|| (s.wi, value * (1.0 / q), play * q / (p + play * q)))
     }
 }
 
@@ -161,16 +144,14 @@ impl LeanWeight<'_> {
     }
 }
 
-/// Whether every fibre lean's weights are evaluated at once: the main direction's at its own
-/// vertex (as when the lean's medium does not outlive the step), the leaned direction's
-/// before its flight ([`FibreLean::sample`]); the tests' reference for [`LeanWeight::Deferred`]
-/// and [`FibreLean::weigh`] after the flight.
+/// Whether every fibre lean's weight is evaluated at its own vertex, as when the lean's
+/// medium does not outlive the step: the tests' reference for [`LeanWeight::Deferred`].
 #[cfg(test)]
 pub(super) fn eager_weights() -> bool {
     tests::EAGER.with(std::cell::Cell::get)
 }
 
-/// Whether every fibre lean's weights are evaluated at once: never outside the tests.
+/// Whether every fibre lean's weight is evaluated at its own vertex: never outside the tests.
 #[cfg(not(test))]
 #[inline(always)]
 pub(super) const fn eager_weights() -> bool {
@@ -239,10 +220,9 @@ interior = { type = "fabric", pattern = "twill", yarn = "cotton1", resolution = 
         (out, stats.vertices)
     }
 
-    /// The main direction's lean weight left to the next vertex's sun NEE, and the leaned
-    /// direction's weights left until its second vertex's sun NEE (each evaluated only where
-    /// that estimate is not 0), give every path the radiance, bit for bit, that the weights
-    /// evaluated at once give.
+    /// The main direction's lean weight left to the next vertex's sun NEE (evaluated only
+    /// where that estimate is not 0) gives every path the radiance, bit for bit, that the
+    /// weight evaluated at its own vertex gives.
     #[test]
     fn deferred_lean_weights_give_the_eager_paths_bit_for_bit() {
         let scene = load_scene_str(TWILL, Path::new("inline.toml")).expect("scene");

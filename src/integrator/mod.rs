@@ -564,57 +564,15 @@ impl<'s> PathState<'s> {
         };
         if let Some(light) = lean_light {
             if self.depth + 1 < scene.film.max_depth && (play >= 1.0 || sampler.next_1d() < play) {
-                // The Henyey–Greenstein lean weighs its direction at once; the fibre lean only
-                // where its second vertex's sun estimate is not 0 (two fibre evaluations).
-                let c = match (lean, &phase, &fibre_lean) {
-                    (Some(l), PreparedPhase::Hg { phase: hg, wo }, _) => {
-                        l.sample(hg, *wo, play, sampler).map(|(d, f_over_q, w)| {
-                            let weights = Some((Rgb::splat(f_over_q), w));
-                            self.lean_estimate(
-                                scene,
-                                medium,
-                                light,
-                                d,
-                                true,
-                                || weights,
-                                p,
-                                sampler,
-                                stats,
-                            )
-                        })
-                    }
-                    (_, _, Some(f)) if fibre_lean::eager_weights() => {
-                        f.sample(&phase, play, sampler).map(|(d, f_over_q, w)| {
-                            let weights = Some((f_over_q, w));
-                            self.lean_estimate(
-                                scene,
-                                medium,
-                                light,
-                                d,
-                                true,
-                                || weights,
-                                p,
-                                sampler,
-                                stats,
-                            )
-                        })
-                    }
-                    (_, _, Some(f)) => f.draw(sampler).map(|d| {
-                        self.lean_estimate(
-                            scene,
-                            medium,
-                            light,
-                            d,
-                            false,
-                            || f.weigh(&phase, d, play),
-                            p,
-                            sampler,
-                            stats,
-                        )
-                    }),
+                let drawn = match (lean, &phase, &fibre_lean) {
+                    (Some(l), PreparedPhase::Hg { phase: hg, wo }, _) => l
+                        .sample(hg, *wo, play, sampler)
+                        .map(|(d, f_over_q, w)| (d, Rgb::splat(f_over_q), w)),
+                    (_, _, Some(f)) => f.sample(&phase, play, sampler),
                     _ => None,
                 };
-                if let Some(c) = c {
+                if let Some(drawn) = drawn {
+                    let c = self.lean_estimate(scene, medium, light, drawn, p, sampler, stats);
                     self.add_light(scene, Some(light), c / play);
                 }
             }
@@ -687,9 +645,7 @@ impl<'s> PathState<'s> {
         scene: &Scene,
         medium: &Medium,
         light: usize,
-        d: Vec3,
-        weigh_first: bool,
-        weigh: impl FnOnce() -> Option<(Rgb, f32)>,
+        (d, f_over_q, w): (Vec3, Rgb, f32),
         p: Vec3,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
@@ -712,18 +668,8 @@ impl<'s> PathState<'s> {
         let Some(v2) = event.scatter else {
             return Rgb::ZERO;
         };
-        let beta0 = self.beta * event.weight;
-        let mut weigh = Some(weigh);
-        let mut weights = None;
-        if weigh_first {
-            weights = weigh.take().and_then(|f| f());
-            let Some((f_over_q, w)) = weights else {
-                return Rgb::ZERO;
-            };
-            if (beta0 * (f_over_q * w)).is_black() {
-                return Rgb::ZERO;
-            }
-        } else if beta0.is_black() {
+        let beta = self.beta * event.weight * (f_over_q * w);
+        if beta.is_black() {
             return Rgb::ZERO;
         }
         let phase2 = v2.phase.prepare(-d);
@@ -752,12 +698,10 @@ impl<'s> PathState<'s> {
             &mut None,
             survival,
         );
-        if li != Some(light) || c.is_black() {
-            return Rgb::ZERO;
-        }
-        match weights.or_else(|| weigh.take().and_then(|f| f())) {
-            Some((f_over_q, w)) => beta0 * (f_over_q * w) * c,
-            None => Rgb::ZERO,
+        if li == Some(light) {
+            beta * c
+        } else {
+            Rgb::ZERO
         }
     }
 
