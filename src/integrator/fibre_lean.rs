@@ -27,6 +27,7 @@ use crate::spectrum::Rgb;
 
 /// The fibre lean at one vertex: the light it leans towards and the vertex's phase function
 /// prepared for the outgoing direction −sun around the vertex's quantised tangent.
+#[derive(Clone, Copy)]
 pub(super) struct FibreLean<'a> {
     /// The sun's index in the scene.
     pub light: usize,
@@ -108,5 +109,132 @@ impl<'a> FibreLean<'a> {
         let q = s.pdf;
         let (value, p) = main.eval(s.wi);
         (q > 0.0 && q.is_finite()).then(|| (s.wi, value * (1.0 / q), play * q / (p + play * q)))
+    }
+}
+
+/// The balance weight of the main path's direction against a lean made at its vertex, as the
+/// next vertex's sun NEE takes it: known, or left to be evaluated there
+/// ([`FibreLean::main_weight`] costs a fibre phase evaluation, and most of those NEE estimates
+/// are 0: rouletted or shadowed, so that the weight would multiply 0).
+#[derive(Clone, Copy)]
+pub(super) enum LeanWeight<'a> {
+    /// The weight.
+    Known(f32),
+    /// [`FibreLean::main_weight`]`(p, wi, play)` of `lean`, not yet evaluated.
+    Deferred {
+        /// The lean made at the vertex.
+        lean: FibreLean<'a>,
+        /// The main direction's pdf under the vertex's own lobe.
+        p: f32,
+        /// The main direction.
+        wi: Vec3,
+        /// The lean's play probability at the vertex.
+        play: f32,
+    },
+}
+
+impl LeanWeight<'_> {
+    /// The weight (the same bits whether it was known or deferred).
+    #[inline]
+    pub(super) fn value(&self) -> f32 {
+        match *self {
+            LeanWeight::Known(w) => w,
+            LeanWeight::Deferred { lean, p, wi, play } => lean.main_weight(p, wi, play),
+        }
+    }
+}
+
+/// Whether every fibre lean's weight is evaluated at its own vertex, as when the lean's
+/// medium does not outlive the step: the tests' reference for [`LeanWeight::Deferred`].
+#[cfg(test)]
+pub(super) fn eager_weights() -> bool {
+    tests::EAGER.with(std::cell::Cell::get)
+}
+
+/// Whether every fibre lean's weight is evaluated at its own vertex: never outside the tests.
+#[cfg(not(test))]
+#[inline(always)]
+pub(super) const fn eager_weights() -> bool {
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use std::cell::Cell;
+    use std::path::Path;
+
+    use crate::integrator::{trace_path, TraceStats};
+    use crate::math::Vec2;
+    use crate::sampling::PixelSampler;
+    use crate::scene::load_scene_str;
+
+    thread_local! {
+        /// [`super::eager_weights`].
+        pub(super) static EAGER: Cell<bool> = const { Cell::new(false) };
+    }
+
+    /// A free-standing twill patch under a grazing disc sun (as `tests/fibre_lean.rs`).
+    const TWILL: &str = r#"
+[camera]
+eye = [0.2, 0.2, 1.6]
+look_at = [0.2, 0.2, 0.0]
+up = [0.0, 1.0, 0.0]
+fov = 10
+[film]
+width = 12
+height = 12
+spp = 1
+max_depth = 64
+[[light]]
+type = "environment"
+radiance = [0.05, 0.05, 0.06]
+[[light]]
+type = "distant"
+direction = [-0.45, -0.3, 0.6]
+irradiance = [3.0, 2.9, 2.7]
+angular_radius = 3.0
+[[object]]
+name = "twill"
+shape = "bounds"
+interior = { type = "fabric", pattern = "twill", yarn = "cotton1", resolution = 32, flyaways = 0, warp_albedo = [0.8, 0.2, 0.1], weft_albedo = [0.85, 0.85, 0.8], attenuation = 0.004, nee = "interior" }
+"#;
+
+    /// Every path's radiance bits, the lean weights deferred or not.
+    fn radiance_bits(scene: &crate::scene::Scene, eager: bool) -> (Vec<[u32; 3]>, u64) {
+        EAGER.with(|e| e.set(eager));
+        let mut stats = TraceStats::default();
+        let mut out = Vec::new();
+        for y in 0..12 {
+            for x in 0..12 {
+                for s in 0..24 {
+                    let mut sampler = PixelSampler::new(7, x, y, s);
+                    let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                    let lens = sampler.next_2d();
+                    let ray = scene.camera.generate_ray(film, lens);
+                    let r = trace_path(scene, ray, &mut sampler, &mut stats).radiance;
+                    out.push([r[0].to_bits(), r[1].to_bits(), r[2].to_bits()]);
+                }
+            }
+        }
+        EAGER.with(|e| e.set(false));
+        (out, stats.vertices)
+    }
+
+    /// The main direction's lean weight left to the next vertex's sun NEE (evaluated only
+    /// where that estimate is not 0) gives every path the radiance, bit for bit, that the
+    /// weight evaluated at its own vertex gives.
+    #[test]
+    fn deferred_lean_weights_give_the_eager_paths_bit_for_bit() {
+        let scene = load_scene_str(TWILL, Path::new("inline.toml")).expect("scene");
+        let (deferred, vertices) = radiance_bits(&scene, false);
+        let (eager, eager_vertices) = radiance_bits(&scene, true);
+        assert_eq!(vertices, eager_vertices);
+        assert!(vertices > 5_000, "too few vertices: {vertices}");
+        let lit = deferred
+            .iter()
+            .filter(|c| c.iter().any(|&b| b != 0))
+            .count();
+        assert!(lit > deferred.len() / 2, "too few lit paths: {lit}");
+        assert_eq!(deferred, eager);
     }
 }

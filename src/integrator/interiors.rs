@@ -220,6 +220,22 @@ pub(super) fn current_medium<'a>(
     obj.medium.map(|m| (&scene.media[m as usize], obj))
 }
 
+/// [`current_medium`] where the medium is one of the scene's own (an object whose interior is
+/// not resolved per walk): borrowed for the scene's lifetime. `None` in vacuum and for
+/// interiors resolved per walk (ask [`current_medium`]).
+#[inline]
+pub(super) fn scene_medium<'a>(
+    scene: &'a Scene,
+    stack: &InteriorStack,
+) -> Option<(&'a Medium, &'a Object)> {
+    let top = stack.top(&scene.objects, None)?;
+    let obj = &scene.objects[top as usize];
+    if obj.walk.is_some() {
+        return None;
+    }
+    obj.medium.map(|m| (&scene.media[m as usize], obj))
+}
+
 /// [`current_medium`] for an object whose interior is resolved per walk (kept out of line:
 /// untextured scenes never get here).
 #[cold]

@@ -20,8 +20,8 @@ pub mod manifold;
 pub use interiors::{InteriorStack, MAX_NESTING};
 
 use direct::{emitted, estimate_direct, PrevVertex, ShadowMode, ShadowRoulette, SunLean};
-use fibre_lean::FibreLean;
-use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection};
+use fibre_lean::{FibreLean, LeanWeight};
+use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection, scene_medium};
 
 use crate::bsdf::Surface;
 use crate::film::MAX_LIGHT_LAYERS;
@@ -169,8 +169,9 @@ enum Step {
     Stop,
 }
 
-/// The state of one camera path between steps (the course notes' Algorithm 1).
-struct PathState {
+/// The state of one camera path between steps (the course notes' Algorithm 1); `'s` is the
+/// scene's lifetime (a fibre lean's deferred weight borrows the scene's phase functions).
+struct PathState<'s> {
     /// The ray being followed.
     ray: Ray,
     /// Path throughput.
@@ -206,9 +207,10 @@ struct PathState {
     /// The part of `radiance` from each named light, by layer slot.
     lights: [Rgb; MAX_LIGHT_LAYERS],
     /// Balance-heuristic weight of this vertex-to-be's sun NEE against the sun-leaned
-    /// second-vertex estimate made at the previous vertex ([`direct::SunLean`]); `None` when
-    /// none was made or a boundary was met since.
-    lean_weight: Option<(f32, usize)>,
+    /// second-vertex estimate made at the previous vertex ([`direct::SunLean`],
+    /// [`FibreLean`]: evaluated only where that NEE adds something, [`LeanWeight`]), and
+    /// the sun's index; `None` when none was made or a boundary was met since.
+    lean_weight: Option<(LeanWeight<'s>, usize)>,
 }
 
 /// The unidirectional counterpart of a manifold connection (`src/integrator/manifold`): a
@@ -258,7 +260,7 @@ fn radiance(
     )
 }
 
-impl PathState {
+impl<'s> PathState<'s> {
     /// Adds a contribution `c` (throughput included) from light `li`: to the radiance, and to
     /// the light's own layer when it is named.
     #[inline]
@@ -315,10 +317,17 @@ impl PathState {
     /// a homogeneous medium.
     fn interior_step(
         &mut self,
-        scene: &Scene,
+        scene: &'s Scene,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
     ) -> (Step, Option<Hit>) {
+        // A medium of the scene itself outlives the step: a fibre lean made in it can leave
+        // its weight to the next vertex. One made for this walk (`scratch`) cannot.
+        if let Some((medium, obj)) =
+            scene_medium(scene, &self.stack).filter(|_| !fibre_lean::eager_weights())
+        {
+            return self.interior_step_in(scene, medium, obj, sampler, stats, Some);
+        }
         let mut scratch = None;
         let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
             let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
@@ -327,6 +336,21 @@ impl PathState {
             }
             return (Step::Boundary, hit);
         };
+        self.interior_step_in(scene, medium, obj, sampler, stats, |_| None)
+    }
+
+    /// [`PathState::interior_step`] in `medium`, the interior of `obj`; `keep` gives a fibre
+    /// lean of this medium a lifetime of the scene's where it has one
+    /// ([`PathState::scatter_in_medium`]).
+    fn interior_step_in<'m>(
+        &mut self,
+        scene: &Scene,
+        medium: &'m Medium,
+        obj: &Object,
+        sampler: &mut PixelSampler,
+        stats: &mut TraceStats,
+        keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
+    ) -> (Step, Option<Hit>) {
         let mut hit = None;
         let ray = self.ray;
         // What lies behind a thin medium, estimated by transmittance: the boundary is needed
@@ -366,7 +390,7 @@ impl PathState {
                 // entry's grown over the walk's last segment (the sum of a random walk's
                 // segments would overstate how far it spread).
                 self.cone.widen();
-                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats)
+                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats, keep)
             }
             None if self.beta.is_black() || behind_estimated => Step::Stop,
             None => {
@@ -445,15 +469,20 @@ impl PathState {
     }
 
     /// A real collision inside an interior: NEE at the vertex if the interior does it there,
-    /// then a new direction from the vertex's phase function.
-    fn scatter_in_medium(
+    /// then a new direction from the vertex's phase function. A fibre lean made here leaves
+    /// the main direction's balance weight to the next vertex's sun NEE, which needs it only
+    /// where it adds something, when `keep` gives the lean the scene's lifetime; otherwise
+    /// the weight is evaluated here (the same bits either way).
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_in_medium<'m>(
         &mut self,
         scene: &Scene,
         medium: &Medium,
         obj: &Object,
-        vertex: &ScatterVertex<'_>,
+        vertex: &ScatterVertex<'m>,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
     ) -> Step {
         self.depth += 1;
         stats.vertices += 1;
@@ -522,7 +551,8 @@ impl PathState {
                 seen = None;
             }
             let c = match lean_weight {
-                Some((w, light)) if li == Some(light) => c * w,
+                // A black estimate stays black whatever the (finite, positive) weight.
+                Some((w, light)) if li == Some(light) && !c.is_black() => c * w.value(),
                 _ => c,
             };
             self.add_light(scene, li, self.beta * c);
@@ -574,10 +604,23 @@ impl PathState {
         };
         self.beta *= s.weight;
         if let (Some(l), PreparedPhase::Hg { phase: hg, wo }) = (lean, &phase) {
-            self.lean_weight = Some((l.main_weight(hg, *wo, s.wi, play), l.light));
+            self.lean_weight = Some((
+                LeanWeight::Known(l.main_weight(hg, *wo, s.wi, play)),
+                l.light,
+            ));
         }
-        if let Some(f) = &fibre_lean {
-            self.lean_weight = Some((f.main_weight(s.pdf, s.wi, play), f.light));
+        if let Some(f) = fibre_lean {
+            let light = f.light;
+            let w = match keep(f) {
+                Some(lean) => LeanWeight::Deferred {
+                    lean,
+                    p: s.pdf,
+                    wi: s.wi,
+                    play,
+                },
+                None => LeanWeight::Known(f.main_weight(s.pdf, s.wi, play)),
+            };
+            self.lean_weight = Some((w, light));
         }
         self.prev = PrevVertex {
             p,
