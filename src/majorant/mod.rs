@@ -172,9 +172,49 @@ struct Level {
     /// Per cell and priced lookup model ([`plan::PRICED_MODELS`]), the segment price below
     /// which the adaptive walk opens the cell (see [`plan`]; 0: never, and at level 0).
     open_below: Vec<[f32; 2]>,
+    /// Per priced lookup model, the least of `open_below` over the level's non-empty cells
+    /// (∞ when every cell is empty): a ray whose price is below it opens every non-empty cell
+    /// of the level ([`walk::Descent`]).
+    open_floor: [f32; 2],
+    /// True when no non-empty cell of the level has constant bounds: the exhaustive walk opens
+    /// every non-empty cell of the level.
+    all_vary: bool,
 }
 
 impl Level {
+    /// A level of `dims` cells with `cells` bounds and no opening prices yet.
+    fn new(dims: IVec3, cells: Vec<Bounds>) -> Self {
+        Level {
+            dims,
+            cells,
+            open_below: Vec::new(),
+            open_floor: [f32::INFINITY; 2],
+            all_vary: false,
+        }
+    }
+
+    /// Sets the level's opening prices and the per-level summaries drawn from them.
+    fn set_open_below(&mut self, open_below: Vec<[f32; 2]>) {
+        let mut floor = [f32::INFINITY; 2];
+        for (b, p) in self.cells.iter().zip(&open_below) {
+            if b.is_empty() {
+                continue;
+            }
+            for (f, &q) in floor.iter_mut().zip(p) {
+                // NaN prices never open a cell: they make the floor NaN (no ray is below it).
+                *f = if f.is_nan() || q.is_nan() {
+                    f32::NAN
+                } else {
+                    f.min(q)
+                };
+            }
+        }
+        let whole = open_below.len() == self.cells.len();
+        self.open_floor = if whole { floor } else { [f32::NAN; 2] };
+        self.all_vary = self.cells.iter().all(|b| b.is_empty() || b.min != b.max);
+        self.open_below = open_below;
+    }
+
     fn index(&self, c: IVec3) -> usize {
         ((c.z as usize * self.dims.y as usize) + c.y as usize) * self.dims.x as usize + c.x as usize
     }
@@ -395,11 +435,7 @@ impl MajorantPyramid {
                 max: MAX_LEVEL0_CELLS,
             });
         }
-        let mut level0 = Level {
-            dims,
-            cells: vec![Bounds::constant(0.0); cells],
-            open_below: Vec::new(),
-        };
+        let mut level0 = Level::new(dims, vec![Bounds::constant(0.0); cells]);
         for z in 0..dims.z {
             for y in 0..dims.y {
                 for x in 0..dims.x {
@@ -427,11 +463,10 @@ impl MajorantPyramid {
         while levels.last().is_some_and(|l| l.dims.max_element() > 1) {
             let Some(child) = levels.last() else { break };
             let pd = (child.dims + IVec3::ONE) / 2;
-            let mut parent = Level {
-                dims: pd,
-                cells: vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize],
-                open_below: Vec::new(),
-            };
+            let mut parent = Level::new(
+                pd,
+                vec![Bounds::constant(0.0); (pd.x * pd.y * pd.z) as usize],
+            );
             for z in 0..pd.z {
                 for y in 0..pd.y {
                     for x in 0..pd.x {
@@ -479,9 +514,11 @@ impl MajorantPyramid {
         };
         let [(p0, r0), (p1, r1)] = plan::PRICED_MODELS.map(|m| plan::open_prices(&pyramid, m));
         for (l, level) in pyramid.levels.iter_mut().enumerate() {
-            level.open_below = (0..level.cells.len())
-                .map(|i| [p0[l][i], p1[l][i]])
-                .collect();
+            level.set_open_below(
+                (0..level.cells.len())
+                    .map(|i| [p0[l][i], p1[l][i]])
+                    .collect(),
+            );
         }
         pyramid.root_cost = [r0, r1];
         Ok(pyramid)

@@ -119,6 +119,18 @@ impl Descent {
         most * covered * f64::from(cost.saving(price)) > super::WALK_COST
     }
 
+    /// True when every non-empty cell of `level` is opened (as [`Self::opens`] decides),
+    /// from the level's summaries: the walk starts below such levels.
+    #[inline]
+    fn opens_all(self, level: &Level) -> bool {
+        match self {
+            Descent::Always => level.all_vary,
+            Descent::BelowPrice { price, slot, .. } => {
+                level.open_floor.get(slot).is_some_and(|&p| price < p)
+            }
+        }
+    }
+
     /// True when cell `i` of `level` (bounds `b`, not empty) is opened.
     #[inline(always)]
     fn opens(self, level: &Level, i: usize, b: &Bounds) -> bool {
@@ -293,10 +305,39 @@ pub(super) fn root_step(
     RootStep::Open
 }
 
+/// The level a walk below an opened root of `pyramid` starts at: the first level below the
+/// root that may not open every non-empty cell ([`Descent::opens_all`]; not above `finest`),
+/// or the root itself where that is the root's children (nothing to skip: the walk keeps its
+/// bits).
+fn start_level(pyramid: &MajorantPyramid, finest: usize, descent: Descent) -> usize {
+    let top = pyramid.levels.len().saturating_sub(1);
+    let mut start = top.saturating_sub(1);
+    while start > finest
+        && pyramid
+            .levels
+            .get(start)
+            .is_some_and(|l| descent.opens_all(l))
+    {
+        start -= 1;
+    }
+    if start + 1 < top {
+        start
+    } else {
+        top
+    }
+}
+
 impl<'a> Walk<'a> {
     /// Prepares the walk of the index-space ray `o + t d` over `[t0, t1]` below an opened root
     /// (the caller asked [`root_step`] first, and emits a whole or empty root itself), opening
     /// cells as `descent` decides.
+    ///
+    /// Where the levels below the root open every non-empty cell for this ray
+    /// ([`Descent::opens_all`]), the walk starts at the first level that may not (a DDA over
+    /// that whole level) instead of descending to it from the root at every walk: the same
+    /// cells with the same bounds, their ends computed along another path (equal up to the
+    /// last bits). Empty cells of the skipped levels hold only empty cells, which the walk
+    /// crosses without emitting them.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     pub(super) fn new(
@@ -308,6 +349,25 @@ impl<'a> Walk<'a> {
         finest: usize,
         descent: Descent,
         model: LookupModel,
+    ) -> Self {
+        let start = start_level(pyramid, finest, descent);
+        Self::starting_at(pyramid, t0, t1, o, d, finest, descent, model, start)
+    }
+
+    /// [`Self::new`] with the walk's first DDA over level `start` (the root's level, or one
+    /// whose coarser levels below the root all open every non-empty cell for this ray).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn starting_at(
+        pyramid: &'a MajorantPyramid,
+        t0: f64,
+        t1: f64,
+        o: DVec3,
+        d: DVec3,
+        finest: usize,
+        descent: Descent,
+        model: LookupModel,
+        start: usize,
     ) -> Self {
         let base = pyramid.origin.as_dvec3() - DVec3::splat(0.5);
         let cell0 = f64::from(pyramid.finest_cell_voxels());
@@ -323,10 +383,10 @@ impl<'a> Walk<'a> {
             t: t0,
             t1,
         };
-        let Some(top) = pyramid.levels.len().checked_sub(1) else {
+        let Some(root) = pyramid.levels.get(start) else {
             return walk;
         };
-        let root = &pyramid.levels[top];
+        let top = start;
         let r = &walk.ray;
         let size = cell0 * pow2(top);
         let p = o + d * (t0 + (t1 - t0) * 1e-6);
@@ -384,8 +444,15 @@ impl Iterator for Walk<'_> {
             f.cell[axis] += step[axis];
             f.t_next[axis] += delta0[axis] * pow2(level);
             let lv = &self.pyramid.levels[level];
-            let lo = cell_a[axis] & !1;
-            let hi = (lo + 2).min(lv.dims.to_array()[axis]);
+            let dim = lv.dims.to_array()[axis];
+            // The first frame walks its whole level (one cell at the root), the others the
+            // cells inside their parent cell.
+            let (lo, hi) = if self.depth == 1 {
+                (0, dim)
+            } else {
+                let lo = cell_a[axis] & !1;
+                (lo, (lo + 2).min(dim))
+            };
             if f.cell[axis] < lo || f.cell[axis] >= hi || t_exit >= f.t_end {
                 f.done = true;
             }
@@ -501,6 +568,172 @@ mod tests {
                 assert!(other.root_pays(&dense, &rb, 1.0));
             }
         }
+    }
+
+    /// Bounds over a box of `hi + 1` bricks (not cubic) from four blobs, some homogeneous
+    /// (min = max), some sparse (small blobs), some nearly filling the box.
+    fn blob_pyramid(seed: u64, background: f32) -> MajorantPyramid {
+        let mut rng = crate::sampling::Rng::new(seed, 3);
+        let hi = IVec3::new(
+            4 + (rng.next_u32() % 40) as i32,
+            1 + (rng.next_u32() % 24) as i32,
+            2 + (rng.next_u32() % 30) as i32,
+        );
+        let big = seed % 2 == 1;
+        let blobs: Vec<(DVec3, f64, f32)> = (0..4)
+            .map(|_| {
+                let c = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64())
+                    * (hi + IVec3::ONE).as_dvec3();
+                let r = if big { 20.0 } else { 1.0 } + 3.0 * rng.next_f64();
+                (c, r, 0.1 + 5.0 * rng.next_f32())
+            })
+            .collect();
+        let scale = glam::DAffine3::from_scale(DVec3::splat(1.0 / 64.0));
+        MajorantPyramid::from_brick_bounds(IVec3::ZERO, hi, background, scale, |k| {
+            let p = k.as_dvec3() + 0.5;
+            let mut b = Bounds::constant(0.0);
+            for (i, &(c, r, v)) in blobs.iter().enumerate() {
+                if (p - c).length() < r {
+                    let lo = if i % 3 == 0 && !big { v } else { 0.0 };
+                    b = Bounds {
+                        min: if b.max > 0.0 { b.min.min(lo) } else { lo },
+                        max: b.max.max(v),
+                        mean: 0.5 * (lo + v),
+                    };
+                }
+            }
+            b
+        })
+        .unwrap_or_else(|e| unreachable!("{e}"))
+    }
+
+    /// The cells of a walk with a length above `eps` (a walk may emit or skip a cell that
+    /// the ray only grazes, depending on the last bits of its ends).
+    fn long_cells(walk: Walk<'_>, eps: f64) -> Vec<WalkCell> {
+        walk.filter(|c| c.t1 - c.t0 > eps).collect()
+    }
+
+    #[test]
+    fn a_walk_started_below_opened_levels_emits_the_descents_cells() {
+        let mut rng = crate::sampling::Rng::new(11, 5);
+        let (mut cells, mut skipped, mut walks, mut fallbacks) = (0usize, 0usize, 0usize, 0usize);
+        for seed in 0..32 {
+            let p = blob_pyramid(seed, if seed % 5 == 4 { 0.05 } else { 0.0 });
+            let top = p.levels.len() - 1;
+            let size = (p.levels[0].dims * 8).as_dvec3();
+            let base = DVec3::splat(-0.5);
+            for r in 0..600 {
+                // Origins around the box, some directions along an axis or a diagonal plane.
+                let o = base
+                    + DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * size * 1.4
+                    - size * 0.2;
+                let mut d = DVec3::new(
+                    rng.next_f64() - 0.5,
+                    rng.next_f64() - 0.5,
+                    rng.next_f64() - 0.5,
+                );
+                if r % 7 == 0 {
+                    d[(r / 7) % 3] = 0.0;
+                }
+                if r % 11 == 0 {
+                    d = DVec3::ZERO;
+                    d[r % 3] = if r % 2 == 0 { 1.0 } else { -1.0 };
+                }
+                let d = d.normalize_or(DVec3::X) * 64.0;
+                // Clip to the box (slabs), sometimes a part of the chord only.
+                let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+                for k in 0..3 {
+                    let (a, b) = ((base[k] - o[k]) / d[k], (base[k] + size[k] - o[k]) / d[k]);
+                    if d[k] == 0.0 {
+                        if o[k] < base[k] || o[k] >= base[k] + size[k] {
+                            t1 = -1.0;
+                        }
+                        continue;
+                    }
+                    t0 = t0.max(a.min(b));
+                    t1 = t1.min(a.max(b));
+                }
+                if !(t1 > t0) {
+                    continue;
+                }
+                if r % 5 == 1 {
+                    let (u, v) = (rng.next_f64(), rng.next_f64());
+                    (t0, t1) = (t0 + (t1 - t0) * u.min(v), t0 + (t1 - t0) * u.max(v));
+                }
+                let sigma = [None, Some(0.3), Some(40.0), Some(3000.0), Some(1e6)][r % 5];
+                let model = [
+                    LookupModel::Majorant,
+                    LookupModel::AboveMinorant,
+                    LookupModel::Probed,
+                    LookupModel::Ratio,
+                ][(r / 5) % 4];
+                let finest = r % 3;
+                let descent = Descent::new(&p, d, sigma, model);
+                if !matches!(
+                    root_step(&p, t0, t1, finest, descent, model),
+                    RootStep::Open
+                ) {
+                    continue;
+                }
+                walks += 1;
+                let start = start_level(&p, finest, descent);
+                if start < top {
+                    skipped += 1;
+                }
+                let eps = 1e-9 * t1.abs().max(1.0);
+                let new = long_cells(Walk::new(&p, t0, t1, o, d, finest, descent, model), eps);
+                let old = long_cells(
+                    Walk::starting_at(&p, t0, t1, o, d, finest, descent, model, top),
+                    eps,
+                );
+                if start < top && old.iter().any(|c| usize::from(c.level) > start) {
+                    // The descent's fallback where a child's state falls outside the level (a
+                    // ray entering the box on a mid-plane of a coarser cell, by the last bits):
+                    // it emits the coarser cell whole, which the started walk does not reach.
+                    fallbacks += 1;
+                    continue;
+                }
+                assert_eq!(
+                    new.len(),
+                    old.len(),
+                    "pyramid {seed}, ray {r}, start {start}, finest {finest}: {new:?} against {old:?}"
+                );
+                for (a, b) in new.iter().zip(&old) {
+                    assert_eq!(
+                        (a.level, a.bounds, a.lookup),
+                        (b.level, b.bounds, b.lookup),
+                        "pyramid {seed}, ray {r}"
+                    );
+                    assert!(
+                        (a.t0 - b.t0).abs() <= eps && (a.t1 - b.t1).abs() <= eps,
+                        "pyramid {seed}, ray {r}: {a:?} against {b:?}"
+                    );
+                }
+                if start == top {
+                    // Nothing skipped: the same bits.
+                    let all = |w: Walk<'_>| w.collect::<Vec<_>>();
+                    assert_eq!(
+                        all(Walk::new(&p, t0, t1, o, d, finest, descent, model)),
+                        all(Walk::starting_at(
+                            &p, t0, t1, o, d, finest, descent, model, top
+                        ))
+                    );
+                }
+                cells += new.len();
+            }
+        }
+        assert!(
+            cells > 20_000,
+            "{cells} cells, {skipped} of {walks} skip, {fallbacks} fallbacks"
+        );
+        assert!(
+            skipped * 5 > walks,
+            "{skipped} of {walks} walks skip levels"
+        );
+        assert!(
+            fallbacks * 100 < skipped,
+            "{fallbacks} fallbacks in {skipped} walks"
+        );
     }
 
     fn setup(o: [f64; 3], d: [f64; 3]) -> RaySetup {
