@@ -686,10 +686,31 @@ mod tests {
                     Walk::starting_at(&p, t0, t1, o, d, finest, descent, model, top),
                     eps,
                 );
-                if start < top && old.iter().any(|c| usize::from(c.level) > start) {
+                let above: Vec<&WalkCell> = old
+                    .iter()
+                    .filter(|c| start < top && usize::from(c.level) > start)
+                    .collect();
+                if !above.is_empty() {
                     // The descent's fallback where a child's state falls outside the level (a
                     // ray entering the box on a mid-plane of a coarser cell, by the last bits):
                     // it emits the coarser cell whole, which the started walk does not reach.
+                    // Such a cell must be one its descent opens (else skipping was wrong).
+                    for c in above {
+                        let level = usize::from(c.level);
+                        let lv = &p.levels[level];
+                        let size = 8.0 * pow2(level);
+                        let at = o + d * (0.5 * (c.t0 + c.t1));
+                        let cell = ((at - base) / size)
+                            .floor()
+                            .as_ivec3()
+                            .clamp(IVec3::ZERO, lv.dims - IVec3::ONE);
+                        let i = lv.index(cell);
+                        assert_eq!(lv.cells[i], c.bounds, "pyramid {seed}, ray {r}");
+                        assert!(
+                            level == top || descent.opens(lv, i, &c.bounds),
+                            "pyramid {seed}, ray {r}: level {level} skipped but not opened"
+                        );
+                    }
                     fallbacks += 1;
                     continue;
                 }
