@@ -242,13 +242,6 @@ impl<'a> ShellLookup<'a> {
         self.at(t)
     }
 
-    /// Starts loading what a lookup at distance `t` will read ([`ShellCursor::prefetch`]);
-    /// every lookup returns what it would without it.
-    #[inline(always)]
-    pub fn prefetch(&self, t: f32) {
-        self.cursor.prefetch(t);
-    }
-
     /// The point bound at distance `t` ([`FabricShell::point_bound`]): a lookup at the same
     /// distance next reuses its point location.
     #[inline]

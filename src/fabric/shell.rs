@@ -391,21 +391,6 @@ impl<'a> ShellCursor<'a> {
         found
     }
 
-    /// Starts loading the flat voxels a lookup at distance `t` will read
-    /// ([`FabricShell::prefetch_at_q`]), at the patch point the last tetrahedron's affine map
-    /// gives there (the map is continuous across faces, so just beyond the tetrahedron the
-    /// point is still near). Changes no state of the cursor: nothing is located, so every
-    /// lookup returns what it would without it. Nothing is loaded before the first point is
-    /// located.
-    #[inline(always)]
-    pub fn prefetch(&self, t: f32) {
-        let span = self.span.get();
-        if span.tet != u32::MAX {
-            self.shell
-                .prefetch_at_q(span.q + span.dq * (t - span.t_ref));
-        }
-    }
-
     /// The point bound at distance `t` ([`FabricShell::point_bound_at`]); 0 outside the
     /// shell. A lookup at the same distance next reuses this point location.
     #[inline(always)]
@@ -1081,30 +1066,6 @@ impl FabricShell {
         self.support_codes
             .get(k)
             .map_or(0.0, |&c| f32::from(c) * self.support_step)
-    }
-
-    /// Starts loading (a cache hint, `prefetcht0`) the cache lines a lookup at patch index
-    /// point `q` reads: those of its lower and its far corner in each of its two layers (the
-    /// corners span one to four tiles of a layer; these two are on the first and the last).
-    /// The cell is found by truncation, not `floor` (a hint may miss). Reads and changes
-    /// nothing.
-    #[inline(always)]
-    pub fn prefetch_at_q(&self, q: Vec3) {
-        let Some((_, c)) = self.cell_at(q.as_ivec3()) else {
-            return;
-        };
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let base = self.flat_tiles.as_ptr().cast::<FlatVoxel>();
-            for o in [0, c.dx + c.dy, c.dz, c.dx + c.dy + c.dz] {
-                let p = base.wrapping_add(c.f + o).cast::<i8>();
-                // SAFETY: a prefetch is a hint that never faults, whatever the address.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(p) };
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = c;
     }
 
     /// Bit `k` of `support_bits`.

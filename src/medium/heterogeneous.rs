@@ -18,9 +18,8 @@ use crate::procedural::{FbmField, LazyFbmGrid};
 use crate::spectrum::Rgb;
 use crate::tracking::{
     decomposition_track, decomposition_track_local, delta_track, delta_track_local,
-    ray_march_free_flight, split_flight, transmittance, transmittance_prefetched,
-    DensityCoefficients, Flight, FreeFlightMethod, TrackingConfig, TrackingStats,
-    TransmittanceMode,
+    ray_march_free_flight, split_flight, transmittance, DensityCoefficients, Flight,
+    FreeFlightMethod, TrackingConfig, TrackingStats, TransmittanceMode,
 };
 
 /// Where a heterogeneous interior's density comes from.
@@ -584,20 +583,6 @@ impl HeterogeneousMedium {
         // copies its DDA stack).
         let mut inner = self.pyramid_segments(c, ray, 0.0, t_max, self.shadow_model());
         let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
-        if let DensityField::Shell(shell) = &self.field {
-            // The next tentative collision's voxels are loaded while the lookup before it
-            // waits for its own (the same estimate, bit for bit).
-            let lookup = ShellLookup::new(shell, ray, self.projected_fibres().is_some());
-            return transmittance_prefetched(
-                &mut segments,
-                c,
-                |t| lookup.at_out_of_line(t),
-                |t| lookup.prefetch(t),
-                self.tracking.transmittance,
-                u,
-                stats,
-            );
-        }
         let mut lookup = self.density_along(ray);
         transmittance(
             &mut segments,

@@ -74,99 +74,6 @@ where
     P: PointBounds,
     U: FnMut() -> f32,
 {
-    estimate_in_channels(
-        segments,
-        coeff,
-        density,
-        local_bounds,
-        NoPrefetch,
-        mode,
-        u,
-        stats,
-    )
-}
-
-/// [`transmittance`] that tells `prefetch` each tentative collision's distance of ratio and
-/// residual ratio tracking before the density lookup of the collision before it, so that a
-/// density source can start loading that point's data while the lookup in hand waits for its
-/// own ([`Prefetch`]). The same estimate, bit for bit, from the same uniform numbers drawn in
-/// the same order: after each lookup that tracking draws at least one more number (the next
-/// distance's, or Russian roulette's first), so that number is drawn just before the lookup
-/// instead and used for whichever of the two comes first.
-pub fn transmittance_prefetched<S, D, F, U>(
-    segments: S,
-    coeff: &DensityCoefficients,
-    density: D,
-    prefetch: F,
-    mode: TransmittanceMode,
-    u: &mut U,
-    stats: &mut TrackingStats,
-) -> Rgb
-where
-    S: IntoIterator<Item = MajorantSegment>,
-    D: FnMut(f32) -> f32,
-    F: Prefetch,
-    U: FnMut() -> f32,
-{
-    estimate_in_channels(
-        segments,
-        coeff,
-        density,
-        NoPointBounds,
-        prefetch,
-        mode,
-        u,
-        stats,
-    )
-}
-
-/// A density source's hint that a lookup at a distance is coming
-/// ([`transmittance_prefetched`]): it may start loading what that lookup reads, and must not
-/// change what any lookup returns.
-pub trait Prefetch {
-    /// Whether the tracker should compute the distances ahead at all.
-    const ACTIVE: bool = true;
-    /// A lookup at distance `t` is likely to come after the next one.
-    fn prefetch(&mut self, t: f32);
-}
-
-/// No prefetching: the trackers do not compute distances ahead.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct NoPrefetch;
-
-impl Prefetch for NoPrefetch {
-    const ACTIVE: bool = false;
-    #[inline(always)]
-    fn prefetch(&mut self, _t: f32) {}
-}
-
-impl<F: FnMut(f32)> Prefetch for F {
-    #[inline(always)]
-    fn prefetch(&mut self, t: f32) {
-        self(t);
-    }
-}
-
-/// [`estimate`] in one scalar for a grey medium, in RGB otherwise.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn estimate_in_channels<S, D, P, F, U>(
-    segments: S,
-    coeff: &DensityCoefficients,
-    density: D,
-    local_bounds: P,
-    prefetch: F,
-    mode: TransmittanceMode,
-    u: &mut U,
-    stats: &mut TrackingStats,
-) -> Rgb
-where
-    S: IntoIterator<Item = MajorantSegment>,
-    D: FnMut(f32) -> f32,
-    P: PointBounds,
-    F: Prefetch,
-    U: FnMut() -> f32,
-{
     match coeff.grey() {
         Some(grey) => estimate(
             segments,
@@ -174,7 +81,6 @@ where
             &grey,
             density,
             local_bounds,
-            prefetch,
             mode,
             u,
             stats,
@@ -186,7 +92,6 @@ where
             &coeff.rgb(),
             density,
             local_bounds,
-            prefetch,
             mode,
             u,
             stats,
@@ -198,13 +103,12 @@ where
 /// medium: the same estimate as in RGB, bit for bit). `rgb` is the same coefficients for the
 /// estimators that work in RGB only (unbiased ray marching, the jackknife).
 #[allow(clippy::too_many_arguments)]
-fn estimate<V, S, D, P, F, U>(
+fn estimate<V, S, D, P, U>(
     segments: S,
     rgb: &DensityCoefficients,
     coeff: &Coefficients<V>,
     mut density: D,
     mut local_bounds: P,
-    mut prefetch: F,
     mode: TransmittanceMode,
     u: &mut U,
     stats: &mut TrackingStats,
@@ -214,7 +118,6 @@ where
     S: IntoIterator<Item = MajorantSegment>,
     D: FnMut(f32) -> f32,
     P: PointBounds,
-    F: Prefetch,
     U: FnMut() -> f32,
 {
     let st = coeff.sigma_t;
@@ -269,14 +172,8 @@ where
                     let majorant = residual_bound * s_max;
                     if majorant > 0.0 && majorant.is_finite() {
                         let mut local = 0.0f32;
-                        // With prefetching: the number drawn ahead of the lookup in hand, and
-                        // the distance step it gives.
-                        let mut ahead: Option<(f32, f32)> = None;
                         loop {
-                            local += match ahead.take() {
-                                Some((_, step)) => step,
-                                None => -(1.0 - u()).ln() / majorant,
-                            };
+                            local += -(1.0 - u()).ln() / majorant;
                             if local >= len {
                                 break;
                             }
@@ -297,16 +194,6 @@ where
                                     hi = b;
                                 }
                             }
-                            if F::ACTIVE {
-                                // The number drawn after this lookup in any case: the next
-                                // distance's, or the roulette's below.
-                                let un = u();
-                                let step = -(1.0 - un).ln() / majorant;
-                                if local + step < len {
-                                    prefetch.prefetch(seg.t0 + (local + step));
-                                }
-                                ahead = Some((un, step));
-                            }
                             let d = density(t);
                             stats.transmittance_lookups += 1;
                             if d > hi || d < lo {
@@ -314,11 +201,7 @@ where
                             }
                             tr *= V::ONE - st * ((d - control) / major);
                             if tr.max_channel().abs() < 0.05 {
-                                let ur = match ahead.take() {
-                                    Some((un, _)) => un,
-                                    None => u(),
-                                };
-                                if ur < 0.75 {
+                                if u() < 0.75 {
                                     return V::splat(0.0);
                                 }
                                 tr /= 0.25;
@@ -361,7 +244,6 @@ mod tests {
                 &rgb,
                 test_density,
                 bounds(),
-                NoPrefetch,
                 mode,
                 &mut || u.next(),
                 s1,
@@ -372,7 +254,6 @@ mod tests {
                 grey,
                 test_density,
                 bounds(),
-                NoPrefetch,
                 mode,
                 &mut || v.next(),
                 s2,
