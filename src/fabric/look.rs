@@ -5,12 +5,10 @@
 //! extinction in a free-standing patch; the shell map of a draped patch) live here too, so
 //! that media only dispatch to them.
 
-use std::cell::Cell;
-
 use glam::{DMat3, DVec3, Mat3, Vec3};
 
 use super::fibre_scattering::extinction_scale;
-use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, ShellCursor, WidthMemo, YarnId};
+use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, ShellCursor, YarnId};
 use crate::grid::{Accessor, SparseGrid};
 use crate::math::{Ray, Vec2};
 use crate::spectrum::Rgb;
@@ -213,9 +211,6 @@ pub struct ShellLookup<'a> {
     cursor: ShellCursor<'a>,
     /// For fibre-projected extinction: the unit direction of the ray.
     dir: Option<Vec3>,
-    /// The last projected width computed along the ray
-    /// ([`FabricShell::projected_density_memo`]).
-    width: Cell<WidthMemo>,
 }
 
 impl<'a> ShellLookup<'a> {
@@ -225,7 +220,6 @@ impl<'a> ShellLookup<'a> {
         ShellLookup {
             dir: projected.then(|| ray.d.normalize_or_zero()),
             cursor: ShellCursor::new(shell, ray),
-            width: Cell::new(WidthMemo::NONE),
         }
     }
 
@@ -238,7 +232,7 @@ impl<'a> ShellLookup<'a> {
         let shell = self.cursor.shell();
         match self.dir {
             None => shell.density_at(s),
-            Some(dir) => shell.projected_density_memo(s, dir, &self.width),
+            Some(dir) => shell.projected_density_at(None, s, dir),
         }
     }
 

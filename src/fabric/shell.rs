@@ -309,30 +309,6 @@ impl ShellPoint {
     }
 }
 
-/// The projected width `sin∠(dir, tangent)` a fibre-projected lookup along one ray last
-/// computed from a voxel's own tangent ([`FabricShell::projected_density_memo`]): the width is
-/// a function of the ray's direction, the tetrahedron (its tangent map) and the voxel, so a
-/// later lookup of the same ray whose nearest voxel and tetrahedron are the same (consecutive
-/// tentative collisions of a shadow ray mostly are) takes it without reading the tangent.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct WidthMemo {
-    /// The tetrahedron (`u32::MAX`: none yet).
-    tet: u32,
-    /// The nearest voxel's index in the flat tables.
-    voxel: usize,
-    /// `sin∠(dir, tangent)` there.
-    width: f32,
-}
-
-impl WidthMemo {
-    /// No width computed yet.
-    pub const NONE: WidthMemo = WidthMemo {
-        tet: u32::MAX,
-        voxel: usize::MAX,
-        width: 0.0,
-    };
-}
-
 /// Point location along one ray through a shell, shared by the ray's density lookups and
 /// point bounds (both take `&self`).
 ///
@@ -1047,58 +1023,6 @@ impl FabricShell {
             return density;
         }
         let local = self.flat_tangent_near(q, v, c, frac, tangents);
-        let Some(t) = self.tets.get(s.tet as usize) else {
-            return density;
-        };
-        density * super::look::projected_width(dir, t.tangent_to_world * local)
-    }
-
-    /// [`FabricShell::projected_density_at`] (without an accessor) for lookups along one ray
-    /// of unit direction `dir`, with the width of the last lookup that read its nearest
-    /// voxel's own tangent kept in `memo`: where this lookup's nearest voxel and tetrahedron
-    /// are the memo's, the width is taken from it (the same value, bit for bit: the width
-    /// depends on nothing else). `memo` must not be shared by lookups of other directions.
-    #[inline(always)]
-    pub fn projected_density_memo(&self, s: ShellPoint, dir: Vec3, memo: &Cell<WidthMemo>) -> f32 {
-        let q = s.q;
-        let v = super::floor_ivec3(q);
-        let Some((k, c)) = self.cell_at(v) else {
-            return 0.0;
-        };
-        if !self.bit(k) {
-            return 0.0;
-        }
-        let frac = q - v.as_vec3();
-        let density = self.flat_trilinear(c, frac);
-        if density.is_nan() || density <= 0.0 {
-            return density;
-        }
-        let n = super::floor_ivec3(q + Vec3::splat(0.5)) - v;
-        if (n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
-            let i = c.corner(n);
-            let m = memo.get();
-            if m.voxel == i && m.tet == s.tet {
-                return density * m.width;
-            }
-            let voxels = self.flat_voxels();
-            debug_assert!(i < voxels.len());
-            // SAFETY: `n` is in {0, 1}³ and `c` comes from `cell_at`: inside the table, as in
-            // `flat_trilinear`.
-            let nearest = Vec3::from_array(unsafe { voxels.get_unchecked(i).tangent });
-            if nearest != Vec3::ZERO {
-                let Some(t) = self.tets.get(s.tet as usize) else {
-                    return density;
-                };
-                let width = super::look::projected_width(dir, t.tangent_to_world * nearest);
-                memo.set(WidthMemo {
-                    tet: s.tet,
-                    voxel: i,
-                    width,
-                });
-                return density * width;
-            }
-        }
-        let local = self.flat_tangent_near(q, v, c, frac, None);
         let Some(t) = self.tets.get(s.tet as usize) else {
             return density;
         };
