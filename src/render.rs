@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use crate::film::{Film, FilmTile, PixelSample};
 use crate::integrator::{trace_path, TraceStats};
 use crate::math::Vec2;
-use crate::sampling::PixelSampler;
+use crate::sampling::{PixelSampler, PixelSeed};
 use crate::scene::Scene;
 
 /// Side of a square render tile, pixels.
@@ -377,8 +377,9 @@ fn render_tile_pass(
                     continue;
                 }
             }
+            let pixel = PixelSeed::new(seed, x, film_y);
             for s in s0..s1 {
-                let mut sampler = PixelSampler::new(seed, x, film_y, s);
+                let mut sampler = PixelSampler::in_pixel(&pixel, s);
                 let film_pos = Vec2::new(x as f32, film_y as f32) + sampler.next_2d();
                 let lens = sampler.next_2d();
                 let ray = scene.camera.generate_ray(film_pos, lens);

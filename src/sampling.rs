@@ -90,9 +90,44 @@ fn nibble_tables() -> &'static [NibbleTable] {
 
 /// The reversed, seed-shuffled Sobol index of `sample_index` (what `sobol_burley::sample_4d`
 /// computes first), split into the four nibbles that index the [`NibbleTable`]s.
+#[cfg(test)]
 fn shuffled_nibbles(sample_index: u32, seed: u32) -> [u8; 4] {
-    let rev = owen_scramble_rev(sample_index.reverse_bits(), hash(seed ^ 0x79c6_8e4a));
+    shuffled_nibbles_keyed(sample_index, shuffle_key(seed))
+}
+
+/// The key of the index shuffle of [`shuffled_nibbles`] for a pixel's Sobol `seed`.
+#[inline]
+fn shuffle_key(seed: u32) -> u32 {
+    hash(seed ^ 0x79c6_8e4a)
+}
+
+/// [`shuffled_nibbles`] with the shuffle's key ([`shuffle_key`]) given.
+#[inline]
+fn shuffled_nibbles_keyed(sample_index: u32, key: u32) -> [u8; 4] {
+    let rev = owen_scramble_rev(sample_index.reverse_bits(), key);
     [28, 24, 20, 16].map(|shift| ((rev >> shift) & 15) as u8)
+}
+
+/// The part of a [`PixelSampler`] that depends on the pixel only (not on the sample): made
+/// once per pixel by a render loop that takes many samples there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelSeed {
+    /// Hash of (render seed, pixel).
+    seed: u64,
+    /// [`shuffle_key`] of the pixel's Sobol seed.
+    shuffle: u32,
+}
+
+impl PixelSeed {
+    /// The pixel part of pixel `(px, py)`'s samples for the render seed `seed`.
+    #[must_use]
+    pub fn new(seed: u64, px: u32, py: u32) -> Self {
+        let seed = hash_words(&[seed, ((px as u64) << 32) | py as u64]);
+        PixelSeed {
+            seed,
+            shuffle: shuffle_key(seed as u32),
+        }
+    }
 }
 
 /// `sobol_burley::sample_4d(sample_index, set, seed)` bit for bit, with the index shuffled
@@ -142,11 +177,18 @@ impl PixelSampler {
     /// camera vertex.
     #[must_use]
     pub fn new(seed: u64, px: u32, py: u32, sample_index: u32) -> Self {
-        let pixel_seed = hash_words(&[seed, ((px as u64) << 32) | py as u64]);
+        PixelSampler::in_pixel(&PixelSeed::new(seed, px, py), sample_index)
+    }
+
+    /// [`PixelSampler::new`] with the pixel's part computed once ([`PixelSeed`]): the same
+    /// numbers.
+    #[must_use]
+    #[inline]
+    pub fn in_pixel(pixel: &PixelSeed, sample_index: u32) -> Self {
         PixelSampler {
-            sobol_seed: pixel_seed as u32,
+            sobol_seed: pixel.seed as u32,
             sample_index,
-            hash_base: hash_words(&[pixel_seed, sample_index as u64]),
+            hash_base: hash_words(&[pixel.seed, sample_index as u64]),
             vertex: 0,
             used: 0,
             sobol_dims: if sample_index < SOBOL_SAMPLES {
@@ -156,7 +198,7 @@ impl PixelSampler {
             },
             first_set: 0,
             sobol: [0.0; 4],
-            nibbles: shuffled_nibbles(sample_index, pixel_seed as u32),
+            nibbles: shuffled_nibbles_keyed(sample_index, pixel.shuffle),
         }
     }
 
@@ -214,6 +256,46 @@ impl PixelSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pixel_seed_reused_over_samples_gives_each_sample_its_numbers() {
+        let mut rng = Rng::new(9, 4);
+        for _ in 0..200 {
+            let (seed, px, py) = (
+                u64::from(rng.next_u32()),
+                rng.next_u32() >> 20,
+                rng.next_u32() >> 20,
+            );
+            let pixel = PixelSeed::new(seed, px, py);
+            // Sobol samples, the last ones, and hashed samples past 2^16.
+            for s in (0..40).chain(SOBOL_SAMPLES - 3..SOBOL_SAMPLES + 3) {
+                let (mut a, mut b) = (
+                    PixelSampler::new(seed, px, py, s),
+                    PixelSampler::in_pixel(&pixel, s),
+                );
+                let (mut x, mut y) = (Vec::new(), Vec::new());
+                for v in 0..4 {
+                    for _ in 0..10 {
+                        x.push(a.next_1d().to_bits());
+                        y.push(b.next_1d().to_bits());
+                    }
+                    if v < 3 {
+                        a.start_vertex();
+                        b.start_vertex();
+                    }
+                }
+                assert_eq!(x, y, "seed {seed} pixel ({px}, {py}) sample {s}");
+                // And the numbers of another pixel differ.
+                let mut c = PixelSampler::in_pixel(&PixelSeed::new(seed, px + 1, py), s);
+                let z: Vec<u32> = (0..10).map(|_| c.next_1d().to_bits()).collect();
+                assert_ne!(
+                    &x[..10],
+                    &z[..],
+                    "seed {seed} pixel ({px}, {py}) sample {s}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn table_sobol_matches_sobol_burley_bit_for_bit() {

@@ -49,6 +49,10 @@ pub struct SceneGeometry {
     shapes: Vec<Shape>,
     topologies: Vec<Option<MeshTopology>>,
     bounds: Aabb,
+    /// `(min, max)` when the scene's only shape is an analytic box (the grid peer scenes'
+    /// `bounds`): rays that move away from it ([`moves_away_from_box`]) are answered without
+    /// the query (the escape ray after a path leaves the box).
+    sole_box: Option<(Vec3, Vec3)>,
 }
 
 /// An analytic shape and the index of the shape it is.
@@ -223,7 +227,12 @@ impl SceneGeometry {
                 })
             })
             .collect();
+        let sole_box = match analytic.as_slice() {
+            [Analytic::Box { min, max, .. }] if ordered.is_empty() => Some((*min, *max)),
+            _ => None,
+        };
         Ok(SceneGeometry {
+            sole_box,
             bvh,
             prims: ordered,
             tris,
@@ -240,6 +249,11 @@ impl SceneGeometry {
     /// leave a surface must start at [`crate::math::offset_ray_origin`]; `t_min` is 0.
     #[must_use]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if let Some((min, max)) = self.sole_box {
+            if moves_away_from_box(ray, min, max) {
+                return None;
+            }
+        }
         if !valid_query(ray, t_max) {
             return None;
         }
@@ -512,6 +526,23 @@ impl SceneGeometry {
 /// `t_max > 0` (other queries hit nothing).
 fn valid_query(ray: &Ray, t_max: f32) -> bool {
     ray.o.is_finite() && ray.d.is_finite() && ray.d != Vec3::ZERO && !t_max.is_nan() && t_max > 0.0
+}
+
+/// True when `ray` starts strictly outside one of the box `[min, max]`'s slabs and moves away
+/// from it (a direction component of the outward sign, below 2 in magnitude): then
+/// [`intersect_box`] returns `None` for every `t_max`. On that axis both slab distances
+/// `(lo − o)/d` and `(hi − o)/d` are strictly negative (a difference of two unequal floats is
+/// nonzero, at least 2^-149 in magnitude, and its quotient by `|d| < 2` does not round to
+/// zero), so the exit distance is negative and neither the entry nor the exit is ahead.
+/// Rays spawned outward from the box's faces (a path leaving the box) are such rays: their
+/// origin is pushed past the face plane ([`crate::math::offset_ray_origin`]).
+#[inline(always)]
+fn moves_away_from_box(ray: &Ray, min: Vec3, max: Vec3) -> bool {
+    let (o, d) = (ray.o, ray.d);
+    let away = |o: f32, d: f32, lo: f32, hi: f32| {
+        (o > hi && d > 0.0 && d < 2.0) || (o < lo && d < 0.0 && d > -2.0)
+    };
+    away(o.x, d.x, min.x, max.x) || away(o.y, d.y, min.y, max.y) || away(o.z, d.z, min.z, max.z)
 }
 
 /// The unit geometric normal of the triangle `a, b, c` along its winding,
@@ -1003,5 +1034,76 @@ mod tests {
         // The grid must actually be used, and the set must contain hits.
         assert!(skipped > 40_000, "{skipped} segments skipped");
         assert!(hits > 50_000, "{hits} hits");
+    }
+
+    #[test]
+    fn rays_moving_away_from_a_sole_box_miss_it() {
+        let (min, max) = (Vec3::new(-0.5, -0.25, -0.75), Vec3::new(0.5, 0.75, 0.25));
+        let geometry = SceneGeometry::build(vec![Shape::Box { min, max }]).expect("geometry");
+        assert_eq!(geometry.sole_box, Some((min, max)));
+        let mut plain = geometry.clone();
+        plain.sole_box = None;
+        let mut rng = Rng::new(17, 3);
+        let (mut escapes, mut away) = (0, 0);
+        for i in 0..300_000 {
+            // Directions with zero, tiny and exact-unit components among them.
+            let mut d = sample_uniform_sphere(rng.next_2d());
+            match i % 5 {
+                0 => d.x = 0.0,
+                1 => d.y = 1e-30,
+                2 => d = Vec3::new(0.0, 0.0, if rng.next_f32() < 0.5 { 1.0 } else { -1.0 }),
+                _ => {}
+            }
+            let d = d.normalize_or(Vec3::Z);
+            let t_max = match i % 3 {
+                0 => f32::INFINITY,
+                1 => 3.0 * rng.next_f32(),
+                _ => 0.01 * rng.next_f32(),
+            };
+            // Origins inside, outside, on the faces, edges and corners.
+            let mut o = Vec3::new(
+                rng.next_f32() * 3.0 - 1.5,
+                rng.next_f32() * 3.0 - 1.5,
+                rng.next_f32() * 3.0 - 1.5,
+            );
+            match i % 7 {
+                0 => o.x = max.x,
+                1 => o.y = min.y,
+                2 => {
+                    o.x = min.x;
+                    o.z = max.z;
+                }
+                3 => o = min.lerp(max, rng.next_f32()),
+                _ => {}
+            }
+            let ray = Ray::new(o, d);
+            let a = geometry.intersect(&ray, t_max);
+            assert_eq!(
+                hit_bits(a),
+                hit_bits(plain.intersect(&ray, t_max)),
+                "ray {i}: {ray:?}"
+            );
+            if moves_away_from_box(&ray, min, max) {
+                away += 1;
+                assert!(
+                    intersect_box(&ray, min, max, t_max).is_none(),
+                    "ray {i}: {ray:?}"
+                );
+            }
+            // A ray from inside leaves through a face; the ray spawned there escapes.
+            let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let inside = Ray::new(min + (max - min) * u, d);
+            if let Some(exit) = geometry.intersect(&inside, f32::INFINITY) {
+                let escape = Ray::new(exit.spawn_origin(d), d);
+                assert!(
+                    moves_away_from_box(&escape, min, max),
+                    "ray {i}: {escape:?}"
+                );
+                assert!(plain.intersect(&escape, f32::INFINITY).is_none(), "ray {i}");
+                escapes += 1;
+            }
+        }
+        assert!(escapes > 290_000, "{escapes} escapes");
+        assert!(away > 50_000, "{away} rays moving away");
     }
 }
