@@ -49,10 +49,11 @@ pub struct SceneGeometry {
     shapes: Vec<Shape>,
     topologies: Vec<Option<MeshTopology>>,
     bounds: Aabb,
-    /// `(min, max)` when the scene's only shape is an analytic box (the grid peer scenes'
-    /// `bounds`): rays that move away from it ([`moves_away_from_box`]) are answered without
-    /// the query (the escape ray after a path leaves the box).
-    sole_box: Option<(Vec3, Vec3)>,
+    /// `(min, max, shape)` when the scene's only shape is an analytic box (the grid peer
+    /// scenes' `bounds`): rays that move away from it ([`moves_away_from_box`]) are answered
+    /// without the query (the escape ray after a path leaves the box), the others by the slab
+    /// test alone, without the loop over shapes.
+    sole_box: Option<(Vec3, Vec3, u32)>,
 }
 
 /// An analytic shape and the index of the shape it is.
@@ -228,7 +229,7 @@ impl SceneGeometry {
             })
             .collect();
         let sole_box = match analytic.as_slice() {
-            [Analytic::Box { min, max, .. }] if ordered.is_empty() => Some((*min, *max)),
+            [Analytic::Box { min, max, shape }] if ordered.is_empty() => Some((*min, *max, *shape)),
             _ => None,
         };
         Ok(SceneGeometry {
@@ -249,10 +250,13 @@ impl SceneGeometry {
     /// leave a surface must start at [`crate::math::offset_ray_origin`]; `t_min` is 0.
     #[must_use]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        if let Some((min, max)) = self.sole_box {
-            if moves_away_from_box(ray, min, max) {
+        if let Some((min, max, shape)) = self.sole_box {
+            // What the loop below does with one box and no triangles.
+            if moves_away_from_box(ray, min, max) || !valid_query(ray, t_max) {
                 return None;
             }
+            return intersect_box(ray, min, max, t_max)
+                .map(|h| self.make_hit(ray, Best::Box(shape, h)));
         }
         if !valid_query(ray, t_max) {
             return None;
@@ -1040,7 +1044,7 @@ mod tests {
     fn rays_moving_away_from_a_sole_box_miss_it() {
         let (min, max) = (Vec3::new(-0.5, -0.25, -0.75), Vec3::new(0.5, 0.75, 0.25));
         let geometry = SceneGeometry::build(vec![Shape::Box { min, max }]).expect("geometry");
-        assert_eq!(geometry.sole_box, Some((min, max)));
+        assert_eq!(geometry.sole_box, Some((min, max, 0)));
         let mut plain = geometry.clone();
         plain.sole_box = None;
         let mut rng = Rng::new(17, 3);
