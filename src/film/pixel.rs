@@ -53,7 +53,7 @@ fn aux_units(v: f32) -> i64 {
 }
 
 /// `x.round() as i64` (nearest integer, ties away from zero) for `|x| < 2^52`, without the
-/// library call `f64::round` compiles to on baseline x86-64 (five of them per sample were
+/// library call `f64::round` compiles to on baseline x86-64 (six of them per sample were
 /// about 3 % of the thin peer cloud's instructions): the truncation is exact, and so is the
 /// fraction `x − trunc(x)` (the low bits of `x`), whose comparison with ±0.5 decides the tie
 /// the same way.
