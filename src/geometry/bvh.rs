@@ -357,7 +357,7 @@ impl SceneGeometry {
 
     /// True when the segment `(0, t_max)` of `ray` provably hits no triangle: it is short
     /// and lies in cells no triangle touches ([`EmptyCells`]; the traversal would find nothing).
-    #[inline]
+    #[inline(always)]
     fn segment_misses_triangles(&self, ray: &Ray, t_max: f32) -> bool {
         t_max.is_finite()
             && self
@@ -528,8 +528,18 @@ impl SceneGeometry {
 
 /// A query the hierarchy answers: finite origin and direction, a nonzero direction, and
 /// `t_max > 0` (other queries hit nothing).
+///
+/// The same predicate as `o.is_finite() && d.is_finite() && d != Vec3::ZERO && t_max > 0`,
+/// evaluated with two 4-lane compares and no branch per component (a component is finite
+/// when its magnitude is below ∞, which NaN is not; `−0` equals `0`).
+#[inline(always)]
 fn valid_query(ray: &Ray, t_max: f32) -> bool {
-    ray.o.is_finite() && ray.d.is_finite() && ray.d != Vec3::ZERO && !t_max.is_nan() && t_max > 0.0
+    let o = Vec4::from((ray.o, 0.0));
+    let d = Vec4::from((ray.d, 0.0));
+    let inf = Vec4::splat(f32::INFINITY);
+    let finite = o.abs().cmplt(inf).bitmask() & d.abs().cmplt(inf).bitmask();
+    let nonzero = d.cmpne(Vec4::ZERO).bitmask();
+    (finite & 7 == 7) & (nonzero != 0) & (t_max > 0.0)
 }
 
 /// True when `ray` starts strictly outside one of the box `[min, max]`'s slabs and moves away
@@ -688,6 +698,58 @@ mod tests {
             *p = *p * 3.0 + Vec3::new(10.0, -2.0, 5.0);
         }
         SceneGeometry::build(vec![Shape::Mesh(mesh)]).expect("geometry")
+    }
+
+    #[test]
+    fn the_vector_query_check_is_the_componentwise_predicate() {
+        let specials = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE * 0.5,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+        ];
+        let pick = |i: usize| specials[i % specials.len()];
+        let n = specials.len();
+        let mut rng = Rng::new(3, 5);
+        let mut valid = 0;
+        for case in 0..200_000usize {
+            // Each component special with some probability, else random.
+            let mut c = [0.0f32; 7];
+            for (k, v) in c.iter_mut().enumerate() {
+                *v = if rng.next_f32() < 0.5 {
+                    pick((case / 7 + k * 5 + (rng.next_f32() * n as f32) as usize) % n)
+                } else {
+                    rng.next_f32() * 4.0 - 2.0
+                };
+            }
+            let ray = Ray {
+                o: Vec3::new(c[0], c[1], c[2]),
+                d: Vec3::new(c[3], c[4], c[5]),
+            };
+            let old = ray.o.is_finite()
+                && ray.d.is_finite()
+                && ray.d != Vec3::ZERO
+                && !c[6].is_nan()
+                && c[6] > 0.0;
+            assert_eq!(valid_query(&ray, c[6]), old, "{c:?}");
+            valid += usize::from(old);
+        }
+        // Both answers occur often.
+        assert!(valid > 10_000 && valid < 190_000, "{valid}");
+        // Zero directions of either sign are not queries.
+        let zero = Ray {
+            o: Vec3::ZERO,
+            d: Vec3::new(-0.0, 0.0, -0.0),
+        };
+        assert!(!valid_query(&zero, 1.0));
     }
 
     #[test]

@@ -85,6 +85,9 @@ pub struct WideBvh {
     /// Original primitive index of each position.
     order: Vec<u32>,
     depth: usize,
+    /// The traversal stack never outgrows its inline entries ([`WideBvh::shallow`]), set
+    /// once the depth is known.
+    shallow: bool,
     /// The CPU runs AVX2 (detected when the hierarchy is built): the 8-wide node test.
     avx2: bool,
 }
@@ -116,8 +119,7 @@ impl SlabRay {
     #[inline]
     fn new(ray: &Ray) -> Self {
         let (inv, neg) = slab_constants(ray);
-        let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
-        let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
+        let p = OCTANT_PLANES[(neg & 7) as usize];
         SlabRay {
             o: [
                 Vec4::splat(ray.o.x),
@@ -125,8 +127,8 @@ impl SlabRay {
                 Vec4::splat(ray.o.z),
             ],
             inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
-            near: [near(0), near(1), near(2)],
-            far: [far(0), far(1), far(2)],
+            near: [p[0], p[1], p[2]],
+            far: [p[3], p[4], p[5]],
         }
     }
 
@@ -155,6 +157,29 @@ fn slab_constants(ray: &Ray) -> (Vec4, u32) {
     let cap = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::splat(-1e20), Vec4::splat(1e20));
     let inv = Vec4::select(small, cap, Vec4::ONE / d);
     (inv, inv.cmplt(Vec4::ZERO).bitmask())
+}
+
+/// Per octant of a ray's direction (bit `k` set when component `k` is negative, as
+/// [`slab_constants`] reports it): the indices in [`Node8::planes`] of the planes the ray
+/// enters each axis's slab by (first three: the minimum, or the maximum for a negative
+/// component) and leaves it by (last three). A table, so that the ray's set-up reads its six
+/// indices instead of computing each with a test of its sign bit.
+const OCTANT_PLANES: [[usize; 6]; 8] = octant_planes();
+
+const fn octant_planes() -> [[usize; 6]; 8] {
+    let mut table = [[0; 6]; 8];
+    let mut neg = 0;
+    while neg < 8 {
+        let mut k = 0;
+        while k < 3 {
+            let negative = (neg >> k) & 1 != 0;
+            table[neg][k] = if negative { k + 3 } else { k };
+            table[neg][k + 3] = if negative { k } else { k + 3 };
+            k += 1;
+        }
+        neg += 1;
+    }
+    table
 }
 
 /// 1 + 2γ₃: the relative rounding bound of a slab distance.
@@ -201,7 +226,7 @@ mod avx2 {
 
     #[cfg(test)]
     use super::SlabRay;
-    use super::{slab_constants, Node8, NodeTest, FAR_SCALE, WIDTH};
+    use super::{slab_constants, Node8, NodeTest, FAR_SCALE, OCTANT_PLANES, WIDTH};
     use crate::math::Ray;
 
     /// The ray of a [`SlabRay`] splatted to 8 lanes. Made only by [`AvxSlab::new`], which
@@ -244,8 +269,7 @@ mod avx2 {
         #[inline]
         pub(super) unsafe fn from_ray(ray: &Ray) -> Self {
             let (inv, neg) = slab_constants(ray);
-            let near = |k: usize| if neg & (1 << k) != 0 { k + 3 } else { k };
-            let far = |k: usize| if neg & (1 << k) != 0 { k } else { k + 3 };
+            let p = OCTANT_PLANES[(neg & 7) as usize];
             AvxSlab {
                 o: [
                     _mm256_set1_ps(ray.o.x),
@@ -257,8 +281,8 @@ mod avx2 {
                     _mm256_set1_ps(inv.y),
                     _mm256_set1_ps(inv.z),
                 ],
-                near: [near(0), near(1), near(2)],
-                far: [far(0), far(1), far(2)],
+                near: [p[0], p[1], p[2]],
+                far: [p[3], p[4], p[5]],
             }
         }
     }
@@ -429,9 +453,11 @@ impl WideBvh {
             node.count[0] = out.order.len() as u32 - first;
             out.nodes.push(node);
             out.depth = 1;
+            out.shallow = fits_inline_stack(out.depth);
             return (out, f32::NAN);
         }
         let cost = out.collapse(&bvh2, &counts, strategy);
+        out.shallow = fits_inline_stack(out.depth);
         (out, cost)
     }
 
@@ -515,12 +541,12 @@ impl WideBvh {
         }
     }
 
-    /// True when the traversal stack never holds more than its inline entries: a node pushes
-    /// at most `WIDTH − 1` children, and the entries on the stack come from the nodes on the
-    /// path to the current one, one node per level above it.
+    /// True when the traversal stack never holds more than its inline entries
+    /// ([`fits_inline_stack`] of the depth, computed when the hierarchy was built).
     #[inline(always)]
     fn shallow(&self) -> bool {
-        self.depth.saturating_sub(1) * (WIDTH - 1) <= STACK_INLINE
+        debug_assert_eq!(self.shallow, fits_inline_stack(self.depth));
+        self.shallow
     }
 
     /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
@@ -718,6 +744,13 @@ impl WideBvh {
             }
         }
     }
+}
+
+/// True when a hierarchy `depth` nodes deep never needs more than the stack's inline entries:
+/// a node pushes at most `WIDTH − 1` children, and the entries on the stack come from the
+/// nodes on the path to the current one, one node per level above it.
+fn fits_inline_stack(depth: usize) -> bool {
+    depth.saturating_sub(1) * (WIDTH - 1) <= STACK_INLINE
 }
 
 /// Whether the CPU runs the 8-wide node test: AVX2 ([`crate::math::avx2_enabled`], which
@@ -1234,6 +1267,32 @@ mod tests {
                     assert_eq!(fast, plain, "{n} boxes, ray {i}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_octant_table_gives_each_axis_its_entry_and_exit_planes() {
+        for neg in 0..8u32 {
+            let row = OCTANT_PLANES[neg as usize];
+            for k in 0..3 {
+                let negative = neg & (1 << k) != 0;
+                assert_eq!(row[k], if negative { k + 3 } else { k }, "{neg} {k}");
+                assert_eq!(row[k + 3], if negative { k } else { k + 3 }, "{neg} {k}");
+            }
+        }
+        // The slab ray of a direction in each octant reads its row.
+        for neg in 0..8u32 {
+            let s = |k: u32| if neg & (1 << k) != 0 { -1.0 } else { 1.0 };
+            let d = Vec3::new(s(0) * 0.3, s(1) * 0.5, s(2) * 0.7).normalize();
+            let slab = SlabRay::new(&Ray::new(Vec3::ZERO, d));
+            let row = OCTANT_PLANES[neg as usize];
+            assert_eq!(slab.near, [row[0], row[1], row[2]]);
+            assert_eq!(slab.far, [row[3], row[4], row[5]]);
+            assert!(slab
+                .near
+                .iter()
+                .zip(slab.far)
+                .all(|(n, f)| n % 3 == f % 3 && n != &f));
         }
     }
 
