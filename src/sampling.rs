@@ -269,10 +269,18 @@ mod tests {
             let pixel = PixelSeed::new(seed, px, py);
             // Sobol samples, the last ones, and hashed samples past 2^16.
             for s in (0..40).chain(SOBOL_SAMPLES - 3..SOBOL_SAMPLES + 3) {
-                let (mut a, mut b) = (
-                    PixelSampler::new(seed, px, py, s),
-                    PixelSampler::in_pixel(&pixel, s),
-                );
+                // The reference: the pixel's part computed per sample by the formulas written
+                // out (`PixelSampler::new` itself goes through `PixelSeed` now).
+                let pixel_seed = hash_words(&[seed, (u64::from(px) << 32) | u64::from(py)]);
+                let rev =
+                    owen_scramble_rev(s.reverse_bits(), hash(pixel_seed as u32 ^ 0x79c6_8e4a));
+                let mut a = PixelSampler {
+                    sobol_seed: pixel_seed as u32,
+                    hash_base: hash_words(&[pixel_seed, u64::from(s)]),
+                    nibbles: [28, 24, 20, 16].map(|shift| ((rev >> shift) & 15) as u8),
+                    ..PixelSampler::new(seed, px, py, s)
+                };
+                let mut b = PixelSampler::in_pixel(&pixel, s);
                 let (mut x, mut y) = (Vec::new(), Vec::new());
                 for v in 0..4 {
                     for _ in 0..10 {
