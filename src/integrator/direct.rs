@@ -48,6 +48,8 @@ pub(super) fn shadow_transmittance(
     // that start inside an object, whose first surface is usually where they leave it.
     let mut clear_beyond = false;
     for _ in 0..4 * MAX_NESTING + 8 {
+        let mut scratch = None;
+        let medium = current_medium(scene, &stack, &mut scratch);
         let hit = if clear_beyond {
             None
         } else {
@@ -58,14 +60,17 @@ pub(super) fn shadow_transmittance(
                 // plain search stops sooner.
                 scene.geometry.intersect(&ray, remaining)
             } else {
-                let (hit, clear) = scene.geometry.intersect_and_beyond(&ray, remaining);
+                // Inside a thin shell the boundary is searched near the origin first.
+                let guess = medium.and_then(|(m, _)| m.exit_guess());
+                let (hit, clear) = scene
+                    .geometry
+                    .intersect_and_beyond_near_first(&ray, remaining, guess);
                 clear_beyond = clear;
                 hit
             }
         };
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
-        let mut scratch = None;
-        if let Some((m, _)) = current_medium(scene, &stack, &mut scratch) {
+        if let Some((m, _)) = medium {
             tr *= m.transmittance_in_cone(
                 &Ray::new(origin, dir),
                 seg,

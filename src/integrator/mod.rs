@@ -375,7 +375,9 @@ impl<'s> PathState<'s> {
                 Some(t) if t <= limit => t,
                 Some(_) => f32::INFINITY,
                 None => {
-                    hit = scene.geometry.intersect(&ray, limit);
+                    hit = scene
+                        .geometry
+                        .intersect_near_first(&ray, limit, medium.exit_guess());
                     hit.as_ref().map_or(f32::INFINITY, |h| h.t)
                 }
             },
@@ -661,7 +663,7 @@ impl<'s> PathState<'s> {
             |limit| {
                 scene
                     .geometry
-                    .intersect(&ray, limit)
+                    .intersect_near_first(&ray, limit, medium.exit_guess())
                     .map_or(f32::INFINITY, |h| h.t)
             },
         );
