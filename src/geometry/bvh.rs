@@ -54,9 +54,6 @@ pub struct SceneGeometry {
     /// without the query (the escape ray after a path leaves the box), the others by the slab
     /// test alone, without the loop over shapes.
     sole_box: Option<(Vec3, Vec3, u32)>,
-    /// Whether any shape is a level set (whose search depends on the ray's `t_max`, so that
-    /// [`SceneGeometry::intersect_near_first`] searches once).
-    has_level_sets: bool,
 }
 
 /// An analytic shape and the index of the shape it is.
@@ -235,12 +232,8 @@ impl SceneGeometry {
             [Analytic::Box { min, max, shape }] if ordered.is_empty() => Some((*min, *max, *shape)),
             _ => None,
         };
-        let has_level_sets = analytic
-            .iter()
-            .any(|a| matches!(a, Analytic::LevelSet { .. }));
         Ok(SceneGeometry {
             sole_box,
-            has_level_sets,
             bvh,
             prims: ordered,
             tris,
@@ -311,45 +304,6 @@ impl SceneGeometry {
             });
         }
         best.map(|b| self.make_hit(ray, b))
-    }
-
-    /// [`Self::intersect`] for a ray that probably meets a surface within `guess` (a ray
-    /// starting inside a thin shell): searched first over `(0, guess)`, which prunes the
-    /// hierarchy sooner and skips the spheres' hit records beyond `guess`, and over
-    /// `(0, t_max)` only where nothing lies below `guess`. The same hit bit for bit: every
-    /// shape accepts a hit by `t < t_max` with `t` computed independently of `t_max`, so a
-    /// hit below `guess` is the nearest overall, and the shorter search visits a
-    /// subsequence of the longer one's nodes in the same order (children entered by entry
-    /// distance, ties by slot), so among equally near hits it keeps the same first one.
-    /// Scenes with level sets (whose search depends on `t_max`) and a `guess` not below
-    /// `t_max` (`None`, NaN) search once.
-    #[must_use]
-    pub fn intersect_near_first(&self, ray: &Ray, t_max: f32, guess: Option<f32>) -> Option<Hit> {
-        if let Some(g) = guess {
-            if g < t_max && !self.has_level_sets {
-                if let Some(h) = self.intersect(ray, g) {
-                    return Some(h);
-                }
-            }
-        }
-        self.intersect(ray, t_max)
-    }
-
-    /// [`Self::intersect_and_beyond`], or where that can prove nothing beyond the first hit
-    /// (scenes with analytic shapes or level sets) [`Self::intersect_near_first`] with
-    /// `false`.
-    #[must_use]
-    pub fn intersect_and_beyond_near_first(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        guess: Option<f32>,
-    ) -> (Option<Hit>, bool) {
-        if self.analytic.is_empty() {
-            self.intersect_and_beyond(ray, t_max)
-        } else {
-            (self.intersect_near_first(ray, t_max, guess), false)
-        }
     }
 
     /// True when anything is hit with `0 < t < t_max` (shadow rays; stops at the first hit).

@@ -48,8 +48,6 @@ pub(super) fn shadow_transmittance(
     // that start inside an object, whose first surface is usually where they leave it.
     let mut clear_beyond = false;
     for _ in 0..4 * MAX_NESTING + 8 {
-        let mut scratch = None;
-        let medium = current_medium(scene, &stack, &mut scratch);
         let hit = if clear_beyond {
             None
         } else {
@@ -60,17 +58,14 @@ pub(super) fn shadow_transmittance(
                 // plain search stops sooner.
                 scene.geometry.intersect(&ray, remaining)
             } else {
-                // Inside a thin shell the boundary is searched near the origin first.
-                let guess = medium.and_then(|(m, _)| m.exit_guess());
-                let (hit, clear) = scene
-                    .geometry
-                    .intersect_and_beyond_near_first(&ray, remaining, guess);
+                let (hit, clear) = scene.geometry.intersect_and_beyond(&ray, remaining);
                 clear_beyond = clear;
                 hit
             }
         };
         let seg = hit.as_ref().map_or(remaining, |h| h.t);
-        if let Some((m, _)) = medium {
+        let mut scratch = None;
+        if let Some((m, _)) = current_medium(scene, &stack, &mut scratch) {
             tr *= m.transmittance_in_cone(
                 &Ray::new(origin, dir),
                 seg,

@@ -375,9 +375,7 @@ impl<'s> PathState<'s> {
                 Some(t) if t <= limit => t,
                 Some(_) => f32::INFINITY,
                 None => {
-                    hit = scene
-                        .geometry
-                        .intersect_near_first(&ray, limit, medium.exit_guess());
+                    hit = scene.geometry.intersect(&ray, limit);
                     hit.as_ref().map_or(f32::INFINITY, |h| h.t)
                 }
             },
@@ -663,7 +661,7 @@ impl<'s> PathState<'s> {
             |limit| {
                 scene
                     .geometry
-                    .intersect_near_first(&ray, limit, medium.exit_guess())
+                    .intersect(&ray, limit)
                     .map_or(f32::INFINITY, |h| h.t)
             },
         );

@@ -136,24 +136,7 @@ impl RayFootprint {
     }
 }
 
-/// How many shell thicknesses a ray starting inside a fabric shell searches first for the
-/// shell's boundary ([`HeterogeneousMedium::exit_guess`]): a ray leaves a slab of thickness
-/// `h` within `4h` unless its direction is within 14.5° of the slab's plane (three in four
-/// uniformly drawn directions do).
-pub const SHELL_EXIT_GUESS_THICKNESSES: f32 = 4.0;
-
 impl HeterogeneousMedium {
-    /// A distance within which a ray starting inside the medium's object probably reaches
-    /// its boundary: [`SHELL_EXIT_GUESS_THICKNESSES`] shell thicknesses for a fabric shell,
-    /// `None` for other fields (their interiors are not thin).
-    #[must_use]
-    pub fn exit_guess(&self) -> Option<f32> {
-        match &self.field {
-            DensityField::Shell(shell) => Some(SHELL_EXIT_GUESS_THICKNESSES * shell.thickness()),
-            _ => None,
-        }
-    }
-
     /// The medium of the mip level `ray`, whose cone is `cone` at its origin, is tracked in:
     /// `self` unless the interior chooses its level per ray ([`MipChain::level_for_ray`]).
     #[inline]

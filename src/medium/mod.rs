@@ -154,20 +154,6 @@ impl Medium {
         }
     }
 
-    /// A distance within which a ray starting inside this medium's object probably leaves
-    /// it ([`HeterogeneousMedium::exit_guess`]: fabric shells), for
-    /// [`crate::geometry::SceneGeometry::intersect_near_first`]; `None` where no such
-    /// distance is known (the boundary is then searched over the whole ray).
-    #[must_use]
-    pub fn exit_guess(&self) -> Option<f32> {
-        match self {
-            Medium::Heterogeneous(h) => h.exit_guess(),
-            Medium::Scaled(f) => f.medium.exit_guess(),
-            Medium::Dyed(f) => f.medium.exit_guess(),
-            _ => None,
-        }
-    }
-
     /// True when the medium can scatter light.
     #[must_use]
     pub fn scatters(&self) -> bool {
