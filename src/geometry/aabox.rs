@@ -137,7 +137,11 @@ pub fn intersect_box_lanes(ray: &Ray, min: Vec3A, max: Vec3A, t_max: f32) -> Opt
     let sooner = |t: f32, e: f32| if e < t { e } else { t };
     let t_near = later(later(later(f32::NEG_INFINITY, enter.x), enter.y), enter.z);
     let t_far = sooner(sooner(sooner(f32::INFINITY, leave.x), leave.y), leave.z);
-    if !(t_near <= t_far) {
+    // `!(t_near <= t_far)`: empty, or unordered.
+    if !matches!(
+        t_near.partial_cmp(&t_far),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    ) {
         return None;
     }
     let (t, lanes, entering) = if t_near > 0.0 && t_near < t_max {
