@@ -1,9 +1,9 @@
 //! One 4-dimensional Sobol set with SSE4.1 (`pmulld`) and SSSE3 (`pshufb`): the same integer
 //! operations as the baseline path (`sobol_burley`'s `Int4`, which on baseline x86-64 emulates
-//! each 32-bit lane multiply with two `pmuludq` and four shuffles and masks, and reverses bits
-//! with three mask-and-shift rounds), in fewer instructions: one `pmulld` per multiply and a
-//! byte shuffle with a nibble table for the bit reversal. Every lane gets the same `u32`, so
-//! the numbers are the same bit for bit.
+//! each 32-bit lane multiply with two `pmuludq` and several shuffles and masks, and reverses
+//! bits in mask-and-shift rounds), in fewer instructions: one `pmulld` per multiply and a byte
+//! shuffle with nibble tables for the bit reversal. Every lane ends with the same `u32` as the
+//! baseline's, so the numbers are the same bit for bit.
 //!
 //! The set is Burley (2020), "Practical Hash-based Owen Scrambling" (JCGT 9(4)): the XOR of the
 //! direction vectors selected by the (already shuffled) sample index, Owen-scrambled in
