@@ -27,7 +27,26 @@ impl Fixed192 {
     /// `v · 2^frac_bits`, rounded to the nearest integer (ties away from zero). `v` must be
     /// finite with `|v| · 2^frac_bits < 2^190`; larger values saturate to that bound.
     #[must_use]
+    #[inline]
     pub fn from_f64(v: f64, frac_bits: u32) -> Fixed192 {
+        let bits = v.abs().to_bits();
+        let exp = (bits >> 52) as i64;
+        // The film's usual case: a normal number (not zero, subnormal, infinite or NaN: those
+        // have exponent field 0, or 0x7ff and a shift of at least 972) whose value in units,
+        // mantissa · 2^shift with 0 ≤ shift ≤ 75, is below 2^128: one `u128` shift, the limbs
+        // `shl` gives for it.
+        let shift = exp - 1075 + i64::from(frac_bits);
+        if exp != 0 && (shift as u64) <= 75 {
+            let m = (bits & ((1u64 << 52) - 1)) | (1u64 << 52);
+            let w = u128::from(m) << shift;
+            let out = Fixed192([w as u64, (w >> 64) as u64, 0]);
+            return if v < 0.0 { out.neg() } else { out };
+        }
+        Fixed192::from_f64_general(v, frac_bits)
+    }
+
+    /// [`Fixed192::from_f64`] for every value (the fast path's cases included).
+    fn from_f64_general(v: f64, frac_bits: u32) -> Fixed192 {
         let bits = v.abs().to_bits();
         let exp = (bits >> 52) as i64;
         if exp == 0x7ff || v == 0.0 {
@@ -229,6 +248,50 @@ mod tests {
             1.0 + 2f64.powi(-52),
             "just above the tie rounds up"
         );
+    }
+
+    #[test]
+    fn the_two_limb_case_matches_the_general_conversion_bit_for_bit() {
+        let mut rng = crate::sampling::Rng::new(5, 2);
+        let mut fast = 0usize;
+        let mut check = |v: f64, bits: u32| {
+            assert_eq!(
+                Fixed192::from_f64(v, bits),
+                Fixed192::from_f64_general(v, bits),
+                "{v:e} at {bits} bits"
+            );
+            let e = ((v.abs().to_bits() >> 52) as i64) - 1075 + i64::from(bits);
+            fast += usize::from(v != 0.0 && (0..=75).contains(&e) && v.is_normal());
+        };
+        for bits in [0, 28, 48, 80, 96, 120] {
+            // Every exponent around the fast path's bounds, both signs, edge mantissas.
+            for e in -1100..1030 {
+                for m in [1.0, 1.5, 2.0 - f64::EPSILON] {
+                    let v = m * 2f64.powi(e);
+                    check(v, bits);
+                    check(-v, bits);
+                }
+            }
+            for _ in 0..100_000 {
+                let x = f64::from(rng.next_f32()) * 2f64.powi((rng.next_u32() % 160) as i32 - 100);
+                check(x, bits);
+                check(-x * x, bits);
+                check(f64::from(x as f32), bits);
+            }
+            for v in [
+                0.0,
+                -0.0,
+                f64::MIN_POSITIVE,
+                5e-324,
+                f64::INFINITY,
+                f64::NAN,
+                f64::MAX,
+            ] {
+                check(v, bits);
+                check(-v, bits);
+            }
+        }
+        assert!(fast > 500_000, "{fast} values on the fast path");
     }
 
     #[test]

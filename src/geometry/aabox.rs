@@ -2,6 +2,8 @@
 //! boxes that bound a volume (the `bounds` shape): one test instead of twelve triangles through
 //! the BVH. The hit point lies exactly on the face plane; the normal is the face's outward axis.
 
+use glam::Vec3A;
+
 use crate::math::{Ray, Vec2, Vec3};
 
 /// A hit on an axis-aligned box.
@@ -111,6 +113,73 @@ pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxH
     })
 }
 
+/// [`intersect_box`] for a ray with a finite origin and direction, in 4-wide lanes: the six
+/// slab distances by two vector divisions, the entry and exit distances by the same chain of
+/// strict comparisons as the written-out slabs, and the face's axis as the first lane that holds
+/// the distance chosen. Every lane performs the operations of the scalar form in the same
+/// order, and SSE's `min`/`max` pick the same operand as glam's scalar ones (the second unless
+/// the first is strictly smaller/larger), so the hit is the same bit for bit
+/// (`tests::lanes_match_the_written_out_slabs_bit_for_bit`). `min`, `max`: the box's corners.
+#[must_use]
+#[inline(always)]
+pub fn intersect_box_lanes(ray: &Ray, min: Vec3A, max: Vec3A, t_max: f32) -> Option<BoxHit> {
+    let (o, d) = (Vec3A::from(ray.o), Vec3A::from(ray.d));
+    // A ray parallel to a slab misses unless it runs inside it; such a slab constrains nothing.
+    let parallel = d.cmpeq(Vec3A::ZERO);
+    if (parallel & (o.cmplt(min) | o.cmpgt(max))).any() {
+        return None;
+    }
+    let (a, b) = ((min - o) / d, (max - o) / d);
+    let ordered = a.cmple(b);
+    let enter = Vec3A::select(parallel, Vec3A::NEG_INFINITY, Vec3A::select(ordered, a, b));
+    let leave = Vec3A::select(parallel, Vec3A::INFINITY, Vec3A::select(ordered, b, a));
+    let later = |t: f32, e: f32| if e > t { e } else { t };
+    let sooner = |t: f32, e: f32| if e < t { e } else { t };
+    let t_near = later(later(later(f32::NEG_INFINITY, enter.x), enter.y), enter.z);
+    let t_far = sooner(sooner(sooner(f32::INFINITY, leave.x), leave.y), leave.z);
+    // `!(t_near <= t_far)`: empty, or unordered.
+    if !matches!(
+        t_near.partial_cmp(&t_far),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    ) {
+        return None;
+    }
+    let (t, lanes, entering) = if t_near > 0.0 && t_near < t_max {
+        (t_near, enter, true)
+    } else if t_far > 0.0 && t_far < t_max {
+        (t_far, leave, false)
+    } else {
+        return None;
+    };
+    // The written-out slabs keep the first axis that reached the final distance (a later
+    // equal one does not replace it); `t` is finite and positive, so only slabs that are not
+    // parallel can hold it.
+    let (axis, d_axis) = match lanes.cmpeq(Vec3A::splat(t)).bitmask().trailing_zeros() {
+        0 => (0, d.x),
+        1 => (1, d.y),
+        _ => (2, d.z),
+    };
+    // Entering through the face the ray moves towards, leaving through the opposite one.
+    let at_max = (d_axis > 0.0) != entering;
+    let face = if at_max { max } else { min };
+    let on_axis = glam::BVec3A::new(axis == 0, axis == 1, axis == 2);
+    let p = Vec3A::select(on_axis, face, o + d * t).clamp(min, max);
+    let sign = if at_max { 1.0 } else { -1.0 };
+    let n = Vec3A::select(on_axis, Vec3A::splat(sign), Vec3A::ZERO);
+    let rel = (p - min) / (max - min).max(Vec3A::splat(f32::MIN_POSITIVE));
+    let (u, v) = match axis {
+        0 => (rel.y, rel.z),
+        1 => (rel.x, rel.z),
+        _ => (rel.x, rel.y),
+    };
+    Some(BoxHit {
+        t,
+        p: p.into(),
+        n: n.into(),
+        uv: Vec2::new(u, v),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -176,6 +245,82 @@ mod tests {
             ]
             .map(f32::to_bits)
         })
+    }
+
+    #[test]
+    fn lanes_match_the_written_out_slabs_bit_for_bit() {
+        let mut rng = Rng::new(23, 8);
+        // A box with zero coordinates (signed zeros in the clamp), a thin one, a large one.
+        let boxes = [
+            (Vec3::new(-0.5, -0.25, -1.0), Vec3::new(0.5, 0.75, 0.3)),
+            (Vec3::new(0.0, -1.0, 0.0), Vec3::new(1.0, 0.0, 2.0)),
+            (Vec3::new(-1.0, 0.2, -1.0), Vec3::new(1.0, 0.2 + 1e-6, 1.0)),
+            (Vec3::splat(-3.0e4), Vec3::new(2.0e4, 1.0e5, 3.0e4)),
+        ];
+        let (mut hits, mut ties) = ([0usize; 2], 0usize);
+        for n in 0..400_000 {
+            let (min, max) = boxes[n % boxes.len()];
+            let size = max - min;
+            let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let mut o = min - size + u * size * 3.0;
+            let mut d = crate::sampling::sample_uniform_sphere(rng.next_2d());
+            let k = (n / 8) % 3;
+            // Axis-parallel and diagonal rays, rays from the faces, edges and corners, and
+            // origins at zero.
+            match (n / 4) % 10 {
+                0 => d[k] = 0.0,
+                1 => d[k] = -0.0,
+                2 => o[k] = if n % 2 == 0 { min[k] } else { max[k] },
+                3 => o = if n % 2 == 0 { min } else { max },
+                4 => {
+                    o[k] = min[k];
+                    o[(k + 1) % 3] = max[(k + 1) % 3];
+                }
+                5 => o[k] = 0.0,
+                6 => {
+                    // Diagonals through a corner: equal slab distances on several axes.
+                    let c = if n % 2 == 0 { min } else { max };
+                    d = Vec3::new(
+                        if rng.next_f32() < 0.5 { 1.0 } else { -1.0 },
+                        if rng.next_f32() < 0.5 { 1.0 } else { -1.0 },
+                        if rng.next_f32() < 0.5 { 1.0 } else { -1.0 },
+                    );
+                    o = c - d * (1.0 + rng.next_f32());
+                }
+                7 => d = Vec3::ZERO.with_x(if n % 2 == 0 { 1.0 } else { -1.0 }),
+                _ => {}
+            }
+            let d = if d == Vec3::ZERO { Vec3::Y } else { d };
+            let ray = Ray { o, d };
+            let t_max = match n % 5 {
+                0 => f32::INFINITY,
+                1 => size.length() * rng.next_f32(),
+                2 => f32::MIN_POSITIVE,
+                _ => 10.0 * size.max_element(),
+            };
+            let want = intersect_box(&ray, min, max, t_max);
+            assert_eq!(
+                bits(intersect_box_lanes(&ray, min.into(), max.into(), t_max)),
+                bits(want),
+                "ray {n}: {ray:?}, box {min} {max}, t_max {t_max}"
+            );
+            if let Some(h) = want {
+                hits[usize::from(h.n.dot(d) > 0.0)] += 1;
+                let t = |m: Vec3, k: usize| (m[k] - o[k]) / d[k];
+                let slabs = [0, 1, 2].map(|k| [t(min, k), t(max, k)]);
+                ties += usize::from(
+                    slabs
+                        .iter()
+                        .flatten()
+                        .filter(|&&v| v.to_bits() == h.t.to_bits())
+                        .count()
+                        > 1,
+                );
+            }
+        }
+        assert!(hits[0] > 10_000 && hits[1] > 10_000, "{hits:?}");
+        // Hits at equal distances on two slabs, where the first axis must win.
+        assert!(ties > 500, "{ties} ties");
     }
 
     #[test]
