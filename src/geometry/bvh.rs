@@ -10,8 +10,8 @@ use super::aabox::{intersect_box, BoxHit};
 use super::empty_cells::EmptyCells;
 use super::levelset::LevelSetHit;
 use super::sphere::{intersect_sphere, SphereHit};
-use super::triangle::{ShearedRay, TriangleBlock, TriangleHit, TriangleSoa};
-use super::wide_bvh::{WideBvh, LEAF_BLOCK, MAX_PRIMITIVES};
+use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
+use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
 
 mod beyond;
@@ -42,10 +42,6 @@ pub struct SceneGeometry {
     /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
     /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB.
     verts: Vec<Vec4>,
-    /// Each leaf's triangles in blocks of four, transposed for the four-lane test, numbered
-    /// by `Leaf::block` (144 bytes a block; the traversal reads these, `tris` and `verts`
-    /// serve the hit record and the exact path of edge functions that are exactly zero).
-    blocks: Vec<TriangleBlock>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
     /// Analytic shapes, tested directly.
@@ -190,7 +186,7 @@ impl SceneGeometry {
                 Shape::LevelSet(_) => analytic.push(Analytic::LevelSet { shape: si as u32 }),
             }
         }
-        if prims.len() > MAX_PRIMITIVES as usize {
+        if prims.len() > (u32::MAX / 2) as usize {
             return Err(GeometryError::InvalidShape {
                 shape: 0,
                 message: "too many primitives".to_string(),
@@ -232,18 +228,6 @@ impl SceneGeometry {
                 })
             })
             .collect();
-        let mut blocks = Vec::new();
-        for leaf in bvh.leaves() {
-            debug_assert_eq!(leaf.block as usize, blocks.len());
-            let order = &bvh.order()[leaf.first as usize..(leaf.first + leaf.count) as usize];
-            for chunk in order.chunks(LEAF_BLOCK as usize) {
-                let tris: Vec<[Vec3; 3]> = chunk
-                    .iter()
-                    .map(|&i| corners[i as usize].map(|v| positions[v as usize]))
-                    .collect();
-                blocks.push(TriangleBlock::new(&tris));
-            }
-        }
         let sole_box = match analytic.as_slice() {
             [Analytic::Box { min, max, shape }] if ordered.is_empty() => Some((*min, *max, *shape)),
             _ => None,
@@ -254,7 +238,6 @@ impl SceneGeometry {
             prims: ordered,
             tris,
             verts,
-            blocks,
             empty,
             analytic,
             shapes,
@@ -310,38 +293,15 @@ impl SceneGeometry {
         }
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
-            self.bvh.traverse_leaves(
-                ray,
-                closest,
-                #[inline(always)]
-                |leaf, mut t_max| {
-                    let mut block = leaf.block;
-                    let mut first = leaf.first;
-                    let end = leaf.first + leaf.count;
-                    while first < end {
-                        let n = (end - first).min(LEAF_BLOCK);
-                        let h = sr.intersect4(self.block(block), (1 << n) - 1, t_max);
-                        if h.unsure != 0 {
-                            // An edge function exactly zero: the block one triangle at a
-                            // time, with the exact path.
-                            for slot in first..first + n {
-                                if let Some(h) = sr.intersect(&self.triangle(slot as usize), t_max)
-                                {
-                                    best = Some(Best::Tri(slot as usize, h));
-                                    t_max = h.t;
-                                }
-                            }
-                        } else if h.hit != 0 {
-                            let (lane, h) = h.nearest();
-                            best = Some(Best::Tri(first as usize + lane, h));
-                            t_max = h.t;
-                        }
-                        block += 1;
-                        first += n;
+            self.bvh.traverse(ray, closest, |slot, t_max| {
+                match sr.intersect(&self.triangle(slot as usize), t_max) {
+                    Some(h) => {
+                        best = Some(Best::Tri(slot as usize, h));
+                        h.t
                     }
-                    t_max
-                },
-            );
+                    None => t_max,
+                }
+            });
         }
         best.map(|b| self.make_hit(ray, b))
     }
@@ -367,42 +327,16 @@ impl SceneGeometry {
         let mut found = false;
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
             let sr = ShearedRay::new(ray);
-            self.bvh.traverse_leaves(
-                ray,
-                t_max,
-                #[inline(always)]
-                |leaf, t| {
-                    let mut block = leaf.block;
-                    let mut first = leaf.first;
-                    let end = leaf.first + leaf.count;
-                    while first < end {
-                        let n = (end - first).min(LEAF_BLOCK);
-                        let h = sr.intersect4(self.block(block), (1 << n) - 1, t);
-                        found = h.hit != 0
-                            || (h.unsure != 0
-                                && (first..first + n).any(|slot| {
-                                    sr.intersect(&self.triangle(slot as usize), t).is_some()
-                                }));
-                        if found {
-                            return 0.0;
-                        }
-                        block += 1;
-                        first += n;
-                    }
+            self.bvh.traverse(ray, t_max, |slot, t| {
+                if sr.intersect(&self.triangle(slot as usize), t).is_some() {
+                    found = true;
+                    0.0
+                } else {
                     t
-                },
-            );
+                }
+            });
         }
         found
-    }
-
-    /// Block `index` of the leaves' triangles (`Leaf::block`).
-    #[inline(always)]
-    fn block(&self, index: u32) -> &TriangleBlock {
-        debug_assert!((index as usize) < self.blocks.len());
-        // SAFETY: the traversal reports leaves of `bvh`, whose blocks `build` stored, all
-        // below `blocks.len()`.
-        unsafe { self.blocks.get_unchecked(index as usize) }
     }
 
     /// The triangle at BVH position `slot`, transposed for the triangle test.
