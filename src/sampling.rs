@@ -14,9 +14,6 @@
 
 use std::sync::OnceLock;
 
-#[cfg(target_arch = "x86_64")]
-mod sse41;
-
 use sobol_burley::parts::{hash, hash_int4, owen_scramble_int4_rev, owen_scramble_rev, Int4};
 
 use crate::math::{Vec2, Vec3, INV_PI, PI};
@@ -143,32 +140,12 @@ fn sobol_4d(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f
     for k in 1..4 {
         sobol ^= t[k][usize::from(nibbles[k] & 15)].into();
     }
-    let scramble: Int4 = scramble_words(set, seed).into();
+    let seed: Int4 = [seed.wrapping_mul(0x9c8f_2d3b); 4].into();
+    let ds: Int4 = [set; 4].into();
+    let scramble = seed ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into();
     owen_scramble_int4_rev(sobol, hash_int4(scramble))
         .reverse_bits()
         .to_f32_norm()
-}
-
-/// The words whose hashes scramble the four dimensions of Sobol set `set` for the pixel's
-/// Sobol seed `seed` (`sobol_burley::sample_4d`'s).
-#[inline]
-fn scramble_words(set: u32, seed: u32) -> [u32; 4] {
-    let s = seed.wrapping_mul(0x9c8f_2d3b) ^ set;
-    [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].map(|c| s ^ c)
-}
-
-/// [`sobol_4d`], by the SSE4.1 form ([`sse41::sobol_4d`]) on a CPU that runs it (the
-/// dispatch of [`PixelSampler::next_sobol`], for one set).
-#[cfg(test)]
-fn sobol_set(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f32; 4] {
-    #[cfg(target_arch = "x86_64")]
-    if sse41::available() {
-        // SAFETY: the CPU runs SSE4.1.
-        return unsafe {
-            sse41::sobol_4d(&tables[set as usize], nibbles, scramble_words(set, seed))
-        };
-    }
-    sobol_4d(tables, nibbles, set, seed)
 }
 
 /// Deterministic per-pixel sample stream, grouped by path vertex (see the module docs).
@@ -251,49 +228,14 @@ impl PixelSampler {
         bits_to_unit_f32((bits >> 32) as u32)
     }
 
-    /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets: by
-    /// [`PixelSampler::next_sobol_sse41`] on a CPU with SSE4.1, else by
-    /// [`PixelSampler::next_sobol_baseline`] (the same numbers). The test is a load and a bit
-    /// test of `std`'s cached CPUID answer, inline at each draw; each form is one call.
-    #[inline(always)]
-    fn next_sobol(&mut self, j: u32) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        if sse41::available() {
-            // SAFETY: the CPU runs SSE4.1.
-            return unsafe { self.next_sobol_sse41(j) };
-        }
-        self.next_sobol_baseline(j)
-    }
-
-    /// [`PixelSampler::next_sobol`] with `sobol_burley`'s baseline x86-64 lanes.
+    /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets.
     #[inline(never)]
-    fn next_sobol_baseline(&mut self, j: u32) -> f32 {
+    fn next_sobol(&mut self, j: u32) -> f32 {
         self.used = j + 1;
-        if j.is_multiple_of(4) {
+        if j % 4 == 0 {
             let set = self.first_set + j / 4;
             self.sobol = sobol_4d(nibble_tables(), self.nibbles, set, self.sobol_seed)
                 .map(|v| v.min(ONE_MINUS_EPSILON));
-        }
-        self.sobol[(j % 4) as usize]
-    }
-
-    /// [`PixelSampler::next_sobol`] with the set made by [`sse41::sobol_4d`].
-    ///
-    /// # Safety
-    /// The CPU must support SSE4.1.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(never)]
-    #[target_feature(enable = "sse4.1")]
-    unsafe fn next_sobol_sse41(&mut self, j: u32) -> f32 {
-        self.used = j + 1;
-        if j.is_multiple_of(4) {
-            let set = self.first_set + j / 4;
-            let table = &nibble_tables()[set as usize];
-            // SAFETY: the caller's guarantee.
-            let sobol = unsafe {
-                sse41::sobol_4d(table, self.nibbles, scramble_words(set, self.sobol_seed))
-            };
-            self.sobol = sobol.map(|v| v.min(ONE_MINUS_EPSILON));
         }
         self.sobol[(j % 4) as usize]
     }
@@ -314,40 +256,6 @@ impl PixelSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn the_sse41_sets_match_the_baseline_bit_for_bit() {
-        if !sse41::available() {
-            eprintln!("skipped: the CPU has no SSE4.1");
-            return;
-        }
-        let tables = nibble_tables();
-        let mut rng = Rng::new(31, 6);
-        for n in 0..200_000u32 {
-            let set = n % tables.len() as u32;
-            let seed = match n % 4 {
-                0 => 0,
-                1 => u32::MAX,
-                _ => rng.next_u32(),
-            };
-            let r = rng.next_u32();
-            let nibbles = [0, 8, 16, 24].map(|s| ((r >> s) & 15) as u8);
-            // SAFETY: checked above.
-            let fast = unsafe {
-                sse41::sobol_4d(&tables[set as usize], nibbles, scramble_words(set, seed))
-            };
-            assert_eq!(
-                fast.map(f32::to_bits),
-                sobol_4d(tables, nibbles, set, seed).map(f32::to_bits),
-                "set {set}, seed {seed}, nibbles {nibbles:?}"
-            );
-            assert_eq!(
-                sobol_set(tables, nibbles, set, seed).map(f32::to_bits),
-                fast.map(f32::to_bits)
-            );
-        }
-    }
 
     #[test]
     fn a_pixel_seed_reused_over_samples_gives_each_sample_its_numbers() {
