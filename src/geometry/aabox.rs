@@ -99,17 +99,11 @@ pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxH
     };
     let p = p.clamp(min, max);
     let extent = (max - min).max(Vec3::splat(f32::MIN_POSITIVE));
-    let rel = (p - min) / extent;
-    let (u, v) = match axis {
-        0 => (rel.y, rel.z),
-        1 => (rel.x, rel.z),
-        _ => (rel.x, rel.y),
-    };
     Some(BoxHit {
         t,
         p,
         n,
-        uv: Vec2::new(u, v),
+        uv: face_uv((p - min) / extent, axis),
     })
 }
 
@@ -167,17 +161,23 @@ pub fn intersect_box_lanes(ray: &Ray, min: Vec3A, max: Vec3A, t_max: f32) -> Opt
     let sign = if at_max { 1.0 } else { -1.0 };
     let n = Vec3A::select(on_axis, Vec3A::splat(sign), Vec3A::ZERO);
     let rel = (p - min) / (max - min).max(Vec3A::splat(f32::MIN_POSITIVE));
-    let (u, v) = match axis {
-        0 => (rel.y, rel.z),
-        1 => (rel.x, rel.z),
-        _ => (rel.x, rel.y),
-    };
     Some(BoxHit {
         t,
         p: p.into(),
         n: n.into(),
-        uv: Vec2::new(u, v),
+        uv: face_uv(rel.into(), axis),
     })
+}
+
+/// The texture coordinates on the face across `axis` of the point at `rel` (its position in
+/// the box, 0 to 1 per axis): the two other axes in order.
+#[inline(always)]
+fn face_uv(rel: Vec3, axis: usize) -> Vec2 {
+    match axis {
+        0 => Vec2::new(rel.y, rel.z),
+        1 => Vec2::new(rel.x, rel.z),
+        _ => Vec2::new(rel.x, rel.y),
+    }
 }
 
 #[cfg(test)]

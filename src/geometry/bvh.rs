@@ -257,16 +257,7 @@ impl SceneGeometry {
             if moves_away_from_box(ray, min, max) || !valid_query(ray, t_max) {
                 return None;
             }
-            return intersect_box_lanes(ray, min, max, t_max).map(|h| Hit {
-                t: h.t,
-                p: h.p,
-                ng: h.n,
-                ns: h.n,
-                uv: h.uv,
-                shape,
-                prim: 0,
-                p_error: box_hit_error(ray, h.t, h.p.into()),
-            });
+            return intersect_box_lanes(ray, min, max, t_max).map(|h| box_record(ray, shape, h));
         }
         if !valid_query(ray, t_max) {
             return None;
@@ -404,19 +395,7 @@ impl SceneGeometry {
                     p_error,
                 }
             }
-            Best::Box(shape, h) => {
-                let p_error = box_hit_error(ray, h.t, h.p.into());
-                Hit {
-                    t: h.t,
-                    p: h.p,
-                    ng: h.n,
-                    ns: h.n,
-                    uv: h.uv,
-                    shape,
-                    prim: 0,
-                    p_error,
-                }
-            }
+            Best::Box(shape, h) => box_record(ray, shape, h),
             Best::LevelSet(shape, h) => Hit {
                 t: h.t,
                 p: h.p,
@@ -566,14 +545,24 @@ fn moves_away_from_box(ray: &Ray, min: Vec3A, max: Vec3A) -> bool {
     (beyond_max | beyond_min).any()
 }
 
-/// The rounding bound of a box hit's point `p` at distance `t` along `ray`: `p = o + t d` on
-/// the face's two other axes (the face's own coordinate is exact), so
+/// The hit record of box hit `h` on shape `shape` along `ray`. Its error bound: the point
+/// `p = o + t d` on the face's two other axes (the face's own coordinate is exact), so
 /// γ₇ · max(|o| + |t d|, |p|) over the axes. In lanes: `max_element` of non-negative values
 /// (no NaN for a finite ray and `t`) is the same whatever the order of its comparisons.
 #[inline(always)]
-fn box_hit_error(ray: &Ray, t: f32, p: Vec3A) -> f32 {
-    let (o, d) = (Vec3A::from(ray.o), Vec3A::from(ray.d));
-    crate::math::gamma(7) * (o.abs() + (d * t).abs()).max(p.abs()).max_element()
+fn box_record(ray: &Ray, shape: u32, h: BoxHit) -> Hit {
+    let (o, d, p) = (Vec3A::from(ray.o), Vec3A::from(ray.d), Vec3A::from(h.p));
+    let p_error = crate::math::gamma(7) * (o.abs() + (d * h.t).abs()).max(p.abs()).max_element();
+    Hit {
+        t: h.t,
+        p: h.p,
+        ng: h.n,
+        ns: h.n,
+        uv: h.uv,
+        shape,
+        prim: 0,
+        p_error,
+    }
 }
 
 /// The unit geometric normal of the triangle `a, b, c` along its winding,
