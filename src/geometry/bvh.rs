@@ -9,7 +9,7 @@ use crate::math::{Aabb, Ray, Vec2, Vec3};
 use super::aabox::{intersect_box, intersect_box_lanes, BoxHit};
 use super::empty_cells::EmptyCells;
 use super::levelset::LevelSetHit;
-use super::sphere::{intersect_sphere, SphereHit};
+use super::sphere::{sphere_candidate, SphereCandidate};
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, MeshTopology, Shape};
@@ -77,7 +77,9 @@ enum Analytic {
 
 enum Best {
     Tri(usize, TriangleHit),
-    Sphere(u32, SphereHit),
+    /// A sphere's candidate with the sphere's centre and radius: its record is made only
+    /// for the nearest hit ([`SceneGeometry::make_hit`]).
+    Sphere(u32, SphereCandidate, Vec3, f32),
     Box(u32, BoxHit),
     LevelSet(u32, LevelSetHit),
 }
@@ -271,9 +273,9 @@ impl SceneGeometry {
                     radius,
                     shape,
                 } => {
-                    if let Some(h) = intersect_sphere(ray, center, radius, closest) {
+                    if let Some(h) = sphere_candidate(ray, center, radius, closest) {
                         closest = h.t;
-                        best = Some(Best::Sphere(shape, h));
+                        best = Some(Best::Sphere(shape, h, center, radius));
                     }
                 }
                 Analytic::Box { min, max, shape } => {
@@ -315,7 +317,7 @@ impl SceneGeometry {
         }
         if self.analytic.iter().any(|a| match *a {
             Analytic::Sphere { center, radius, .. } => {
-                intersect_sphere(ray, center, radius, t_max).is_some()
+                sphere_candidate(ray, center, radius, t_max).is_some()
             }
             Analytic::Box { min, max, .. } => intersect_box(ray, min, max, t_max).is_some(),
             Analytic::LevelSet { shape } => matches!(
@@ -376,7 +378,8 @@ impl SceneGeometry {
 
     fn make_hit(&self, ray: &Ray, best: Best) -> Hit {
         match best {
-            Best::Sphere(shape, h) => {
+            Best::Sphere(shape, candidate, center, radius) => {
+                let h = candidate.finish(center, radius);
                 // p = c + r n: rounding grows with |c| + r, not with |p|.
                 let p_error = match self.shapes.get(shape as usize) {
                     Some(Shape::Sphere { center, radius }) => {
@@ -577,7 +580,7 @@ fn geometric_normal(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{icosphere, TriangleMesh};
+    use crate::geometry::{icosphere, intersect_sphere, TriangleMesh};
     use crate::sampling::{sample_uniform_sphere, Rng};
 
     fn hit_bits(h: Option<Hit>) -> Option<[u32; 6]> {
@@ -917,6 +920,99 @@ mod tests {
     /// random triangles with some degenerate ones (a repeated vertex, three collinear
     /// vertices) and two so large that their cross product's squared length overflows (no
     /// normal: the hit record falls back to the reversed ray direction).
+    /// Sphere hit records are made only for the nearest hit (`Best::Sphere` keeps a
+    /// `SphereCandidate`): the record must be the one `intersect_sphere` makes for that sphere
+    /// alone, bit for bit (position, normals, uv, t), with the sphere's `p_error`; the nearest
+    /// shape the one an independent search over every shape finds; and `occluded` must agree
+    /// with the closest-hit query. Nested and overlapping spheres (a huge floor among them)
+    /// and a mesh in front of and behind them, so that sphere hits are superseded by nearer
+    /// spheres and triangles as well as kept.
+    #[test]
+    fn sphere_records_made_for_the_nearest_hit_only_are_intersect_spheres() {
+        let mut rng = Rng::new(77, 5);
+        let spheres = [
+            (Vec3::new(0.0, -1000.0, 0.0), 1000.0),
+            (Vec3::new(0.0, 1.0, 0.0), 0.99),
+            (Vec3::new(0.4, 1.2, 0.1), 0.5),
+            (Vec3::new(-1.5, 0.5, 0.3), 0.7),
+            (Vec3::new(0.0, 1.0, 0.0), 0.3),
+        ];
+        let mut mesh = icosphere(3);
+        for p in &mut mesh.positions {
+            *p = *p * Vec3::new(1.6, 0.2, 1.6) + Vec3::new(0.0, 1.9, 0.0);
+        }
+        let mut shapes: Vec<Shape> = spheres
+            .iter()
+            .map(|&(center, radius)| Shape::Sphere { center, radius })
+            .collect();
+        shapes.push(Shape::Mesh(mesh.clone()));
+        let geo = SceneGeometry::build(shapes).expect("valid shapes");
+        let (mut sphere_hits, mut superseded) = (0, 0);
+        for i in 0..60_000 {
+            let o = Vec3::new(rng.next_f32() - 0.5, rng.next_f32(), rng.next_f32() - 0.5)
+                * Vec3::new(5.0, 3.5, 5.0)
+                + Vec3::new(0.0, if i % 4 == 0 { -0.5 } else { 0.2 }, 0.0);
+            let d = sample_uniform_sphere(rng.next_2d());
+            let t_max = if i % 7 == 0 { 1.5 } else { f32::INFINITY };
+            let ray = Ray::new(o, d);
+            // Every shape on its own, each sphere's record made at once.
+            let mut best: Option<(f32, u32)> = None;
+            let mut records = Vec::new();
+            for (si, &(center, radius)) in spheres.iter().enumerate() {
+                let h = intersect_sphere(&ray, center, radius, t_max);
+                if let Some(h) = h {
+                    if best.map_or(true, |(t, _)| h.t < t) {
+                        best = Some((h.t, si as u32));
+                    }
+                }
+                records.push(h);
+            }
+            let sphere_count = records.iter().flatten().count();
+            for t in &mesh.indices {
+                let [p0, p1, p2] = t.map(|k| mesh.positions[k as usize]);
+                let bound = best.map_or(t_max, |(t, _)| t);
+                if let Some(h) = crate::geometry::intersect_triangle(&ray, p0, p1, p2, bound) {
+                    best = Some((h.t, spheres.len() as u32));
+                }
+            }
+            let got = geo.intersect(&ray, t_max);
+            assert_eq!(geo.occluded(&ray, t_max), got.is_some(), "ray {i}");
+            match (best, got) {
+                (None, None) => {}
+                (Some((t, shape)), Some(h)) => {
+                    assert_eq!((h.t.to_bits(), h.shape), (t.to_bits(), shape), "ray {i}");
+                    if (shape as usize) < spheres.len() {
+                        sphere_hits += 1;
+                        let r = records[shape as usize].expect("the nearest sphere was hit");
+                        let (center, radius) = spheres[shape as usize];
+                        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                        assert_eq!(bits(h.p), bits(r.p), "ray {i}");
+                        assert_eq!(bits(h.ng), bits(r.n), "ray {i}");
+                        assert_eq!(bits(h.ns), bits(r.n), "ray {i}");
+                        assert_eq!(
+                            h.uv.to_array().map(f32::to_bits),
+                            r.uv.to_array().map(f32::to_bits),
+                            "ray {i}"
+                        );
+                        let p_error =
+                            crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius);
+                        assert_eq!(h.p_error.to_bits(), p_error.to_bits(), "ray {i}");
+                        if sphere_count > 1 {
+                            superseded += 1;
+                        }
+                    } else if sphere_count > 0 {
+                        superseded += 1;
+                    }
+                }
+                (b, g) => panic!("ray {i}: {b:?} against {g:?}"),
+            }
+        }
+        assert!(
+            sphere_hits > 10_000 && superseded > 5_000,
+            "{sphere_hits} {superseded}"
+        );
+    }
+
     fn hit_record_scene() -> SceneGeometry {
         let mut rng = Rng::new(41, 3);
         let mut skin = icosphere(5);

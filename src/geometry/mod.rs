@@ -41,7 +41,7 @@ pub use icosphere::icosphere;
 pub use levelset::{LevelSet, LevelSetError, LevelSetHit};
 pub use mesh::{MeshTopology, TriangleMesh};
 pub use ply::{load_ply, parse_ply, write_ply};
-pub use sphere::{intersect_sphere, SphereHit};
+pub use sphere::{intersect_sphere, sphere_candidate, SphereCandidate, SphereHit};
 pub use triangle::{intersect_triangle, TriangleHit};
 
 /// Errors of the geometry layer. Every variant names the file or shape and the problem.
