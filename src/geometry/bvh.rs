@@ -961,7 +961,7 @@ mod tests {
             for (si, &(center, radius)) in spheres.iter().enumerate() {
                 let h = intersect_sphere(&ray, center, radius, t_max);
                 if let Some(h) = h {
-                    if best.map_or(true, |(t, _)| h.t < t) {
+                    if best.is_none_or(|(t, _)| h.t < t) {
                         best = Some((h.t, si as u32));
                     }
                 }
