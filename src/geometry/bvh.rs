@@ -12,7 +12,7 @@ use super::levelset::LevelSetHit;
 use super::sphere::{sphere_candidate, SphereCandidate};
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
-use super::{GeometryError, Hit, MeshTopology, Shape};
+use super::{GeometryError, Hit, HitUv, MeshTopology, Shape};
 
 mod beyond;
 
@@ -379,20 +379,17 @@ impl SceneGeometry {
     fn make_hit(&self, ray: &Ray, best: Best) -> Hit {
         match best {
             Best::Sphere(shape, candidate, center, radius) => {
-                let h = candidate.finish(center, radius);
-                // p = c + r n: rounding grows with |c| + r, not with |p|.
-                let p_error = match self.shapes.get(shape as usize) {
-                    Some(Shape::Sphere { center, radius }) => {
-                        crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius)
-                    }
-                    _ => crate::math::gamma(6) * 4.0 * h.p.abs().max_element(),
-                };
+                // The record without its uv, read from `ng` when needed (`HitUv::Sphere`).
+                let (p, n) = candidate.point_and_normal(center, radius);
+                // p = c + r n: rounding grows with |c| + r, not with |p| (`center` and
+                // `radius` are the shape's own, copied into `analytic` by `build`).
+                let p_error = crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius);
                 Hit {
-                    t: h.t,
-                    p: h.p,
-                    ng: h.n,
-                    ns: h.n,
-                    uv: h.uv,
+                    t: candidate.t,
+                    p,
+                    ng: n,
+                    ns: n,
+                    uv: HitUv::Sphere,
                     shape,
                     prim: 0,
                     p_error,
@@ -404,7 +401,7 @@ impl SceneGeometry {
                 p: h.p,
                 ng: h.n,
                 ns: h.ns,
-                uv: Vec2::ZERO,
+                uv: HitUv::At(Vec2::ZERO),
                 shape,
                 prim: 0,
                 p_error: h.p_error,
@@ -456,7 +453,7 @@ impl SceneGeometry {
                     p: pos,
                     ng,
                     ns,
-                    uv,
+                    uv: HitUv::At(uv),
                     shape: p.shape,
                     prim: p.prim,
                     p_error,
@@ -561,7 +558,7 @@ fn box_record(ray: &Ray, shape: u32, h: BoxHit) -> Hit {
         p: h.p,
         ng: h.n,
         ns: h.n,
-        uv: h.uv,
+        uv: HitUv::At(h.uv),
         shape,
         prim: 0,
         p_error,
@@ -884,7 +881,7 @@ mod tests {
             p: (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate(),
             ng,
             ns,
-            uv,
+            uv: HitUv::At(uv),
             shape: p.shape,
             prim: p.prim,
             p_error: crate::math::gamma(7)
@@ -907,8 +904,8 @@ mod tests {
             h.ns.x.to_bits(),
             h.ns.y.to_bits(),
             h.ns.z.to_bits(),
-            h.uv.x.to_bits(),
-            h.uv.y.to_bits(),
+            h.uv().x.to_bits(),
+            h.uv().y.to_bits(),
             h.shape,
             h.prim,
             h.p_error.to_bits(),
@@ -990,7 +987,7 @@ mod tests {
                         assert_eq!(bits(h.ng), bits(r.n), "ray {i}");
                         assert_eq!(bits(h.ns), bits(r.n), "ray {i}");
                         assert_eq!(
-                            h.uv.to_array().map(f32::to_bits),
+                            h.uv().to_array().map(f32::to_bits),
                             r.uv.to_array().map(f32::to_bits),
                             "ray {i}"
                         );
@@ -1251,8 +1248,19 @@ mod tests {
             let all = |h: Option<Hit>| {
                 h.map(|h| {
                     [
-                        h.t, h.p.x, h.p.y, h.p.z, h.ng.x, h.ng.y, h.ng.z, h.ns.x, h.ns.y, h.ns.z,
-                        h.uv.x, h.uv.y, h.p_error,
+                        h.t,
+                        h.p.x,
+                        h.p.y,
+                        h.p.z,
+                        h.ng.x,
+                        h.ng.y,
+                        h.ng.z,
+                        h.ns.x,
+                        h.ns.y,
+                        h.ns.z,
+                        h.uv().x,
+                        h.uv().y,
+                        h.p_error,
                     ]
                     .map(f32::to_bits)
                 })

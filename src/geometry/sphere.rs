@@ -91,22 +91,42 @@ impl SphereCandidate {
     /// was found on.
     #[must_use]
     pub fn finish(self, center: Vec3, radius: f32) -> SphereHit {
-        let SphereCandidate { t, mut dir, len } = self;
-        dir /= len;
-        let p = center + dir * radius;
-        let phi = {
-            let a = dir.z.atan2(dir.x);
-            if a < 0.0 {
-                a + 2.0 * std::f32::consts::PI
-            } else {
-                a
-            }
-        };
-        let theta = dir.y.clamp(-1.0, 1.0).acos();
-        let uv = Vec2::new(
-            (phi * 0.5 * INV_PI).min(1.0 - f32::EPSILON * 0.5),
-            theta * INV_PI,
-        );
-        SphereHit { t, p, n: dir, uv }
+        let (p, n) = self.point_and_normal(center, radius);
+        SphereHit {
+            t: self.t,
+            p,
+            n,
+            uv: sphere_uv(n),
+        }
     }
+
+    /// The record's hit point (re-projected onto the sphere `(center, radius)`) and unit
+    /// radial normal, without the texture coordinates: [`SphereCandidate::finish`] is these
+    /// and [`sphere_uv`] of the normal, so a record whose uv is read later from the normal
+    /// has the same bits.
+    #[must_use]
+    #[inline]
+    pub fn point_and_normal(self, center: Vec3, radius: f32) -> (Vec3, Vec3) {
+        let n = self.dir / self.len;
+        (center + n * radius, n)
+    }
+}
+
+/// A sphere hit's texture coordinates `(φ/2π, θ/π)` from its unit radial normal `n`: θ
+/// measured from +y, φ = atan2(z, x) in [0, 2π) (u kept below 1).
+#[must_use]
+pub fn sphere_uv(n: Vec3) -> Vec2 {
+    let phi = {
+        let a = n.z.atan2(n.x);
+        if a < 0.0 {
+            a + 2.0 * std::f32::consts::PI
+        } else {
+            a
+        }
+    };
+    let theta = n.y.clamp(-1.0, 1.0).acos();
+    Vec2::new(
+        (phi * 0.5 * INV_PI).min(1.0 - f32::EPSILON * 0.5),
+        theta * INV_PI,
+    )
 }
