@@ -8,8 +8,10 @@ use crate::math::{Aabb, Ray, Vec2, Vec3};
 
 use super::aabox::{intersect_box, intersect_box_lanes, BoxHit};
 use super::empty_cells::EmptyCells;
+use super::free_shells::FreeShells;
 use super::levelset::LevelSetHit;
 use super::sphere::{sphere_candidate, SphereCandidate};
+use super::sphere_lanes::SphereBlock;
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
 use super::{GeometryError, Hit, HitUv, MeshTopology, Shape};
@@ -44,8 +46,15 @@ pub struct SceneGeometry {
     verts: Vec<Vec4>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
+    /// The shells about the spheres' centres that no triangle touches: segments inside one
+    /// (a ray ending on a sphere nested in a mesh) skip the traversal.
+    free: Option<FreeShells>,
     /// Analytic shapes, tested directly.
     analytic: Vec<Analytic>,
+    /// When every analytic shape is a sphere: the spheres of `analytic`, in its order, four
+    /// to a block, tested in lanes ([`SphereBlock::candidates`]); lane `i` of block `k` is
+    /// `analytic[4k + i]`. Empty otherwise.
+    sphere_blocks: Vec<SphereBlock>,
     shapes: Vec<Shape>,
     topologies: Vec<Option<MeshTopology>>,
     bounds: Aabb,
@@ -230,14 +239,44 @@ impl SceneGeometry {
                 })
             })
             .collect();
+        let centres: Vec<Vec3> = analytic
+            .iter()
+            .filter_map(|a| match *a {
+                Analytic::Sphere { center, .. } => Some(center),
+                Analytic::Box { .. } | Analytic::LevelSet { .. } => None,
+            })
+            .collect();
+        let free = if centres.is_empty() {
+            None
+        } else {
+            let corners: Vec<[Vec3; 3]> = corners
+                .iter()
+                .map(|t| t.map(|i| positions[i as usize]))
+                .collect();
+            FreeShells::build(&centres, &corners)
+        };
         let sole_box = match analytic.as_slice() {
             [Analytic::Box { min, max, shape }] if ordered.is_empty() => {
                 Some(((*min).into(), (*max).into(), *shape))
             }
             _ => None,
         };
+        let spheres: Vec<(Vec3, f32)> = analytic
+            .iter()
+            .filter_map(|a| match *a {
+                Analytic::Sphere { center, radius, .. } => Some((center, radius)),
+                Analytic::Box { .. } | Analytic::LevelSet { .. } => None,
+            })
+            .collect();
+        let sphere_blocks = if spheres.len() == analytic.len() {
+            SphereBlock::blocks(&spheres)
+        } else {
+            Vec::new()
+        };
         Ok(SceneGeometry {
             sole_box,
+            sphere_blocks,
+            free,
             bvh,
             prims: ordered,
             tris,
@@ -266,7 +305,32 @@ impl SceneGeometry {
         }
         let mut closest = t_max;
         let mut best: Option<Best> = None;
-        for a in &self.analytic {
+        if !self.sphere_blocks.is_empty() {
+            // Only spheres: four at a time. A lane tested against a larger bound than the
+            // loop's shrinking `closest` finds the same candidate whenever the loop's is
+            // nearer than `closest`, and the strict `<` in order keeps the first of equal
+            // distances, as the loop does.
+            for (k, block) in self.sphere_blocks.iter().enumerate() {
+                let lanes = block.candidates(ray, closest);
+                let mut hits = lanes.hits;
+                while hits != 0 {
+                    let i = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    if lanes.t(i) < closest {
+                        if let Some(&Analytic::Sphere {
+                            center,
+                            radius,
+                            shape,
+                        }) = self.analytic.get(4 * k + i)
+                        {
+                            closest = lanes.t(i);
+                            best = Some(Best::Sphere(shape, lanes.candidate(i), center, radius));
+                        }
+                    }
+                }
+            }
+        }
+        for a in self.loose_analytic() {
             match *a {
                 Analytic::Sphere {
                     center,
@@ -294,7 +358,11 @@ impl SceneGeometry {
                 }
             }
         }
-        if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
+        let free = match best {
+            Some(Best::Sphere(_, _, center, _)) => self.segment_in_free_shell(ray, center, closest),
+            _ => false,
+        };
+        if !self.prims.is_empty() && !free && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, closest, |slot, t_max| {
                 match sr.intersect(&self.triangle(slot as usize), t_max) {
@@ -315,7 +383,14 @@ impl SceneGeometry {
         if !valid_query(ray, t_max) {
             return false;
         }
-        if self.analytic.iter().any(|a| match *a {
+        if self
+            .sphere_blocks
+            .iter()
+            .any(|block| block.candidates(ray, t_max).hits != 0)
+        {
+            return true;
+        }
+        if self.loose_analytic().iter().any(|a| match *a {
             Analytic::Sphere { center, radius, .. } => {
                 sphere_candidate(ray, center, radius, t_max).is_some()
             }
@@ -340,6 +415,17 @@ impl SceneGeometry {
             });
         }
         found
+    }
+
+    /// The analytic shapes tested one by one: all of them, or none when they are all spheres
+    /// (tested in `sphere_blocks`).
+    #[inline(always)]
+    fn loose_analytic(&self) -> &[Analytic] {
+        if self.sphere_blocks.is_empty() {
+            &self.analytic
+        } else {
+            &[]
+        }
     }
 
     /// The triangle at BVH position `slot`, transposed for the triangle test.
@@ -367,6 +453,23 @@ impl SceneGeometry {
                 .empty
                 .as_ref()
                 .is_some_and(|e| e.clear(ray.o, ray.at(t_max)))
+    }
+
+    /// True when the segment `(0, t_max)` of `ray`, which ends on a sphere centred at
+    /// `center`, lies in a shell about that centre that no triangle touches ([`FreeShells`];
+    /// the traversal would find nothing).
+    #[inline(always)]
+    fn segment_in_free_shell(&self, ray: &Ray, center: Vec3, t_max: f32) -> bool {
+        self.free
+            .as_ref()
+            .is_some_and(|f| f.clear_about(center, ray.o, ray.d, t_max))
+    }
+
+    /// Drops the triangle-free shells (tests compare with and without them).
+    #[cfg(test)]
+    fn without_free_shells(mut self) -> Self {
+        self.free = None;
+        self
     }
 
     /// Drops the empty-cell grid (tests compare with and without it).
@@ -1199,6 +1302,66 @@ mod tests {
         // The grid must actually be used, and the set must contain hits.
         assert!(skipped > 40_000, "{skipped} segments skipped");
         assert!(hits > 50_000, "{hits} hits");
+    }
+
+    /// An eye-like scene: a meshed globe (icosphere, radius 1), analytic spheres nested in it
+    /// (radii 0.995 and 0.93 about its centre, 0.64 about a point in front), a small mesh
+    /// inside them, and a light sphere outside. Skipping the traversal for segments inside
+    /// the shells no triangle touches changes no hit record and no occlusion, and the shells
+    /// are used (segments ending on the nested spheres).
+    #[test]
+    fn skipping_free_shells_changes_no_hit() {
+        let mut shapes = vec![Shape::Mesh(icosphere(5))];
+        let mut small = icosphere(2);
+        for p in &mut small.positions {
+            *p = *p * Vec3::new(0.5, 0.5, 0.03) + Vec3::new(0.0, 0.0, 0.72);
+        }
+        shapes.push(Shape::Mesh(small));
+        for (center, radius) in [
+            (Vec3::ZERO, 0.995),
+            (Vec3::ZERO, 0.93),
+            (Vec3::new(0.0, 0.0, 0.57), 0.64),
+            (Vec3::new(-3.2, 1.6, 2.4), 0.12),
+        ] {
+            shapes.push(Shape::Sphere { center, radius });
+        }
+        let geometry = SceneGeometry::build(shapes).expect("geometry");
+        let plain = geometry.clone().without_free_shells();
+        let mut rng = Rng::new(23, 9);
+        let (mut skipped, mut hits, mut tri_hits) = (0, 0, 0);
+        for i in 0..100_000 {
+            let r = match i % 3 {
+                0 => 0.93 + 0.07 * rng.next_f32(),
+                1 => rng.next_f32().cbrt(),
+                _ => 1.3 * rng.next_f32(),
+            };
+            let o = sample_uniform_sphere(rng.next_2d()) * r;
+            let d = sample_uniform_sphere(rng.next_2d());
+            let t_max = if i % 5 == 0 { 0.3 } else { f32::INFINITY };
+            let ray = Ray::new(o, d);
+            let (a, b) = (
+                geometry.intersect(&ray, t_max),
+                plain.intersect(&ray, t_max),
+            );
+            assert_eq!(hit_bits(a), hit_bits(b), "ray {i}: {ray:?} to {t_max}");
+            assert_eq!(
+                geometry.occluded(&ray, t_max),
+                plain.occluded(&ray, t_max),
+                "ray {i}"
+            );
+            if let Some(h) = b {
+                hits += 1;
+                tri_hits += usize::from(h.shape < 2);
+                let free = geometry.free.as_ref().expect("shells");
+                let center = match geometry.shape(h.shape as usize) {
+                    Some(Shape::Sphere { center, .. }) => *center,
+                    _ => Vec3::NAN,
+                };
+                skipped += usize::from(free.clear_about(center, ray.o, ray.d, h.t));
+            }
+        }
+        assert!(skipped > 20_000, "{skipped} segments skipped");
+        assert!(tri_hits > 3_000 && hits > 80_000, "{tri_hits} {hits}");
     }
 
     #[test]

@@ -21,11 +21,13 @@ mod aabox;
 mod bvh;
 mod closest;
 mod empty_cells;
+mod free_shells;
 mod icosphere;
 mod levelset;
 mod mesh;
 mod ply;
 mod sphere;
+mod sphere_lanes;
 mod triangle;
 mod wide_bvh;
 

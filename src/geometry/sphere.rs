@@ -87,6 +87,25 @@ pub struct SphereCandidate {
 }
 
 impl SphereCandidate {
+    /// The candidate with distance `t`, offset `dir = ray.at(t) − center` and its length
+    /// `len` (finite and positive), as the lanes of [`super::sphere_lanes`] compute them.
+    #[inline(always)]
+    pub(super) fn from_parts(t: f32, dir: Vec3, len: f32) -> SphereCandidate {
+        SphereCandidate { t, dir, len }
+    }
+
+    /// Every field as bits (tests compare candidates bit for bit).
+    #[cfg(test)]
+    pub(super) fn bits(&self) -> [u32; 5] {
+        [
+            self.t.to_bits(),
+            self.dir.x.to_bits(),
+            self.dir.y.to_bits(),
+            self.dir.z.to_bits(),
+            self.len.to_bits(),
+        ]
+    }
+
     /// The hit record of [`intersect_sphere`] on the sphere `(center, radius)` the candidate
     /// was found on.
     #[must_use]
