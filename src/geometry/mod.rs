@@ -311,7 +311,7 @@ pub enum HitUv {
 }
 
 impl Hit {
-    /// Surface parameterisation at the hit (see [`Hit::uv`]'s field): for spheres
+    /// Surface parameterisation at the hit, as the field `uv` describes it: for spheres
     /// [`sphere_uv`] of `ng`, the same bits as [`intersect_sphere`]'s record.
     #[must_use]
     #[inline]
