@@ -8,11 +8,13 @@ use crate::math::{Aabb, Ray, Vec2, Vec3};
 
 use super::aabox::{intersect_box, intersect_box_lanes, BoxHit};
 use super::empty_cells::EmptyCells;
+use super::free_shells::FreeShells;
 use super::levelset::LevelSetHit;
-use super::sphere::{intersect_sphere, SphereHit};
+use super::sphere::{sphere_candidate, SphereCandidate};
+use super::sphere_lanes::SphereBlock;
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
 use super::wide_bvh::WideBvh;
-use super::{GeometryError, Hit, MeshTopology, Shape};
+use super::{GeometryError, Hit, HitUv, MeshTopology, Shape};
 
 mod beyond;
 
@@ -44,8 +46,15 @@ pub struct SceneGeometry {
     verts: Vec<Vec4>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
+    /// The shells about the spheres' centres that no triangle touches: segments inside one
+    /// (a ray ending on a sphere nested in a mesh) skip the traversal.
+    free: Option<FreeShells>,
     /// Analytic shapes, tested directly.
     analytic: Vec<Analytic>,
+    /// When every analytic shape is a sphere: the spheres of `analytic`, in its order, four
+    /// to a block, tested in lanes ([`SphereBlock::candidates`]); lane `i` of block `k` is
+    /// `analytic[4k + i]`. Empty otherwise.
+    sphere_blocks: Vec<SphereBlock>,
     shapes: Vec<Shape>,
     topologies: Vec<Option<MeshTopology>>,
     bounds: Aabb,
@@ -77,7 +86,9 @@ enum Analytic {
 
 enum Best {
     Tri(usize, TriangleHit),
-    Sphere(u32, SphereHit),
+    /// A sphere's candidate with the sphere's centre and radius: its record is made only
+    /// for the nearest hit ([`SceneGeometry::make_hit`]).
+    Sphere(u32, SphereCandidate, Vec3, f32),
     Box(u32, BoxHit),
     LevelSet(u32, LevelSetHit),
 }
@@ -228,14 +239,44 @@ impl SceneGeometry {
                 })
             })
             .collect();
+        let centres: Vec<Vec3> = analytic
+            .iter()
+            .filter_map(|a| match *a {
+                Analytic::Sphere { center, .. } => Some(center),
+                Analytic::Box { .. } | Analytic::LevelSet { .. } => None,
+            })
+            .collect();
+        let free = if centres.is_empty() {
+            None
+        } else {
+            let corners: Vec<[Vec3; 3]> = corners
+                .iter()
+                .map(|t| t.map(|i| positions[i as usize]))
+                .collect();
+            FreeShells::build(&centres, &corners)
+        };
         let sole_box = match analytic.as_slice() {
             [Analytic::Box { min, max, shape }] if ordered.is_empty() => {
                 Some(((*min).into(), (*max).into(), *shape))
             }
             _ => None,
         };
+        let spheres: Vec<(Vec3, f32)> = analytic
+            .iter()
+            .filter_map(|a| match *a {
+                Analytic::Sphere { center, radius, .. } => Some((center, radius)),
+                Analytic::Box { .. } | Analytic::LevelSet { .. } => None,
+            })
+            .collect();
+        let sphere_blocks = if spheres.len() == analytic.len() {
+            SphereBlock::blocks(&spheres)
+        } else {
+            Vec::new()
+        };
         Ok(SceneGeometry {
             sole_box,
+            sphere_blocks,
+            free,
             bvh,
             prims: ordered,
             tris,
@@ -264,16 +305,41 @@ impl SceneGeometry {
         }
         let mut closest = t_max;
         let mut best: Option<Best> = None;
-        for a in &self.analytic {
+        if !self.sphere_blocks.is_empty() {
+            // Only spheres: four at a time. A lane tested against a larger bound than the
+            // loop's shrinking `closest` finds the same candidate whenever the loop's is
+            // nearer than `closest`, and the strict `<` in order keeps the first of equal
+            // distances, as the loop does.
+            for (k, block) in self.sphere_blocks.iter().enumerate() {
+                let lanes = block.candidates(ray, closest);
+                let mut hits = lanes.hits;
+                while hits != 0 {
+                    let i = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    if lanes.t(i) < closest {
+                        if let Some(&Analytic::Sphere {
+                            center,
+                            radius,
+                            shape,
+                        }) = self.analytic.get(4 * k + i)
+                        {
+                            closest = lanes.t(i);
+                            best = Some(Best::Sphere(shape, lanes.candidate(i), center, radius));
+                        }
+                    }
+                }
+            }
+        }
+        for a in self.loose_analytic() {
             match *a {
                 Analytic::Sphere {
                     center,
                     radius,
                     shape,
                 } => {
-                    if let Some(h) = intersect_sphere(ray, center, radius, closest) {
+                    if let Some(h) = sphere_candidate(ray, center, radius, closest) {
                         closest = h.t;
-                        best = Some(Best::Sphere(shape, h));
+                        best = Some(Best::Sphere(shape, h, center, radius));
                     }
                 }
                 Analytic::Box { min, max, shape } => {
@@ -292,7 +358,11 @@ impl SceneGeometry {
                 }
             }
         }
-        if !self.prims.is_empty() && !self.segment_misses_triangles(ray, closest) {
+        let free = match best {
+            Some(Best::Sphere(_, _, center, _)) => self.segment_in_free_shell(ray, center, closest),
+            _ => false,
+        };
+        if !self.prims.is_empty() && !free && !self.segment_misses_triangles(ray, closest) {
             let sr = ShearedRay::new(ray);
             self.bvh.traverse(ray, closest, |slot, t_max| {
                 match sr.intersect(&self.triangle(slot as usize), t_max) {
@@ -313,9 +383,16 @@ impl SceneGeometry {
         if !valid_query(ray, t_max) {
             return false;
         }
-        if self.analytic.iter().any(|a| match *a {
+        if self
+            .sphere_blocks
+            .iter()
+            .any(|block| block.candidates(ray, t_max).hits != 0)
+        {
+            return true;
+        }
+        if self.loose_analytic().iter().any(|a| match *a {
             Analytic::Sphere { center, radius, .. } => {
-                intersect_sphere(ray, center, radius, t_max).is_some()
+                sphere_candidate(ray, center, radius, t_max).is_some()
             }
             Analytic::Box { min, max, .. } => intersect_box(ray, min, max, t_max).is_some(),
             Analytic::LevelSet { shape } => matches!(
@@ -338,6 +415,17 @@ impl SceneGeometry {
             });
         }
         found
+    }
+
+    /// The analytic shapes tested one by one: all of them, or none when they are all spheres
+    /// (tested in `sphere_blocks`).
+    #[inline(always)]
+    fn loose_analytic(&self) -> &[Analytic] {
+        if self.sphere_blocks.is_empty() {
+            &self.analytic
+        } else {
+            &[]
+        }
     }
 
     /// The triangle at BVH position `slot`, transposed for the triangle test.
@@ -367,6 +455,23 @@ impl SceneGeometry {
                 .is_some_and(|e| e.clear(ray.o, ray.at(t_max)))
     }
 
+    /// True when the segment `(0, t_max)` of `ray`, which ends on a sphere centred at
+    /// `center`, lies in a shell about that centre that no triangle touches ([`FreeShells`];
+    /// the traversal would find nothing).
+    #[inline(always)]
+    fn segment_in_free_shell(&self, ray: &Ray, center: Vec3, t_max: f32) -> bool {
+        self.free
+            .as_ref()
+            .is_some_and(|f| f.clear_about(center, ray.o, ray.d, t_max))
+    }
+
+    /// Drops the triangle-free shells (tests compare with and without them).
+    #[cfg(test)]
+    fn without_free_shells(mut self) -> Self {
+        self.free = None;
+        self
+    }
+
     /// Drops the empty-cell grid (tests compare with and without it).
     #[cfg(test)]
     fn without_empty_cells(mut self) -> Self {
@@ -376,20 +481,18 @@ impl SceneGeometry {
 
     fn make_hit(&self, ray: &Ray, best: Best) -> Hit {
         match best {
-            Best::Sphere(shape, h) => {
-                // p = c + r n: rounding grows with |c| + r, not with |p|.
-                let p_error = match self.shapes.get(shape as usize) {
-                    Some(Shape::Sphere { center, radius }) => {
-                        crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius)
-                    }
-                    _ => crate::math::gamma(6) * 4.0 * h.p.abs().max_element(),
-                };
+            Best::Sphere(shape, candidate, center, radius) => {
+                // The record without its uv, read from `ng` when needed (`HitUv::Sphere`).
+                let (p, n) = candidate.point_and_normal(center, radius);
+                // p = c + r n: rounding grows with |c| + r, not with |p| (`center` and
+                // `radius` are the shape's own, copied into `analytic` by `build`).
+                let p_error = crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius);
                 Hit {
-                    t: h.t,
-                    p: h.p,
-                    ng: h.n,
-                    ns: h.n,
-                    uv: h.uv,
+                    t: candidate.t,
+                    p,
+                    ng: n,
+                    ns: n,
+                    uv: HitUv::Sphere,
                     shape,
                     prim: 0,
                     p_error,
@@ -401,7 +504,7 @@ impl SceneGeometry {
                 p: h.p,
                 ng: h.n,
                 ns: h.ns,
-                uv: Vec2::ZERO,
+                uv: HitUv::At(Vec2::ZERO),
                 shape,
                 prim: 0,
                 p_error: h.p_error,
@@ -453,7 +556,7 @@ impl SceneGeometry {
                     p: pos,
                     ng,
                     ns,
-                    uv,
+                    uv: HitUv::At(uv),
                     shape: p.shape,
                     prim: p.prim,
                     p_error,
@@ -558,7 +661,7 @@ fn box_record(ray: &Ray, shape: u32, h: BoxHit) -> Hit {
         p: h.p,
         ng: h.n,
         ns: h.n,
-        uv: h.uv,
+        uv: HitUv::At(h.uv),
         shape,
         prim: 0,
         p_error,
@@ -577,7 +680,7 @@ fn geometric_normal(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{icosphere, TriangleMesh};
+    use crate::geometry::{icosphere, intersect_sphere, TriangleMesh};
     use crate::sampling::{sample_uniform_sphere, Rng};
 
     fn hit_bits(h: Option<Hit>) -> Option<[u32; 6]> {
@@ -881,7 +984,7 @@ mod tests {
             p: (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate(),
             ng,
             ns,
-            uv,
+            uv: HitUv::At(uv),
             shape: p.shape,
             prim: p.prim,
             p_error: crate::math::gamma(7)
@@ -904,8 +1007,8 @@ mod tests {
             h.ns.x.to_bits(),
             h.ns.y.to_bits(),
             h.ns.z.to_bits(),
-            h.uv.x.to_bits(),
-            h.uv.y.to_bits(),
+            h.uv().x.to_bits(),
+            h.uv().y.to_bits(),
             h.shape,
             h.prim,
             h.p_error.to_bits(),
@@ -917,6 +1020,99 @@ mod tests {
     /// random triangles with some degenerate ones (a repeated vertex, three collinear
     /// vertices) and two so large that their cross product's squared length overflows (no
     /// normal: the hit record falls back to the reversed ray direction).
+    /// Sphere hit records are made only for the nearest hit (`Best::Sphere` keeps a
+    /// `SphereCandidate`): the record must be the one `intersect_sphere` makes for that sphere
+    /// alone, bit for bit (position, normals, uv, t), with the sphere's `p_error`; the nearest
+    /// shape the one an independent search over every shape finds; and `occluded` must agree
+    /// with the closest-hit query. Nested and overlapping spheres (a huge floor among them)
+    /// and a mesh in front of and behind them, so that sphere hits are superseded by nearer
+    /// spheres and triangles as well as kept.
+    #[test]
+    fn sphere_records_made_for_the_nearest_hit_only_are_intersect_spheres() {
+        let mut rng = Rng::new(77, 5);
+        let spheres = [
+            (Vec3::new(0.0, -1000.0, 0.0), 1000.0),
+            (Vec3::new(0.0, 1.0, 0.0), 0.99),
+            (Vec3::new(0.4, 1.2, 0.1), 0.5),
+            (Vec3::new(-1.5, 0.5, 0.3), 0.7),
+            (Vec3::new(0.0, 1.0, 0.0), 0.3),
+        ];
+        let mut mesh = icosphere(3);
+        for p in &mut mesh.positions {
+            *p = *p * Vec3::new(1.6, 0.2, 1.6) + Vec3::new(0.0, 1.9, 0.0);
+        }
+        let mut shapes: Vec<Shape> = spheres
+            .iter()
+            .map(|&(center, radius)| Shape::Sphere { center, radius })
+            .collect();
+        shapes.push(Shape::Mesh(mesh.clone()));
+        let geo = SceneGeometry::build(shapes).expect("valid shapes");
+        let (mut sphere_hits, mut superseded) = (0, 0);
+        for i in 0..60_000 {
+            let o = Vec3::new(rng.next_f32() - 0.5, rng.next_f32(), rng.next_f32() - 0.5)
+                * Vec3::new(5.0, 3.5, 5.0)
+                + Vec3::new(0.0, if i % 4 == 0 { -0.5 } else { 0.2 }, 0.0);
+            let d = sample_uniform_sphere(rng.next_2d());
+            let t_max = if i % 7 == 0 { 1.5 } else { f32::INFINITY };
+            let ray = Ray::new(o, d);
+            // Every shape on its own, each sphere's record made at once.
+            let mut best: Option<(f32, u32)> = None;
+            let mut records = Vec::new();
+            for (si, &(center, radius)) in spheres.iter().enumerate() {
+                let h = intersect_sphere(&ray, center, radius, t_max);
+                if let Some(h) = h {
+                    if best.is_none_or(|(t, _)| h.t < t) {
+                        best = Some((h.t, si as u32));
+                    }
+                }
+                records.push(h);
+            }
+            let sphere_count = records.iter().flatten().count();
+            for t in &mesh.indices {
+                let [p0, p1, p2] = t.map(|k| mesh.positions[k as usize]);
+                let bound = best.map_or(t_max, |(t, _)| t);
+                if let Some(h) = crate::geometry::intersect_triangle(&ray, p0, p1, p2, bound) {
+                    best = Some((h.t, spheres.len() as u32));
+                }
+            }
+            let got = geo.intersect(&ray, t_max);
+            assert_eq!(geo.occluded(&ray, t_max), got.is_some(), "ray {i}");
+            match (best, got) {
+                (None, None) => {}
+                (Some((t, shape)), Some(h)) => {
+                    assert_eq!((h.t.to_bits(), h.shape), (t.to_bits(), shape), "ray {i}");
+                    if (shape as usize) < spheres.len() {
+                        sphere_hits += 1;
+                        let r = records[shape as usize].expect("the nearest sphere was hit");
+                        let (center, radius) = spheres[shape as usize];
+                        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                        assert_eq!(bits(h.p), bits(r.p), "ray {i}");
+                        assert_eq!(bits(h.ng), bits(r.n), "ray {i}");
+                        assert_eq!(bits(h.ns), bits(r.n), "ray {i}");
+                        assert_eq!(
+                            h.uv().to_array().map(f32::to_bits),
+                            r.uv.to_array().map(f32::to_bits),
+                            "ray {i}"
+                        );
+                        let p_error =
+                            crate::math::gamma(6) * 4.0 * (center.abs().max_element() + radius);
+                        assert_eq!(h.p_error.to_bits(), p_error.to_bits(), "ray {i}");
+                        if sphere_count > 1 {
+                            superseded += 1;
+                        }
+                    } else if sphere_count > 0 {
+                        superseded += 1;
+                    }
+                }
+                (b, g) => panic!("ray {i}: {b:?} against {g:?}"),
+            }
+        }
+        assert!(
+            sphere_hits > 10_000 && superseded > 5_000,
+            "{sphere_hits} {superseded}"
+        );
+    }
+
     fn hit_record_scene() -> SceneGeometry {
         let mut rng = Rng::new(41, 3);
         let mut skin = icosphere(5);
@@ -1108,6 +1304,66 @@ mod tests {
         assert!(hits > 50_000, "{hits} hits");
     }
 
+    /// An eye-like scene: a meshed globe (icosphere, radius 1), analytic spheres nested in it
+    /// (radii 0.995 and 0.93 about its centre, 0.64 about a point in front), a small mesh
+    /// inside them, and a light sphere outside. Skipping the traversal for segments inside
+    /// the shells no triangle touches changes no hit record and no occlusion, and the shells
+    /// are used (segments ending on the nested spheres).
+    #[test]
+    fn skipping_free_shells_changes_no_hit() {
+        let mut shapes = vec![Shape::Mesh(icosphere(5))];
+        let mut small = icosphere(2);
+        for p in &mut small.positions {
+            *p = *p * Vec3::new(0.5, 0.5, 0.03) + Vec3::new(0.0, 0.0, 0.72);
+        }
+        shapes.push(Shape::Mesh(small));
+        for (center, radius) in [
+            (Vec3::ZERO, 0.995),
+            (Vec3::ZERO, 0.93),
+            (Vec3::new(0.0, 0.0, 0.57), 0.64),
+            (Vec3::new(-3.2, 1.6, 2.4), 0.12),
+        ] {
+            shapes.push(Shape::Sphere { center, radius });
+        }
+        let geometry = SceneGeometry::build(shapes).expect("geometry");
+        let plain = geometry.clone().without_free_shells();
+        let mut rng = Rng::new(23, 9);
+        let (mut skipped, mut hits, mut tri_hits) = (0, 0, 0);
+        for i in 0..100_000 {
+            let r = match i % 3 {
+                0 => 0.93 + 0.07 * rng.next_f32(),
+                1 => rng.next_f32().cbrt(),
+                _ => 1.3 * rng.next_f32(),
+            };
+            let o = sample_uniform_sphere(rng.next_2d()) * r;
+            let d = sample_uniform_sphere(rng.next_2d());
+            let t_max = if i % 5 == 0 { 0.3 } else { f32::INFINITY };
+            let ray = Ray::new(o, d);
+            let (a, b) = (
+                geometry.intersect(&ray, t_max),
+                plain.intersect(&ray, t_max),
+            );
+            assert_eq!(hit_bits(a), hit_bits(b), "ray {i}: {ray:?} to {t_max}");
+            assert_eq!(
+                geometry.occluded(&ray, t_max),
+                plain.occluded(&ray, t_max),
+                "ray {i}"
+            );
+            if let Some(h) = b {
+                hits += 1;
+                tri_hits += usize::from(h.shape < 2);
+                let free = geometry.free.as_ref().expect("shells");
+                let center = match geometry.shape(h.shape as usize) {
+                    Some(Shape::Sphere { center, .. }) => *center,
+                    _ => Vec3::NAN,
+                };
+                skipped += usize::from(free.clear_about(center, ray.o, ray.d, h.t));
+            }
+        }
+        assert!(skipped > 20_000, "{skipped} segments skipped");
+        assert!(tri_hits > 3_000 && hits > 80_000, "{tri_hits} {hits}");
+    }
+
     #[test]
     fn rays_moving_away_from_a_sole_box_miss_it() {
         let (min, max) = (Vec3::new(-0.5, -0.25, -0.75), Vec3::new(0.5, 0.75, 0.25));
@@ -1155,8 +1411,19 @@ mod tests {
             let all = |h: Option<Hit>| {
                 h.map(|h| {
                     [
-                        h.t, h.p.x, h.p.y, h.p.z, h.ng.x, h.ng.y, h.ng.z, h.ns.x, h.ns.y, h.ns.z,
-                        h.uv.x, h.uv.y, h.p_error,
+                        h.t,
+                        h.p.x,
+                        h.p.y,
+                        h.p.z,
+                        h.ng.x,
+                        h.ng.y,
+                        h.ng.z,
+                        h.ns.x,
+                        h.ns.y,
+                        h.ns.z,
+                        h.uv().x,
+                        h.uv().y,
+                        h.p_error,
                     ]
                     .map(f32::to_bits)
                 })

@@ -21,11 +21,13 @@ mod aabox;
 mod bvh;
 mod closest;
 mod empty_cells;
+mod free_shells;
 mod icosphere;
 mod levelset;
 mod mesh;
 mod ply;
 mod sphere;
+mod sphere_lanes;
 mod triangle;
 mod wide_bvh;
 
@@ -41,7 +43,7 @@ pub use icosphere::icosphere;
 pub use levelset::{LevelSet, LevelSetError, LevelSetHit};
 pub use mesh::{MeshTopology, TriangleMesh};
 pub use ply::{load_ply, parse_ply, write_ply};
-pub use sphere::{intersect_sphere, SphereHit};
+pub use sphere::{intersect_sphere, sphere_candidate, sphere_uv, SphereCandidate, SphereHit};
 pub use triangle::{intersect_triangle, TriangleHit};
 
 /// Errors of the geometry layer. Every variant names the file or shape and the problem.
@@ -284,9 +286,10 @@ pub struct Hit {
     /// Unit shading normal (interpolated vertex normals), flipped into `ng`'s hemisphere;
     /// equals `ng` when the mesh has no normals.
     pub ns: Vec3,
-    /// Surface parameterisation: interpolated vertex UVs, else the barycentrics `(b1, b2)` for
-    /// triangles; `(φ/2π, θ/π)` with θ measured from +y for spheres.
-    pub uv: Vec2,
+    /// Surface parameterisation, read with [`Hit::uv`]: interpolated vertex UVs, else the
+    /// barycentrics `(b1, b2)` for triangles; `(φ/2π, θ/π)` with θ measured from +y for
+    /// spheres, computed from `ng` only when read.
+    pub uv: HitUv,
     /// Index of the shape in the `Vec` given to [`SceneGeometry::build`].
     pub shape: u32,
     /// Triangle index within the mesh (0 for spheres).
@@ -296,7 +299,29 @@ pub struct Hit {
     pub p_error: f32,
 }
 
+/// Where a [`Hit`]'s texture coordinates come from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum HitUv {
+    /// Known when the hit was recorded.
+    At(Vec2),
+    /// A sphere's: [`sphere_uv`] of the hit's radial normal `ng`, computed when read (two
+    /// inverse trigonometric functions that most sphere hits, on untextured spheres, never
+    /// need).
+    Sphere,
+}
+
 impl Hit {
+    /// Surface parameterisation at the hit, as the field `uv` describes it: for spheres
+    /// [`sphere_uv`] of `ng`, the same bits as [`intersect_sphere`]'s record.
+    #[must_use]
+    #[inline]
+    pub fn uv(&self) -> Vec2 {
+        match self.uv {
+            HitUv::At(uv) => uv,
+            HitUv::Sphere => sphere_uv(self.ng),
+        }
+    }
+
     /// Origin for a ray leaving the surface in direction `dir`: moved off the surface along
     /// the geometric normal by the hit point's error bound, to the side `dir` points to, then
     /// by a few ULPs (Wächter & Binder 2019), so that neither the surface left nor a nearby

@@ -241,7 +241,7 @@ pub(super) fn guided_connection(
         ProbeLobes {
             lobes: [None, None],
         },
-        |h| ProbeLobes::at(obj, outside_ior, h.uv, footprint_at(obj, cone, h, u)),
+        |h| ProbeLobes::at(obj, outside_ior, h.uv(), footprint_at(obj, cone, h, u)),
     );
     let frame0 = probe
         .as_ref()
@@ -326,7 +326,7 @@ pub(super) fn guided_connection(
         (Some((s, _)), false) => s,
         _ => {
             let width_y = footprint_at(obj, cone, &y, d);
-            match boundary_surface_at(obj, outside_ior, y.uv, width_y, u_pick) {
+            match boundary_surface_at(obj, outside_ior, y.uv(), width_y, u_pick) {
                 Some(s) => {
                     at_y = s;
                     &at_y

@@ -93,7 +93,7 @@ pub(super) fn shadow_transmittance(
         let entering = dir.dot(h.ng) < 0.0;
         if !is_false_intersection(scene, &stack, oi, entering) {
             let surface = match &obj.surface {
-                ObjectSurface::Blend(_) => obj.surface.pick(h.uv, 0.0, sampler.next_1d()),
+                ObjectSurface::Blend(_) => obj.surface.pick(h.uv(), 0.0, sampler.next_1d()),
                 s => s,
             };
             match surface {
@@ -114,12 +114,12 @@ pub(super) fn shadow_transmittance(
                     } else {
                         fresnel_dielectric(cos, 1.0 / eta)
                     };
-                    tr *= d.tint.eval(h.uv, 0.0) * (1.0 - f);
+                    tr *= d.tint.eval(h.uv(), 0.0) * (1.0 - f);
                 }
             }
         }
         if entering {
-            enter(scene, &mut stack, oi, h.uv, 0.0, || sampler.next_1d());
+            enter(scene, &mut stack, oi, h.uv(), 0.0, || sampler.next_1d());
         } else {
             stack.remove(oi);
         }

@@ -777,7 +777,7 @@ impl<'s> PathState<'s> {
             self.entry_normal = hit.ns;
             let obj = &scene.objects[oi as usize];
             let width = self.footprint(obj, hit);
-            enter(scene, &mut self.stack, oi, hit.uv, width, || {
+            enter(scene, &mut self.stack, oi, hit.uv(), width, || {
                 sampler.next_1d()
             });
         } else {
@@ -812,7 +812,8 @@ impl<'s> PathState<'s> {
         } else {
             0.0
         };
-        let Some(surface) = boundary_surface_at(obj, outside_ior, hit.uv, width_uv, u_mask) else {
+        let Some(surface) = boundary_surface_at(obj, outside_ior, hit.uv(), width_uv, u_mask)
+        else {
             return Step::Stop;
         };
         // Opaque surfaces are two-sided: seen from behind, flip the frame.
@@ -924,7 +925,7 @@ impl<'s> PathState<'s> {
         if bs.is_transmission {
             self.eta_scale *= bs.eta * bs.eta;
             if wi.dot(hit.ng) < 0.0 {
-                enter(scene, &mut self.stack, oi, hit.uv, width_uv, || {
+                enter(scene, &mut self.stack, oi, hit.uv(), width_uv, || {
                     sampler.next_1d()
                 });
             } else {
@@ -998,7 +999,7 @@ fn shadow_entry(
     } else {
         0.0
     };
-    Some(w.resolve(hit.uv, width_uv, r))
+    Some(w.resolve(hit.uv(), width_uv, r))
 }
 
 /// A surface vertex seen from the path, for next event estimation through its BSDF.

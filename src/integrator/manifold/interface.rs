@@ -128,7 +128,7 @@ impl<'a> SceneInterface<'a> {
             self.seed_first_segment = first.unwrap_or(0.0);
         }
         if let Some((hit, _, _)) = &found {
-            self.uv = hit.uv;
+            self.uv = hit.uv();
         }
         found.map(|(hit, stack, _)| (hit, stack))
     }
@@ -197,7 +197,7 @@ impl<'a> SceneInterface<'a> {
                         ObjectSurface::Null => true,
                         // Index-matched: the smooth lobe passes straight through, tinted.
                         ObjectSurface::Dielectric(d) if is_index_matched(d, outside) => {
-                            tint *= d.tint.eval(hit.uv, 0.0);
+                            tint *= d.tint.eval(hit.uv(), 0.0);
                             true
                         }
                         // Blends are not walked through (nor counted as pass-through by the
@@ -214,7 +214,7 @@ impl<'a> SceneInterface<'a> {
                 return ok.then_some((hit, stack, tint));
             }
             if entering {
-                enter(scene, &mut stack, oi, hit.uv, 0.0, &mut *u);
+                enter(scene, &mut stack, oi, hit.uv(), 0.0, &mut *u);
             } else {
                 stack.remove(oi);
             }
@@ -385,7 +385,7 @@ mod tests {
             p: Vec3::ZERO,
             ng: Vec3::Z,
             ns: Vec3::Z,
-            uv: Vec2::ZERO,
+            uv: crate::geometry::HitUv::At(Vec2::ZERO),
             shape: 0,
             prim: 0,
             p_error: 0.0,
