@@ -416,52 +416,6 @@ impl<'a> Walk<'a> {
     }
 }
 
-impl Walk<'_> {
-    /// Where the next call of [`Iterator::next`] reads first: the top frame's current cell
-    /// (its level's index and the level), or `None` when the walk is over. The top frame is
-    /// never finished after [`Iterator::next`] returns (finished frames are left at once),
-    /// so its cell lies inside its level.
-    #[inline(always)]
-    fn next_read(&self) -> Option<(usize, usize)> {
-        let f = self.stack.get(self.depth.checked_sub(1)?)?;
-        if f.done || self.t >= f.t_end {
-            return None;
-        }
-        let level = self.top.checked_sub(self.depth - 1)?;
-        let lv = self.pyramid.levels.get(level)?;
-        let c = IVec3::from_array(f.cell);
-        if c.cmplt(IVec3::ZERO).any() || c.cmpge(lv.dims).any() {
-            return None;
-        }
-        Some((lv.index(c), level))
-    }
-
-    /// Asks the CPU to bring the bounds (and, where the walk may open the cell, the opening
-    /// prices) of the cell the next step reads towards the core, while the caller tracks
-    /// through the segment just returned: the finest levels are megabytes, and their cells
-    /// are read once per segment, each a likely cache miss. A hint only: no visible effect.
-    #[inline(always)]
-    fn prefetch_next(&self) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let Some((i, level)) = self.next_read() else {
-                return;
-            };
-            let lv = &self.pyramid.levels[level];
-            // SAFETY: a prefetch is a hint that never faults, whatever the address.
-            unsafe {
-                _mm_prefetch::<_MM_HINT_T0>(lv.cells.as_ptr().wrapping_add(i).cast::<i8>());
-                if level > self.finest {
-                    _mm_prefetch::<_MM_HINT_T0>(
-                        lv.open_below.as_ptr().wrapping_add(i).cast::<i8>(),
-                    );
-                }
-            }
-        }
-    }
-}
-
 impl Iterator for Walk<'_> {
     type Item = WalkCell;
 
@@ -542,7 +496,6 @@ impl Iterator for Walk<'_> {
                 self.t = self.t.max(self.stack[self.depth - 1].t_end.min(self.t1));
                 self.depth -= 1;
             }
-            self.prefetch_next();
             return Some(out);
         }
         None
