@@ -179,11 +179,6 @@ struct Level {
     /// True when no non-empty cell of the level has constant bounds: the exhaustive walk opens
     /// every non-empty cell of the level.
     all_vary: bool,
-    /// One bit per cell, set where the cell's bounds are not empty ([`Bounds::is_empty`]),
-    /// 64 cells a word: the walk skips empty cells on this table (80 KB for 640,000 cells)
-    /// without reading their 12-byte bounds from the megabytes of the finest levels.
-    /// Empty until [`Level::set_open_below`] (then every cell has its bit).
-    occupied: Vec<u64>,
 }
 
 impl Level {
@@ -195,32 +190,7 @@ impl Level {
             open_below: Vec::new(),
             open_floor: [f32::INFINITY; 2],
             all_vary: false,
-            occupied: Vec::new(),
         }
-    }
-
-    /// The occupancy bits of `cells`: bit `i % 64` of word `i / 64` set where cell `i` is
-    /// not empty.
-    fn occupancy(cells: &[Bounds]) -> Vec<u64> {
-        cells
-            .chunks(64)
-            .map(|chunk| {
-                chunk
-                    .iter()
-                    .enumerate()
-                    .fold(0u64, |w, (k, b)| w | (u64::from(!b.is_empty()) << k))
-            })
-            .collect()
-    }
-
-    /// False only where cell `i` is known to be empty from the occupancy bits (true where
-    /// it is not empty, and where the bits are not set up): the walk reads the cell's
-    /// bounds only where this is true.
-    #[inline(always)]
-    fn may_be_occupied(&self, i: usize) -> bool {
-        self.occupied
-            .get(i >> 6)
-            .is_none_or(|w| (w >> (i & 63)) & 1 != 0)
     }
 
     /// Sets the level's opening prices and the per-level summaries drawn from them.
@@ -242,7 +212,6 @@ impl Level {
         let whole = open_below.len() == self.cells.len();
         self.open_floor = if whole { floor } else { [f32::NAN; 2] };
         self.all_vary = self.cells.iter().all(|b| b.is_empty() || b.min != b.max);
-        self.occupied = Self::occupancy(&self.cells);
         self.open_below = open_below;
     }
 

@@ -462,11 +462,6 @@ impl Iterator for Walk<'_> {
             let cell = IVec3::from_array(cell_a);
             let exits = DVec3::from_array(exits_a);
             let i = lv.index(cell);
-            // Most cells of the finest levels are empty: decided on the occupancy bits.
-            if !lv.may_be_occupied(i) {
-                self.t = t_exit;
-                continue;
-            }
             let b = lv.cells[i];
             if b.is_empty() {
                 self.t = t_exit;
