@@ -396,7 +396,13 @@ impl<'a> ShellCursor<'a> {
     #[inline(always)]
     #[must_use]
     pub fn point_bound(&self, t: f32) -> f32 {
-        self.locate(t).map_or(0.0, |s| self.shell.point_bound_at(s))
+        // A `match`, not `Option::map_or`: the compiler kept `map_or` (only `#[inline]`) out
+        // of line, a call per tentative collision (`core::option::Option::map_or` in
+        // profiles).
+        match self.locate(t) {
+            Some(s) => self.shell.point_bound_at(s),
+            None => 0.0,
+        }
     }
 }
 
