@@ -223,8 +223,10 @@ impl<'a> ShellLookup<'a> {
         }
     }
 
-    /// The (projected) density at distance `t`.
-    #[inline]
+    /// The (projected) density at distance `t`. Always inlined: into the shadow rays'
+    /// tracker (`medium::heterogeneous`), into the dispatch over density sources and into
+    /// [`ShellLookup::at_out_of_line`].
+    #[inline(always)]
     pub fn at(&self, t: f32) -> f32 {
         let Some(s) = self.cursor.locate(t) else {
             return 0.0;
