@@ -223,10 +223,8 @@ impl<'a> ShellLookup<'a> {
         }
     }
 
-    /// The (projected) density at distance `t`. Always inlined: into the shadow rays'
-    /// tracker (`medium::heterogeneous`), into the dispatch over density sources and into
-    /// [`ShellLookup::at_out_of_line`].
-    #[inline(always)]
+    /// The (projected) density at distance `t`.
+    #[inline]
     pub fn at(&self, t: f32) -> f32 {
         let Some(s) = self.cursor.locate(t) else {
             return 0.0;

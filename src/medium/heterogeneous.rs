@@ -584,19 +584,6 @@ impl HeterogeneousMedium {
         let mut inner = self.pyramid_segments(c, ray, 0.0, t_max, self.shadow_model());
         let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
         let mut lookup = self.density_along(ray);
-        if let DensityLookup::Shell(shell) = &lookup {
-            // Fabric shells, whose shadow rays make most of the lookups on cloth scenes: the
-            // shell's lookup inlined into its own instance of the tracker (no call and no
-            // dispatch over the sources per lookup; the same lookups, the same values).
-            return transmittance(
-                &mut segments,
-                c,
-                |t| shell.at(t),
-                self.tracking.transmittance,
-                u,
-                stats,
-            );
-        }
         transmittance(
             &mut segments,
             c,
