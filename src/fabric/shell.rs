@@ -396,7 +396,13 @@ impl<'a> ShellCursor<'a> {
     #[inline(always)]
     #[must_use]
     pub fn point_bound(&self, t: f32) -> f32 {
-        self.locate(t).map_or(0.0, |s| self.shell.point_bound_at(s))
+        // A `match`, not `Option::map_or`: the compiler kept `map_or` (only `#[inline]`) out
+        // of line, a call per tentative collision (`core::option::Option::map_or` in
+        // profiles).
+        match self.locate(t) {
+            Some(s) => self.shell.point_bound_at(s),
+            None => 0.0,
+        }
     }
 }
 
@@ -2095,6 +2101,49 @@ mod tests {
             }
         }
         assert!(found > 20_000 && spans > 10_000, "{found} {spans}");
+    }
+
+    /// A cursor's point bound is [`FabricShell::point_bound_at`] of the point the cursor
+    /// locates at that distance, and 0 where it locates none (outside the shell); the point
+    /// is kept for the lookup that follows at the same distance.
+    #[test]
+    fn a_cursor_point_bound_is_the_bound_at_its_located_point() {
+        let shell = bumpy_shell();
+        let mut rng = Rng::new(19, 4);
+        let (mut inside, mut outside, mut positive) = (0u32, 0u32, 0u32);
+        for _ in 0..1_000 {
+            let o = point_in_box(&shell, &mut rng);
+            let d = (point_in_box(&shell, &mut rng) - o).normalize_or_zero();
+            let ray = Ray::new(o, d);
+            let cursor = ShellCursor::new(&shell, &ray);
+            let reference = ShellCursor::new(&shell, &ray);
+            let mut t = 0.0f32;
+            for _ in 0..60 {
+                t += shell.thickness * 0.1 * rng.next_f32();
+                let bound = cursor.point_bound(t);
+                let located = reference.locate(t);
+                let want = located.map_or(0.0, |s| shell.point_bound_at(s));
+                assert_eq!(bound.to_bits(), want.to_bits(), "at t = {t}");
+                assert_eq!(
+                    cursor
+                        .last
+                        .get()
+                        .1
+                        .map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
+                    located.map(|s| (s.tet, s.q.to_array().map(f32::to_bits))),
+                    "kept point at t = {t}"
+                );
+                match located {
+                    Some(_) => inside += 1,
+                    None => outside += 1,
+                }
+                positive += u32::from(bound > 0.0);
+            }
+        }
+        assert!(
+            inside > 5_000 && outside > 1_000 && positive > 1_000,
+            "{inside} {outside} {positive}"
+        );
     }
 
     /// The per-thread vertex cache answers only for the same shell and the same point bits.
