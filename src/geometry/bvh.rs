@@ -683,6 +683,25 @@ mod tests {
     use crate::geometry::{icosphere, intersect_sphere, TriangleMesh};
     use crate::sampling::{sample_uniform_sphere, Rng};
 
+    /// Asserts that `geometry` and `plain` give ray `i` the same closest hit (its
+    /// [`hit_bits`]) and the same occlusion answer; returns `plain`'s hit.
+    fn assert_same_answers(
+        geometry: &SceneGeometry,
+        plain: &SceneGeometry,
+        ray: &Ray,
+        t_max: f32,
+        i: usize,
+    ) -> Option<Hit> {
+        let (a, b) = (geometry.intersect(ray, t_max), plain.intersect(ray, t_max));
+        assert_eq!(hit_bits(a), hit_bits(b), "ray {i}: {ray:?} to {t_max}");
+        assert_eq!(
+            geometry.occluded(ray, t_max),
+            plain.occluded(ray, t_max),
+            "ray {i}"
+        );
+        b
+    }
+
     fn hit_bits(h: Option<Hit>) -> Option<[u32; 6]> {
         h.map(|h| {
             [
@@ -1286,16 +1305,7 @@ mod tests {
                 _ => f32::INFINITY,
             };
             let ray = Ray::new(o, d);
-            let (a, b) = (
-                geometry.intersect(&ray, t_max),
-                plain.intersect(&ray, t_max),
-            );
-            assert_eq!(hit_bits(a), hit_bits(b), "ray {i}: {ray:?} to {t_max}");
-            assert_eq!(
-                geometry.occluded(&ray, t_max),
-                plain.occluded(&ray, t_max),
-                "ray {i}"
-            );
+            let b = assert_same_answers(&geometry, &plain, &ray, t_max, i);
             skipped += usize::from(geometry.segment_misses_triangles(&ray, t_max));
             hits += usize::from(b.is_some());
         }
@@ -1339,16 +1349,7 @@ mod tests {
             let d = sample_uniform_sphere(rng.next_2d());
             let t_max = if i % 5 == 0 { 0.3 } else { f32::INFINITY };
             let ray = Ray::new(o, d);
-            let (a, b) = (
-                geometry.intersect(&ray, t_max),
-                plain.intersect(&ray, t_max),
-            );
-            assert_eq!(hit_bits(a), hit_bits(b), "ray {i}: {ray:?} to {t_max}");
-            assert_eq!(
-                geometry.occluded(&ray, t_max),
-                plain.occluded(&ray, t_max),
-                "ray {i}"
-            );
+            let b = assert_same_answers(&geometry, &plain, &ray, t_max, i);
             if let Some(h) = b {
                 hits += 1;
                 tri_hits += usize::from(h.shape < 2);
