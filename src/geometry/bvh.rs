@@ -239,13 +239,14 @@ impl SceneGeometry {
                 })
             })
             .collect();
-        let centres: Vec<Vec3> = analytic
+        let spheres: Vec<(Vec3, f32)> = analytic
             .iter()
             .filter_map(|a| match *a {
-                Analytic::Sphere { center, .. } => Some(center),
+                Analytic::Sphere { center, radius, .. } => Some((center, radius)),
                 Analytic::Box { .. } | Analytic::LevelSet { .. } => None,
             })
             .collect();
+        let centres: Vec<Vec3> = spheres.iter().map(|&(center, _)| center).collect();
         let free = if centres.is_empty() {
             None
         } else {
@@ -261,13 +262,6 @@ impl SceneGeometry {
             }
             _ => None,
         };
-        let spheres: Vec<(Vec3, f32)> = analytic
-            .iter()
-            .filter_map(|a| match *a {
-                Analytic::Sphere { center, radius, .. } => Some((center, radius)),
-                Analytic::Box { .. } | Analytic::LevelSet { .. } => None,
-            })
-            .collect();
         let sphere_blocks = if spheres.len() == analytic.len() {
             SphereBlock::blocks(&spheres)
         } else {
