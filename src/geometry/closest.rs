@@ -10,6 +10,7 @@
 //! the median, so the tree's depth is about log2(triangles / leaf size)).
 
 use crate::math::{Aabb, Vec2, Vec3};
+use glam::Vec3A;
 
 use super::{GeometryError, TriangleMesh};
 
@@ -54,7 +55,7 @@ pub struct ClosestPointMesh {
     prims: Vec<u32>,
     /// Each triangle's bounding box, tree order: its squared distance is a lower bound on
     /// the triangle's, tested before the exact closest point (see [`skip_threshold`]).
-    tri_bounds: Vec<Aabb>,
+    tri_bounds: Vec<[Vec3A; 2]>,
     /// The absolute part of the skip margin (world units): a bound on how far rounding can
     /// move a computed closest point outside its triangle's box (see [`skip_threshold`]).
     margin: f32,
@@ -100,10 +101,11 @@ impl ClosestPointMesh {
         let tri_bounds = tris
             .iter()
             .map(|t| {
-                Aabb::EMPTY
+                let b = Aabb::EMPTY
                     .union_point(t[0])
                     .union_point(t[1])
-                    .union_point(t[2])
+                    .union_point(t[2]);
+                [Vec3A::from(b.min), Vec3A::from(b.max)]
             })
             .collect();
         let magnitude = tris
@@ -149,6 +151,7 @@ impl ClosestPointMesh {
             hinted = *hint as usize;
         }
         let mut skip = skip_threshold(best, self.margin);
+        let pa = Vec3A::from(p);
         // Nodes still to visit, with their boxes' squared distances (the root's is 0: it is
         // tested against the best distance only through its children).
         let mut stack = [(0u32, 0.0f32); STACK];
@@ -170,7 +173,7 @@ impl ClosestPointMesh {
                     };
                     // A triangle whose box is beyond the margin cannot come out strictly
                     // nearer than `best`, so skipping it keeps every answer bit for bit.
-                    if i == hinted || box_distance2(b, p) > skip {
+                    if i == hinted || box_distance2_simd(b, pa) > skip {
                         continue;
                     }
                     let (q, bary) = closest_on_triangle(p, t[0], t[1], t[2]);
@@ -314,6 +317,14 @@ const MARGIN_FLOOR: f32 = 1e-18;
 fn skip_threshold(best: f32, margin: f32) -> f32 {
     let r = best.sqrt() * (1.0 + MARGIN_RELATIVE) + margin;
     r * r
+}
+
+/// [`box_distance2`] for a box `[min, max]` held in SIMD lanes: the same value up to the order
+/// of the final sum, which only the margin-protected triangle skip uses.
+#[inline]
+fn box_distance2_simd(b: &[Vec3A; 2], p: Vec3A) -> f32 {
+    let d = (b[0] - p).max(p - b[1]).max(Vec3A::ZERO);
+    d.length_squared()
 }
 
 /// Squared distance from `p` to the box (0 inside).
@@ -743,6 +754,8 @@ mod tests {
             let margin = MARGIN_RELATIVE * magnitude + MARGIN_FLOOR;
             let bounds = Aabb::EMPTY.union_point(a).union_point(b).union_point(c);
             let box2 = box_distance2(&bounds, p);
+            let simd = [Vec3A::from(bounds.min), Vec3A::from(bounds.max)];
+            let box2 = box2.max(box_distance2_simd(&simd, Vec3A::from(p)));
             let threshold = skip_threshold(d2, margin);
             assert!(
                 box2 <= threshold,
