@@ -10,6 +10,7 @@
 //! the median, so the tree's depth is about log2(triangles / leaf size)).
 
 use crate::math::{Aabb, Vec2, Vec3};
+use glam::Vec3A;
 
 use super::{GeometryError, TriangleMesh};
 
@@ -52,6 +53,12 @@ pub struct ClosestPointMesh {
     uvs: Vec<[Vec2; 3]>,
     /// The mesh's triangle index per tree slot.
     prims: Vec<u32>,
+    /// Each triangle's bounding box, tree order: its squared distance is a lower bound on
+    /// the triangle's, tested before the exact closest point (see [`skip_threshold`]).
+    tri_bounds: Vec<[Vec3A; 2]>,
+    /// The absolute part of the skip margin (world units): a bound on how far rounding can
+    /// move a computed closest point outside its triangle's box (see [`skip_threshold`]).
+    margin: f32,
 }
 
 impl ClosestPointMesh {
@@ -90,11 +97,29 @@ impl ClosestPointMesh {
             count: 0,
         }];
         build_node(&mut nodes, 0, &mut order, 0, &tris, &centroids);
+        let tris: Vec<[Vec3; 3]> = order.iter().map(|&i| tris[i as usize]).collect();
+        let tri_bounds = tris
+            .iter()
+            .map(|t| {
+                let b = Aabb::EMPTY
+                    .union_point(t[0])
+                    .union_point(t[1])
+                    .union_point(t[2]);
+                [Vec3A::from(b.min), Vec3A::from(b.max)]
+            })
+            .collect();
+        let magnitude = tris
+            .iter()
+            .flatten()
+            .map(|v| v.abs().max_element())
+            .fold(0.0f32, f32::max);
         Ok(ClosestPointMesh {
             nodes,
-            tris: order.iter().map(|&i| tris[i as usize]).collect(),
+            tris,
             uvs: order.iter().map(|&i| corner_uvs[i as usize]).collect(),
             prims: order,
+            tri_bounds,
+            margin: MARGIN_RELATIVE * magnitude + MARGIN_FLOOR,
         })
     }
 
@@ -116,11 +141,17 @@ impl ClosestPointMesh {
         }
         let mut best = f32::INFINITY;
         let mut found: Option<(usize, Vec3, [f32; 3])> = None;
+        // The hint's slot, or none: visited again in its leaf it would give the same
+        // distance, which is not below `best` (best only falls), so it is not recomputed.
+        let mut hinted = usize::MAX;
         if let Some(t) = self.tris.get(*hint as usize) {
             let (q, bary) = closest_on_triangle(p, t[0], t[1], t[2]);
             best = (q - p).length_squared();
             found = Some((*hint as usize, q, bary));
+            hinted = *hint as usize;
         }
+        let mut skip = skip_threshold(best, self.margin);
+        let pa = Vec3A::from(p);
         // Nodes still to visit, with their boxes' squared distances (the root's is 0: it is
         // tested against the best distance only through its children).
         let mut stack = [(0u32, 0.0f32); STACK];
@@ -137,11 +168,19 @@ impl ClosestPointMesh {
             if node.count > 0 {
                 let first = node.first as usize;
                 for i in first..first + node.count as usize {
-                    let Some(t) = self.tris.get(i) else { break };
+                    let (Some(t), Some(b)) = (self.tris.get(i), self.tri_bounds.get(i)) else {
+                        break;
+                    };
+                    // A triangle whose box is beyond the margin cannot come out strictly
+                    // nearer than `best`, so skipping it keeps every answer bit for bit.
+                    if i == hinted || box_distance2_simd(b, pa) > skip {
+                        continue;
+                    }
                     let (q, bary) = closest_on_triangle(p, t[0], t[1], t[2]);
                     let d2 = (q - p).length_squared();
                     if d2 < best {
                         best = d2;
+                        skip = skip_threshold(best, self.margin);
                         found = Some((i, q, bary));
                     }
                 }
@@ -255,6 +294,37 @@ fn build_node(
     let (lo, hi) = order.split_at_mut(mid);
     build_node(nodes, left, lo, first, tris, centroids);
     build_node(nodes, left + 1, hi, first + mid, tris, centroids);
+}
+
+/// Relative part of the skip margin: covers the rounding of the box's squared distance, of the
+/// triangle's computed squared distance and of [`skip_threshold`] itself (a few units of f32
+/// rounding, 2⁻²⁴ ≈ 6e-8, each; 1e-5 is ~80 of them).
+const MARGIN_RELATIVE: f32 = 1e-5;
+
+/// Least absolute margin (world units): keeps the margin's square a normal f32, so that
+/// underflow near distance 0 cannot eat it.
+const MARGIN_FLOOR: f32 = 1e-18;
+
+/// The squared box distance beyond which a triangle cannot beat `best` (a squared distance):
+/// (√best·(1 + 1e-5) + `margin`)². A triangle's computed closest point is a convex combination
+/// of its corners up to rounding (weights in [0, 1], summing to at most 1 + 4·2⁻²⁴), so it lies
+/// within ~16·2⁻²⁴·M of the triangle's box per axis, M the largest corner coordinate
+/// magnitude; `margin` = 1e-5·M is over 40 times that times √3. A box farther than the
+/// threshold therefore holds only triangles whose computed squared distance exceeds `best`,
+/// never equals it, so skipping them cannot change which triangle wins, ties included.
+/// Infinite for an infinite `best` (or a margin whose square overflows): nothing is skipped.
+#[inline]
+fn skip_threshold(best: f32, margin: f32) -> f32 {
+    let r = best.sqrt() * (1.0 + MARGIN_RELATIVE) + margin;
+    r * r
+}
+
+/// [`box_distance2`] for a box `[min, max]` held in SIMD lanes: the same value up to the order
+/// of the final sum, which only the margin-protected triangle skip uses.
+#[inline]
+fn box_distance2_simd(b: &[Vec3A; 2], p: Vec3A) -> f32 {
+    let d = (b[0] - p).max(p - b[1]).max(Vec3A::ZERO);
+    d.length_squared()
 }
 
 /// Squared distance from `p` to the box (0 inside).
@@ -474,5 +544,230 @@ mod tests {
             (got - expected).abs() < 1e-6 * expected,
             "{got} against {expected}"
         );
+    }
+
+    /// The traversal as it was before the per-triangle box test and the hint skip, written out:
+    /// every triangle of a visited leaf goes through `closest_on_triangle`.
+    fn reference_nearest_from(
+        cp: &ClosestPointMesh,
+        p: Vec3,
+        hint: &mut u32,
+    ) -> Option<NearestPoint> {
+        if !p.is_finite() {
+            return None;
+        }
+        let mut best = f32::INFINITY;
+        let mut found: Option<(usize, Vec3, [f32; 3])> = None;
+        if let Some(t) = cp.tris.get(*hint as usize) {
+            let (q, bary) = closest_on_triangle(p, t[0], t[1], t[2]);
+            best = (q - p).length_squared();
+            found = Some((*hint as usize, q, bary));
+        }
+        let mut stack = vec![(0u32, 0.0f32)];
+        while let Some((index, d2)) = stack.pop() {
+            if d2 >= best {
+                continue;
+            }
+            let node = cp.nodes[index as usize];
+            if node.count > 0 {
+                let first = node.first as usize;
+                for i in first..first + node.count as usize {
+                    let t = cp.tris[i];
+                    let (q, bary) = closest_on_triangle(p, t[0], t[1], t[2]);
+                    let d2 = (q - p).length_squared();
+                    if d2 < best {
+                        best = d2;
+                        found = Some((i, q, bary));
+                    }
+                }
+                continue;
+            }
+            let (l, r) = (node.first, node.first + 1);
+            let dl = box_distance2(&cp.nodes[l as usize].bounds, p);
+            let dr = box_distance2(&cp.nodes[r as usize].bounds, p);
+            let (near, far) = if dl <= dr {
+                ((l, dl), (r, dr))
+            } else {
+                ((r, dr), (l, dl))
+            };
+            for child in [far, near] {
+                if child.1 < best {
+                    stack.push(child);
+                }
+            }
+        }
+        let (i, q, bary) = found?;
+        *hint = i as u32;
+        let uv = cp.uvs[i];
+        Some(NearestPoint {
+            p: q,
+            uv: uv[0] * bary[0] + uv[1] * bary[1] + uv[2] * bary[2],
+            distance2: best,
+            prim: cp.prims[i],
+        })
+    }
+
+    /// Bits of an answer and its hint, for exact comparison (NaN-safe).
+    fn bits(n: Option<NearestPoint>, hint: u32) -> Option<([u32; 6], u32, u32)> {
+        n.map(|n| {
+            (
+                [
+                    n.p.x.to_bits(),
+                    n.p.y.to_bits(),
+                    n.p.z.to_bits(),
+                    n.uv.x.to_bits(),
+                    n.uv.y.to_bits(),
+                    n.distance2.to_bits(),
+                ],
+                n.prim,
+                hint,
+            )
+        })
+    }
+
+    /// An irregular mesh: an icosphere with jittered corners, stretched, moved away from the
+    /// origin, with slivers (corners pulled onto their neighbours) and varied UVs.
+    fn irregular_mesh(offset: Vec3) -> TriangleMesh {
+        let mut mesh = crate::geometry::icosphere(3);
+        for (i, v) in mesh.positions.iter_mut().enumerate() {
+            let u = |d: u32| hash_uniform(5, i as u32, d) - 0.5;
+            *v = Vec3::new(v.x * 3.0, v.y * 0.7, v.z * 1.3)
+                + Vec3::new(u(0), u(1), u(2)) * 0.2
+                + offset;
+        }
+        // Slivers and degenerate triangles: some corners copied onto, or next to, another.
+        for i in (0..mesh.indices.len()).step_by(17) {
+            let [a, b, _] = mesh.indices[i];
+            let pa = mesh.positions[a as usize];
+            mesh.positions[b as usize] = if i % 2 == 0 {
+                pa
+            } else {
+                pa + Vec3::splat(1e-6)
+            };
+        }
+        mesh.uvs = Some(
+            (0..mesh.positions.len() as u32)
+                .map(|i| Vec2::new(hash_uniform(9, i, 0), hash_uniform(9, i, 1)))
+                .collect(),
+        );
+        mesh
+    }
+
+    #[test]
+    fn nearest_from_matches_the_unpruned_traversal_bit_for_bit() {
+        let mut ico = crate::geometry::icosphere(3);
+        ico.uvs = Some(
+            ico.positions
+                .iter()
+                .map(|p| Vec2::new(p.x * 0.5 + 0.5, p.y * 0.5 + 0.5))
+                .collect(),
+        );
+        let meshes = [
+            ico,
+            irregular_mesh(Vec3::ZERO),
+            irregular_mesh(Vec3::new(100.0, -40.0, 7.0)),
+            box_mesh(),
+        ];
+        let mut compared = 0u32;
+        for (m, mesh) in meshes.iter().enumerate() {
+            let cp = ClosestPointMesh::build(mesh, "m").unwrap();
+            let centre = mesh.positions.iter().copied().sum::<Vec3>() / mesh.positions.len() as f32;
+            let count = cp.triangle_count() as u32;
+            // One walk of successive queries (hints carried over), as along a ray, plus fresh
+            // hints: none, out of range and every kind of slot.
+            let (mut walk_new, mut walk_old) = (u32::MAX, u32::MAX);
+            for i in 0..4000u32 {
+                let u = |d: u32| hash_uniform(31 + m as u32, i, d) - 0.5;
+                // Near (within 0.05 of a corner), inside/around, and far (up to 200 away).
+                let scale = match i % 4 {
+                    0 => 0.1,
+                    1 => 4.0,
+                    2 => 12.0,
+                    _ => 400.0,
+                };
+                let base = if i % 4 == 0 {
+                    mesh.positions[(i as usize * 7) % mesh.positions.len()]
+                } else {
+                    centre
+                };
+                let p = base + Vec3::new(u(0), u(1), u(2)) * scale;
+                for start in [u32::MAX, count, i % count, (i * 13 + 5) % count] {
+                    let (mut h_new, mut h_old) = (start, start);
+                    let new = cp.nearest_from(p, &mut h_new);
+                    let old = reference_nearest_from(&cp, p, &mut h_old);
+                    assert_eq!(
+                        bits(new, h_new),
+                        bits(old, h_old),
+                        "mesh {m}, {p:?}, hint {start}"
+                    );
+                    compared += 1;
+                }
+                let new = cp.nearest_from(p, &mut walk_new);
+                let old = reference_nearest_from(&cp, p, &mut walk_old);
+                assert_eq!(
+                    bits(new, walk_new),
+                    bits(old, walk_old),
+                    "mesh {m}, walk, {p:?}"
+                );
+                // Points along a short ray from p: the case the hint serves.
+                for k in 1..4 {
+                    let q = p + Vec3::new(u(3), u(4), u(5)) * (0.02 * k as f32);
+                    let new = cp.nearest_from(q, &mut walk_new);
+                    let old = reference_nearest_from(&cp, q, &mut walk_old);
+                    assert_eq!(bits(new, walk_new), bits(old, walk_old), "mesh {m}, {q:?}");
+                }
+            }
+            assert!(cp.nearest_from(Vec3::INFINITY, &mut walk_new).is_none());
+        }
+        assert_eq!(compared, 4 * 4000 * 4);
+    }
+
+    /// The skip threshold never excludes a triangle that would tie or win: with `best` set to
+    /// a triangle's own computed squared distance, its box's squared distance stays at or
+    /// under the threshold — for random, sliver and far-off triangles and points near them.
+    #[test]
+    fn skip_threshold_never_excludes_a_tying_triangle() {
+        let (mut tightest, mut nan) = (f32::INFINITY, 0u32);
+        for i in 0..200_000u32 {
+            let u = |d: u32| hash_uniform(77, i, d) - 0.5;
+            let offset = Vec3::new(u(0), u(1), u(2)) * [1.0, 50.0, 1000.0][i as usize % 3];
+            let size = [1e-3, 1.0, 30.0][(i / 3) as usize % 3];
+            let a = offset + Vec3::new(u(3), u(4), u(5)) * size;
+            let mut b = offset + Vec3::new(u(6), u(7), u(8)) * size;
+            let c = offset + Vec3::new(u(9), u(10), u(11)) * size;
+            if i % 5 == 0 {
+                b = a + (c - a) * u(12).abs(); // a sliver: b on the segment ac (up to rounding)
+            }
+            let reach = [1e-4, 1e-2, 1.0, 100.0][(i / 9) as usize % 4];
+            let p = a + Vec3::new(u(13), u(14), u(15)) * reach;
+            let (q, _) = closest_on_triangle(p, a, b, c);
+            let d2 = (q - p).length_squared();
+            if d2.is_nan() {
+                // A degenerate edge's 0/0: NaN never compares below `best`, so never wins.
+                nan += 1;
+                continue;
+            }
+            let magnitude = [a, b, c]
+                .iter()
+                .map(|v| v.abs().max_element())
+                .fold(0.0f32, f32::max);
+            let margin = MARGIN_RELATIVE * magnitude + MARGIN_FLOOR;
+            let bounds = Aabb::EMPTY.union_point(a).union_point(b).union_point(c);
+            let box2 = box_distance2(&bounds, p);
+            let simd = [Vec3A::from(bounds.min), Vec3A::from(bounds.max)];
+            let box2 = box2.max(box_distance2_simd(&simd, Vec3A::from(p)));
+            let threshold = skip_threshold(d2, margin);
+            assert!(
+                box2 <= threshold,
+                "{a:?} {b:?} {c:?} {p:?}: {box2} > {threshold}"
+            );
+            if d2 > 0.0 {
+                tightest = tightest.min(threshold / d2);
+            }
+        }
+        // The margin is a margin, not a free pass: thresholds stay close to `best` for far points.
+        assert!(tightest < 1.001, "{tightest}");
+        assert!(nan < 2_000, "{nan}");
+        assert_eq!(skip_threshold(f32::INFINITY, 1.0), f32::INFINITY);
     }
 }
