@@ -6,7 +6,9 @@
 //! The closest point on a triangle is found by Voronoi regions of its vertices, edges and face
 //! (Ericson 2005, "Real-Time Collision Detection" §5.1.5; docs/references.md §14.4); the
 //! traversal visits the nearer child first and prunes boxes farther than the best distance
-//! found. Queries allocate nothing: the traversal stack is a fixed array (the build splits at
+//! found, and in a leaf skips each triangle whose own box lies beyond the best distance by
+//! more than the rounding of the computed distances ([`skip_threshold`]), so the answers are
+//! those of testing every triangle of the leaf. Queries allocate nothing: the traversal stack is a fixed array (the build splits at
 //! the median, so the tree's depth is about log2(triangles / leaf size)).
 
 use crate::math::{Aabb, Vec2, Vec3};
