@@ -609,6 +609,20 @@ mod tests {
         })
     }
 
+    /// Asserts that `nearest_from` from hint `h_new` and the written-out reference from hint
+    /// `h_old` give `p` the same answer and leave the same hint, bit for bit.
+    fn assert_matches_reference(
+        cp: &ClosestPointMesh,
+        p: Vec3,
+        h_new: &mut u32,
+        h_old: &mut u32,
+        what: &str,
+    ) {
+        let new = cp.nearest_from(p, h_new);
+        let old = reference_nearest_from(cp, p, h_old);
+        assert_eq!(bits(new, *h_new), bits(old, *h_old), "{what}, {p:?}");
+    }
+
     /// Bits of an answer and its hint, for exact comparison (NaN-safe).
     fn bits(n: Option<NearestPoint>, hint: u32) -> Option<([u32; 6], u32, u32)> {
         n.map(|n| {
@@ -695,28 +709,16 @@ mod tests {
                 let p = base + Vec3::new(u(0), u(1), u(2)) * scale;
                 for start in [u32::MAX, count, i % count, (i * 13 + 5) % count] {
                     let (mut h_new, mut h_old) = (start, start);
-                    let new = cp.nearest_from(p, &mut h_new);
-                    let old = reference_nearest_from(&cp, p, &mut h_old);
-                    assert_eq!(
-                        bits(new, h_new),
-                        bits(old, h_old),
-                        "mesh {m}, {p:?}, hint {start}"
-                    );
+                    let what = format!("mesh {m}, hint {start}");
+                    assert_matches_reference(&cp, p, &mut h_new, &mut h_old, &what);
                     compared += 1;
                 }
-                let new = cp.nearest_from(p, &mut walk_new);
-                let old = reference_nearest_from(&cp, p, &mut walk_old);
-                assert_eq!(
-                    bits(new, walk_new),
-                    bits(old, walk_old),
-                    "mesh {m}, walk, {p:?}"
-                );
+                let what = format!("mesh {m}, walk");
+                assert_matches_reference(&cp, p, &mut walk_new, &mut walk_old, &what);
                 // Points along a short ray from p: the case the hint serves.
                 for k in 1..4 {
                     let q = p + Vec3::new(u(3), u(4), u(5)) * (0.02 * k as f32);
-                    let new = cp.nearest_from(q, &mut walk_new);
-                    let old = reference_nearest_from(&cp, q, &mut walk_old);
-                    assert_eq!(bits(new, walk_new), bits(old, walk_old), "mesh {m}, {q:?}");
+                    assert_matches_reference(&cp, q, &mut walk_new, &mut walk_old, &what);
                 }
             }
             assert!(cp.nearest_from(Vec3::INFINITY, &mut walk_new).is_none());
