@@ -14,6 +14,14 @@
 //! `u32` vertex count, `f32` xyz per vertex, `u32` triangle count, `u32` indices per
 //! triangle, `u32` set count, then per set `u32` ray count and `f32` origin xyz, direction xyz,
 //! `t_max` per ray) for the peer benches in `tools/peers/embree/`.
+//!
+//! `RAY_CASTING_RECORDED=path` times instead the queries a render made, recorded with the
+//! cargo feature `ray-log` (`VELOUR_RAY_LOG=path velour render …`, format in
+//! `velour::geometry::ray_log`): on a geometry built from the log's meshes, every query is
+//! first replayed and checked against the recorded answer bit for bit, then timed as
+//! recorded (closest, occlusion or closest-and-beyond), every query as a closest-hit query
+//! and every query as an occlusion query, for the whole mix and per bucket of recorded kind
+//! and `t_max` ([`bucket`]; the Embree peer uses the same buckets).
 
 use std::time::Duration;
 
@@ -22,7 +30,8 @@ use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::ray::{Ray as ORay, RayHit};
 use obvhs::rt_triangle::RtTriangle;
 use obvhs::BvhBuildParams;
-use velour::geometry::{icosphere, SceneGeometry, Shape};
+use velour::geometry::ray_log::{Answer, QueryKind, RayLog};
+use velour::geometry::{icosphere, SceneGeometry, Shape, TriangleMesh};
 use velour::math::{Ray, Vec3};
 use velour::sampling::{sample_uniform_sphere, Rng};
 
@@ -138,6 +147,10 @@ fn dump(
 }
 
 fn main() {
+    if let Ok(path) = std::env::var("RAY_CASTING_RECORDED") {
+        recorded(&path);
+        return;
+    }
     let subdiv = std::env::var("RAY_CASTING_SUBDIV")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -201,4 +214,173 @@ fn main() {
             v / s
         );
     }
+}
+
+/// The `t_max` classes of [`bucket`]: unbounded, then finite ones below these bounds.
+const T_MAX_BOUNDS: [(f32, &str); 3] = [
+    (0.1, "t_max < 0.1"),
+    (1.0, "t_max < 1"),
+    (f32::INFINITY, "t_max finite ≥ 1"),
+];
+
+/// A recorded query's bucket: its kind (0 closest, 1 occlusion, 2 closest-and-beyond) × 4 +
+/// its `t_max` class (0 unbounded, then [`T_MAX_BOUNDS`]). `tools/peers/embree/embree_rays.cpp`
+/// computes the same.
+fn bucket(kind: QueryKind, t_max: f32) -> usize {
+    let class = if t_max == f32::INFINITY {
+        0
+    } else {
+        1 + T_MAX_BOUNDS
+            .iter()
+            .position(|&(b, _)| t_max < b)
+            .unwrap_or(T_MAX_BOUNDS.len() - 1)
+    };
+    kind as usize * 4 + class
+}
+
+fn bucket_name(b: usize) -> String {
+    let kind = ["closest", "occlusion", "beyond"][b / 4];
+    let class = match b % 4 {
+        0 => "t_max = ∞",
+        c => T_MAX_BOUNDS[c - 1].1,
+    };
+    format!("{kind}, {class}")
+}
+
+/// One replayable query: the ray, `t_max`, and its recorded kind.
+type Replay = (Ray, f32, QueryKind);
+
+/// Answers `q` as recorded, in the log's numbering of triangles.
+fn answer(geometry: &SceneGeometry, q: &Replay) -> Answer {
+    let record = |h: Option<velour::geometry::Hit>, clear: bool| {
+        h.map_or(Answer::MISS, |h| Answer {
+            hit: true,
+            clear,
+            t: h.t,
+            shape: h.shape,
+            prim: h.prim,
+        })
+    };
+    match q.2 {
+        QueryKind::Closest => record(geometry.intersect(&q.0, q.1), false),
+        QueryKind::Beyond => {
+            let (h, clear) = geometry.intersect_and_beyond(&q.0, q.1);
+            record(h, clear)
+        }
+        QueryKind::Occluded => Answer {
+            hit: geometry.occluded(&q.0, q.1),
+            ..Answer::MISS
+        },
+    }
+}
+
+/// `RAY_CASTING_RECORDED`: the recorded queries (see the module docs).
+fn recorded(path: &str) {
+    let log = RayLog::read_file(std::path::Path::new(path)).expect("a ray log");
+    let (positions, indices) = log.merged_mesh();
+    let ntri = indices.len();
+    let geometry = SceneGeometry::build(vec![Shape::Mesh(TriangleMesh {
+        positions,
+        normals: None,
+        uvs: None,
+        indices,
+    })])
+    .expect("the log's meshes");
+    println!(
+        "recorded: {path}: {} queries of {} (every {}), {} triangles in {} mesh(es), velour BVH depth {}",
+        log.queries.len(),
+        log.seen,
+        log.every,
+        ntri,
+        log.meshes.len(),
+        geometry.bvh_depth()
+    );
+    let all: Vec<Replay> = log
+        .queries
+        .iter()
+        .map(|q| (Ray::new(q.origin, q.dir), q.t_max, q.kind))
+        .collect();
+    // The replay against the recording, bit for bit (hit, clear, distance, triangle).
+    let mut mismatches = 0usize;
+    let mut occl_mismatches = 0usize;
+    for (q, r) in log.queries.iter().zip(&all) {
+        // The replay's geometry is the log's meshes merged into one: its triangle numbers
+        // are the log's global ones, and its one shape is shape 0.
+        let got = answer(&geometry, r);
+        let recorded = Answer {
+            prim: if q.answer.hit && r.2 != QueryKind::Occluded {
+                log.global_prim(q.answer.shape, q.answer.prim)
+                    .unwrap_or(u32::MAX)
+            } else {
+                q.answer.prim
+            },
+            ..q.answer
+        };
+        if got.hit != recorded.hit
+            || got.clear != recorded.clear
+            || got.t.to_bits() != recorded.t.to_bits()
+            || got.prim != recorded.prim
+        {
+            mismatches += 1;
+        }
+        // An occlusion query hits exactly when a closest-hit query finds a hit.
+        if r.2 != QueryKind::Occluded && geometry.occluded(&r.0, r.1) != q.answer.hit {
+            occl_mismatches += 1;
+        }
+    }
+    println!(
+        "replay: {mismatches} of {} answers differ from the recording; occlusion disagrees with the recorded closest hit on {occl_mismatches}",
+        all.len()
+    );
+    let mut buckets: Vec<Vec<Replay>> = vec![Vec::new(); 12];
+    for r in &all {
+        buckets[bucket(r.2, r.1)].push(*r);
+    }
+    let time = |rays: &[Replay]| {
+        let (rec, hr) = rate_replay(rays, 5, |q| answer(&geometry, q).hit);
+        let (c, hc) = rate_replay(rays, 5, |q| geometry.intersect(&q.0, q.1).is_some());
+        let (o, ho) = rate_replay(rays, 5, |q| geometry.occluded(&q.0, q.1));
+        (rec, c, o, hr, hc, ho)
+    };
+    println!(
+        "{:<30} {:>9} {:>7} {:>14} {:>14} {:>14}   hits (as recorded / closest / occl.)",
+        "rays", "count", "share", "velour as rec.", "velour closest", "velour occl."
+    );
+    let row = |name: &str, rays: &[Replay]| {
+        let (rec, c, o, hr, hc, ho) = time(rays);
+        println!(
+            "{:<30} {:>9} {:>6.1}% {:>12.2} M {:>12.2} M {:>12.2} M   ({hr} / {hc} / {ho})",
+            name,
+            rays.len(),
+            100.0 * rays.len() as f64 / all.len() as f64,
+            rec / 1e6,
+            c / 1e6,
+            o / 1e6
+        );
+    };
+    row("whole mix", &all);
+    for (b, rays) in buckets.iter().enumerate() {
+        if !rays.is_empty() {
+            row(&bucket_name(b), rays);
+        }
+    }
+}
+
+/// [`rate`] over recorded queries.
+fn rate_replay(
+    rays: &[Replay],
+    repeats: usize,
+    mut f: impl FnMut(&Replay) -> bool,
+) -> (f64, usize) {
+    let mut best = f64::INFINITY;
+    let mut hits = 0;
+    for _ in 0..repeats {
+        hits = 0;
+        let t0 = thread_cpu();
+        for q in rays {
+            hits += usize::from(f(q));
+        }
+        best = best.min(thread_cpu() - t0);
+    }
+    (rays.len() as f64 / best, hits)
 }

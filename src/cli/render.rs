@@ -340,7 +340,20 @@ fn render_frame(args: &RenderArgs, frame: Option<u32>, stop: &Arc<AtomicBool>) -
         )),
         film.seed
     );
+    #[cfg(feature = "ray-log")]
+    let ray_log = crate::geometry::ray_log::start_from_env();
     let r = render_budget(&scene, &options)?;
+    #[cfg(feature = "ray-log")]
+    if let Some(path) = ray_log {
+        let log = crate::geometry::ray_log::finish(&scene.geometry);
+        log.write_file(&path)?;
+        eprintln!(
+            "ray log: {} of {} queries written to {}",
+            log.queries.len(),
+            log.seen,
+            path.display()
+        );
+    }
     attributes.insert(
         "velour:render_seconds".into(),
         format!("{:.3}", r.summary.seconds),

@@ -286,7 +286,16 @@ impl SceneGeometry {
     /// Closest hit with `0 < t < t_max` along `ray` (unit direction), or `None`. Rays that
     /// leave a surface must start at [`crate::math::offset_ray_origin`]; `t_min` is 0.
     #[must_use]
+    #[inline]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        let hit = self.closest(ray, t_max);
+        #[cfg(feature = "ray-log")]
+        super::ray_log::closest(ray, t_max, hit.as_ref());
+        hit
+    }
+
+    /// [`Self::intersect`]'s search (the ray log's hook is in `intersect`).
+    fn closest(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         if let Some((min, max, shape)) = self.sole_box {
             // What the loop below does with one box and no triangles.
             if moves_away_from_box(ray, min, max) || !valid_query(ray, t_max) {
@@ -373,7 +382,16 @@ impl SceneGeometry {
 
     /// True when anything is hit with `0 < t < t_max` (shadow rays; stops at the first hit).
     #[must_use]
+    #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        let found = self.any_hit(ray, t_max);
+        #[cfg(feature = "ray-log")]
+        super::ray_log::occluded(ray, t_max, found);
+        found
+    }
+
+    /// [`Self::occluded`]'s search (the ray log's hook is in `occluded`).
+    fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
         if !valid_query(ray, t_max) {
             return false;
         }

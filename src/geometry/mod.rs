@@ -26,6 +26,7 @@ mod icosphere;
 mod levelset;
 mod mesh;
 mod ply;
+pub mod ray_log;
 mod sphere;
 mod sphere_lanes;
 mod triangle;

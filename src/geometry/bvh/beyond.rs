@@ -19,7 +19,16 @@ impl SceneGeometry {
     /// the triangle hierarchy; the answer is then [`Self::intersect`]'s alone). The returned
     /// hit is exactly [`Self::intersect`]'s, ties between equally near triangles included.
     #[must_use]
+    #[inline]
     pub fn intersect_and_beyond(&self, ray: &Ray, t_max: f32) -> (Option<Hit>, bool) {
+        let (hit, clear) = self.closest_and_beyond(ray, t_max);
+        #[cfg(feature = "ray-log")]
+        crate::geometry::ray_log::beyond(ray, t_max, hit.as_ref(), clear);
+        (hit, clear)
+    }
+
+    /// [`Self::intersect_and_beyond`]'s search (the ray log's hook is in the caller).
+    fn closest_and_beyond(&self, ray: &Ray, t_max: f32) -> (Option<Hit>, bool) {
         if !self.analytic.is_empty()
             || self.prims.is_empty()
             || !ray.o.is_finite()
@@ -29,7 +38,7 @@ impl SceneGeometry {
             || t_max <= 0.0
             || self.segment_misses_triangles(ray, t_max)
         {
-            return (self.intersect(ray, t_max), false);
+            return (self.closest(ray, t_max), false);
         }
         let sr = ShearedRay::new(ray);
         let mut first: Option<(usize, TriangleHit)> = None;
