@@ -216,33 +216,38 @@ fn main() {
     }
 }
 
-/// The `t_max` classes of [`bucket`]: unbounded, then finite ones below these bounds.
+/// The finite `t_max` classes of [`bucket`]: below these bounds.
 const T_MAX_BOUNDS: [(f32, &str); 3] = [
     (0.1, "t_max < 0.1"),
-    (1.0, "t_max < 1"),
+    (1.0, "0.1 ≤ t_max < 1"),
     (f32::INFINITY, "t_max finite ≥ 1"),
 ];
 
-/// A recorded query's bucket: its kind (0 closest, 1 occlusion, 2 closest-and-beyond) × 4 +
-/// its `t_max` class (0 unbounded, then [`T_MAX_BOUNDS`]). `tools/peers/embree/embree_rays.cpp`
-/// computes the same.
-fn bucket(kind: QueryKind, t_max: f32) -> usize {
+/// Buckets of [`bucket`]: five classes for each of the three kinds.
+const BUCKETS: usize = 15;
+
+/// A recorded query's bucket: its kind (0 closest, 1 occlusion, 2 closest-and-beyond) × 5 +
+/// its class: 0 unbounded from outside the meshes' bounding box `[lo, hi]`, 1 unbounded from
+/// inside it (both ends included), then the finite classes of [`T_MAX_BOUNDS`].
+/// `tools/peers/embree/embree_rays.cpp` computes the same.
+fn bucket(kind: QueryKind, ray: &Ray, t_max: f32, lo: Vec3, hi: Vec3) -> usize {
     let class = if t_max == f32::INFINITY {
-        0
+        usize::from(ray.o.cmpge(lo).all() && ray.o.cmple(hi).all())
     } else {
-        1 + T_MAX_BOUNDS
+        2 + T_MAX_BOUNDS
             .iter()
             .position(|&(b, _)| t_max < b)
             .unwrap_or(T_MAX_BOUNDS.len() - 1)
     };
-    kind as usize * 4 + class
+    kind as usize * 5 + class
 }
 
 fn bucket_name(b: usize) -> String {
-    let kind = ["closest", "occlusion", "beyond"][b / 4];
-    let class = match b % 4 {
-        0 => "t_max = ∞",
-        c => T_MAX_BOUNDS[c - 1].1,
+    let kind = ["closest", "occlusion", "beyond"][b / 5];
+    let class = match b % 5 {
+        0 => "t_max = ∞, from outside",
+        1 => "t_max = ∞, from inside box",
+        c => T_MAX_BOUNDS[c - 2].1,
     };
     format!("{kind}, {class}")
 }
@@ -279,6 +284,10 @@ fn recorded(path: &str) {
     let log = RayLog::read_file(std::path::Path::new(path)).expect("a ray log");
     let (positions, indices) = log.merged_mesh();
     let ntri = indices.len();
+    let positions_lo_hi = positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
     let geometry = SceneGeometry::build(vec![Shape::Mesh(TriangleMesh {
         positions,
         normals: None,
@@ -332,9 +341,11 @@ fn recorded(path: &str) {
         "replay: {mismatches} of {} answers differ from the recording; occlusion disagrees with the recorded closest hit on {occl_mismatches}",
         all.len()
     );
-    let mut buckets: Vec<Vec<Replay>> = vec![Vec::new(); 12];
+    let lo = positions_lo_hi.0;
+    let hi = positions_lo_hi.1;
+    let mut buckets: Vec<Vec<Replay>> = vec![Vec::new(); BUCKETS];
     for r in &all {
-        buckets[bucket(r.2, r.1)].push(*r);
+        buckets[bucket(r.2, &r.0, r.1, lo, hi)].push(*r);
     }
     let time = |rays: &[Replay]| {
         let (rec, hr) = rate_replay(rays, 5, |q| answer(&geometry, q).hit);
@@ -343,13 +354,13 @@ fn recorded(path: &str) {
         (rec, c, o, hr, hc, ho)
     };
     println!(
-        "{:<30} {:>9} {:>7} {:>14} {:>14} {:>14}   hits (as recorded / closest / occl.)",
+        "{:<38} {:>9} {:>7} {:>14} {:>14} {:>14}   hits (as recorded / closest / occl.)",
         "rays", "count", "share", "velour as rec.", "velour closest", "velour occl."
     );
     let row = |name: &str, rays: &[Replay]| {
         let (rec, c, o, hr, hc, ho) = time(rays);
         println!(
-            "{:<30} {:>9} {:>6.1}% {:>12.2} M {:>12.2} M {:>12.2} M   ({hr} / {hc} / {ho})",
+            "{:<38} {:>9} {:>6.1}% {:>12.2} M {:>12.2} M {:>12.2} M   ({hr} / {hc} / {ho})",
             name,
             rays.len(),
             100.0 * rays.len() as f64 / all.len() as f64,
