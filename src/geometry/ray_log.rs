@@ -335,7 +335,7 @@ mod recorder {
     #[inline(never)]
     pub(super) fn record(kind: QueryKind, ray: &Ray, t_max: f32, answer: Answer) {
         let n = SEEN.fetch_add(1, Ordering::Relaxed);
-        if n % EVERY.load(Ordering::Relaxed).max(1) != 0 {
+        if !n.is_multiple_of(EVERY.load(Ordering::Relaxed).max(1)) {
             return;
         }
         let q = Query {
