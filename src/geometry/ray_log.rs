@@ -8,7 +8,8 @@
 //! exists only with the cargo feature `ray-log`; without it the hooks compile to nothing.
 //! With the feature, `velour render` records when `VELOUR_RAY_LOG=path` is set (every
 //! `VELOUR_RAY_LOG_EVERY`-th query, default 1, counted over all threads in the order they
-//! arrive: render with `--threads 1` for a reproducible log).
+//! arrive: render with `--threads 1` for a reproducible log; with `--frames`, each frame's log
+//! replaces the previous one's).
 //!
 //! Format (little-endian): the magic `VRAYLOG1`; `u32` mesh count, then per mesh `u32` shape
 //! index, `u32` vertex count, `f32` xyz per vertex, `u32` triangle count, `u32` three indices

@@ -27,7 +27,8 @@ impl SceneGeometry {
         (hit, clear)
     }
 
-    /// [`Self::intersect_and_beyond`]'s search (the ray log's hook is in the caller).
+    /// [`Self::intersect_and_beyond`]'s search (the ray log's hook is in
+    /// `intersect_and_beyond`).
     fn closest_and_beyond(&self, ray: &Ray, t_max: f32) -> (Option<Hit>, bool) {
         if !self.analytic.is_empty()
             || self.prims.is_empty()
