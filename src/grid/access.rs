@@ -174,6 +174,38 @@ impl<'a> Accessor<'a> {
     pub fn value_vec3(&mut self, ijk: IVec3) -> Vec3 {
         let e = self.resolve(ijk >> BRICK_LOG2);
         let v = voxel_offset(ijk & 7);
+        self.fetch_vec3(e, v)
+    }
+
+    /// [`Self::value_vec3`] inlined into the caller where the voxel lies in a 32-bit vector
+    /// brick, the common case of a fabric's tangent channel (the same value: the brick's
+    /// three components at the voxel, as [`Self::fetch`] reads them); tiles, half-precision
+    /// and scalar channels go through [`Self::value_vec3`]'s body out of line.
+    #[inline(always)]
+    pub fn value_vec3_hot(&mut self, ijk: IVec3) -> Vec3 {
+        let e = self.resolve(ijk >> BRICK_LOG2);
+        let v = voxel_offset(ijk & 7);
+        if e & TILE_BIT == 0 && self.comps == 3 {
+            if let Vals::F32(s) = self.vals {
+                let i = (e as usize * BRICK_VOXELS + v) * 3;
+                if let Some(c) = s.get(i..i + 3) {
+                    return Vec3::new(c[0], c[1], c[2]);
+                }
+            }
+        }
+        self.fetch_vec3_cold(e, v)
+    }
+
+    /// [`Self::fetch_vec3`] out of line (the rare cases of [`Self::value_vec3_hot`]).
+    #[inline(never)]
+    #[cold]
+    fn fetch_vec3_cold(&self, e: u32, v: usize) -> Vec3 {
+        self.fetch_vec3(e, v)
+    }
+
+    /// The vector value at brick entry `e`, voxel offset `v` (a scalar channel splatted).
+    #[inline(always)]
+    fn fetch_vec3(&self, e: u32, v: usize) -> Vec3 {
         if self.comps == 3 {
             Vec3::new(
                 self.fetch(e, v, 0),
