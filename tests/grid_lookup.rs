@@ -394,10 +394,20 @@ fn inlined_vector_reads_match_value_vec3_bit_for_bit() {
                 }
             }
         }
-        b.set_tile(TileLevel::Brick, IVec3::new(3, 0, 0), &[0.5, 1.0, 2.0, 3.0], true)
-            .unwrap();
-        b.set_tile(TileLevel::Brick, IVec3::new(0, 4, 0), &[0.7, -1.0, 0.0, 4.0], false)
-            .unwrap();
+        b.set_tile(
+            TileLevel::Brick,
+            IVec3::new(3, 0, 0),
+            &[0.5, 1.0, 2.0, 3.0],
+            true,
+        )
+        .unwrap();
+        b.set_tile(
+            TileLevel::Brick,
+            IVec3::new(0, 4, 0),
+            &[0.7, -1.0, 0.0, 4.0],
+            false,
+        )
+        .unwrap();
         let g = b.build();
         for ch in [c, d] {
             let (mut plain, mut hot) = (g.accessor(ch), g.accessor(ch));
@@ -406,10 +416,21 @@ fn inlined_vector_reads_match_value_vec3_bit_for_bit() {
             for n in 0..60_000 {
                 if n % 97 == 0 {
                     let r = |lo: i32, span: f32, rng: &mut Rng| lo + (span * rng.next_f32()) as i32;
-                    p = IVec3::new(r(-20, 60.0, &mut rng), r(-12, 52.0, &mut rng), r(-12, 30.0, &mut rng));
+                    p = IVec3::new(
+                        r(-20, 60.0, &mut rng),
+                        r(-12, 52.0, &mut rng),
+                        r(-12, 30.0, &mut rng),
+                    );
                 } else {
                     let k = (rng.next_f32() * 6.0) as usize % 6;
-                    let step = [IVec3::X, IVec3::NEG_X, IVec3::Y, IVec3::NEG_Y, IVec3::Z, IVec3::NEG_Z];
+                    let step = [
+                        IVec3::X,
+                        IVec3::NEG_X,
+                        IVec3::Y,
+                        IVec3::NEG_Y,
+                        IVec3::Z,
+                        IVec3::NEG_Z,
+                    ];
                     p += step[k];
                 }
                 let (a, h) = (plain.value_vec3(p), hot.value_vec3_hot(p));

@@ -5,11 +5,11 @@
 //! extinction in a free-standing patch; the shell map of a draped patch) live here too, so
 //! that media only dispatch to them.
 
-use glam::{DMat3, DVec3, Mat3, Vec3};
+use glam::{DMat3, DVec3, IVec3, Mat3, Vec3};
 
 use super::fibre_scattering::extinction_scale;
 use super::{FabricShading, FabricShell, FibrePhase, FibreVoxel, ShellCursor, YarnId};
-use crate::grid::{Accessor, SparseGrid};
+use crate::grid::{floor_frac, trilerp, Accessor, SparseGrid};
 use crate::math::{Ray, Vec2};
 use crate::spectrum::Rgb;
 use crate::texture::ColorParam;
@@ -170,6 +170,11 @@ pub struct FibreGridLookup<'a> {
     density: Accessor<'a>,
     /// The tangent channel (nearest voxel, [`super::tangent_near`]).
     tangent: Accessor<'a>,
+    /// The density and tangent channels' padded bricks interleaved
+    /// ([`SparseGrid::padded_pairs`]): where a cell's first corner lies in a brick, its
+    /// density corners and the tangents [`super::tangent_near`] reads come from one table
+    /// (the same values), the brick resolved once.
+    pairs: Option<&'a [[f32; 4]]>,
     o: Vec3,
     d: Vec3,
     /// Patch-unit tangent → world direction (the placement's linear part over the voxel size).
@@ -187,6 +192,7 @@ impl<'a> FibreGridLookup<'a> {
         FibreGridLookup {
             density: grid.padded_accessor(channel),
             tangent: grid.accessor(look.tangent_channel),
+            pairs: grid.padded_pairs(channel, look.tangent_channel),
             o: w2i.transform_point3(ray.o.as_dvec3()).as_vec3(),
             d: w2i.transform_vector3(ray.d.as_dvec3()).as_vec3(),
             tangent_to_world: m.as_mat3(),
@@ -198,6 +204,19 @@ impl<'a> FibreGridLookup<'a> {
     #[inline]
     pub fn at(&mut self, t: f32) -> f32 {
         let p = self.o + self.d * t;
+        if let Some(table) = self.pairs {
+            let (i, f) = floor_frac(p);
+            if let Some(c) = self.density.padded_pair_cell(table, i) {
+                let density = trilerp(&c.map(|v| v[0]), f);
+                if density.is_nan() || density <= 0.0 {
+                    return density;
+                }
+                let local = tangent_in_cell(&c, p, i, f).unwrap_or_else(|| {
+                    super::tangent_near(p, |ijk| self.tangent.value_vec3_hot(ijk))
+                });
+                return density * projected_width(self.dir, self.tangent_to_world * local);
+            }
+        }
         let density = self.density.sample_trilinear(p);
         if density.is_nan() || density <= 0.0 {
             return density;
@@ -205,6 +224,39 @@ impl<'a> FibreGridLookup<'a> {
         let local = super::tangent_near(p, |ijk| self.tangent.value_vec3_hot(ijk));
         density * projected_width(self.dir, self.tangent_to_world * local)
     }
+}
+
+/// [`super::tangent_near`] at index point `p` from the cell whose first corner is voxel `i`
+/// (fraction `f = p − i`), given as its 8 corners' `[density, tangent]` entries `c`
+/// ([`Accessor::padded_pair_cell`]): the same voxels in the same order. `None` where the
+/// nearest voxel is not one of the corners (`p + 0.5` rounded past `i + 1`).
+#[inline(always)]
+fn tangent_in_cell(c: &[[f32; 4]; 8], p: Vec3, i: IVec3, f: Vec3) -> Option<Vec3> {
+    let n = super::floor_ivec3(p + Vec3::splat(0.5)) - i;
+    if !(n.cmpge(IVec3::ZERO) & n.cmple(IVec3::ONE)).all() {
+        return None;
+    }
+    let at = |k: usize| {
+        let v = c[k];
+        Vec3::new(v[1], v[2], v[3])
+    };
+    let nearest = at(((n.x << 2) | (n.y << 1) | n.z) as usize);
+    if nearest != Vec3::ZERO {
+        return Some(nearest);
+    }
+    let mut best = (0.0f32, Vec3::ZERO);
+    for k in 0..8 {
+        let w = (if k & 4 != 0 { f.x } else { 1.0 - f.x })
+            * (if k & 2 != 0 { f.y } else { 1.0 - f.y })
+            * (if k & 1 != 0 { f.z } else { 1.0 - f.z });
+        if w > best.0 {
+            let v = at(k);
+            if v != Vec3::ZERO {
+                best = (w, v);
+            }
+        }
+    }
+    Some(best.1)
 }
 
 /// Density lookups along a ray through a fabric shell (notes §3.3): each point is mapped to
@@ -329,9 +381,16 @@ mod tests {
                     dens * projected_width(ray.d.normalize_or_zero(), to_world_dir * local)
                 };
                 let got = new.at(t);
-                assert_eq!(got.to_bits(), want.to_bits(), "t {t} at {p}: {got} vs {want}");
+                assert_eq!(
+                    got.to_bits(),
+                    want.to_bits(),
+                    "t {t} at {p}: {got} vs {want}"
+                );
             }
         }
-        assert!(fibres > 10_000 && fringe > 100, "{fibres} in fibres, {fringe} on the fringe");
+        assert!(
+            fibres > 10_000 && fringe > 100,
+            "{fibres} in fibres, {fringe} on the fringe"
+        );
     }
 }
