@@ -372,6 +372,169 @@ fn vec3_and_scalar_channels_share_the_topology() {
     assert!((g.sample_trilinear_index_vec3(c, p) - want).length() < 1e-5);
 }
 
+/// The inlined vector read (`Accessor::value_vec3_hot`, a fabric's tangent lookups) gives
+/// `Accessor::value_vec3` bit for bit: voxels in bricks, in a brick tile, in an inactive
+/// tile, outside every brick (the background), in both storages, for a vector channel and
+/// for a scalar one (splatted), read in one accessor each along a random walk (cache hits
+/// and misses).
+#[test]
+fn inlined_vector_reads_match_value_vec3_bit_for_bit() {
+    for storage in [Storage::F32, Storage::F16] {
+        let mut b = SparseGridBuilder::new(storage);
+        let d = b.add_channel("density", ChannelKind::Scalar, Vec3::splat(0.25));
+        let c = b.add_channel("tangent", ChannelKind::Vec3, Vec3::new(0.1, -0.2, 0.3));
+        let mut rng = Rng::new(31, 0);
+        for x in -9..12 {
+            for y in -3..20 {
+                for z in -5..7 {
+                    let p = IVec3::new(x, y, z);
+                    let v = Vec3::new(rng.next_f32(), -rng.next_f32(), rng.next_f32());
+                    b.set_value(d, p, v.x).unwrap();
+                    b.set_value_vec3(c, p, v).unwrap();
+                }
+            }
+        }
+        b.set_tile(
+            TileLevel::Brick,
+            IVec3::new(3, 0, 0),
+            &[0.5, 1.0, 2.0, 3.0],
+            true,
+        )
+        .unwrap();
+        b.set_tile(
+            TileLevel::Brick,
+            IVec3::new(0, 4, 0),
+            &[0.7, -1.0, 0.0, 4.0],
+            false,
+        )
+        .unwrap();
+        let g = b.build();
+        for ch in [c, d] {
+            let (mut plain, mut hot) = (g.accessor(ch), g.accessor(ch));
+            let mut p = IVec3::ZERO;
+            let mut seen_bricks = 0;
+            for n in 0..60_000 {
+                if n % 97 == 0 {
+                    let r = |lo: i32, span: f32, rng: &mut Rng| lo + (span * rng.next_f32()) as i32;
+                    p = IVec3::new(
+                        r(-20, 60.0, &mut rng),
+                        r(-12, 52.0, &mut rng),
+                        r(-12, 30.0, &mut rng),
+                    );
+                } else {
+                    let k = (rng.next_f32() * 6.0) as usize % 6;
+                    let step = [
+                        IVec3::X,
+                        IVec3::NEG_X,
+                        IVec3::Y,
+                        IVec3::NEG_Y,
+                        IVec3::Z,
+                        IVec3::NEG_Z,
+                    ];
+                    p += step[k];
+                }
+                let (a, h) = (plain.value_vec3(p), hot.value_vec3_hot(p));
+                assert_eq!(
+                    a.to_array().map(f32::to_bits),
+                    h.to_array().map(f32::to_bits),
+                    "{storage:?} channel {ch} at {p}: {a} vs {h}"
+                );
+                if g.is_active(p) {
+                    seen_bricks += 1;
+                }
+            }
+            assert!(seen_bricks > 1000, "{seen_bricks} reads in active voxels");
+        }
+    }
+}
+
+/// The interleaved padded table of a scalar and a vector channel (`SparseGrid::padded_pairs`,
+/// a fabric's density and tangents) holds, at the 8 corners of every cell whose first corner
+/// lies in a brick (`Accessor::padded_pair_cell`), the scalar channel's `value` and the vector
+/// channel's `value_vec3` bit for bit: cells inside bricks and across brick faces, edges and
+/// corners into neighbour bricks, tiles and the background, in both storages. Cells whose
+/// first corner lies in a tile give `None`; the table is not made for other channel kinds
+/// and is kept for the first scalar channel asked.
+#[test]
+fn padded_pairs_hold_both_channels_values_bit_for_bit() {
+    for storage in [Storage::F32, Storage::F16] {
+        let mut b = SparseGridBuilder::new(storage);
+        let d = b.add_channel("density", ChannelKind::Scalar, Vec3::splat(0.25));
+        let c = b.add_channel("tangent", ChannelKind::Vec3, Vec3::new(0.1, -0.2, 0.3));
+        let e = b.add_channel("extra", ChannelKind::Scalar, Vec3::ZERO);
+        let mut rng = Rng::new(37, 0);
+        for x in -9..12 {
+            for y in -3..20 {
+                for z in -5..7 {
+                    let p = IVec3::new(x, y, z);
+                    let v = Vec3::new(rng.next_f32(), -rng.next_f32(), rng.next_f32());
+                    b.set_value(d, p, 2.0 * v.y + 1.0).unwrap();
+                    b.set_value_vec3(c, p, v).unwrap();
+                    b.set_value(e, p, v.z).unwrap();
+                }
+            }
+        }
+        b.set_tile(
+            TileLevel::Brick,
+            IVec3::new(2, 0, 0),
+            &[0.5, 1.0, 2.0, 3.0, 4.0],
+            true,
+        )
+        .unwrap();
+        b.set_tile(
+            TileLevel::Brick,
+            IVec3::new(0, 3, 0),
+            &[0.7, -1.0, 0.0, 4.0, 5.0],
+            false,
+        )
+        .unwrap();
+        let g = b.build();
+        assert!(
+            g.padded_pairs(c, d).is_none(),
+            "a vector channel as the scalar one"
+        );
+        assert!(
+            g.padded_pairs(d, e).is_none(),
+            "a scalar channel as the vector one"
+        );
+        let table = g.padded_pairs(d, c).expect("table");
+        assert!(
+            g.padded_pairs(e, c).is_none(),
+            "kept for the first scalar channel"
+        );
+        let (mut dens, mut tan, mut cells) = (g.accessor(d), g.accessor(c), g.accessor(d));
+        let (mut in_bricks, mut in_tiles) = (0, 0);
+        for x in -20..28 {
+            for y in -12..36 {
+                for z in -12..14 {
+                    let i = IVec3::new(x, y, z);
+                    let Some(corners) = cells.padded_pair_cell(table, i) else {
+                        assert!(g.brick_at_voxel(i).is_none(), "{storage:?} {i} in a brick");
+                        in_tiles += 1;
+                        continue;
+                    };
+                    assert!(g.brick_at_voxel(i).is_some(), "{storage:?} {i} in a tile");
+                    in_bricks += 1;
+                    for (k, got) in corners.iter().enumerate() {
+                        let o = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
+                        let t = tan.value_vec3(i + o);
+                        let want = [dens.value(i + o), t.x, t.y, t.z];
+                        assert_eq!(
+                            got.map(f32::to_bits),
+                            want.map(f32::to_bits),
+                            "{storage:?} cell {i} corner {o}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            in_bricks > 10_000 && in_tiles > 10_000,
+            "{in_bricks} {in_tiles}"
+        );
+    }
+}
+
 #[test]
 fn memory_per_active_voxel_of_dense_bricks() {
     for (storage, raw) in [(Storage::F32, 4.0), (Storage::F16, 2.0)] {

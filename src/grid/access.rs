@@ -162,6 +162,51 @@ impl<'a> Accessor<'a> {
         }
     }
 
+    /// [`Self::write_padded_brick`] for the interleaved pairs of [`SparseGrid::padded_pairs`]:
+    /// this accessor's first component and `vector`'s three (an accessor on a vector channel
+    /// of the same grid) at each of the 9³ voxels, into `out`.
+    pub(super) fn write_padded_pair_brick(
+        &mut self,
+        vector: &Accessor<'_>,
+        key: IVec3,
+        out: &mut [[f32; 4]],
+    ) {
+        let mut e = [0u32; 8];
+        for (n, en) in e.iter_mut().enumerate() {
+            let d = IVec3::new((n >> 2) as i32, ((n >> 1) & 1) as i32, (n & 1) as i32);
+            *en = self.peek(key + d);
+        }
+        let cells = (0..PADDED_EDGE).flat_map(|x| {
+            (0..PADDED_EDGE).flat_map(move |y| (0..PADDED_EDGE).map(move |z| (x, y, z)))
+        });
+        for (slot, (x, y, z)) in out.iter_mut().zip(cells) {
+            let n = ((x >> 3) << 2) | ((y >> 3) << 1) | (z >> 3);
+            let v = ((x & 7) << 6) | ((y & 7) << 3) | (z & 7);
+            let t = vector.fetch_vec3(e[n], v);
+            *slot = [self.fetch(e[n], v, 0), t.x, t.y, t.z];
+        }
+    }
+
+    /// The entries of `table` ([`SparseGrid::padded_pairs`] of this accessor's grid) at the 8
+    /// corners of the trilinear cell whose first corner is voxel `i`, as
+    /// `c[(dx << 2) | (dy << 1) | dz]` (the order of [`trilerp`]), read with one brick
+    /// resolution through this accessor's cache; `None` where `i` lies in a tile (or the
+    /// background), or `table` is too short.
+    #[inline(always)]
+    pub fn padded_pair_cell(&mut self, table: &[[f32; 4]], i: IVec3) -> Option<[[f32; 4]; 8]> {
+        const E: usize = PADDED_EDGE;
+        const OFF: [usize; 8] = [0, 1, E, E + 1, E * E, E * E + 1, E * E + E, E * E + E + 1];
+        let e = self.resolve(i >> BRICK_LOG2);
+        if e & TILE_BIT != 0 {
+            return None;
+        }
+        let l = i & 7;
+        let base =
+            e as usize * PADDED_VOXELS + (l.x as usize * E + l.y as usize) * E + l.z as usize;
+        let s = table.get(base..base + OFF[7] + 1)?;
+        Some(std::array::from_fn(|k| s[OFF[k]]))
+    }
+
     /// Value (first component) of voxel `ijk`, active or not.
     #[inline]
     pub fn value(&mut self, ijk: IVec3) -> f32 {
@@ -174,6 +219,38 @@ impl<'a> Accessor<'a> {
     pub fn value_vec3(&mut self, ijk: IVec3) -> Vec3 {
         let e = self.resolve(ijk >> BRICK_LOG2);
         let v = voxel_offset(ijk & 7);
+        self.fetch_vec3(e, v)
+    }
+
+    /// [`Self::value_vec3`] inlined into the caller where the voxel lies in a 32-bit vector
+    /// brick, the common case of a fabric's tangent channel (the same value: the brick's
+    /// three components at the voxel, as [`Self::fetch`] reads them); tiles, half-precision
+    /// and scalar channels go through [`Self::value_vec3`]'s body out of line.
+    #[inline(always)]
+    pub fn value_vec3_hot(&mut self, ijk: IVec3) -> Vec3 {
+        let e = self.resolve(ijk >> BRICK_LOG2);
+        let v = voxel_offset(ijk & 7);
+        if e & TILE_BIT == 0 && self.comps == 3 {
+            if let Vals::F32(s) = self.vals {
+                let i = (e as usize * BRICK_VOXELS + v) * 3;
+                if let Some(c) = s.get(i..i + 3) {
+                    return Vec3::new(c[0], c[1], c[2]);
+                }
+            }
+        }
+        self.fetch_vec3_cold(e, v)
+    }
+
+    /// [`Self::fetch_vec3`] out of line (the rare cases of [`Self::value_vec3_hot`]).
+    #[inline(never)]
+    #[cold]
+    fn fetch_vec3_cold(&self, e: u32, v: usize) -> Vec3 {
+        self.fetch_vec3(e, v)
+    }
+
+    /// The vector value at brick entry `e`, voxel offset `v` (a scalar channel splatted).
+    #[inline(always)]
+    fn fetch_vec3(&self, e: u32, v: usize) -> Vec3 {
         if self.comps == 3 {
             Vec3::new(
                 self.fetch(e, v, 0),
@@ -347,8 +424,10 @@ fn padded_corners(pad: &[f32], e: u32, l: IVec3) -> Option<[f32; 8]> {
 
 /// Integer floor and fractional part of each coordinate, without a libm call (the x86-64
 /// baseline has no rounding instruction). Saturates outside the `i32` range; NaN gives 0.
+/// [`Accessor::sample_trilinear`]'s cell and weights.
 #[inline(always)]
-fn floor_frac(p: Vec3) -> (IVec3, Vec3) {
+#[must_use]
+pub fn floor_frac(p: Vec3) -> (IVec3, Vec3) {
     let t = p.as_ivec3(); // truncation toward zero, saturating
     let tf = t.as_vec3();
     let i = t - IVec3::new(
@@ -359,9 +438,11 @@ fn floor_frac(p: Vec3) -> (IVec3, Vec3) {
     (i, p - i.as_vec3())
 }
 
-/// Trilinear blend of corner values `c[(dx << 2) | (dy << 1) | dz]` with weights `t`.
+/// Trilinear blend of corner values `c[(dx << 2) | (dy << 1) | dz]` with weights `t`
+/// ([`Accessor::sample_trilinear`]'s order of operations).
 #[inline]
-fn trilerp(c: &[f32; 8], t: Vec3) -> f32 {
+#[must_use]
+pub fn trilerp(c: &[f32; 8], t: Vec3) -> f32 {
     let lerp = |a: f32, b: f32, s: f32| a + (b - a) * s;
     let x00 = lerp(c[0], c[4], t.x);
     let x01 = lerp(c[1], c[5], t.x);

@@ -63,6 +63,7 @@ impl SparseGridBuilder {
             values,
             tile_values,
             padded: std::sync::OnceLock::new(),
+            padded_pairs: std::sync::OnceLock::new(),
             sun_map: std::sync::OnceLock::new(),
         });
         self.grid.channels.len() - 1
@@ -386,6 +387,7 @@ impl SparseGridBuilder {
         // Padded copies made while building (through `grid()`) may be out of date.
         for ch in &mut self.grid.channels {
             ch.padded = std::sync::OnceLock::new();
+            ch.padded_pairs = std::sync::OnceLock::new();
             ch.sun_map = std::sync::OnceLock::new();
         }
         self.grid

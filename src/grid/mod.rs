@@ -29,7 +29,7 @@ mod access;
 mod builder;
 mod sun_map;
 
-pub use access::Accessor;
+pub use access::{floor_frac, trilerp, Accessor};
 pub use builder::SparseGridBuilder;
 pub use sun_map::SunMap;
 
@@ -185,6 +185,9 @@ pub(crate) struct Channel {
     pub(crate) tile_values: Vec<f32>,
     /// The bricks with their apron ([`SparseGrid::padded_accessor`]), made on first use.
     pub(crate) padded: std::sync::OnceLock<Option<Vec<f32>>>,
+    /// For a vector channel: its padded bricks interleaved with one scalar channel's
+    /// ([`SparseGrid::padded_pairs`]), with that channel's index; made on first use.
+    pub(crate) padded_pairs: std::sync::OnceLock<Option<(usize, Vec<[f32; 4]>)>>,
     /// The channel's integral towards one distant direction ([`SparseGrid::sun_map`]), made
     /// on first use for the first direction asked.
     pub(crate) sun_map: std::sync::OnceLock<Option<Box<SunMap>>>,
@@ -701,6 +704,52 @@ impl SparseGrid {
     /// If `c` is not a channel of the grid (programming error).
     pub fn prepare_padded(&self, c: usize) {
         let _ = self.padded_accessor(c);
+    }
+
+    /// The padded bricks ([`Self::padded_accessor`]'s layout, [`PADDED_EDGE`]³ voxels per
+    /// brick, `x` slowest) of the scalar channel `scalar` and the vector channel `vector`
+    /// interleaved: `[s, v.x, v.y, v.z]` per voxel, the values [`Accessor::value`] and
+    /// [`Accessor::value_vec3`] read there (bit for bit, tiles and 16-bit storage included),
+    /// so that a trilinear lookup of the one and nearest-voxel reads of the other at the
+    /// same cell touch one table ([`Accessor::padded_pair_cell`]; a fabric's density and
+    /// tangents). Made on the first call for the vector channel (in parallel) and kept
+    /// there; `None` for another `scalar` asked later, for channels of other kinds, or
+    /// beyond the padded copies' size budget (1 GiB).
+    ///
+    /// # Panics
+    /// If `scalar` or `vector` is not a channel of the grid (programming error).
+    #[must_use]
+    pub fn padded_pairs(&self, scalar: usize, vector: usize) -> Option<&[[f32; 4]]> {
+        let (s, table) = self.channels[vector]
+            .padded_pairs
+            .get_or_init(|| self.make_padded_pairs(scalar, vector).map(|t| (scalar, t)))
+            .as_ref()?;
+        (*s == scalar).then_some(table.as_slice())
+    }
+
+    /// [`Self::padded_pairs`] made now (bricks in parallel, two accessors per worker).
+    fn make_padded_pairs(&self, scalar: usize, vector: usize) -> Option<Vec<[f32; 4]>> {
+        let kinds = (
+            self.channels[scalar].kind.components(),
+            self.channels[vector].kind.components(),
+        );
+        if kinds != (1, 3) {
+            return None;
+        }
+        let n = self.brick_count().checked_mul(PADDED_VOXELS)?;
+        if n.checked_mul(16)? > PADDED_BUDGET {
+            return None;
+        }
+        let mut out = vec![[0.0f32; 4]; n];
+        out.par_chunks_mut(PADDED_VOXELS)
+            .zip(self.brick_origin.par_iter())
+            .for_each_init(
+                || (Accessor::new(self, scalar), Accessor::new(self, vector)),
+                |(s, v), (brick, &origin)| {
+                    s.write_padded_pair_brick(v, origin >> BRICK_LOG2, brick);
+                },
+            );
+        Some(out)
     }
 
     /// The padded bricks of channel `c` ([`Self::padded_accessor`]), or `None` where they are
