@@ -507,6 +507,94 @@ mod tests {
     use crate::geometry::TriangleMesh;
     use crate::math::Vec2;
 
+    fn point_bits(p: &InterfacePoint) -> Vec<u64> {
+        [p.p, p.ng, p.ns, p.dpdu[0], p.dpdu[1], p.dndu[0], p.dndu[1]]
+            .iter()
+            .flat_map(|v| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()])
+            .collect()
+    }
+
+    /// A projection through a triangle's kept [`TriangleFrame`] is [`on_triangle`]'s bit for
+    /// bit, or `None` where it is: random triangles with and without vertex normals, degenerate
+    /// triangles (a repeated corner, collinear corners), normals that cancel at a point
+    /// (the flat fallback), rays nearly in the plane, and the same frame reused for many rays.
+    #[test]
+    fn triangle_frame_projections_are_on_triangle_bit_for_bit() {
+        let mut rng = crate::sampling::Rng::new(20, 11);
+        let v = |rng: &mut crate::sampling::Rng, s: f32| {
+            Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * (2.0 * s) - Vec3::splat(s)
+        };
+        let (mut some, mut none, mut curved, mut flat) = (0, 0, 0, 0);
+        for m in 0..400 {
+            let mut positions = vec![v(&mut rng, 1.0), v(&mut rng, 1.0), v(&mut rng, 1.0)];
+            match m % 10 {
+                0 => positions[2] = positions[1],
+                1 => positions[2] = positions[0] + (positions[1] - positions[0]) * 0.25,
+                _ => {}
+            }
+            let normals = match m % 4 {
+                0 => None,
+                // Opposite normals: their interpolation vanishes between them.
+                1 => {
+                    let n = v(&mut rng, 1.0).normalize();
+                    Some(vec![n, -n, n])
+                }
+                _ => Some(
+                    (0..3)
+                        .map(|_| v(&mut rng, 1.0).normalize_or(Vec3::Z))
+                        .collect(),
+                ),
+            };
+            let mesh = TriangleMesh {
+                positions,
+                normals,
+                uvs: None,
+                indices: vec![[0, 1, 2]],
+            };
+            let hit = Hit {
+                t: 1.0,
+                p: Vec3::ZERO,
+                ng: Vec3::Z,
+                ns: Vec3::Z,
+                uv: crate::geometry::HitUv::At(Vec2::ZERO),
+                shape: 0,
+                prim: 0,
+                p_error: 0.0,
+            };
+            let frame = TriangleFrame::new(&mesh, 0);
+            let x0 = v64(v(&mut rng, 3.0));
+            for k in 0..50 {
+                let target = match k % 5 {
+                    // Towards a point of the triangle's plane: nearly in it from a corner.
+                    0 => v64(mesh.positions[1]) + (v64(mesh.positions[2]) - x0) * 1e-3,
+                    // Through the edge between the opposite normals' corners.
+                    1 => (v64(mesh.positions[0]) + v64(mesh.positions[1])) * 0.5,
+                    _ => v64(v(&mut rng, 1.5)),
+                };
+                let Some(d) = (target - x0).try_normalize() else {
+                    continue;
+                };
+                let want = on_triangle(x0, d, &mesh, &hit);
+                let got = frame.as_ref().and_then(|f| f.project(x0, d));
+                assert_eq!(
+                    got.as_ref().map(point_bits),
+                    want.as_ref().map(point_bits),
+                    "mesh {m}, ray {k}: {x0} {d}"
+                );
+                match want {
+                    Some(p) if p.dndu != [DVec3::ZERO; 2] => curved += 1,
+                    Some(_) => flat += 1,
+                    None => none += 1,
+                }
+                some += usize::from(want.is_some());
+            }
+        }
+        assert!(
+            some > 10_000 && none > 1_000 && curved > 8_000 && flat > 3_000,
+            "{some} {none} {curved} {flat}"
+        );
+    }
+
     /// The derivative of the interpolated shading normal along the tangent plane against
     /// central differences of the normal at points moved along the tangents.
     #[test]
