@@ -214,22 +214,27 @@ impl<'a> SceneInterface<'a> {
             // The IOR outside the object, looked up only where it is read (not at null
             // boundaries, most of a walk's).
             let outside = |stack: &InteriorStack| stack.ior(&scene.objects, Some(oi));
-            let passes = obj.surface.transmits()
-                && (is_false_intersection(scene, &stack, oi, entering)
-                    || match &obj.surface {
-                        ObjectSurface::Null => true,
-                        // Index-matched: the smooth lobe passes straight through, tinted.
-                        ObjectSurface::Dielectric(d) if is_index_matched(d, outside(&stack)) => {
-                            tint *= d.tint.eval(hit.uv(), 0.0);
-                            true
-                        }
-                        // Blends are not walked through (nor counted as pass-through by the
-                        // integrator's `ManifoldLeg`).
-                        ObjectSurface::Dielectric(_)
-                        | ObjectSurface::Fixed(_)
-                        | ObjectSurface::Textured(_)
-                        | ObjectSurface::Blend(_) => false,
-                    });
+            // A null boundary passes whether or not it is a false intersection (both tests
+            // below answer yes), so the priorities are not looked up for it.
+            let passes = matches!(obj.surface, ObjectSurface::Null)
+                || (obj.surface.transmits()
+                    && (is_false_intersection(scene, &stack, oi, entering)
+                        || match &obj.surface {
+                            ObjectSurface::Null => true,
+                            // Index-matched: the smooth lobe passes straight through, tinted.
+                            ObjectSurface::Dielectric(d)
+                                if is_index_matched(d, outside(&stack)) =>
+                            {
+                                tint *= d.tint.eval(hit.uv(), 0.0);
+                                true
+                            }
+                            // Blends are not walked through (nor counted as pass-through by the
+                            // integrator's `ManifoldLeg`).
+                            ObjectSurface::Dielectric(_)
+                            | ObjectSurface::Fixed(_)
+                            | ObjectSurface::Textured(_)
+                            | ObjectSurface::Blend(_) => false,
+                        }));
             if !passes {
                 let ok = !entering
                     && self.object.is_none_or(|o| o == oi)
