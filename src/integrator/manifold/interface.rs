@@ -512,6 +512,158 @@ mod tests {
     use crate::geometry::TriangleMesh;
     use crate::math::Vec2;
 
+    /// The walk and projection as they were before the triangle frames, the lazy medium and
+    /// IOR look-ups and the null boundaries' shortcut (the medium is not part of a
+    /// projection's answer): the reference for `projections_match_the_written_out_walk`.
+    fn reference_project(
+        scene: &Scene,
+        vertex: &InteriorStack,
+        object: Option<u32>,
+        x0: DVec3,
+        target: DVec3,
+    ) -> Option<(
+        InterfacePoint,
+        InteriorStack,
+        u32,
+        crate::math::Vec2,
+        f32,
+        u64,
+    )> {
+        let d = (target - x0).try_normalize()?;
+        let ray = Ray::new(v32(x0), v32(d));
+        let mut stack = *vertex;
+        let mut origin = ray.o;
+        let (mut first, mut rays) = (None, 0u64);
+        let mut found = None;
+        for _ in 0..SEED_SEGMENTS {
+            rays += 1;
+            let hit = scene
+                .geometry
+                .intersect(&Ray::new(origin, ray.d), f32::INFINITY)?;
+            first.get_or_insert(hit.t);
+            let ShapeOwner::Object(oi) = *scene.shape_owner.get(hit.shape as usize)? else {
+                return None;
+            };
+            let obj = scene.objects.get(oi as usize)?;
+            let entering = ray.d.dot(hit.ng) < 0.0;
+            let outside = stack.ior(&scene.objects, Some(oi));
+            let passes = obj.surface.transmits()
+                && (is_false_intersection(scene, &stack, oi, entering)
+                    || match &obj.surface {
+                        ObjectSurface::Null => true,
+                        ObjectSurface::Dielectric(d) => is_index_matched(d, outside),
+                        _ => false,
+                    });
+            if !passes {
+                let ok = !entering
+                    && object.is_none_or(|o| o == oi)
+                    && is_manifold_interface(obj, outside);
+                if ok {
+                    found = Some((hit, stack, oi));
+                }
+                break;
+            }
+            if entering {
+                enter(scene, &mut stack, oi, hit.uv(), 0.0, || 0.5);
+            } else {
+                stack.remove(oi);
+            }
+            origin = hit.spawn_origin(ray.d);
+        }
+        let (hit, stack, oi) = found?;
+        let point = match scene.geometry.shape(hit.shape as usize)? {
+            Shape::Sphere { center, radius } => on_sphere(x0, d, v64(*center), f64::from(*radius)),
+            Shape::Mesh(mesh) => on_triangle(x0, d, mesh, &hit),
+            Shape::Box { .. } | Shape::LevelSet(_) => on_plane(x0, d, v64(hit.p), v64(hit.ng)),
+        }?;
+        (d.dot(point.ng) > 0.0).then(|| (point, stack, oi, hit.uv(), first.unwrap_or(0.0), rays))
+    }
+
+    /// `SceneInterface::project` on the shipped eye (a meshed globe over null spheres with
+    /// priorities, so false intersections, and an iris mesh) against [`reference_project`],
+    /// bit for bit: the point, the stack inside, the object, the uv, the seed's first segment
+    /// and the rays cast, over solves of several projections from one vertex (the kept
+    /// triangle frames are reused) from the sclera, the uvea and the chamber.
+    #[test]
+    fn projections_match_the_written_out_walk() {
+        let scene = Scene::load(std::path::Path::new("scenes/eye.toml")).expect("the eye");
+        let named = |name: &str| {
+            scene
+                .objects
+                .iter()
+                .position(|o| o.name == name)
+                .expect("object") as u32
+        };
+        let (globe, sclera, uvea, chamber) = (
+            named("globe"),
+            named("sclera"),
+            named("uvea"),
+            named("chamber"),
+        );
+        let mut rng = crate::sampling::Rng::new(20, 3);
+        let (mut solved, mut tried) = (0, 0);
+        for v in 0..3_000 {
+            let dir = crate::sampling::sample_uniform_sphere(rng.next_2d());
+            // A vertex in the sclera shell, in the uvea, or in the chamber in front.
+            let (x0, inside) = match v % 3 {
+                0 => (dir * (0.94 + 0.05 * rng.next_f32()), vec![globe, sclera]),
+                1 => (
+                    dir * (0.3 + 0.5 * rng.next_f32()),
+                    vec![globe, sclera, uvea],
+                ),
+                _ => (
+                    Vec3::new(0.0, 0.0, 0.95) + dir * (0.15 * rng.next_f32()),
+                    vec![globe, sclera, uvea, chamber],
+                ),
+            };
+            let mut stack = InteriorStack::default();
+            for oi in inside {
+                enter(&scene, &mut stack, oi, crate::math::Vec2::ZERO, 0.0, || 0.5);
+            }
+            let x0 = v64(x0);
+            let mut interface = SceneInterface::new(&scene, &stack);
+            let light = v64(Vec3::new(-3.2, 1.6, 2.4));
+            let mut target = light;
+            for step in 0..6 {
+                tried += 1;
+                let object = interface.object;
+                let rays = interface.rays;
+                let want = reference_project(&scene, &stack, object, x0, target);
+                let got = interface.project(x0, target);
+                assert_eq!(
+                    got.as_ref().map(point_bits),
+                    want.as_ref().map(|w| point_bits(&w.0)),
+                    "vertex {v}, step {step}"
+                );
+                if let (Some(p), Some(w)) = (got, want) {
+                    solved += 1;
+                    let debug = |s: &InteriorStack| format!("{s:?}");
+                    assert_eq!(
+                        debug(&interface.inside),
+                        debug(&w.1),
+                        "vertex {v}, step {step}"
+                    );
+                    assert_eq!(interface.object, Some(w.2));
+                    let bits = |uv: crate::math::Vec2| uv.to_array().map(f32::to_bits);
+                    assert_eq!(bits(interface.uv), bits(w.3));
+                    assert_eq!(interface.rays - rays, w.5);
+                    if step == 0 {
+                        assert_eq!(interface.seed_first_segment.to_bits(), w.4.to_bits());
+                    }
+                    // The next target: a small step in the tangent plane, as Newton's.
+                    let k = 0.02 * f64::from(rng.next_f32() - 0.5);
+                    target = p.p + p.dpdu[0] * k + p.dpdu[1] * (0.5 * k);
+                } else {
+                    target = light + v64(dir) * 0.5;
+                }
+            }
+        }
+        assert!(
+            solved > 5_000 && tried - solved > 1_000,
+            "{solved} of {tried}"
+        );
+    }
+
     fn point_bits(p: &InterfacePoint) -> Vec<u64> {
         [p.p, p.ng, p.ns, p.dpdu[0], p.dpdu[1], p.dndu[0], p.dndu[1]]
             .iter()
