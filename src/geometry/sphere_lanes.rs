@@ -30,7 +30,9 @@ pub(super) struct LaneCandidates {
     dx: Vec4,
     dy: Vec4,
     dz: Vec4,
-    len: Vec4,
+    /// The offset's squared length (`dir · dir`, glam's order); its square root, the
+    /// candidate's length, is taken for the lanes read only ([`LaneCandidates::candidate`]).
+    len2: Vec4,
 }
 
 /// Lane-wise square root: `sqrtps` (correctly rounded, as `f32::sqrt`) where SSE is the
@@ -107,22 +109,24 @@ impl SphereBlock {
         let pick_hi = hi.cmpgt(Vec4::ZERO) & hi.cmplt(bound);
         ok &= pick_lo | pick_hi;
         let t = Vec4::select(pick_lo, lo, hi);
-        // `ray.at(t) − center` and its length.
+        // `ray.at(t) − center` and its squared length.
         let (px, py, pz) = (
             (ox + dx * t) - self.cx,
             (oy + dy * t) - self.cy,
             (oz + dz * t) - self.cz,
         );
-        let len = sqrt4(dot3(px, py, pz, px, py, pz));
-        // `!(len.is_nan() || len <= 0)`.
-        ok &= len.cmpgt(Vec4::ZERO);
+        let len2 = dot3(px, py, pz, px, py, pz);
+        // `!(len.is_nan() || len <= 0)` for `len = √len2`: `√x > 0` exactly when `x > 0`
+        // (NaN and negative `x` have a NaN root, ±0 its own, and every positive `x`, the
+        // least subnormal included, a positive one). The root is taken for the lanes read.
+        ok &= len2.cmpgt(Vec4::ZERO);
         LaneCandidates {
             hits: ok.bitmask(),
             t,
             dx: px,
             dy: py,
             dz: pz,
-            len,
+            len2,
         }
     }
 }
@@ -137,10 +141,11 @@ impl LaneCandidates {
     /// Lane `i`'s candidate, as [`sphere_candidate`] returns it for that sphere.
     #[inline(always)]
     pub(super) fn candidate(&self, i: usize) -> SphereCandidate {
+        // `f32::sqrt` is correctly rounded, as `sqrtps` is: the length the scalar test takes.
         SphereCandidate::from_parts(
             self.t[i],
             Vec3::new(self.dx[i], self.dy[i], self.dz[i]),
-            self.len[i],
+            self.len2[i].sqrt(),
         )
     }
 }
@@ -150,6 +155,40 @@ mod tests {
     use super::super::sphere::sphere_candidate;
     use super::*;
     use crate::sampling::{sample_uniform_sphere, Rng};
+
+    /// The lanes' hit test on the squared length is the scalar test on the length (`√x > 0`
+    /// exactly when `x > 0`), and `sqrtps` is `f32::sqrt`, over every 4099th bit pattern
+    /// and the special values (the candidate's length is the scalar root of the lane's).
+    #[test]
+    fn squared_length_test_and_roots_match_the_scalar_root() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            f32::from_bits(1),
+            f32::MIN_POSITIVE,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::from_bits(1),
+        ];
+        let sweep = (0..=u32::MAX / 4099).map(|k| f32::from_bits(k * 4099));
+        let (mut positive, mut other) = (0, 0);
+        for x in specials.into_iter().chain(sweep) {
+            assert_eq!(x > 0.0, x.sqrt() > 0.0, "{x:e} ({:#x})", x.to_bits());
+            let (lane, scalar) = (sqrt4(Vec4::splat(x)).x, x.sqrt());
+            assert!(
+                lane.to_bits() == scalar.to_bits() || (lane.is_nan() && scalar.is_nan()),
+                "{x:e}: {lane:e} {scalar:e}"
+            );
+            if x > 0.0 {
+                positive += 1;
+            } else {
+                other += 1;
+            }
+        }
+        assert!(positive > 400_000 && other > 400_000, "{positive} {other}");
+    }
 
     /// Every lane's answer against `sphere_candidate` of its sphere alone, bit for bit (hit or
     /// not, `t`, the offset and its length), on rays from inside, outside and on the spheres,
