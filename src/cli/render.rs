@@ -341,7 +341,7 @@ fn render_frame(args: &RenderArgs, frame: Option<u32>, stop: &Arc<AtomicBool>) -
         film.seed
     );
     #[cfg(feature = "ray-log")]
-    let ray_log = crate::geometry::ray_log::start_from_env();
+    let ray_log = crate::geometry::ray_log::start_from_env()?;
     let r = render_budget(&scene, &options)?;
     #[cfg(feature = "ray-log")]
     if let Some(path) = ray_log {

@@ -135,6 +135,11 @@ pub enum RayLogError {
     /// Reading or writing the file failed.
     #[error("ray log I/O: {0}")]
     Io(#[from] std::io::Error),
+    /// `VELOUR_RAY_LOG_EVERY` is not a whole number of at least 1.
+    #[error(
+        "VELOUR_RAY_LOG_EVERY={0:?}: expected a whole number of at least 1 (keep every k-th query)"
+    )]
+    Every(String),
 }
 
 const MAGIC: &[u8; 8] = b"VRAYLOG1";
@@ -402,16 +407,30 @@ pub fn finish(geometry: &SceneGeometry) -> RayLog {
 
 /// `VELOUR_RAY_LOG=path` (and `VELOUR_RAY_LOG_EVERY=k`, default 1): starts recording and
 /// returns the path to write the log to at the end, or `None` when the variable is unset.
+///
+/// # Errors
+/// [`RayLogError::Every`] when `VELOUR_RAY_LOG_EVERY` is set but not a whole number ≥ 1
+/// (nothing is recorded then).
 #[cfg(feature = "ray-log")]
-#[must_use]
-pub fn start_from_env() -> Option<std::path::PathBuf> {
-    let path = std::env::var_os("VELOUR_RAY_LOG")?;
-    let every = std::env::var("VELOUR_RAY_LOG_EVERY")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
+pub fn start_from_env() -> Result<Option<std::path::PathBuf>, RayLogError> {
+    let Some(path) = std::env::var_os("VELOUR_RAY_LOG") else {
+        return Ok(None);
+    };
+    let every = match std::env::var("VELOUR_RAY_LOG_EVERY") {
+        Err(_) => 1,
+        Ok(s) => parse_every(&s)?,
+    };
     start(every);
-    Some(path.into())
+    Ok(Some(path.into()))
+}
+
+/// `VELOUR_RAY_LOG_EVERY`'s value: a whole number of at least 1.
+#[cfg(any(feature = "ray-log", test))]
+fn parse_every(text: &str) -> Result<u64, RayLogError> {
+    match text.trim().parse::<u64>() {
+        Ok(k) if k >= 1 => Ok(k),
+        _ => Err(RayLogError::Every(text.to_string())),
+    }
 }
 
 /// Hook of [`SceneGeometry::intersect`](super::SceneGeometry::intersect).
@@ -448,6 +467,16 @@ pub(crate) fn beyond(ray: &crate::math::Ray, t_max: f32, hit: Option<&Hit>, clea
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_sampling_step_must_be_a_whole_number_of_at_least_one() {
+        assert_eq!(parse_every("128").ok(), Some(128));
+        assert_eq!(parse_every(" 1 ").ok(), Some(1));
+        for bad in ["0", "-3", "1.5", "every", ""] {
+            let err = parse_every(bad).expect_err(bad).to_string();
+            assert!(err.contains("VELOUR_RAY_LOG_EVERY"), "{err}");
+        }
+    }
 
     fn sample_log() -> RayLog {
         let q = |kind, i: f32, answer| Query {
