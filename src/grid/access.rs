@@ -147,19 +147,21 @@ impl<'a> Accessor<'a> {
     /// first component of the voxels `8 key + (x, y, z)`, `x, y, z ∈ 0..9` ([`PADDED_EDGE`]),
     /// `z` fastest; the 8 bricks (or tiles) they lie in are resolved once.
     pub(super) fn write_padded_brick(&mut self, key: IVec3, out: &mut [f32]) {
+        let e = self.padded_entries(key);
+        for (slot, (n, v)) in out.iter_mut().zip(padded_voxels()) {
+            *slot = self.fetch(e[n], v, 0);
+        }
+    }
+
+    /// The entries of the 8 bricks (or tiles) `key + (0|1, 0|1, 0|1)` that a padded copy of
+    /// brick `key` reads, in [`padded_voxels`]' numbering (`x` slowest).
+    fn padded_entries(&mut self, key: IVec3) -> [u32; 8] {
         let mut e = [0u32; 8];
         for (n, en) in e.iter_mut().enumerate() {
             let d = IVec3::new((n >> 2) as i32, ((n >> 1) & 1) as i32, (n & 1) as i32);
             *en = self.peek(key + d);
         }
-        let cells = (0..PADDED_EDGE).flat_map(|x| {
-            (0..PADDED_EDGE).flat_map(move |y| (0..PADDED_EDGE).map(move |z| (x, y, z)))
-        });
-        for (slot, (x, y, z)) in out.iter_mut().zip(cells) {
-            let n = ((x >> 3) << 2) | ((y >> 3) << 1) | (z >> 3);
-            let v = ((x & 7) << 6) | ((y & 7) << 3) | (z & 7);
-            *slot = self.fetch(e[n], v, 0);
-        }
+        e
     }
 
     /// [`Self::write_padded_brick`] for the interleaved pairs of [`SparseGrid::padded_pairs`]:
@@ -171,17 +173,8 @@ impl<'a> Accessor<'a> {
         key: IVec3,
         out: &mut [[f32; 4]],
     ) {
-        let mut e = [0u32; 8];
-        for (n, en) in e.iter_mut().enumerate() {
-            let d = IVec3::new((n >> 2) as i32, ((n >> 1) & 1) as i32, (n & 1) as i32);
-            *en = self.peek(key + d);
-        }
-        let cells = (0..PADDED_EDGE).flat_map(|x| {
-            (0..PADDED_EDGE).flat_map(move |y| (0..PADDED_EDGE).map(move |z| (x, y, z)))
-        });
-        for (slot, (x, y, z)) in out.iter_mut().zip(cells) {
-            let n = ((x >> 3) << 2) | ((y >> 3) << 1) | (z >> 3);
-            let v = ((x & 7) << 6) | ((y & 7) << 3) | (z & 7);
+        let e = self.padded_entries(key);
+        for (slot, (n, v)) in out.iter_mut().zip(padded_voxels()) {
             let t = vector.fetch_vec3(e[n], v);
             *slot = [self.fetch(e[n], v, 0), t.x, t.y, t.z];
         }
@@ -451,4 +444,16 @@ pub fn trilerp(c: &[f32; 8], t: Vec3) -> f32 {
     let y0 = lerp(x00, x10, t.y);
     let y1 = lerp(x01, x11, t.y);
     lerp(y0, y1, t.z)
+}
+
+/// The voxels of a padded brick ([`PADDED_EDGE`]³, `z` fastest) as (which of the 8 bricks
+/// `key + (0|1, 0|1, 0|1)` holds it, its index within that brick).
+fn padded_voxels() -> impl Iterator<Item = (usize, usize)> {
+    (0..PADDED_EDGE)
+        .flat_map(|x| (0..PADDED_EDGE).flat_map(move |y| (0..PADDED_EDGE).map(move |z| (x, y, z))))
+        .map(|(x, y, z)| {
+            let n = ((x >> 3) << 2) | ((y >> 3) << 1) | (z >> 3);
+            let v = ((x & 7) << 6) | ((y & 7) << 3) | (z & 7);
+            (n, v)
+        })
 }
