@@ -512,6 +512,20 @@ mod tests {
     use crate::geometry::TriangleMesh;
     use crate::math::Vec2;
 
+    /// A hit on triangle 0 of shape 0 (`on_triangle` reads the hit's triangle number).
+    fn first_triangle_hit() -> Hit {
+        Hit {
+            t: 1.0,
+            p: Vec3::ZERO,
+            ng: Vec3::Z,
+            ns: Vec3::Z,
+            uv: crate::geometry::HitUv::At(Vec2::ZERO),
+            shape: 0,
+            prim: 0,
+            p_error: 0.0,
+        }
+    }
+
     /// The walk and projection as they were before the triangle frames, the lazy medium and
     /// IOR look-ups and the null boundaries' shortcut (the medium is not part of a
     /// projection's answer): the reference for `projections_match_the_written_out_walk`.
@@ -708,16 +722,7 @@ mod tests {
                 uvs: None,
                 indices: vec![[0, 1, 2]],
             };
-            let hit = Hit {
-                t: 1.0,
-                p: Vec3::ZERO,
-                ng: Vec3::Z,
-                ns: Vec3::Z,
-                uv: crate::geometry::HitUv::At(Vec2::ZERO),
-                shape: 0,
-                prim: 0,
-                p_error: 0.0,
-            };
+            let hit = first_triangle_hit();
             let frame = TriangleFrame::new(&mesh, 0);
             let x0 = v64(v(&mut rng, 3.0));
             for k in 0..50 {
@@ -770,16 +775,7 @@ mod tests {
             uvs: None,
             indices: vec![[0, 1, 2]],
         };
-        let hit = Hit {
-            t: 1.0,
-            p: Vec3::ZERO,
-            ng: Vec3::Z,
-            ns: Vec3::Z,
-            uv: crate::geometry::HitUv::At(Vec2::ZERO),
-            shape: 0,
-            prim: 0,
-            p_error: 0.0,
-        };
+        let hit = first_triangle_hit();
         let x0 = DVec3::new(0.3, 0.3, -1.0);
         let at = |target: DVec3| {
             let d = (target - x0).normalize();
