@@ -271,8 +271,7 @@ int main(int argc, char **argv) {
   printf("%-28s %14s %14s\n", "rays", "embree closest", "embree occl.");
 
 #if !EMBREE4
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+  rtcInitIntersectContext(&g_ctx);
 #endif
   // RAY_CASTING_SET=k: only set k (as velour's bench; for per-set callgrind counts).
   const char *only = getenv("RAY_CASTING_SET");
@@ -287,38 +286,15 @@ int main(int argc, char **argv) {
       tsum = 0;
       double t0 = thread_cpu();
       for (size_t i = 0; i < n; i++) {
-        const float *q = &s[7 * i];
-        RTCRayHit rh;
-        rh.ray.org_x = q[0]; rh.ray.org_y = q[1]; rh.ray.org_z = q[2];
-        rh.ray.dir_x = q[3]; rh.ray.dir_y = q[4]; rh.ray.dir_z = q[5];
-        rh.ray.tnear = 0.0f; rh.ray.tfar = q[6];
-        rh.ray.mask = 0xFFFFFFFF; rh.ray.flags = 0; rh.ray.time = 0.0f;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-#if EMBREE4
-        rtcIntersect1(scene, &rh);
-#else
-        rtcIntersect1(scene, &ctx, &rh);
-#endif
-        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) { hits_c++; tsum += rh.ray.tfar; }
+        float t;
+        if (closest(scene, &s[7 * i], &t) != UINT32_MAX) { hits_c++; tsum += t; }
       }
       double dt = thread_cpu() - t0;
       if (dt < best_c) best_c = dt;
       hits_o = 0;
       t0 = thread_cpu();
       for (size_t i = 0; i < n; i++) {
-        const float *q = &s[7 * i];
-        RTCRay ray;
-        ray.org_x = q[0]; ray.org_y = q[1]; ray.org_z = q[2];
-        ray.dir_x = q[3]; ray.dir_y = q[4]; ray.dir_z = q[5];
-        ray.tnear = 0.0f; ray.tfar = q[6];
-        ray.mask = 0xFFFFFFFF; ray.flags = 0; ray.time = 0.0f;
-#if EMBREE4
-        rtcOccluded1(scene, &ray);
-#else
-        rtcOccluded1(scene, &ctx, &ray);
-#endif
-        hits_o += ray.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
+        hits_o += occluded(scene, &s[7 * i]);
       }
       dt = thread_cpu() - t0;
       if (dt < best_o) best_o = dt;
