@@ -103,28 +103,11 @@ impl FabricLook {
     /// tangent and the yarn id of the nearest voxel. Tangents are stored in patch units and
     /// mapped through the placement, so rotated and sheared patches keep their fibre
     /// directions.
-    ///
-    /// With fibre-projected extinction the tangent is read, where it can be, from the
-    /// interleaved table of `density_channel` and the tangents ([`SparseGrid::padded_pairs`],
-    /// the table [`FibreGridLookup`] reads, already made and in cache after the flight's last
-    /// lookup): the cell's corners resolved at once instead of the accessor's voxel reads,
-    /// the same voxels in the same order ([`tangent_in_cell`]).
     #[must_use]
-    pub fn fibre_in_grid(&self, grid: &SparseGrid, density_channel: usize, p: Vec3) -> FibreVoxel {
+    pub fn fibre_in_grid(&self, grid: &SparseGrid, p: Vec3) -> FibreVoxel {
         let q = grid.world_to_index_point(p);
         let mut tangents = grid.accessor(self.tangent_channel);
-        let paired = if self.projects() {
-            grid.padded_pairs(density_channel, self.tangent_channel)
-                .and_then(|table| {
-                    let (i, f) = floor_frac(q);
-                    let c = tangents.padded_pair_cell(table, i)?;
-                    tangent_in_cell(&c, q, i, f)
-                })
-        } else {
-            None
-        };
-        let t =
-            paired.unwrap_or_else(|| super::tangent_near(q, |ijk| tangents.value_vec3_hot(ijk)));
+        let t = super::tangent_near(q, |ijk| tangents.value_vec3(ijk));
         let ijk = (q + Vec3::splat(0.5)).floor().as_ivec3();
         let id = grid.accessor(self.id_channel).value(ijk);
         let world = (self.tangent_to_world(grid) * t.as_dvec3()).as_vec3();

@@ -179,7 +179,7 @@ impl HeterogeneousMedium {
     pub fn fibre_at(&self, p: Vec3) -> Option<FibreVoxel> {
         let look = self.fabric.as_ref()?;
         match &self.field {
-            DensityField::Grid { grid, channel } => Some(look.fibre_in_grid(grid, *channel, p)),
+            DensityField::Grid { grid, .. } => Some(look.fibre_in_grid(grid, p)),
             DensityField::Shell(shell) => shell.fibre_at(p),
             _ => None,
         }
