@@ -49,6 +49,38 @@ fn box_weights(src: usize, dst: usize) -> Vec<Vec<(usize, f32)>> {
         .collect()
 }
 
+/// `x.floor()` without a call: the x86-64 baseline has no rounding instruction, so `floor`
+/// is a library call per coordinate. Bit for bit the same for every `f32` (`−0.0` stays
+/// `−0.0`; values of magnitude 2²³ or more, infinities and NaN are returned as they are,
+/// as `floor` returns them: they have no fraction).
+#[inline(always)]
+fn floor_exact(x: f32) -> f32 {
+    const INTEGRAL: f32 = 8_388_608.0; // 2^23: every f32 at least this large is an integer
+    if !(x.abs() < INTEGRAL) {
+        return x;
+    }
+    // Exact: |x| < 2^23 fits an i32, and every integer below 2^23 is an f32.
+    let t = x as i32 as f32;
+    if t > x {
+        t - 1.0
+    } else {
+        // `t ≤ x`: `x ≥ 0` (truncation is the floor) or `x` a negative integer (`t = x`).
+        // The sign restores a negative zero, which truncation makes positive.
+        t.copysign(x)
+    }
+}
+
+/// `i.rem_euclid(n)` for `n > 0` as an index, without the division where `i` is already in
+/// `[0, n)` (the common case: a bilinear lookup's texels away from the image's edge).
+#[inline(always)]
+fn wrap_index(i: i64, n: i64) -> usize {
+    if (0..n).contains(&i) {
+        i as usize
+    } else {
+        i.rem_euclid(n) as usize
+    }
+}
+
 impl MipLevel {
     /// The next coarser level (each side halved, rounded down, at least 1), box-filtered.
     fn downsample(&self, channels: usize) -> MipLevel {
@@ -197,12 +229,12 @@ impl MipPyramid {
         let v = if uv.y.is_finite() { uv.y } else { 0.0 };
         let x = u * l.width as f32 - 0.5;
         let y = (1.0 - v) * l.height as f32 - 0.5;
-        let (xf, yf) = (x.floor(), y.floor());
+        let (xf, yf) = (floor_exact(x), floor_exact(y));
         let (fx, fy) = (x - xf, y - yf);
         let (x0, y0) = (xf as i64, yf as i64);
         let index = |i: i64, n: i64| -> usize {
             match wrap {
-                Wrap::Repeat => i.rem_euclid(n) as usize,
+                Wrap::Repeat => wrap_index(i, n),
                 Wrap::Clamp => i.clamp(0, n - 1) as usize,
             }
         };
@@ -221,5 +253,74 @@ impl MipPyramid {
         let top = texel(xa, ya) * (1.0 - fx) + texel(xb, ya) * fx;
         let bottom = texel(xa, yb) * (1.0 - fx) + texel(xb, yb) * fx;
         top * (1.0 - fy) + bottom * fy
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`floor_exact`] is `f32::floor` bit for bit: signed zeros, values just around
+    /// integers and halves, the 2²³ boundary, huge values, infinities, NaN and random bit
+    /// patterns of every exponent.
+    #[test]
+    fn floor_exact_is_floor_bit_for_bit() {
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            -8_388_608.0,
+            16_777_217.0,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for k in -2000..2000 {
+            let x = k as f32 * 0.25;
+            values.extend([
+                x,
+                f32::from_bits(x.to_bits() + 1),
+                f32::from_bits(x.to_bits().wrapping_sub(1)),
+            ]);
+        }
+        // Random bit patterns (xorshift32).
+        let mut bits = 0x9e37_79b9u32;
+        for _ in 0..500_000 {
+            bits ^= bits << 13;
+            bits ^= bits >> 17;
+            bits ^= bits << 5;
+            values.push(f32::from_bits(bits));
+        }
+        for x in values {
+            let (got, want) = (floor_exact(x), x.floor());
+            assert!(
+                got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "{x:e} ({:#x}): {got:e} vs {want:e}",
+                x.to_bits()
+            );
+        }
+    }
+
+    /// [`wrap_index`] is `rem_euclid` for indices inside, below and above `[0, n)`.
+    #[test]
+    fn wrap_index_is_rem_euclid() {
+        for n in [1i64, 2, 3, 7, 64, 1000] {
+            for i in -3 * n - 2..3 * n + 2 {
+                assert_eq!(wrap_index(i, n), i.rem_euclid(n) as usize, "{i} mod {n}");
+            }
+            for i in [i64::MIN, i64::MIN + 1, i64::MAX] {
+                assert_eq!(wrap_index(i, n), i.rem_euclid(n) as usize, "{i} mod {n}");
+            }
+        }
     }
 }
