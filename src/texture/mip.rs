@@ -56,7 +56,7 @@ fn box_weights(src: usize, dst: usize) -> Vec<Vec<(usize, f32)>> {
 #[inline(always)]
 fn floor_exact(x: f32) -> f32 {
     const INTEGRAL: f32 = 8_388_608.0; // 2^23: every f32 at least this large is an integer
-    if !(x.abs() < INTEGRAL) {
+    if x.is_nan() || x.abs() >= INTEGRAL {
         return x;
     }
     // Exact: |x| < 2^23 fits an i32, and every integer below 2^23 is an f32.
