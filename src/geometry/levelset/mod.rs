@@ -212,6 +212,9 @@ impl LevelSet {
             bounds: Aabb::EMPTY,
         };
         ls.place(ls.grid.index_to_world())?;
+        // The crossings' cells and gradients read 2³ corner blocks: through the padded bricks
+        // (the same values), made now rather than by the first render thread.
+        ls.grid.prepare_padded(0);
         Ok(ls)
     }
 
@@ -273,7 +276,7 @@ impl LevelSet {
     #[must_use]
     pub fn value_at(&self, p: Vec3) -> f32 {
         let pi = self.to_index_m * p + self.to_index_t;
-        self.grid.accessor(0).sample_trilinear(pi)
+        self.grid.padded_accessor(0).sample_trilinear(pi)
     }
 
     /// The nearest zero crossing with `0 < t < t_max` along `ray` (unit direction), from
@@ -294,7 +297,7 @@ impl LevelSet {
         if t0 >= t_max {
             return None;
         }
-        let mut acc = self.grid.accessor(0);
+        let mut acc = self.grid.padded_accessor(0);
         // Whether the ray is inside where the last cell visited ended (skipped cells have
         // one sign throughout).
         let mut inside: Option<bool> = None;
