@@ -179,7 +179,7 @@ mod tests {
                 t_end: t1,
                 lo,
                 hi,
-                done: !(t0 <= t1) || lo.cmpgt(hi).any(),
+                done: t0.partial_cmp(&t1).is_none_or(|o| o.is_gt()) || lo.cmpgt(hi).any(),
             };
             for k in 0..3 {
                 r.update(k);
@@ -277,7 +277,7 @@ mod tests {
             if i % 7 == 0 {
                 d.y = 0.0;
             }
-            let shift = (i % 4) as i32 * 2 - i32::from(i % 4 == 3);
+            let shift = (i % 4) * 2 - i32::from(i % 4 == 3);
             let lo = IVec3::new(-3, -2, -4) << 1;
             let hi = IVec3::new(5, 6, 4) << 1;
             let t0 = next() * 100.0;
