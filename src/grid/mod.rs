@@ -663,8 +663,10 @@ impl SparseGrid {
     /// channel's bricks with an apron of one voxel on their upper faces (9³ values each,
     /// [`PADDED_EDGE`]), made on the first call, so that the 8 corners of a lookup whose
     /// first corner lies in a brick never straddle bricks. The same values as
-    /// [`Self::accessor`] (bit for bit), at 729/512 of the channel's memory; made only for
-    /// scalar 32-bit channels below a size budget (1 GiB), the plain accessor otherwise.
+    /// [`Self::accessor`] (bit for bit: 16-bit voxels are copied as the f32 values the plain
+    /// accessor converts them to), at 729/512 of a 32-bit channel's memory (729/256 of a
+    /// 16-bit one's); made only for scalar channels below a size budget (1 GiB), the plain
+    /// accessor otherwise.
     ///
     /// # Panics
     /// If `c` is not a channel of the grid (programming error).
@@ -756,7 +758,7 @@ impl SparseGrid {
     /// not made (bricks in parallel, one accessor per worker).
     fn make_padded(&self, c: usize) -> Option<Vec<f32>> {
         let ch = &self.channels[c];
-        if ch.kind.components() != 1 || !matches!(ch.values, Values::F32(_)) {
+        if ch.kind.components() != 1 {
             return None;
         }
         let n = self.brick_count().checked_mul(PADDED_VOXELS)?;

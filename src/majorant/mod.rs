@@ -13,6 +13,7 @@
 //! tolerate as long as every segment they bound is looked up: see
 //! [`MajorantSegment::is_homogeneous`]).
 
+mod cells;
 mod fine;
 mod plan;
 mod segments;
@@ -23,7 +24,7 @@ pub use segments::{FewSegments, MajorantSegment, OpenWalk, Segments, SegmentsSta
 
 use glam::{DAffine3, DVec3, IVec3};
 
-use crate::grid::{Node, SparseGrid, BRICK_DIM};
+use crate::grid::{SparseGrid, BRICK_DIM};
 use crate::math::Ray;
 
 /// Refuses pyramids whose finest level would exceed this many cells.
@@ -296,7 +297,6 @@ impl MajorantPyramid {
             });
         }
         let mut cells = vec![Bounds::constant(background); count];
-        let mut acc = grid.accessor(channel);
         let index = |c: IVec3| {
             ((c.z as usize * dims.y as usize) + c.y as usize) * dims.x as usize + c.x as usize
         };
@@ -305,7 +305,7 @@ impl MajorantPyramid {
                 for kx in key_lo.x..=key_hi.x {
                     let key = IVec3::new(kx, ky, kz);
                     let first = (key - key_lo) * per_brick;
-                    brick_cell_bounds(grid, channel, &mut acc, key, cell_log2, |sub, b| {
+                    cells::brick_cell_bounds(grid, channel, key, cell_log2, |sub, b| {
                         cells[index(first + sub)] = b;
                     });
                 }
@@ -665,120 +665,5 @@ pub fn finest_cell_log2(bricks: f64) -> i32 {
         2
     } else {
         3
-    }
-}
-
-/// Calls `emit(sub, bounds)` for each of the `(8 >> cell_log2)³` cells of brick `key`: the min
-/// and max over every value a trilinear lookup inside the cell can return (its voxels plus a
-/// one-voxel apron, across neighbouring bricks and tiles) and the mean of its own voxels.
-fn brick_cell_bounds(
-    grid: &SparseGrid,
-    channel: usize,
-    acc: &mut crate::grid::Accessor<'_>,
-    key: IVec3,
-    cell_log2: i32,
-    mut emit: impl FnMut(IVec3, Bounds),
-) {
-    let size = 1 << cell_log2;
-    let n = BRICK_DIM >> cell_log2;
-    let mut nodes = [Node::Tile {
-        tile: 0,
-        level: crate::grid::TileLevel::Root,
-        active: false,
-    }; 27];
-    let mut all_tiles = true;
-    let mut i = 0;
-    for dz in -1..=1 {
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let node = grid.node_at_brick(key + IVec3::new(dx, dy, dz));
-                all_tiles &= matches!(node, Node::Tile { .. });
-                nodes[i] = node;
-                i += 1;
-            }
-        }
-    }
-    let tile_value = |node: Node| match node {
-        Node::Tile { tile, .. } => grid.tile_value(channel, tile),
-        Node::Brick(_) => 0.0,
-    };
-    if all_tiles {
-        // Each cell sees its own tile and the neighbours its apron reaches.
-        for z in 0..n {
-            for y in 0..n {
-                for x in 0..n {
-                    let c = IVec3::new(x, y, z);
-                    let reach = |k: i32| -> (i32, i32) {
-                        (if k == 0 { -1 } else { 0 }, if k == n - 1 { 1 } else { 0 })
-                    };
-                    let (rx, ry, rz) = (reach(c.x), reach(c.y), reach(c.z));
-                    let mut b = Bounds {
-                        min: f32::INFINITY,
-                        max: f32::NEG_INFINITY,
-                        mean: tile_value(nodes[13]),
-                    };
-                    for dz in rz.0..=rz.1 {
-                        for dy in ry.0..=ry.1 {
-                            for dx in rx.0..=rx.1 {
-                                let v = tile_value(
-                                    nodes[((dz + 1) * 9 + (dy + 1) * 3 + dx + 1) as usize],
-                                );
-                                b.min = b.min.min(v);
-                                b.max = b.max.max(v);
-                            }
-                        }
-                    }
-                    emit(c, b);
-                }
-            }
-        }
-        return;
-    }
-    // The brick with its one-voxel apron: block[z][y][x] is voxel base − 1 + (x, y, z).
-    const SIDE: usize = BRICK_DIM as usize + 2;
-    let base = key << 3;
-    let mut block = [0.0f32; SIDE * SIDE * SIDE];
-    for z in 0..SIDE {
-        for y in 0..SIDE {
-            for x in 0..SIDE {
-                let ijk = base + IVec3::new(x as i32 - 1, y as i32 - 1, z as i32 - 1);
-                block[(z * SIDE + y) * SIDE + x] = acc.value(ijk);
-            }
-        }
-    }
-    let own_tile = match nodes[13] {
-        Node::Tile { tile, .. } => Some(grid.tile_value(channel, tile)),
-        Node::Brick(_) => None,
-    };
-    let s = size as usize;
-    for z in 0..n {
-        for y in 0..n {
-            for x in 0..n {
-                let (x0, y0, z0) = (x as usize * s, y as usize * s, z as usize * s);
-                let mut b = Bounds {
-                    min: f32::INFINITY,
-                    max: f32::NEG_INFINITY,
-                    mean: 0.0,
-                };
-                let mut sum = 0.0f64;
-                for bz in z0..z0 + s + 2 {
-                    for by in y0..y0 + s + 2 {
-                        for bx in x0..x0 + s + 2 {
-                            let v = block[(bz * SIDE + by) * SIDE + bx];
-                            b.min = b.min.min(v);
-                            b.max = b.max.max(v);
-                            let own = (x0 + 1..x0 + s + 1).contains(&bx)
-                                && (y0 + 1..y0 + s + 1).contains(&by)
-                                && (z0 + 1..z0 + s + 1).contains(&bz);
-                            if own {
-                                sum += f64::from(v);
-                            }
-                        }
-                    }
-                }
-                b.mean = own_tile.unwrap_or((sum / (s * s * s) as f64) as f32);
-                emit(IVec3::new(x, y, z), b);
-            }
-        }
     }
 }

@@ -27,7 +27,7 @@ use crate::grid::{ChannelKind, Node, SparseGrid, BRICK_DIM, BRICK_LOG2};
 use crate::math::{Aabb, Mat3, Ray, Vec3};
 
 use self::cell::{corner_values, first_root, smooth_gradient, trilinear_gradient};
-use self::dda::Dda;
+use self::dda::DdaRay;
 
 /// Bricks per edge of a coarse cell (8 bricks = 64 voxels).
 const COARSE_LOG2: i32 = 3;
@@ -212,6 +212,9 @@ impl LevelSet {
             bounds: Aabb::EMPTY,
         };
         ls.place(ls.grid.index_to_world())?;
+        // The crossings' cells and gradients read 2³ corner blocks: through the padded bricks
+        // (the same values), made now rather than by the first render thread.
+        ls.grid.prepare_padded(0);
         Ok(ls)
     }
 
@@ -273,7 +276,7 @@ impl LevelSet {
     #[must_use]
     pub fn value_at(&self, p: Vec3) -> f32 {
         let pi = self.to_index_m * p + self.to_index_t;
-        self.grid.accessor(0).sample_trilinear(pi)
+        self.grid.padded_accessor(0).sample_trilinear(pi)
     }
 
     /// The nearest zero crossing with `0 < t < t_max` along `ray` (unit direction), from
@@ -294,14 +297,13 @@ impl LevelSet {
         if t0 >= t_max {
             return None;
         }
-        let mut acc = self.grid.accessor(0);
+        let mut acc = self.grid.padded_accessor(0);
         // Whether the ray is inside where the last cell visited ended (skipped cells have
         // one sign throughout).
         let mut inside: Option<bool> = None;
         let side = |r: Range| Some(r.max < 0.0);
-        let mut coarse = Dda::new(
-            o,
-            d,
+        let walks = DdaRay::new(o, d);
+        let mut coarse = walks.walk(
             t0,
             t1,
             BRICK_LOG2 + COARSE_LOG2,
@@ -320,7 +322,7 @@ impl LevelSet {
             let blo = (ck << COARSE_LOG2).max(self.bricks.lo);
             let bhi =
                 ((ck << COARSE_LOG2) + IVec3::splat((1 << COARSE_LOG2) - 1)).min(self.bricks.hi());
-            let mut bdda = Dda::new(o, d, ca, cb, BRICK_LOG2, blo, bhi);
+            let mut bdda = walks.walk(ca, cb, BRICK_LOG2, blo, bhi);
             while let Some((bk, ba, bb)) = bdda.next() {
                 if ba >= t_max {
                     return None;
@@ -341,7 +343,7 @@ impl LevelSet {
                     continue;
                 };
                 let qlo = bk << 1;
-                let mut qdda = Dda::new(o, d, ba, bb, 2, qlo, qlo + IVec3::ONE);
+                let mut qdda = walks.walk(ba, bb, 2, qlo, qlo + IVec3::ONE);
                 while let Some((qk, qa, qb)) = qdda.next() {
                     if qa >= t_max {
                         return None;
@@ -356,7 +358,7 @@ impl LevelSet {
                         continue;
                     }
                     let vlo = qk << 2;
-                    let mut vdda = Dda::new(o, d, qa, qb, 0, vlo, vlo + IVec3::splat(3));
+                    let mut vdda = walks.walk(qa, qb, 0, vlo, vlo + IVec3::splat(3));
                     while let Some((ijk, ta, tb)) = vdda.next() {
                         if ta >= t_max {
                             return None;
