@@ -296,6 +296,42 @@ impl SceneGeometry {
 
     /// [`Self::intersect`]'s search (the ray log's hook is in `intersect`).
     fn closest(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if self.analytic.is_empty() {
+            return self.closest_triangle(ray, t_max);
+        }
+        self.closest_any(ray, t_max)
+    }
+
+    /// [`Self::closest`] in a scene of triangles only (no analytic shape): the general
+    /// search below with nothing found before the triangles (`closest = t_max`, no free
+    /// shell), without the set-up of the analytic shapes' loops.
+    #[inline(always)]
+    fn closest_triangle(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if self.prims.is_empty() || !valid_query(ray, t_max) {
+            return None;
+        }
+        if self.segment_misses_triangles(ray, t_max) {
+            return None;
+        }
+        let (tris, verts) = (self.tris.as_slice(), self.verts.as_slice());
+        let sr = ShearedRay::new(ray);
+        let mut best: Option<(u32, TriangleHit)> = None;
+        self.bvh.traverse(ray, t_max, |slot, t_max| {
+            match sr.intersect(&triangle_at(tris, verts, slot as usize), t_max) {
+                Some(h) => {
+                    self.prefetch_prim(slot as usize);
+                    best = Some((slot, h));
+                    h.t
+                }
+                None => t_max,
+            }
+        });
+        best.map(|(slot, h)| self.make_hit(ray, Best::Tri(slot as usize, h)))
+    }
+
+    /// [`Self::closest`] in a scene with analytic shapes.
+    #[inline(never)]
+    fn closest_any(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         if let Some((min, max, shape)) = self.sole_box {
             // What the loop below does with one box and no triangles.
             if moves_away_from_box(ray, min, max) || !valid_query(ray, t_max) {
@@ -444,17 +480,7 @@ impl SceneGeometry {
     /// The triangle at BVH position `slot`, transposed for the triangle test.
     #[inline(always)]
     fn triangle(&self, slot: usize) -> TriangleSoa {
-        debug_assert!(slot < self.tris.len());
-        // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
-        // and `build` numbers every vertex a triangle names below `verts.len()`.
-        unsafe {
-            let [a, b, c] = *self.tris.get_unchecked(slot);
-            TriangleSoa::from_vertices(
-                *self.verts.get_unchecked(a as usize),
-                *self.verts.get_unchecked(b as usize),
-                *self.verts.get_unchecked(c as usize),
-            )
-        }
+        triangle_at(&self.tris, &self.verts, slot)
     }
 
     /// Asks the CPU to bring triangle `slot`'s record (`prims`) towards the core: a hint
@@ -640,6 +666,24 @@ impl SceneGeometry {
     #[must_use]
     pub fn topology(&self, i: usize) -> Option<MeshTopology> {
         self.topologies.get(i).copied().flatten()
+    }
+}
+
+/// The triangle at BVH position `slot` of the compact layout (`tris` names its corners in
+/// `verts`), transposed for the triangle test. The traversal hands only positions it holds,
+/// and [`SceneGeometry::build`] numbers every corner below `verts.len()`.
+#[inline(always)]
+fn triangle_at(tris: &[[u32; 3]], verts: &[Vec4], slot: usize) -> TriangleSoa {
+    debug_assert!(slot < tris.len());
+    // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
+    // and `build` numbers every vertex a triangle names below `verts.len()`.
+    unsafe {
+        let [a, b, c] = *tris.get_unchecked(slot);
+        TriangleSoa::from_vertices(
+            *verts.get_unchecked(a as usize),
+            *verts.get_unchecked(b as usize),
+            *verts.get_unchecked(c as usize),
+        )
     }
 }
 

@@ -104,8 +104,9 @@ impl ShearedRay {
         } else {
             (2, 0, 1)
         };
-        let d = ray.d.to_array();
-        let o = ray.o.to_array();
+        // Read from the ray itself (not from a copy of its components).
+        let d: &[f32; 3] = ray.d.as_ref();
+        let o: &[f32; 3] = ray.o.as_ref();
         let (kx, ky) = if d[kz] < 0.0 { (ky, kx) } else { (kx, ky) };
         // `d[kx] / d[kz]`, `d[ky] / d[kz]` and `1 / d[kz]` in one vector division (the same
         // IEEE quotients as three scalar ones).
