@@ -13,7 +13,7 @@ use super::levelset::LevelSetHit;
 use super::sphere::{sphere_candidate, SphereCandidate};
 use super::sphere_lanes::SphereBlock;
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
-use super::wide_bvh::WideBvh;
+use super::wide_bvh::{LeafVisitor, WideBvh};
 use super::{GeometryError, Hit, HitUv, MeshTopology, Shape};
 
 mod beyond;
@@ -313,19 +313,16 @@ impl SceneGeometry {
         if self.segment_misses_triangles(ray, t_max) {
             return None;
         }
-        let (tris, verts) = (self.tris.as_slice(), self.verts.as_slice());
-        let sr = ShearedRay::new(ray);
-        let mut best: Option<(u32, TriangleHit)> = None;
-        self.bvh.traverse(ray, t_max, |slot, t_max| {
-            match sr.intersect(&triangle_at(tris, verts, slot as usize), t_max) {
-                Some(h) => {
-                    self.prefetch_prim(slot as usize);
-                    best = Some((slot, h));
-                    h.t
-                }
-                None => t_max,
-            }
-        });
+        let mut best = None;
+        self.bvh.traverse(
+            ray,
+            t_max,
+            NearestTriangle {
+                geometry: self,
+                sr: ShearedRay::new(ray),
+                best: &mut best,
+            },
+        );
         best.map(|(slot, h)| self.make_hit(ray, Best::Tri(slot as usize, h)))
     }
 
@@ -480,7 +477,17 @@ impl SceneGeometry {
     /// The triangle at BVH position `slot`, transposed for the triangle test.
     #[inline(always)]
     fn triangle(&self, slot: usize) -> TriangleSoa {
-        triangle_at(&self.tris, &self.verts, slot)
+        debug_assert!(slot < self.tris.len());
+        // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
+        // and `build` numbers every vertex a triangle names below `verts.len()`.
+        unsafe {
+            let [a, b, c] = *self.tris.get_unchecked(slot);
+            TriangleSoa::from_vertices(
+                *self.verts.get_unchecked(a as usize),
+                *self.verts.get_unchecked(b as usize),
+                *self.verts.get_unchecked(c as usize),
+            )
+        }
     }
 
     /// Asks the CPU to bring triangle `slot`'s record (`prims`) towards the core: a hint
@@ -669,21 +676,33 @@ impl SceneGeometry {
     }
 }
 
-/// The triangle at BVH position `slot` of the compact layout (`tris` names its corners in
-/// `verts`), transposed for the triangle test. The traversal hands only positions it holds,
-/// and [`SceneGeometry::build`] numbers every corner below `verts.len()`.
-#[inline(always)]
-fn triangle_at(tris: &[[u32; 3]], verts: &[Vec4], slot: usize) -> TriangleSoa {
-    debug_assert!(slot < tris.len());
-    // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
-    // and `build` numbers every vertex a triangle names below `verts.len()`.
-    unsafe {
-        let [a, b, c] = *tris.get_unchecked(slot);
-        TriangleSoa::from_vertices(
-            *verts.get_unchecked(a as usize),
-            *verts.get_unchecked(b as usize),
-            *verts.get_unchecked(c as usize),
-        )
+/// The closest-hit query's triangle test as the traversal's [`LeafVisitor`]: keeps the
+/// nearest hit so far in `best` (position and hit), and asks for its record's line.
+struct NearestTriangle<'g, 'b> {
+    geometry: &'g SceneGeometry,
+    sr: ShearedRay,
+    best: &'b mut Option<(u32, TriangleHit)>,
+}
+
+impl LeafVisitor for NearestTriangle<'_, '_> {
+    #[inline(always)]
+    fn visit(&mut self, slot: u32, t_max: f32) -> f32 {
+        let g = self.geometry;
+        debug_assert!((slot as usize) < g.tris.len());
+        // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
+        // and `build` numbers every corner a triangle names below `verts.len()`.
+        let hit = unsafe {
+            self.sr
+                .intersect_corners(&g.verts, *g.tris.get_unchecked(slot as usize), t_max)
+        };
+        match hit {
+            Some(h) => {
+                g.prefetch_prim(slot as usize);
+                *self.best = Some((slot, h));
+                h.t
+            }
+            None => t_max,
+        }
     }
 }
 

@@ -344,6 +344,23 @@ mod avx2 {
     }
 }
 
+/// What [`WideBvh::traverse`] calls for each primitive of an entered leaf: `visit(position,
+/// t_max)` returns the new `t_max` (a closer hit's distance, or `t_max`; a value ≤ 0 ends the
+/// traversal). Closures are visitors; a query's own type can be one whose `visit` is
+/// `#[inline(always)]`, so that the primitive test is compiled into the traversal's loop
+/// whatever its size (a closure is inlined at the compiler's discretion).
+pub trait LeafVisitor {
+    /// Tests primitive `position` against the ray up to `t_max`; returns the new `t_max`.
+    fn visit(&mut self, position: u32, t_max: f32) -> f32;
+}
+
+impl<F: FnMut(u32, f32) -> f32> LeafVisitor for F {
+    #[inline(always)]
+    fn visit(&mut self, position: u32, t_max: f32) -> f32 {
+        self(position, t_max)
+    }
+}
+
 /// A traversal stack entry: an inner node with the distance the ray enters it.
 #[derive(Clone, Copy, Debug, Default)]
 struct Entry {
@@ -523,7 +540,7 @@ impl WideBvh {
     /// `t_max` (the distance of a closer hit, or the same value). Returns early when
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
     #[inline]
-    pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
+    pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
         if self.nodes.is_empty() {
             return;
         }
@@ -555,7 +572,7 @@ impl WideBvh {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,popcnt")]
-    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
+    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
         if self.shallow() {
@@ -606,7 +623,7 @@ impl WideBvh {
         &self,
         slab: &T,
         mut t_max: f32,
-        mut primitive: impl FnMut(u32, f32) -> f32,
+        mut primitive: impl LeafVisitor,
     ) {
         let mut stack_entries = MaybeUninit::uninit();
         let mut stack = Stack::<SPILL>::new(&mut stack_entries);
@@ -621,7 +638,7 @@ impl WideBvh {
             ($node:expr, $slot:expr) => {{
                 let first = $node.child[$slot];
                 for i in first..first + $node.count[$slot] {
-                    t_max = primitive(i, t_max);
+                    t_max = primitive.visit(i, t_max);
                     if t_max <= 0.0 {
                         return;
                     }
