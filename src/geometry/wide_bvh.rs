@@ -104,8 +104,8 @@ impl Boundable for BoxPrim {
 struct SlabRay {
     /// Origin, splatted per axis.
     o: [Vec4; 3],
-    /// Capped reciprocal direction, splatted per axis.
-    inv: [Vec4; 3],
+    /// Capped reciprocal direction negated, splatted per axis ([`slab_constants`]).
+    ninv: [Vec4; 3],
     /// Per axis: index in [`Node8::planes`] of the plane the ray enters by (the maximum
     /// when the direction is negative) and of the one it leaves by.
     near: [usize; 3],
@@ -126,7 +126,11 @@ impl SlabRay {
                 Vec4::splat(ray.o.y),
                 Vec4::splat(ray.o.z),
             ],
-            inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
+            ninv: [
+                Vec4::splat(-inv.x),
+                Vec4::splat(-inv.y),
+                Vec4::splat(-inv.z),
+            ],
             near: [p[0], p[1], p[2]],
             far: [p[3], p[4], p[5]],
         }
@@ -136,11 +140,16 @@ impl SlabRay {
     fn test_half(&self, node: &Node8, h: usize, t_max: f32) -> (Vec4, u32) {
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
+        // `(o − P)·(−inv)` is `(P − o)·inv` exactly (IEEE subtraction and multiplication
+        // commute with negation), except that a zero may carry the other sign; every use of
+        // these distances is a comparison, where ±0 are equal, so the children entered and
+        // their order are the same. Written this way, the 8-wide test folds each plane's
+        // load into its subtraction.
         for k in 0..3 {
             let n = node.planes[self.near[k]][h];
             let f = node.planes[self.far[k]][h];
-            near = near.max((n - self.o[k]) * self.inv[k]);
-            far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
+            near = near.max((self.o[k] - n) * self.ninv[k]);
+            far = far.min((self.o[k] - f) * self.ninv[k] * FAR_SCALE);
         }
         (near, near.cmple(far).bitmask())
     }
@@ -233,7 +242,7 @@ mod avx2 {
     /// needs AVX.
     pub(super) struct AvxSlab {
         o: [__m256; 3],
-        inv: [__m256; 3],
+        ninv: [__m256; 3],
         near: [usize; 3],
         far: [usize; 3],
     }
@@ -250,10 +259,10 @@ mod avx2 {
                     _mm256_set1_ps(s.o[1].x),
                     _mm256_set1_ps(s.o[2].x),
                 ],
-                inv: [
-                    _mm256_set1_ps(s.inv[0].x),
-                    _mm256_set1_ps(s.inv[1].x),
-                    _mm256_set1_ps(s.inv[2].x),
+                ninv: [
+                    _mm256_set1_ps(s.ninv[0].x),
+                    _mm256_set1_ps(s.ninv[1].x),
+                    _mm256_set1_ps(s.ninv[2].x),
                 ],
                 near: s.near,
                 far: s.far,
@@ -276,10 +285,10 @@ mod avx2 {
                     _mm256_set1_ps(ray.o.y),
                     _mm256_set1_ps(ray.o.z),
                 ],
-                inv: [
-                    _mm256_set1_ps(inv.x),
-                    _mm256_set1_ps(inv.y),
-                    _mm256_set1_ps(inv.z),
+                ninv: [
+                    _mm256_set1_ps(-inv.x),
+                    _mm256_set1_ps(-inv.y),
+                    _mm256_set1_ps(-inv.z),
                 ],
                 near: [p[0], p[1], p[2]],
                 far: [p[3], p[4], p[5]],
@@ -312,12 +321,12 @@ mod avx2 {
                     );
                     near = _mm256_max_ps(
                         near,
-                        _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
+                        _mm256_mul_ps(_mm256_sub_ps(self.o[k], n), self.ninv[k]),
                     );
                     far = _mm256_min_ps(
                         far,
                         _mm256_mul_ps(
-                            _mm256_mul_ps(_mm256_sub_ps(f, self.o[k]), self.inv[k]),
+                            _mm256_mul_ps(_mm256_sub_ps(self.o[k], f), self.ninv[k]),
                             _mm256_set1_ps(FAR_SCALE),
                         ),
                     );
@@ -1053,6 +1062,65 @@ mod tests {
             t1 = t1.min(a.max(b));
         }
         (t0 <= t1).then_some((t0, t1))
+    }
+
+    /// The node test in its negated form, `(o − P)·(−inv)`, against the plain slab
+    /// distances `(P − o)·inv` written out per child: the same entered children and entry
+    /// distances equal as numbers (a zero may differ in sign), also for origins exactly on
+    /// a child's planes (distances exactly zero) and directions with zero components.
+    #[test]
+    fn the_negated_slab_distances_are_the_plain_ones() {
+        let mut rng = Lcg(29);
+        let boxes = rng.boxes(2000, 0.1);
+        let bvh = WideBvh::build(&boxes);
+        let (mut entered, mut zeros) = (0, 0);
+        for i in 0..40_000 {
+            let node = &bvh.nodes[i % bvh.nodes.len()];
+            let mut d = rng.vec().normalize_or(Vec3::X);
+            if i % 5 == 0 {
+                d[i % 3] = 0.0;
+            }
+            let mut o = rng.vec() * 1.5;
+            if i % 2 == 0 {
+                // On a child's plane along one or more axes.
+                let c = i / 2 % WIDTH;
+                for k in 0..=(i / 16 % 3) {
+                    let plane = node.planes[k + 3 * (i / 4 % 2)][c / 4].to_array()[c % 4];
+                    if plane.is_finite() {
+                        o[k] = plane;
+                    }
+                }
+            }
+            let ray = Ray::new(o, d);
+            let t_max = if i % 3 == 0 {
+                rng.next() * 2.0
+            } else {
+                f32::INFINITY
+            };
+            let (inv, neg) = slab_constants(&ray);
+            let p = OCTANT_PLANES[(neg & 7) as usize];
+            let (got, mask) = SlabRay::new(&ray).test(node, t_max);
+            for c in 0..WIDTH {
+                let (mut near, mut far) = (0.0f32, t_max);
+                for k in 0..3 {
+                    let n = node.planes[p[k]][c / 4].to_array()[c % 4];
+                    let f = node.planes[p[k + 3]][c / 4].to_array()[c % 4];
+                    near = near.max((n - o[k]) * inv[k]);
+                    far = far.min((f - o[k]) * inv[k] * FAR_SCALE);
+                    zeros += usize::from(n == o[k]);
+                }
+                let inside = near <= far;
+                assert_eq!(mask & (1 << c) != 0, inside, "ray {i} child {c}");
+                if inside {
+                    assert_eq!(got[c], near, "ray {i} child {c}");
+                    entered += 1;
+                }
+            }
+        }
+        assert!(
+            entered > 20_000 && zeros > 5_000,
+            "{entered} entered, {zeros} zeros"
+        );
     }
 
     #[test]
