@@ -399,17 +399,20 @@ impl SceneGeometry {
             _ => false,
         };
         if !self.prims.is_empty() && !free && !self.segment_misses_triangles(ray, closest) {
-            let sr = ShearedRay::new(ray);
-            self.bvh.traverse(ray, closest, |slot, t_max| {
-                match sr.intersect(&self.triangle(slot as usize), t_max) {
-                    Some(h) => {
-                        self.prefetch_prim(slot as usize);
-                        best = Some(Best::Tri(slot as usize, h));
-                        h.t
-                    }
-                    None => t_max,
-                }
-            });
+            // A triangle replaces the analytic shapes' best only when it is nearer.
+            let mut tri = None;
+            self.bvh.traverse(
+                ray,
+                closest,
+                NearestTriangle {
+                    geometry: self,
+                    sr: ShearedRay::new(ray),
+                    best: &mut tri,
+                },
+            );
+            if let Some((slot, h)) = tri {
+                best = Some(Best::Tri(slot as usize, h));
+            }
         }
         best.map(|b| self.make_hit(ray, b))
     }
@@ -450,15 +453,15 @@ impl SceneGeometry {
         }
         let mut found = false;
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
-            let sr = ShearedRay::new(ray);
-            self.bvh.traverse(ray, t_max, |slot, t| {
-                if sr.intersect(&self.triangle(slot as usize), t).is_some() {
-                    found = true;
-                    0.0
-                } else {
-                    t
-                }
-            });
+            self.bvh.traverse(
+                ray,
+                t_max,
+                AnyTriangle {
+                    geometry: self,
+                    sr: ShearedRay::new(ray),
+                    found: &mut found,
+                },
+            );
         }
         found
     }
@@ -702,6 +705,33 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
                 h.t
             }
             None => t_max,
+        }
+    }
+}
+
+/// The occlusion query's triangle test as the traversal's [`LeafVisitor`]: ends the
+/// traversal (returns 0) at the first hit, noting it in `found`.
+struct AnyTriangle<'g, 'f> {
+    geometry: &'g SceneGeometry,
+    sr: ShearedRay,
+    found: &'f mut bool,
+}
+
+impl LeafVisitor for AnyTriangle<'_, '_> {
+    #[inline(always)]
+    fn visit(&mut self, slot: u32, t_max: f32) -> f32 {
+        let g = self.geometry;
+        debug_assert!((slot as usize) < g.tris.len());
+        // SAFETY: as in `NearestTriangle::visit`.
+        let hit = unsafe {
+            self.sr
+                .intersect_corners(&g.verts, *g.tris.get_unchecked(slot as usize), t_max)
+        };
+        if hit.is_some() {
+            *self.found = true;
+            0.0
+        } else {
+            t_max
         }
     }
 }
