@@ -1100,7 +1100,7 @@ mod tests {
             let (inv, neg) = slab_constants(&ray);
             let p = OCTANT_PLANES[(neg & 7) as usize];
             let (got, mask) = SlabRay::new(&ray).test(node, t_max);
-            for c in 0..WIDTH {
+            for (c, &entry) in got.iter().enumerate() {
                 let (mut near, mut far) = (0.0f32, t_max);
                 for k in 0..3 {
                     let n = node.planes[p[k]][c / 4].to_array()[c % 4];
@@ -1112,7 +1112,7 @@ mod tests {
                 let inside = near <= far;
                 assert_eq!(mask & (1 << c) != 0, inside, "ray {i} child {c}");
                 if inside {
-                    assert_eq!(got[c], near, "ray {i} child {c}");
+                    assert_eq!(entry, near, "ray {i} child {c}");
                     entered += 1;
                 }
             }
