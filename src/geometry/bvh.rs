@@ -13,7 +13,7 @@ use super::levelset::LevelSetHit;
 use super::sphere::{sphere_candidate, SphereCandidate};
 use super::sphere_lanes::SphereBlock;
 use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
-use super::wide_bvh::WideBvh;
+use super::wide_bvh::{LeafVisitor, WideBvh};
 use super::{GeometryError, Hit, HitUv, MeshTopology, Shape};
 
 mod beyond;
@@ -296,6 +296,39 @@ impl SceneGeometry {
 
     /// [`Self::intersect`]'s search (the ray log's hook is in `intersect`).
     fn closest(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if self.analytic.is_empty() {
+            return self.closest_triangle(ray, t_max);
+        }
+        self.closest_any(ray, t_max)
+    }
+
+    /// [`Self::closest`] in a scene of triangles only (no analytic shape): the general
+    /// search below with nothing found before the triangles (`closest = t_max`, no free
+    /// shell), without the set-up of the analytic shapes' loops.
+    #[inline(always)]
+    fn closest_triangle(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if self.prims.is_empty() || !valid_query(ray, t_max) {
+            return None;
+        }
+        if self.segment_misses_triangles(ray, t_max) {
+            return None;
+        }
+        let mut best = None;
+        self.bvh.traverse(
+            ray,
+            t_max,
+            NearestTriangle {
+                geometry: self,
+                sr: ShearedRay::new(ray),
+                best: &mut best,
+            },
+        );
+        best.map(|(slot, h)| self.make_hit(ray, Best::Tri(slot as usize, h)))
+    }
+
+    /// [`Self::closest`] in a scene with analytic shapes.
+    #[inline(never)]
+    fn closest_any(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         if let Some((min, max, shape)) = self.sole_box {
             // What the loop below does with one box and no triangles.
             if moves_away_from_box(ray, min, max) || !valid_query(ray, t_max) {
@@ -366,17 +399,20 @@ impl SceneGeometry {
             _ => false,
         };
         if !self.prims.is_empty() && !free && !self.segment_misses_triangles(ray, closest) {
-            let sr = ShearedRay::new(ray);
-            self.bvh.traverse(ray, closest, |slot, t_max| {
-                match sr.intersect(&self.triangle(slot as usize), t_max) {
-                    Some(h) => {
-                        self.prefetch_prim(slot as usize);
-                        best = Some(Best::Tri(slot as usize, h));
-                        h.t
-                    }
-                    None => t_max,
-                }
-            });
+            // A triangle replaces the analytic shapes' best only when it is nearer.
+            let mut tri = None;
+            self.bvh.traverse(
+                ray,
+                closest,
+                NearestTriangle {
+                    geometry: self,
+                    sr: ShearedRay::new(ray),
+                    best: &mut tri,
+                },
+            );
+            if let Some((slot, h)) = tri {
+                best = Some(Best::Tri(slot as usize, h));
+            }
         }
         best.map(|b| self.make_hit(ray, b))
     }
@@ -417,15 +453,15 @@ impl SceneGeometry {
         }
         let mut found = false;
         if !self.prims.is_empty() && !self.segment_misses_triangles(ray, t_max) {
-            let sr = ShearedRay::new(ray);
-            self.bvh.traverse(ray, t_max, |slot, t| {
-                if sr.intersect(&self.triangle(slot as usize), t).is_some() {
-                    found = true;
-                    0.0
-                } else {
-                    t
-                }
-            });
+            self.bvh.traverse(
+                ray,
+                t_max,
+                AnyTriangle {
+                    geometry: self,
+                    sr: ShearedRay::new(ray),
+                    found: &mut found,
+                },
+            );
         }
         found
     }
@@ -640,6 +676,63 @@ impl SceneGeometry {
     #[must_use]
     pub fn topology(&self, i: usize) -> Option<MeshTopology> {
         self.topologies.get(i).copied().flatten()
+    }
+}
+
+/// The closest-hit query's triangle test as the traversal's [`LeafVisitor`]: keeps the
+/// nearest hit so far in `best` (position and hit), and asks for its record's line.
+struct NearestTriangle<'g, 'b> {
+    geometry: &'g SceneGeometry,
+    sr: ShearedRay,
+    best: &'b mut Option<(u32, TriangleHit)>,
+}
+
+impl LeafVisitor for NearestTriangle<'_, '_> {
+    #[inline(always)]
+    fn visit(&mut self, slot: u32, t_max: f32) -> f32 {
+        let g = self.geometry;
+        debug_assert!((slot as usize) < g.tris.len());
+        // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
+        // and `build` numbers every corner a triangle names below `verts.len()`.
+        let hit = unsafe {
+            self.sr
+                .intersect_corners(&g.verts, *g.tris.get_unchecked(slot as usize), t_max)
+        };
+        match hit {
+            Some(h) => {
+                g.prefetch_prim(slot as usize);
+                *self.best = Some((slot, h));
+                h.t
+            }
+            None => t_max,
+        }
+    }
+}
+
+/// The occlusion query's triangle test as the traversal's [`LeafVisitor`]: ends the
+/// traversal (returns 0) at the first hit, noting it in `found`.
+struct AnyTriangle<'g, 'f> {
+    geometry: &'g SceneGeometry,
+    sr: ShearedRay,
+    found: &'f mut bool,
+}
+
+impl LeafVisitor for AnyTriangle<'_, '_> {
+    #[inline(always)]
+    fn visit(&mut self, slot: u32, t_max: f32) -> f32 {
+        let g = self.geometry;
+        debug_assert!((slot as usize) < g.tris.len());
+        // SAFETY: as in `NearestTriangle::visit`.
+        let hit = unsafe {
+            self.sr
+                .intersect_corners(&g.verts, *g.tris.get_unchecked(slot as usize), t_max)
+        };
+        if hit.is_some() {
+            *self.found = true;
+            0.0
+        } else {
+            t_max
+        }
     }
 }
 

@@ -104,8 +104,9 @@ impl ShearedRay {
         } else {
             (2, 0, 1)
         };
-        let d = ray.d.to_array();
-        let o = ray.o.to_array();
+        // Read from the ray itself (not from a copy of its components).
+        let d: &[f32; 3] = ray.d.as_ref();
+        let o: &[f32; 3] = ray.o.as_ref();
         let (kx, ky) = if d[kz] < 0.0 { (ky, kx) } else { (kx, ky) };
         // `d[kx] / d[kz]`, `d[ky] / d[kz]` and `1 / d[kz]` in one vector division (the same
         // IEEE quotients as three scalar ones).
@@ -142,6 +143,41 @@ impl ShearedRay {
                 *tri.v.get_unchecked(self.kz),
             )
         };
+        self.intersect_permuted(vx, vy, vz, t_max)
+    }
+
+    /// [`Self::intersect`] of the triangle whose corners are `verts[corners[0]]`,
+    /// `verts[corners[1]]` and `verts[corners[2]]` (the compact layout: each vertex stored
+    /// as `(x, y, z, _)`), the bit-identical answer of `intersect(&TriangleSoa::from_vertices(…))`.
+    /// The ray's three axes are read per corner straight from `verts` into lanes 0–2, so
+    /// the triangle is neither transposed in registers nor stored and re-read by axis.
+    ///
+    /// # Safety
+    /// Every corner index must be below `verts.len()`.
+    #[inline(always)]
+    pub(crate) unsafe fn intersect_corners(
+        &self,
+        verts: &[Vec4],
+        corners: [u32; 3],
+        t_max: f32,
+    ) -> Option<TriangleHit> {
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
+        debug_assert!(corners.iter().all(|&c| (c as usize) < verts.len()));
+        let base = verts.as_ptr().cast::<f32>();
+        // SAFETY: the corners are below `verts.len()` (the caller's promise) and `kx`, `ky`,
+        // `kz` below 3 (set by `new`): every read is a component of a stored vertex.
+        let lane = |k: usize| unsafe {
+            let [a, b, c] = corners.map(|i| base.add(4 * i as usize + k));
+            // (Lane 3 is never read by the test.)
+            Vec4::new(*a, *b, *c, 0.0)
+        };
+        self.intersect_permuted(lane(self.kx), lane(self.ky), lane(self.kz), t_max)
+    }
+
+    /// The test on the triangle's coordinates along the ray's axes `kx`, `ky`, `kz` (lane
+    /// `i` of each: corner `i`'s; lane 3 is not read).
+    #[inline(always)]
+    fn intersect_permuted(&self, vx: Vec4, vy: Vec4, vz: Vec4, t_max: f32) -> Option<TriangleHit> {
         // Lanes: vertices 0, 1, 2 (a, b, c) relative to the origin, permuted and sheared.
         let px = vx - self.okx;
         let py = vy - self.oky;
@@ -320,6 +356,64 @@ mod tests {
 
     fn bits(h: Option<TriangleHit>) -> Option<[u32; 4]> {
         h.map(|h| [h.t, h.b0, h.b1, h.b2].map(f32::to_bits))
+    }
+
+    /// The corners read from a shared vertex array by the ray's axes give the transposed
+    /// triangle's answer bit for bit, on grid cases (edge functions exactly zero, rays
+    /// through shared edges and vertices) and continuous ones; fails if an axis or a corner
+    /// is read in the wrong place.
+    #[test]
+    fn corners_read_by_axis_give_the_transposed_triangles_answer() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (mut hits, mut cases) = (0, 0);
+        for i in 0..200_000 {
+            let grid = i % 2 == 0;
+            let mut coord = || {
+                let x = next() * 4.0 - 2.0;
+                if grid {
+                    (x * 2.0).round() * 0.5
+                } else {
+                    x
+                }
+            };
+            // Six shared vertices, a triangle naming three of them in any order.
+            let verts: Vec<Vec4> = (0..6)
+                .map(|_| Vec4::new(coord(), coord(), coord(), 7.0))
+                .collect();
+            let o = Vec3::new(coord(), coord(), coord()) * 2.0;
+            let target = Vec3::new(coord(), coord(), coord());
+            let Some(d) = (target - o).try_normalize() else {
+                continue;
+            };
+            let ray = Ray::new(o, d);
+            let mut pick = || ((next() * 6.0) as u32).min(5);
+            let corners = [pick(), pick(), pick()];
+            let [a, b, c] = corners.map(|i| verts[i as usize]);
+            let t_max = if i % 3 == 0 { 2.0 } else { f32::INFINITY };
+            let sr = ShearedRay::new(&ray);
+            let expected = sr.intersect(&TriangleSoa::from_vertices(a, b, c), t_max);
+            // SAFETY: every corner is below 6 = `verts.len()`.
+            let got = unsafe { sr.intersect_corners(&verts, corners, t_max) };
+            assert_eq!(
+                bits(got),
+                bits(expected),
+                "case {i}: {verts:?} {corners:?} {ray:?}"
+            );
+            let reference = scalar_reference(&ray, [a, b, c].map(|v| v.truncate()), t_max);
+            assert_eq!(bits(got), bits(reference), "case {i}");
+            hits += usize::from(expected.is_some());
+            cases += 1;
+        }
+        assert!(
+            hits > 5_000 && cases > 150_000,
+            "{hits} hits in {cases} cases"
+        );
     }
 
     #[test]

@@ -104,8 +104,8 @@ impl Boundable for BoxPrim {
 struct SlabRay {
     /// Origin, splatted per axis.
     o: [Vec4; 3],
-    /// Capped reciprocal direction, splatted per axis.
-    inv: [Vec4; 3],
+    /// Capped reciprocal direction negated, splatted per axis ([`slab_constants`]).
+    ninv: [Vec4; 3],
     /// Per axis: index in [`Node8::planes`] of the plane the ray enters by (the maximum
     /// when the direction is negative) and of the one it leaves by.
     near: [usize; 3],
@@ -126,7 +126,11 @@ impl SlabRay {
                 Vec4::splat(ray.o.y),
                 Vec4::splat(ray.o.z),
             ],
-            inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
+            ninv: [
+                Vec4::splat(-inv.x),
+                Vec4::splat(-inv.y),
+                Vec4::splat(-inv.z),
+            ],
             near: [p[0], p[1], p[2]],
             far: [p[3], p[4], p[5]],
         }
@@ -136,11 +140,16 @@ impl SlabRay {
     fn test_half(&self, node: &Node8, h: usize, t_max: f32) -> (Vec4, u32) {
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(t_max);
+        // `(o − P)·(−inv)` is `(P − o)·inv` exactly (IEEE subtraction and multiplication
+        // commute with negation), except that a zero may carry the other sign; every use of
+        // these distances is a comparison, where ±0 are equal, so the children entered and
+        // their order are the same. Written this way, the 8-wide test folds each plane's
+        // load into its subtraction.
         for k in 0..3 {
             let n = node.planes[self.near[k]][h];
             let f = node.planes[self.far[k]][h];
-            near = near.max((n - self.o[k]) * self.inv[k]);
-            far = far.min((f - self.o[k]) * self.inv[k] * FAR_SCALE);
+            near = near.max((self.o[k] - n) * self.ninv[k]);
+            far = far.min((self.o[k] - f) * self.ninv[k] * FAR_SCALE);
         }
         (near, near.cmple(far).bitmask())
     }
@@ -233,7 +242,7 @@ mod avx2 {
     /// needs AVX.
     pub(super) struct AvxSlab {
         o: [__m256; 3],
-        inv: [__m256; 3],
+        ninv: [__m256; 3],
         near: [usize; 3],
         far: [usize; 3],
     }
@@ -250,10 +259,10 @@ mod avx2 {
                     _mm256_set1_ps(s.o[1].x),
                     _mm256_set1_ps(s.o[2].x),
                 ],
-                inv: [
-                    _mm256_set1_ps(s.inv[0].x),
-                    _mm256_set1_ps(s.inv[1].x),
-                    _mm256_set1_ps(s.inv[2].x),
+                ninv: [
+                    _mm256_set1_ps(s.ninv[0].x),
+                    _mm256_set1_ps(s.ninv[1].x),
+                    _mm256_set1_ps(s.ninv[2].x),
                 ],
                 near: s.near,
                 far: s.far,
@@ -276,10 +285,10 @@ mod avx2 {
                     _mm256_set1_ps(ray.o.y),
                     _mm256_set1_ps(ray.o.z),
                 ],
-                inv: [
-                    _mm256_set1_ps(inv.x),
-                    _mm256_set1_ps(inv.y),
-                    _mm256_set1_ps(inv.z),
+                ninv: [
+                    _mm256_set1_ps(-inv.x),
+                    _mm256_set1_ps(-inv.y),
+                    _mm256_set1_ps(-inv.z),
                 ],
                 near: [p[0], p[1], p[2]],
                 far: [p[3], p[4], p[5]],
@@ -312,12 +321,12 @@ mod avx2 {
                     );
                     near = _mm256_max_ps(
                         near,
-                        _mm256_mul_ps(_mm256_sub_ps(n, self.o[k]), self.inv[k]),
+                        _mm256_mul_ps(_mm256_sub_ps(self.o[k], n), self.ninv[k]),
                     );
                     far = _mm256_min_ps(
                         far,
                         _mm256_mul_ps(
-                            _mm256_mul_ps(_mm256_sub_ps(f, self.o[k]), self.inv[k]),
+                            _mm256_mul_ps(_mm256_sub_ps(self.o[k], f), self.ninv[k]),
                             _mm256_set1_ps(FAR_SCALE),
                         ),
                     );
@@ -341,6 +350,23 @@ mod avx2 {
                 )
             }
         }
+    }
+}
+
+/// What [`WideBvh::traverse`] calls for each primitive of an entered leaf: `visit(position,
+/// t_max)` returns the new `t_max` (a closer hit's distance, or `t_max`; a value ≤ 0 ends the
+/// traversal). Closures are visitors; a query's own type can be one whose `visit` is
+/// `#[inline(always)]`, so that the primitive test is compiled into the traversal's loop
+/// whatever its size (a closure is inlined at the compiler's discretion).
+pub trait LeafVisitor {
+    /// Tests primitive `position` against the ray up to `t_max`; returns the new `t_max`.
+    fn visit(&mut self, position: u32, t_max: f32) -> f32;
+}
+
+impl<F: FnMut(u32, f32) -> f32> LeafVisitor for F {
+    #[inline(always)]
+    fn visit(&mut self, position: u32, t_max: f32) -> f32 {
+        self(position, t_max)
     }
 }
 
@@ -523,7 +549,7 @@ impl WideBvh {
     /// `t_max` (the distance of a closer hit, or the same value). Returns early when
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
     #[inline]
-    pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
+    pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
         if self.nodes.is_empty() {
             return;
         }
@@ -555,7 +581,7 @@ impl WideBvh {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,popcnt")]
-    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl FnMut(u32, f32) -> f32) {
+    unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
         // SAFETY: this function runs only with AVX2.
         let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
         if self.shallow() {
@@ -606,7 +632,7 @@ impl WideBvh {
         &self,
         slab: &T,
         mut t_max: f32,
-        mut primitive: impl FnMut(u32, f32) -> f32,
+        mut primitive: impl LeafVisitor,
     ) {
         let mut stack_entries = MaybeUninit::uninit();
         let mut stack = Stack::<SPILL>::new(&mut stack_entries);
@@ -621,7 +647,7 @@ impl WideBvh {
             ($node:expr, $slot:expr) => {{
                 let first = $node.child[$slot];
                 for i in first..first + $node.count[$slot] {
-                    t_max = primitive(i, t_max);
+                    t_max = primitive.visit(i, t_max);
                     if t_max <= 0.0 {
                         return;
                     }
@@ -1038,6 +1064,65 @@ mod tests {
         (t0 <= t1).then_some((t0, t1))
     }
 
+    /// The node test in its negated form, `(o − P)·(−inv)`, against the plain slab
+    /// distances `(P − o)·inv` written out per child: the same entered children and entry
+    /// distances equal as numbers (a zero may differ in sign), also for origins exactly on
+    /// a child's planes (distances exactly zero) and directions with zero components.
+    #[test]
+    fn the_negated_slab_distances_are_the_plain_ones() {
+        let mut rng = Lcg(29);
+        let boxes = rng.boxes(2000, 0.1);
+        let bvh = WideBvh::build(&boxes);
+        let (mut entered, mut zeros) = (0, 0);
+        for i in 0..40_000 {
+            let node = &bvh.nodes[i % bvh.nodes.len()];
+            let mut d = rng.vec().normalize_or(Vec3::X);
+            if i % 5 == 0 {
+                d[i % 3] = 0.0;
+            }
+            let mut o = rng.vec() * 1.5;
+            if i % 2 == 0 {
+                // On a child's plane along one or more axes.
+                let c = i / 2 % WIDTH;
+                for k in 0..=(i / 16 % 3) {
+                    let plane = node.planes[k + 3 * (i / 4 % 2)][c / 4].to_array()[c % 4];
+                    if plane.is_finite() {
+                        o[k] = plane;
+                    }
+                }
+            }
+            let ray = Ray::new(o, d);
+            let t_max = if i % 3 == 0 {
+                rng.next() * 2.0
+            } else {
+                f32::INFINITY
+            };
+            let (inv, neg) = slab_constants(&ray);
+            let p = OCTANT_PLANES[(neg & 7) as usize];
+            let (got, mask) = SlabRay::new(&ray).test(node, t_max);
+            for (c, &entry) in got.iter().enumerate() {
+                let (mut near, mut far) = (0.0f32, t_max);
+                for k in 0..3 {
+                    let n = node.planes[p[k]][c / 4].to_array()[c % 4];
+                    let f = node.planes[p[k + 3]][c / 4].to_array()[c % 4];
+                    near = near.max((n - o[k]) * inv[k]);
+                    far = far.min((f - o[k]) * inv[k] * FAR_SCALE);
+                    zeros += usize::from(n == o[k]);
+                }
+                let inside = near <= far;
+                assert_eq!(mask & (1 << c) != 0, inside, "ray {i} child {c}");
+                if inside {
+                    assert_eq!(entry, near, "ray {i} child {c}");
+                    entered += 1;
+                }
+            }
+        }
+        assert!(
+            entered > 10_000 && zeros > 5_000,
+            "{entered} entered, {zeros} zeros"
+        );
+    }
+
     #[test]
     fn the_8_wide_and_4_wide_node_tests_visit_the_same_leaves_in_the_same_order() {
         if !avx2_and_popcnt() {
@@ -1081,11 +1166,11 @@ mod tests {
             let mut seen = (Vec::new(), Vec::new());
             // A closest-hit-like query: every third leaf primitive shortens the ray.
             let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
-            wide.traverse(&ray, t_max, |pos, t| {
+            wide.traverse(&ray, t_max, |pos, t: f32| {
                 seen.0.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
-            narrow.traverse(&ray, t_max, |pos, t| {
+            narrow.traverse(&ray, t_max, |pos, t: f32| {
                 seen.1.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
@@ -1256,7 +1341,7 @@ mod tests {
                     };
                     let t_max = if i % 2 == 0 { f32::INFINITY } else { 1.5 };
                     let (mut fast, mut plain) = (Vec::new(), Vec::new());
-                    bvh.traverse(&ray, t_max, |pos, t| {
+                    bvh.traverse(&ray, t_max, |pos, t: f32| {
                         fast.push((pos, t.to_bits()));
                         shorten(pos, t)
                     });
@@ -1333,11 +1418,11 @@ mod tests {
             let slab = SlabRay::new(&ray);
             let mut seen = (Vec::new(), Vec::new());
             let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
-            bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t| {
+            bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t: f32| {
                 seen.0.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
-            bvh.traverse_with::<_, false>(&slab, f32::INFINITY, |pos, t| {
+            bvh.traverse_with::<_, false>(&slab, f32::INFINITY, |pos, t: f32| {
                 seen.1.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
