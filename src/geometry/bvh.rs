@@ -319,7 +319,7 @@ impl SceneGeometry {
             t_max,
             NearestTriangle {
                 geometry: self,
-                sr: ShearedRay::new(ray),
+                sr: &ShearedRay::new(ray),
                 best: &mut best,
             },
         );
@@ -406,7 +406,7 @@ impl SceneGeometry {
                 closest,
                 NearestTriangle {
                     geometry: self,
-                    sr: ShearedRay::new(ray),
+                    sr: &ShearedRay::new(ray),
                     best: &mut tri,
                 },
             );
@@ -458,7 +458,7 @@ impl SceneGeometry {
                 t_max,
                 AnyTriangle {
                     geometry: self,
-                    sr: ShearedRay::new(ray),
+                    sr: &ShearedRay::new(ray),
                     found: &mut found,
                 },
             );
@@ -683,7 +683,9 @@ impl SceneGeometry {
 /// nearest hit so far in `best` (position and hit), and asks for its record's line.
 struct NearestTriangle<'g, 'b> {
     geometry: &'g SceneGeometry,
-    sr: ShearedRay,
+    /// The ray's shear constants, by reference: the traversal reads them from the caller's
+    /// frame instead of copying them into its own.
+    sr: &'b ShearedRay,
     best: &'b mut Option<(u32, TriangleHit)>,
 }
 
@@ -713,7 +715,8 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
 /// traversal (returns 0) at the first hit, noting it in `found`.
 struct AnyTriangle<'g, 'f> {
     geometry: &'g SceneGeometry,
-    sr: ShearedRay,
+    /// As in [`NearestTriangle`].
+    sr: &'f ShearedRay,
     found: &'f mut bool,
 }
 
