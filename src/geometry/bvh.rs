@@ -319,7 +319,7 @@ impl SceneGeometry {
             t_max,
             NearestTriangle {
                 geometry: self,
-                sr: ShearedRay::new(ray),
+                sr: &ShearedRay::new(ray),
                 best: &mut best,
             },
         );
@@ -406,7 +406,7 @@ impl SceneGeometry {
                 closest,
                 NearestTriangle {
                     geometry: self,
-                    sr: ShearedRay::new(ray),
+                    sr: &ShearedRay::new(ray),
                     best: &mut tri,
                 },
             );
@@ -458,7 +458,7 @@ impl SceneGeometry {
                 t_max,
                 AnyTriangle {
                     geometry: self,
-                    sr: ShearedRay::new(ray),
+                    sr: &ShearedRay::new(ray),
                     found: &mut found,
                 },
             );
@@ -683,7 +683,9 @@ impl SceneGeometry {
 /// nearest hit so far in `best` (position and hit), and asks for its record's line.
 struct NearestTriangle<'g, 'b> {
     geometry: &'g SceneGeometry,
-    sr: ShearedRay,
+    /// The ray's shear constants, by reference: the traversal reads them from the caller's
+    /// frame instead of copying them into its own.
+    sr: &'b ShearedRay,
     best: &'b mut Option<(u32, TriangleHit)>,
 }
 
@@ -713,7 +715,8 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
 /// traversal (returns 0) at the first hit, noting it in `found`.
 struct AnyTriangle<'g, 'f> {
     geometry: &'g SceneGeometry,
-    sr: ShearedRay,
+    /// As in [`NearestTriangle`].
+    sr: &'f ShearedRay,
     found: &'f mut bool,
 }
 
@@ -1578,5 +1581,81 @@ mod tests {
         }
         assert!(escapes > 290_000, "{escapes} escapes");
         assert!(away > 50_000, "{away} rays moving away");
+    }
+
+    /// Rays through the shared edges and vertices of a flat grid mesh (integer vertices, rays
+    /// straight down from grid points and edge midpoints, and slanted through them): their
+    /// edge functions are exactly zero, so the traversal's triangle test takes the exact
+    /// fallback (compiled into the traversal's loop). Every ray inside the grid hits exactly
+    /// one triangle (watertight), and `intersect` and `occluded` equal brute force bit for bit
+    /// with the 8-wide and the 4-wide node test.
+    #[test]
+    fn rays_through_shared_edges_and_vertices_take_the_exact_path_in_the_traversal() {
+        let n = 12u32;
+        let mut grid = TriangleMesh {
+            positions: Vec::new(),
+            normals: None,
+            uvs: None,
+            indices: Vec::new(),
+        };
+        for j in 0..=n {
+            for i in 0..=n {
+                grid.positions.push(Vec3::new(i as f32, j as f32, 0.0));
+            }
+        }
+        let at = |i: u32, j: u32| j * (n + 1) + i;
+        for j in 0..n {
+            for i in 0..n {
+                // Alternating diagonals, so vertices join four or eight triangles.
+                if (i + j) % 2 == 0 {
+                    grid.indices
+                        .push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                    grid.indices
+                        .push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+                } else {
+                    grid.indices.push([at(i, j), at(i + 1, j), at(i, j + 1)]);
+                    grid.indices
+                        .push([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+        }
+        let geometry = SceneGeometry::build(vec![Shape::Mesh(grid)]).expect("geometry");
+        let triangles = triangles_from_meshes(&geometry);
+        let mut rng = Rng::new(51, 4);
+        for avx2 in [true, false] {
+            let mut g = geometry.clone();
+            if !avx2 {
+                g.bvh = g.bvh.without_avx2();
+            }
+            for k in 0..4_000 {
+                // A grid point or an edge's midpoint strictly inside the grid.
+                let x = 1.0 + (rng.next_f32() * (n - 2) as f32 * 2.0).floor() * 0.5;
+                let y = 1.0 + (rng.next_f32() * (n - 2) as f32 * 2.0).floor() * 0.5;
+                let target = Vec3::new(x, y, 0.0);
+                let d = match k % 3 {
+                    0 => Vec3::new(0.0, 0.0, -1.0),
+                    1 => Vec3::new(0.0, 0.0, 1.0),
+                    // Slanted by a power of two, so the sheared coordinates stay exact.
+                    _ => Vec3::new(0.25, -0.5, if k % 2 == 0 { -1.0 } else { 1.0 }),
+                };
+                let ray = Ray {
+                    o: target - d * 4.0,
+                    d,
+                };
+                let expected = brute_force_hit(&triangles, &ray, f32::INFINITY);
+                let hits = triangles
+                    .iter()
+                    .filter(|t| ShearedRay::new(&ray).intersect(t, f32::INFINITY).is_some())
+                    .count();
+                assert_eq!(hits, 1, "ray {k}: {ray:?} (watertight)");
+                assert_eq!(traversal_hit(&g, &ray, f32::INFINITY), expected, "ray {k}");
+                let got = g
+                    .intersect(&ray, f32::INFINITY)
+                    .map(|h| (h.t.to_bits(), h.prim));
+                let want = expected.map(|[t, slot, ..]| (t, g.prims[slot as usize].prim));
+                assert_eq!(got, want, "ray {k}: {ray:?} (avx2 {avx2})");
+                assert!(g.occluded(&ray, f32::INFINITY), "ray {k}");
+            }
+        }
     }
 }

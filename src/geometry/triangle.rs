@@ -255,7 +255,7 @@ fn interleave(a: Vec4, b: Vec4) -> (Vec4, Vec4, Vec4) {
 /// products of f32), and a zero resolved by the sign the edge function takes when the origin
 /// moves by `(ε, ε²)`. `None` when the ray misses or lies in the triangle's plane.
 #[cold]
-#[inline(never)]
+#[inline(always)]
 fn edge_functions_exact(a: [f32; 2], b: [f32; 2], c: [f32; 2]) -> Option<(f32, f32, f32)> {
     let ([ax, ay], [bx, by], [cx, cy]) = (a, b, c);
     let ud = f64::from(cx) * f64::from(by) - f64::from(cy) * f64::from(bx);
