@@ -309,6 +309,28 @@ pub fn intersect_triangle(
 mod tests {
     use super::*;
 
+    /// A reproducible stream of uniform numbers in [0, 1) (a 64-bit LCG's top 24 bits).
+    fn uniform_stream(seed: u64) -> impl FnMut() -> f32 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    /// A coordinate in [−2, 2]: on the half-unit grid when `grid` (so that edge functions
+    /// come out exactly zero), continuous otherwise.
+    fn coordinate(next: &mut impl FnMut() -> f32, grid: bool) -> f32 {
+        let x = next() * 4.0 - 2.0;
+        if grid {
+            (x * 2.0).round() * 0.5
+        } else {
+            x
+        }
+    }
+
     /// The watertight test written out in scalars, step by step as in the paper (the
     /// SIMD-lane test must give exactly its results).
     fn scalar_reference(ray: &Ray, p: [Vec3; 3], t_max: f32) -> Option<TriangleHit> {
@@ -364,24 +386,11 @@ mod tests {
     /// is read in the wrong place.
     #[test]
     fn corners_read_by_axis_give_the_transposed_triangles_answer() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = uniform_stream(0x2545_f491_4f6c_dd1d);
         let (mut hits, mut cases) = (0, 0);
         for i in 0..200_000 {
             let grid = i % 2 == 0;
-            let mut coord = || {
-                let x = next() * 4.0 - 2.0;
-                if grid {
-                    (x * 2.0).round() * 0.5
-                } else {
-                    x
-                }
-            };
+            let mut coord = || coordinate(&mut next, grid);
             // Six shared vertices, a triangle naming three of them in any order.
             let verts: Vec<Vec4> = (0..6)
                 .map(|_| Vec4::new(coord(), coord(), coord(), 7.0))
@@ -418,26 +427,13 @@ mod tests {
 
     #[test]
     fn the_lane_test_equals_the_scalar_steps_bit_for_bit() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = uniform_stream(0x9e37_79b9_7f4a_7c15);
         let (mut hits, mut zeros) = (0, 0);
         for i in 0..400_000 {
             // Half the cases on a coarse grid (edge functions exactly zero, rays through
             // vertices and edges, degenerate and axis-aligned triangles), half continuous.
             let grid = i % 2 == 0;
-            let mut coord = || {
-                let x = next() * 4.0 - 2.0;
-                if grid {
-                    (x * 2.0).round() * 0.5
-                } else {
-                    x
-                }
-            };
+            let mut coord = || coordinate(&mut next, grid);
             let p = [
                 Vec3::new(coord(), coord(), coord()),
                 Vec3::new(coord(), coord(), coord()),
