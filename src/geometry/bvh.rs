@@ -679,6 +679,16 @@ impl SceneGeometry {
     }
 }
 
+/// The triangle at traversal position `slot` (a leaf's entry, as [`WideBvh::traverse`]
+/// reports it) against the sheared ray up to `t_max`: both visitors' test.
+#[inline(always)]
+fn test_slot(g: &SceneGeometry, sr: &ShearedRay, slot: u32, t_max: f32) -> Option<TriangleHit> {
+    debug_assert!((slot as usize) < g.tris.len());
+    // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
+    // and `build` numbers every corner a triangle names below `verts.len()`.
+    unsafe { sr.intersect_corners(&g.verts, *g.tris.get_unchecked(slot as usize), t_max) }
+}
+
 /// The closest-hit query's triangle test as the traversal's [`LeafVisitor`]: keeps the
 /// nearest hit so far in `best` (position and hit), and asks for its record's line.
 struct NearestTriangle<'g, 'b> {
@@ -692,17 +702,9 @@ struct NearestTriangle<'g, 'b> {
 impl LeafVisitor for NearestTriangle<'_, '_> {
     #[inline(always)]
     fn visit(&mut self, slot: u32, t_max: f32) -> f32 {
-        let g = self.geometry;
-        debug_assert!((slot as usize) < g.tris.len());
-        // SAFETY: the traversal reports positions below `bvh.order().len() == tris.len()`,
-        // and `build` numbers every corner a triangle names below `verts.len()`.
-        let hit = unsafe {
-            self.sr
-                .intersect_corners(&g.verts, *g.tris.get_unchecked(slot as usize), t_max)
-        };
-        match hit {
+        match test_slot(self.geometry, self.sr, slot, t_max) {
             Some(h) => {
-                g.prefetch_prim(slot as usize);
+                self.geometry.prefetch_prim(slot as usize);
                 *self.best = Some((slot, h));
                 h.t
             }
@@ -723,14 +725,7 @@ struct AnyTriangle<'g, 'f> {
 impl LeafVisitor for AnyTriangle<'_, '_> {
     #[inline(always)]
     fn visit(&mut self, slot: u32, t_max: f32) -> f32 {
-        let g = self.geometry;
-        debug_assert!((slot as usize) < g.tris.len());
-        // SAFETY: as in `NearestTriangle::visit`.
-        let hit = unsafe {
-            self.sr
-                .intersect_corners(&g.verts, *g.tris.get_unchecked(slot as usize), t_max)
-        };
-        if hit.is_some() {
+        if test_slot(self.geometry, self.sr, slot, t_max).is_some() {
             *self.found = true;
             0.0
         } else {
