@@ -23,6 +23,7 @@ pub use fine::{LocalBounds, MAX_LOCAL_CELLS};
 pub use segments::{FewSegments, MajorantSegment, OpenWalk, Segments, SegmentsStart};
 
 use glam::{DAffine3, DVec3, IVec3};
+use rayon::prelude::*;
 
 use crate::grid::{SparseGrid, BRICK_DIM};
 use crate::math::Ray;
@@ -300,17 +301,25 @@ impl MajorantPyramid {
         let index = |c: IVec3| {
             ((c.z as usize * dims.y as usize) + c.y as usize) * dims.x as usize + c.x as usize
         };
-        for kz in key_lo.z..=key_hi.z {
-            for ky in key_lo.y..=key_hi.y {
-                for kx in key_lo.x..=key_hi.x {
-                    let key = IVec3::new(kx, ky, kz);
-                    let first = (key - key_lo) * per_brick;
-                    cells::brick_cell_bounds(grid, channel, key, cell_log2, |sub, b| {
-                        cells[index(first + sub)] = b;
-                    });
+        // One layer of brick keys (`per_brick` planes of cells, contiguous in `cells`) per
+        // task: each key writes only its own cells, so the bounds do not depend on the order.
+        let layer = per_brick as usize * dims.y as usize * dims.x as usize;
+        cells
+            .par_chunks_mut(layer)
+            .enumerate()
+            .for_each(|(z, slab)| {
+                let kz = key_lo.z + z as i32;
+                for ky in key_lo.y..=key_hi.y {
+                    for kx in key_lo.x..=key_hi.x {
+                        let key = IVec3::new(kx, ky, kz);
+                        let first = (key - key_lo) * per_brick;
+                        let first = IVec3::new(first.x, first.y, 0);
+                        cells::brick_cell_bounds(grid, channel, key, cell_log2, |sub, b| {
+                            slab[index(first + sub)] = b;
+                        });
+                    }
                 }
-            }
-        }
+            });
         let cell_lo = key_lo * per_brick;
         let cell_hi = (key_hi + IVec3::ONE) * per_brick - IVec3::ONE;
         Self::build(
@@ -512,7 +521,12 @@ impl MajorantPyramid {
             local: None,
             root_cost: Default::default(),
         };
-        let [(p0, r0), (p1, r1)] = plan::PRICED_MODELS.map(|m| plan::open_prices(&pyramid, m));
+        // The two models' prices are independent: one per worker.
+        let [m0, m1] = plan::PRICED_MODELS;
+        let ((p0, r0), (p1, r1)) = rayon::join(
+            || plan::open_prices(&pyramid, m0),
+            || plan::open_prices(&pyramid, m1),
+        );
         for (l, level) in pyramid.levels.iter_mut().enumerate() {
             level.set_open_below(
                 (0..level.cells.len())
