@@ -400,4 +400,42 @@ mod tests {
         }
         assert!(checked > 100_000, "{checked}");
     }
+
+    /// The pyramid's level 0, filled one layer of brick keys per task in parallel, holds
+    /// every key's cell bounds where the key's cells lie (the mean clamped into the range):
+    /// no layer is shifted, swapped or left at the background.
+    #[test]
+    fn parallel_level_zero_places_every_key_layer() {
+        let mut rng = Mix(7);
+        let mut b = SparseGridBuilder::new(Storage::F32);
+        let density = b.add_channel("density", ChannelKind::Scalar, Vec3::splat(0.0));
+        for _ in 0..4000 {
+            let p = IVec3::new(
+                (rng.next() % 48) as i32 - 20,
+                (rng.next() % 30) as i32 - 6,
+                (rng.next() % 56) as i32 - 24,
+            );
+            b.set_value(density, p, 0.1 + rng.f32()).expect("voxel");
+        }
+        let grid = b.build();
+        let pyramid = super::super::MajorantPyramid::from_grid(&grid, density).expect("pyramid");
+        let cell_log2 = pyramid.finest_cell_voxels().trailing_zeros() as i32;
+        let mut checked = 0;
+        for kz in -4..5 {
+            for ky in -2..5 {
+                for kx in -4..5 {
+                    let key = IVec3::new(kx, ky, kz);
+                    brick_cell_bounds(&grid, density, key, cell_log2, |sub, want| {
+                        let got = pyramid.bounds_at_voxel(0, (key << 3i32) + (sub << cell_log2));
+                        assert_eq!(want.min.to_bits(), got.min.to_bits(), "{key} {sub}");
+                        assert_eq!(want.max.to_bits(), got.max.to_bits(), "{key} {sub}");
+                        let mean = want.mean.clamp(want.min, want.max);
+                        assert_eq!(mean.to_bits(), got.mean.to_bits(), "{key} {sub}");
+                        checked += 1;
+                    });
+                }
+            }
+        }
+        assert!(checked > 10_000, "{checked}");
+    }
 }
