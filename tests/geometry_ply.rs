@@ -486,3 +486,107 @@ fn volume_orientation_and_transforms() {
         .transform(Mat4::from_cols_array(&[f32::NAN; 16]))
         .is_err());
 }
+
+/// The edge counts on a large mesh (a 60 × 40 grid of quads with split seam vertices, flipped
+/// and repeated triangles, ±0 coordinates and degenerate triangles) equal a reference count
+/// over ordered maps: the topology's hashed maps neither lose nor merge keys.
+#[test]
+fn topology_of_a_large_welded_grid_equals_an_ordered_count() {
+    use std::collections::BTreeMap;
+    let (nx, ny) = (60u32, 40u32);
+    let mut m = TriangleMesh::default();
+    // Each row's vertices twice (a seam split along every row), the copies at equal positions.
+    for copy in 0..2 {
+        for y in 0..=ny {
+            for x in 0..=nx {
+                let px = if x == 0 && copy == 1 {
+                    -0.0
+                } else {
+                    x as f32 * 0.37
+                };
+                m.positions
+                    .push(Vec3::new(px, (y as f32 * 0.21).sin(), y as f32 * 0.5));
+            }
+        }
+    }
+    let v = |copy: u32, x: u32, y: u32| copy * (nx + 1) * (ny + 1) + y * (nx + 1) + x;
+    let mut state = 99u64;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1);
+        state >> 33
+    };
+    for y in 0..ny {
+        for x in 0..nx {
+            let c = (next() % 2) as u32;
+            let (a, b, d, e) = (
+                v(c, x, y),
+                v(1 - c, x + 1, y),
+                v(c, x + 1, y + 1),
+                v(c, x, y + 1),
+            );
+            match next() % 16 {
+                0 => m.indices.push([a, d, b]),
+                1 => {
+                    m.indices.push([a, b, d]);
+                    m.indices.push([a, b, d]);
+                }
+                2 => m.indices.push([a, a, d]),
+                _ => m.indices.push([a, b, d]),
+            }
+            if next() % 9 != 0 {
+                m.indices.push([a, d, e]);
+            }
+        }
+    }
+    // The reference: weld by exact position (±0 together), count directed edges per
+    // undirected edge in ordered maps.
+    let key = |p: Vec3| p.to_array().map(|c| if c == 0.0 { 0 } else { c.to_bits() });
+    let mut weld = BTreeMap::new();
+    let canon: Vec<u32> = (0..m.positions.len())
+        .map(|i| *weld.entry(key(m.positions[i])).or_insert(i as u32))
+        .collect();
+    let mut edges: BTreeMap<(u32, u32), (u32, u32)> = BTreeMap::new();
+    let mut degenerate = 0;
+    for t in &m.indices {
+        let w = t.map(|i| canon[i as usize]);
+        if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+            degenerate += 1;
+            continue;
+        }
+        for k in 0..3 {
+            let (a, b) = (w[k], w[(k + 1) % 3]);
+            let e = edges.entry((a.min(b), a.max(b))).or_insert((0, 0));
+            if a < b {
+                e.0 += 1;
+            } else {
+                e.1 += 1;
+            }
+        }
+    }
+    let boundary = edges.values().filter(|&&(f, b)| f + b == 1).count();
+    let inconsistent = edges
+        .values()
+        .filter(|&&(f, b)| f + b == 2 && f != 1)
+        .count();
+    let non_manifold = edges.values().filter(|&&(f, b)| f + b > 2).count();
+    let t = m.topology();
+    assert!(edges.len() > 5000 && boundary > 100 && inconsistent > 10 && non_manifold > 10);
+    assert_eq!(
+        (
+            t.edges,
+            t.boundary_edges,
+            t.inconsistent_edges,
+            t.non_manifold_edges,
+            t.degenerate_triangles
+        ),
+        (
+            edges.len(),
+            boundary,
+            inconsistent,
+            non_manifold,
+            degenerate
+        )
+    );
+}

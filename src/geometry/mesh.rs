@@ -1,7 +1,9 @@
 //! Indexed triangle meshes: transforms, bounds and topology checks.
 
 use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
 
+use crate::grid::CoordHasher;
 use crate::math::{Aabb, Mat3, Mat4, Vec2, Vec3};
 
 use super::GeometryError;
@@ -149,20 +151,22 @@ impl TriangleMesh {
     pub fn topology(&self) -> MeshTopology {
         // Weld by exact position so that seam-split vertices with identical coordinates (which
         // the watertight intersector treats as one) share edges.
-        let mut weld: HashMap<[u32; 3], u32> = HashMap::with_capacity(self.positions.len());
+        // Integer keys hashed by multiply-rotate (the counts do not depend on the map's order).
+        let mut weld: HashMap<(u32, u32, u32), u32, BuildHasherDefault<CoordHasher>> =
+            HashMap::with_capacity_and_hasher(self.positions.len(), Default::default());
         let canon: Vec<u32> = self
             .positions
             .iter()
             .enumerate()
             .map(|(i, p)| {
-                let key = [bits(p.x), bits(p.y), bits(p.z)];
+                let key = (bits(p.x), bits(p.y), bits(p.z));
                 *weld.entry(key).or_insert(i as u32)
             })
             .collect();
         let mut topo = MeshTopology::default();
         // Directed-edge counts keyed by the undirected edge: (count a<b, count b<a).
-        let mut edges: HashMap<(u32, u32), (u32, u32)> =
-            HashMap::with_capacity(self.indices.len() * 2);
+        let mut edges: HashMap<(u32, u32), (u32, u32), BuildHasherDefault<CoordHasher>> =
+            HashMap::with_capacity_and_hasher(self.indices.len() * 2, Default::default());
         for tri in &self.indices {
             let v = tri.map(|i| canon.get(i as usize).copied().unwrap_or(u32::MAX));
             if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] || v.contains(&u32::MAX) {

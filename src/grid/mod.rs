@@ -299,6 +299,9 @@ impl Hasher for CoordHasher {
     fn write_i32(&mut self, i: i32) {
         self.write_u64(i as u32 as u64);
     }
+    fn write_u32(&mut self, i: u32) {
+        self.write_u64(u64::from(i));
+    }
     fn write_u64(&mut self, i: u64) {
         self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
     }
