@@ -568,6 +568,30 @@ pub struct PreparedFibre {
 }
 
 impl PreparedFibre {
+    /// A slot for [`FibrePhase::prepare_into`] that holds no vertex yet (no frame and no
+    /// table: value and pdf 0, no sample, as for a zero tangent). A function, not a
+    /// constant: a constant of this 2.6 KiB type is copied whole from read-only data where
+    /// it is used, while this writes only the fields and the table's tag.
+    #[must_use]
+    #[inline]
+    pub fn empty() -> PreparedFibre {
+        PreparedFibre {
+            frame: None,
+            o: Angles {
+                sin_t: 0.0,
+                cos_t: 1.0,
+                phi: 0.0,
+            },
+            ad: Rgb::ZERO,
+            wd: 0.0,
+            sigma_a: Rgb::ZERO,
+            residual_value: Rgb::ZERO,
+            residual_pdf: 0.0,
+            diffuse_pdf: 0.0,
+            table: NodeTable::Uncached,
+        }
+    }
+
     /// Sets the `wi`-independent sums ([`FibrePhase::fill_table`]).
     fn set_sums(&mut self, (residual_value, residual_pdf, diffuse_pdf): (Rgb, f32, f32)) {
         self.residual_value = residual_value;
@@ -1012,7 +1036,9 @@ impl FibrePhase {
     /// Fixes `wo` and the tangent of one scattering vertex; see [`PreparedFibre`].
     #[must_use]
     pub fn prepare(&self, wo: Vec3, tangent: Vec3) -> PreparedFibre {
-        self.prepare_with(wo, tangent, self.params.sigma_a, self.params.diffuse_albedo)
+        let mut prepared = PreparedFibre::empty();
+        self.prepare_into(&mut prepared, wo, tangent);
+        prepared
     }
 
     /// [`FibrePhase::prepare`] for a fibre of another colour: the vertex then evaluates and
@@ -1020,7 +1046,9 @@ impl FibrePhase {
     /// (bit-identical when `colour` is this phase function's own).
     #[must_use]
     pub fn prepare_coloured(&self, wo: Vec3, tangent: Vec3, colour: &FibreColour) -> PreparedFibre {
-        self.prepare_with(wo, tangent, colour.sigma_a, colour.diffuse_albedo)
+        let mut prepared = PreparedFibre::empty();
+        self.prepare_coloured_into(&mut prepared, wo, tangent, colour);
+        prepared
     }
 
     /// A prepared vertex for `wo` around a tangent near `tangent`: the one of the tangent's
@@ -1045,45 +1073,84 @@ impl FibrePhase {
         cells.get(tangent_cell(tangent, n)?)
     }
 
-    /// [`FibrePhase::prepare`] with absorption `sigma_a` and diffuse albedo `albedo`.
-    fn prepare_with(&self, wo: Vec3, tangent: Vec3, sigma_a: Rgb, albedo: Rgb) -> PreparedFibre {
+    /// [`FibrePhase::prepare`] into a slot the caller owns: `slot` (any earlier vertex, or
+    /// [`PreparedFibre::empty()`]) becomes this phase function's vertex for `wo` around
+    /// `tangent`, in place, without the copy that returning a vertex by value can cost (a
+    /// [`PreparedFibre`] holds up to 2.6 KiB of node terms). The same bits as
+    /// [`FibrePhase::prepare`].
+    pub fn prepare_into(&self, slot: &mut PreparedFibre, wo: Vec3, tangent: Vec3) {
+        self.prepare_with(
+            slot,
+            wo,
+            tangent,
+            self.params.sigma_a,
+            self.params.diffuse_albedo,
+        );
+    }
+
+    /// [`FibrePhase::prepare_coloured`] into a slot the caller owns ([`FibrePhase::prepare_into`]).
+    pub fn prepare_coloured_into(
+        &self,
+        slot: &mut PreparedFibre,
+        wo: Vec3,
+        tangent: Vec3,
+        colour: &FibreColour,
+    ) {
+        self.prepare_with(slot, wo, tangent, colour.sigma_a, colour.diffuse_albedo);
+    }
+
+    /// Makes `slot` the vertex of [`FibrePhase::prepare`] with absorption `sigma_a` and
+    /// diffuse albedo `albedo`. A table the slot already holds is cleared and refilled where
+    /// it has the size this vertex needs (an inline table in place; a boxed one without a new
+    /// allocation).
+    fn prepare_with(
+        &self,
+        slot: &mut PreparedFibre,
+        wo: Vec3,
+        tangent: Vec3,
+        sigma_a: Rgb,
+        albedo: Rgb,
+    ) {
         let ad = albedo * self.params.diffuse_weight;
         let wd = lobe_weight(ad);
-        let frame = tangent_frame(tangent);
-        let mut prepared = PreparedFibre {
-            sigma_a,
-            frame,
-            o: Angles {
-                sin_t: 0.0,
-                cos_t: 1.0,
-                phi: 0.0,
-            },
-            ad,
-            wd,
-            residual_value: Rgb::ZERO,
-            residual_pdf: 0.0,
-            diffuse_pdf: 0.0,
-            table: NodeTable::Uncached,
+        slot.sigma_a = sigma_a;
+        slot.frame = tangent_frame(tangent);
+        slot.o = Angles {
+            sin_t: 0.0,
+            cos_t: 1.0,
+            phi: 0.0,
         };
-        let Some(frame) = &prepared.frame else {
-            return prepared;
+        slot.ad = ad;
+        slot.wd = wd;
+        slot.set_sums((Rgb::ZERO, 0.0, 0.0));
+        let Some(frame) = &slot.frame else {
+            slot.table = NodeTable::Uncached;
+            return;
         };
         let o = angles(frame, wo);
-        prepared.o = o;
+        slot.o = o;
         let unique = self.nodes.len().div_ceil(2);
         if unique <= INLINE_NODES {
-            prepared.table = NodeTable::Inline(LobeTable::ZERO);
-            if let NodeTable::Inline(table) = &mut prepared.table {
+            match &mut slot.table {
+                NodeTable::Inline(table) => *table = LobeTable::ZERO,
+                other => *other = NodeTable::Inline(LobeTable::ZERO),
+            }
+            if let NodeTable::Inline(table) = &mut slot.table {
                 let sums = self.fill_table_dispatch(table, unique, &o, sigma_a, wd);
-                prepared.set_sums(sums);
+                slot.set_sums(sums);
             }
         } else if unique <= CACHED_NODES {
-            let mut table = Box::new(LobeTable::ZERO);
-            let sums = self.fill_table_dispatch(&mut table, unique, &o, sigma_a, wd);
-            prepared.set_sums(sums);
-            prepared.table = NodeTable::Boxed(table);
+            match &mut slot.table {
+                NodeTable::Boxed(table) => **table = LobeTable::ZERO,
+                other => *other = NodeTable::Boxed(Box::new(LobeTable::ZERO)),
+            }
+            if let NodeTable::Boxed(table) = &mut slot.table {
+                let sums = self.fill_table_dispatch(table, unique, &o, sigma_a, wd);
+                slot.set_sums(sums);
+            }
+        } else {
+            slot.table = NodeTable::Uncached;
         }
-        prepared
     }
 
     /// Fills `table` with the terms of the first `unique` nodes (at most `N`) for the

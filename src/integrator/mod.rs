@@ -24,6 +24,7 @@ use fibre_lean::{FibreLean, LeanWeight};
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection, scene_medium};
 
 use crate::bsdf::Surface;
+use crate::fabric::PreparedFibre;
 use crate::film::MAX_LIGHT_LAYERS;
 use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
@@ -496,7 +497,8 @@ impl<'s> PathState<'s> {
         }
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
-        let phase = vertex.phase.prepare(wo);
+        let mut slot = PreparedFibre::empty();
+        let phase = vertex.phase.prepare(wo, &mut slot);
         let lean = if interior_nee && medium.sun_lean() && matches!(phase, PreparedPhase::Hg { .. })
         {
             SunLean::for_scene(scene)
@@ -672,7 +674,8 @@ impl<'s> PathState<'s> {
         if beta.is_black() {
             return Rgb::ZERO;
         }
-        let phase2 = v2.phase.prepare(-d);
+        let mut slot = PreparedFibre::empty();
+        let phase2 = v2.phase.prepare(-d, &mut slot);
         let st = self.stack;
         let p2 = v2.p;
         // The same roulette as the vertex's own sun shadow ray ([`SunLean::shadow_survival`]).
