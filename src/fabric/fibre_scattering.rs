@@ -483,7 +483,8 @@ struct NodeTerms {
 
 /// The per-vertex terms of the cached unique nodes, laid out by lobe (structure of arrays) for
 /// the batched azimuthal sum of [`FibrePhase::eval_pdf_prepared`]. Entries past the unique node
-/// count are zero (they add nothing).
+/// count are never read: zero in a new table, an earlier vertex's in a reused slot
+/// ([`FibrePhase::prepare_into`]).
 #[derive(Clone, Debug)]
 struct LobeTable<const N: usize> {
     /// `Φ(p, h_k)` for the azimuthal lobes `p = 0, 1, 2`.
@@ -1100,9 +1101,9 @@ impl FibrePhase {
     }
 
     /// Makes `slot` the vertex of [`FibrePhase::prepare`] with absorption `sigma_a` and
-    /// diffuse albedo `albedo`. A table the slot already holds is cleared and refilled where
-    /// it has the size this vertex needs (an inline table in place; a boxed one without a new
-    /// allocation).
+    /// diffuse albedo `albedo`. A table the slot already holds is refilled where it has the
+    /// size this vertex needs (an inline table in place, without clearing it; a boxed one
+    /// without a new allocation).
     fn prepare_with(
         &self,
         slot: &mut PreparedFibre,
@@ -1130,19 +1131,21 @@ impl FibrePhase {
         let o = angles(frame, wo);
         slot.o = o;
         let unique = self.nodes.len().div_ceil(2);
+        // A table the slot holds already is refilled without clearing: only the first
+        // `unique` entries are read (`azimuthal_sums` reads whole batches below `unique / 8
+        // · 8` and the tail below `unique`, `node_lobes` is called with `uk < unique`), and
+        // those the fill writes. A new table is cleared once.
         if unique <= INLINE_NODES {
-            match &mut slot.table {
-                NodeTable::Inline(table) => *table = LobeTable::ZERO,
-                other => *other = NodeTable::Inline(LobeTable::ZERO),
+            if !matches!(slot.table, NodeTable::Inline(_)) {
+                slot.table = NodeTable::Inline(LobeTable::ZERO);
             }
             if let NodeTable::Inline(table) = &mut slot.table {
                 let sums = self.fill_table_dispatch(table, unique, &o, sigma_a, wd);
                 slot.set_sums(sums);
             }
         } else if unique <= CACHED_NODES {
-            match &mut slot.table {
-                NodeTable::Boxed(table) => **table = LobeTable::ZERO,
-                other => *other = NodeTable::Boxed(Box::new(LobeTable::ZERO)),
+            if !matches!(slot.table, NodeTable::Boxed(_)) {
+                slot.table = NodeTable::Boxed(Box::new(LobeTable::ZERO));
             }
             if let NodeTable::Boxed(table) = &mut slot.table {
                 let sums = self.fill_table_dispatch(table, unique, &o, sigma_a, wd);

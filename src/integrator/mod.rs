@@ -28,7 +28,7 @@ use crate::fabric::PreparedFibre;
 use crate::film::MAX_LIGHT_LAYERS;
 use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
-use crate::medium::{Medium, NeeStrategy, PreparedPhase, ScatterVertex, VertexPhase};
+use crate::medium::{Medium, NeeStrategy, PreparedPhase, ScatterVertex, VertexPhase, VertexSlots};
 use crate::sampling::PixelSampler;
 use crate::scene::{Object, ObjectSurface, Roulette, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -237,10 +237,11 @@ fn radiance(
     stats: &mut TraceStats,
 ) -> (Rgb, Aov, [Rgb; MAX_LIGHT_LAYERS]) {
     let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
+    let mut slots = VertexSlots::new();
     loop {
         stats.rays += 1;
         sampler.start_vertex();
-        let (step, hit) = path.interior_step(scene, sampler, stats);
+        let (step, hit) = path.interior_step(scene, sampler, stats, &mut slots);
         match step {
             Step::Trace => continue,
             Step::Stop => break,
@@ -321,13 +322,14 @@ impl<'s> PathState<'s> {
         scene: &'s Scene,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slots: &mut VertexSlots,
     ) -> (Step, Option<Hit>) {
         // A medium of the scene itself outlives the step: a fibre lean made in it can leave
         // its weight to the next vertex. One made for this walk (`scratch`) cannot.
         if let Some((medium, obj)) =
             scene_medium(scene, &self.stack).filter(|_| !fibre_lean::eager_weights())
         {
-            return self.interior_step_in(scene, medium, obj, sampler, stats, Some);
+            return self.interior_step_in(scene, medium, obj, sampler, stats, slots, Some);
         }
         let mut scratch = None;
         let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
@@ -337,7 +339,7 @@ impl<'s> PathState<'s> {
             }
             return (Step::Boundary, hit);
         };
-        self.interior_step_in(scene, medium, obj, sampler, stats, |_| None)
+        self.interior_step_in(scene, medium, obj, sampler, stats, slots, |_| None)
     }
 
     /// [`PathState::interior_step`] in `medium`, the interior of `obj`; `keep` gives a fibre
@@ -350,6 +352,7 @@ impl<'s> PathState<'s> {
         obj: &Object,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slots: &mut VertexSlots,
         keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
     ) -> (Step, Option<Hit>) {
         let mut hit = None;
@@ -391,7 +394,7 @@ impl<'s> PathState<'s> {
                 // entry's grown over the walk's last segment (the sum of a random walk's
                 // segments would overstate how far it spread).
                 self.cone.widen();
-                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats, keep)
+                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats, slots, keep)
             }
             None if self.beta.is_black() || behind_estimated => Step::Stop,
             None => {
@@ -483,6 +486,7 @@ impl<'s> PathState<'s> {
         vertex: &ScatterVertex<'m>,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slots: &mut VertexSlots,
         keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
     ) -> Step {
         self.depth += 1;
@@ -497,8 +501,7 @@ impl<'s> PathState<'s> {
         }
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
-        let mut slot = PreparedFibre::empty();
-        let phase = vertex.phase.prepare(wo, &mut slot);
+        let phase = vertex.phase.prepare(wo, &mut slots.vertex);
         let lean = if interior_nee && medium.sun_lean() && matches!(phase, PreparedPhase::Hg { .. })
         {
             SunLean::for_scene(scene)
@@ -574,7 +577,16 @@ impl<'s> PathState<'s> {
                     _ => None,
                 };
                 if let Some(drawn) = drawn {
-                    let c = self.lean_estimate(scene, medium, light, drawn, p, sampler, stats);
+                    let c = self.lean_estimate(
+                        scene,
+                        medium,
+                        light,
+                        drawn,
+                        p,
+                        sampler,
+                        stats,
+                        &mut slots.lean,
+                    );
                     self.add_light(scene, Some(light), c / play);
                 }
             }
@@ -651,6 +663,7 @@ impl<'s> PathState<'s> {
         p: Vec3,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slot: &mut PreparedFibre,
     ) -> Rgb {
         let ray = Ray::new(p, d);
         stats.rays += 1;
@@ -674,8 +687,7 @@ impl<'s> PathState<'s> {
         if beta.is_black() {
             return Rgb::ZERO;
         }
-        let mut slot = PreparedFibre::empty();
-        let phase2 = v2.phase.prepare(-d, &mut slot);
+        let phase2 = v2.phase.prepare(-d, slot);
         let st = self.stack;
         let p2 = v2.p;
         // The same roulette as the vertex's own sun shadow ray ([`SunLean::shadow_survival`]).

@@ -88,6 +88,35 @@ fn prepare_fibre(
     }
 }
 
+/// Storage for the prepared fibre vertices of one path ([`VertexPhase::prepare`]): the path's
+/// own scattering vertex and the next vertex a sun lean's flight finds. Kept across the path's
+/// vertices, each slot's node table is made (and cleared) at its first fibre vertex and then
+/// refilled in place ([`FibrePhase::prepare_into`]).
+#[derive(Debug)]
+pub struct VertexSlots {
+    /// For the path's scattering vertex.
+    pub vertex: PreparedFibre,
+    /// For the vertex a lean's flight scatters at.
+    pub lean: PreparedFibre,
+}
+
+impl VertexSlots {
+    /// Two empty slots ([`PreparedFibre::empty`]).
+    #[must_use]
+    pub fn new() -> Self {
+        VertexSlots {
+            vertex: PreparedFibre::empty(),
+            lean: PreparedFibre::empty(),
+        }
+    }
+}
+
+impl Default for VertexSlots {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// A direction sampled from a [`VertexPhase`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PhaseDirection {
