@@ -1894,6 +1894,79 @@ mod tests {
         }
     }
 
+    /// A slot reused from vertex to vertex ([`FibrePhase::prepare_into`], its table refilled
+    /// without clearing) evaluates and samples bit for bit as a vertex prepared afresh: with
+    /// phase functions of 64, 34, 18, 9 (odd: an unpaired middle node) and 100 nodes (a boxed
+    /// table) taken in turn, so that entries past a vertex's node count hold an earlier
+    /// vertex's terms (non-zero), coloured vertices, and zero tangents (no table) between.
+    #[test]
+    fn reused_slots_give_fresh_vertices_bits() {
+        let mut rng = crate::sampling::Rng::new(11, 3);
+        let dir = |rng: &mut crate::sampling::Rng| {
+            let z = 2.0 * rng.next_f32() - 1.0;
+            let a = 2.0 * PI * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(r * a.cos(), r * a.sin(), z)
+        };
+        let phases: Vec<FibrePhase> = [64u32, 34, 18, 9, 100]
+            .iter()
+            .map(|&h_nodes| {
+                FibrePhase::new(
+                    FibrePhaseParams {
+                        h_nodes,
+                        ..FibrePhaseParams::default()
+                    }
+                    .with_colour(Rgb::new(0.72, 0.3, 0.09)),
+                )
+                .unwrap()
+            })
+            .collect();
+        let colour = FibreColour::new(Rgb::new(0.2, 0.5, 0.8), 0.3);
+        let bits =
+            |(v, p): (Rgb, f32)| [v[0].to_bits(), v[1].to_bits(), v[2].to_bits(), p.to_bits()];
+        let mut slot = PreparedFibre::empty();
+        let mut stale = 0;
+        for i in 0..600 {
+            let phase = &phases[(i * 7 + i / 5) % phases.len()];
+            let (wo, wi) = (dir(&mut rng), dir(&mut rng));
+            let t = if i % 23 == 0 {
+                Vec3::ZERO
+            } else {
+                dir(&mut rng)
+            };
+            let u = [
+                rng.next_f32(),
+                rng.next_f32(),
+                rng.next_f32(),
+                rng.next_f32(),
+            ];
+            let (fresh, reused) = if i % 3 == 0 {
+                phase.prepare_coloured_into(&mut slot, wo, t, &colour);
+                (phase.prepare_coloured(wo, t, &colour), &slot)
+            } else {
+                phase.prepare_into(&mut slot, wo, t);
+                (phase.prepare(wo, t), &slot)
+            };
+            if let NodeTable::Inline(table) = &reused.table {
+                let unique = phase.h_node_count().div_ceil(2);
+                stale += usize::from(table.phi[0][unique..].iter().any(|&x| x != 0.0));
+            }
+            assert_eq!(
+                bits(phase.eval_pdf_prepared(reused, wi)),
+                bits(phase.eval_pdf_prepared(&fresh, wi)),
+                "vertex {i}"
+            );
+            let sample = |p: &PreparedFibre| {
+                phase
+                    .sample_prepared(p, u)
+                    .map(|s| (s.wi.to_array().map(f32::to_bits), bits((s.weight, s.pdf))))
+            };
+            assert_eq!(sample(reused), sample(&fresh), "vertex {i}");
+        }
+        // The check reached tables whose entries past the node count were not zero.
+        assert!(stale > 50, "{stale} vertices with stale entries");
+    }
+
     /// Every cell of the tangent grid maps back to itself from its centre, `t` and `−t` share
     /// a cell, and a tangent's cell centre is within the cell size of it.
     #[test]
