@@ -345,6 +345,7 @@ impl<'s> PathState<'s> {
     /// [`PathState::interior_step`] in `medium`, the interior of `obj`; `keep` gives a fibre
     /// lean of this medium a lifetime of the scene's where it has one
     /// ([`PathState::scatter_in_medium`]).
+    #[allow(clippy::too_many_arguments)]
     fn interior_step_in<'m>(
         &mut self,
         scene: &Scene,
