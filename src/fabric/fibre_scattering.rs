@@ -483,7 +483,8 @@ struct NodeTerms {
 
 /// The per-vertex terms of the cached unique nodes, laid out by lobe (structure of arrays) for
 /// the batched azimuthal sum of [`FibrePhase::eval_pdf_prepared`]. Entries past the unique node
-/// count are zero (they add nothing).
+/// count are never read: zero in a new table, an earlier vertex's in a reused slot
+/// ([`FibrePhase::prepare_into`]).
 #[derive(Clone, Debug)]
 struct LobeTable<const N: usize> {
     /// `Φ(p, h_k)` for the azimuthal lobes `p = 0, 1, 2`.
@@ -568,6 +569,30 @@ pub struct PreparedFibre {
 }
 
 impl PreparedFibre {
+    /// A slot for [`FibrePhase::prepare_into`] that holds no vertex yet (no frame and no
+    /// table: value and pdf 0, no sample, as for a zero tangent). A function, not a
+    /// constant: a constant of this 2.6 KiB type is copied whole from read-only data where
+    /// it is used, while this writes only the fields and the table's tag.
+    #[must_use]
+    #[inline]
+    pub fn empty() -> PreparedFibre {
+        PreparedFibre {
+            frame: None,
+            o: Angles {
+                sin_t: 0.0,
+                cos_t: 1.0,
+                phi: 0.0,
+            },
+            ad: Rgb::ZERO,
+            wd: 0.0,
+            sigma_a: Rgb::ZERO,
+            residual_value: Rgb::ZERO,
+            residual_pdf: 0.0,
+            diffuse_pdf: 0.0,
+            table: NodeTable::Uncached,
+        }
+    }
+
     /// Sets the `wi`-independent sums ([`FibrePhase::fill_table`]).
     fn set_sums(&mut self, (residual_value, residual_pdf, diffuse_pdf): (Rgb, f32, f32)) {
         self.residual_value = residual_value;
@@ -1012,7 +1037,9 @@ impl FibrePhase {
     /// Fixes `wo` and the tangent of one scattering vertex; see [`PreparedFibre`].
     #[must_use]
     pub fn prepare(&self, wo: Vec3, tangent: Vec3) -> PreparedFibre {
-        self.prepare_with(wo, tangent, self.params.sigma_a, self.params.diffuse_albedo)
+        let mut prepared = PreparedFibre::empty();
+        self.prepare_into(&mut prepared, wo, tangent);
+        prepared
     }
 
     /// [`FibrePhase::prepare`] for a fibre of another colour: the vertex then evaluates and
@@ -1020,7 +1047,9 @@ impl FibrePhase {
     /// (bit-identical when `colour` is this phase function's own).
     #[must_use]
     pub fn prepare_coloured(&self, wo: Vec3, tangent: Vec3, colour: &FibreColour) -> PreparedFibre {
-        self.prepare_with(wo, tangent, colour.sigma_a, colour.diffuse_albedo)
+        let mut prepared = PreparedFibre::empty();
+        self.prepare_coloured_into(&mut prepared, wo, tangent, colour);
+        prepared
     }
 
     /// A prepared vertex for `wo` around a tangent near `tangent`: the one of the tangent's
@@ -1045,45 +1074,86 @@ impl FibrePhase {
         cells.get(tangent_cell(tangent, n)?)
     }
 
-    /// [`FibrePhase::prepare`] with absorption `sigma_a` and diffuse albedo `albedo`.
-    fn prepare_with(&self, wo: Vec3, tangent: Vec3, sigma_a: Rgb, albedo: Rgb) -> PreparedFibre {
+    /// [`FibrePhase::prepare`] into a slot the caller owns: `slot` (any earlier vertex, or
+    /// [`PreparedFibre::empty()`]) becomes this phase function's vertex for `wo` around
+    /// `tangent`, in place, without the copy that returning a vertex by value can cost (a
+    /// [`PreparedFibre`] holds up to 2.6 KiB of node terms). The same bits as
+    /// [`FibrePhase::prepare`].
+    pub fn prepare_into(&self, slot: &mut PreparedFibre, wo: Vec3, tangent: Vec3) {
+        self.prepare_with(
+            slot,
+            wo,
+            tangent,
+            self.params.sigma_a,
+            self.params.diffuse_albedo,
+        );
+    }
+
+    /// [`FibrePhase::prepare_coloured`] into a slot the caller owns ([`FibrePhase::prepare_into`]).
+    pub fn prepare_coloured_into(
+        &self,
+        slot: &mut PreparedFibre,
+        wo: Vec3,
+        tangent: Vec3,
+        colour: &FibreColour,
+    ) {
+        self.prepare_with(slot, wo, tangent, colour.sigma_a, colour.diffuse_albedo);
+    }
+
+    /// Makes `slot` the vertex of [`FibrePhase::prepare`] with absorption `sigma_a` and
+    /// diffuse albedo `albedo`. A table the slot already holds is refilled where it has the
+    /// size this vertex needs (an inline table in place, without clearing it; a boxed one
+    /// without a new allocation).
+    fn prepare_with(
+        &self,
+        slot: &mut PreparedFibre,
+        wo: Vec3,
+        tangent: Vec3,
+        sigma_a: Rgb,
+        albedo: Rgb,
+    ) {
         let ad = albedo * self.params.diffuse_weight;
         let wd = lobe_weight(ad);
-        let frame = tangent_frame(tangent);
-        let mut prepared = PreparedFibre {
-            sigma_a,
-            frame,
-            o: Angles {
-                sin_t: 0.0,
-                cos_t: 1.0,
-                phi: 0.0,
-            },
-            ad,
-            wd,
-            residual_value: Rgb::ZERO,
-            residual_pdf: 0.0,
-            diffuse_pdf: 0.0,
-            table: NodeTable::Uncached,
+        slot.sigma_a = sigma_a;
+        slot.frame = tangent_frame(tangent);
+        slot.o = Angles {
+            sin_t: 0.0,
+            cos_t: 1.0,
+            phi: 0.0,
         };
-        let Some(frame) = &prepared.frame else {
-            return prepared;
+        slot.ad = ad;
+        slot.wd = wd;
+        slot.set_sums((Rgb::ZERO, 0.0, 0.0));
+        let Some(frame) = &slot.frame else {
+            slot.table = NodeTable::Uncached;
+            return;
         };
         let o = angles(frame, wo);
-        prepared.o = o;
+        slot.o = o;
         let unique = self.nodes.len().div_ceil(2);
+        // A table the slot holds already is refilled without clearing: only the first
+        // `unique` entries are read (`azimuthal_sums` reads whole batches below `unique / 8
+        // · 8` and the tail below `unique`, `node_lobes` is called with `uk < unique`), and
+        // those the fill writes. A new table is cleared once.
         if unique <= INLINE_NODES {
-            prepared.table = NodeTable::Inline(LobeTable::ZERO);
-            if let NodeTable::Inline(table) = &mut prepared.table {
+            if !matches!(slot.table, NodeTable::Inline(_)) {
+                slot.table = NodeTable::Inline(LobeTable::ZERO);
+            }
+            if let NodeTable::Inline(table) = &mut slot.table {
                 let sums = self.fill_table_dispatch(table, unique, &o, sigma_a, wd);
-                prepared.set_sums(sums);
+                slot.set_sums(sums);
             }
         } else if unique <= CACHED_NODES {
-            let mut table = Box::new(LobeTable::ZERO);
-            let sums = self.fill_table_dispatch(&mut table, unique, &o, sigma_a, wd);
-            prepared.set_sums(sums);
-            prepared.table = NodeTable::Boxed(table);
+            if !matches!(slot.table, NodeTable::Boxed(_)) {
+                slot.table = NodeTable::Boxed(Box::new(LobeTable::ZERO));
+            }
+            if let NodeTable::Boxed(table) = &mut slot.table {
+                let sums = self.fill_table_dispatch(table, unique, &o, sigma_a, wd);
+                slot.set_sums(sums);
+            }
+        } else {
+            slot.table = NodeTable::Uncached;
         }
-        prepared
     }
 
     /// Fills `table` with the terms of the first `unique` nodes (at most `N`) for the
@@ -1822,6 +1892,79 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A slot reused from vertex to vertex ([`FibrePhase::prepare_into`], its table refilled
+    /// without clearing) evaluates and samples bit for bit as a vertex prepared afresh: with
+    /// phase functions of 64, 34, 18, 9 (odd: an unpaired middle node) and 100 nodes (a boxed
+    /// table) taken in turn, so that entries past a vertex's node count hold an earlier
+    /// vertex's terms (non-zero), coloured vertices, and zero tangents (no table) between.
+    #[test]
+    fn reused_slots_give_fresh_vertices_bits() {
+        let mut rng = crate::sampling::Rng::new(11, 3);
+        let dir = |rng: &mut crate::sampling::Rng| {
+            let z = 2.0 * rng.next_f32() - 1.0;
+            let a = 2.0 * PI * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(r * a.cos(), r * a.sin(), z)
+        };
+        let phases: Vec<FibrePhase> = [64u32, 34, 18, 9, 100]
+            .iter()
+            .map(|&h_nodes| {
+                FibrePhase::new(
+                    FibrePhaseParams {
+                        h_nodes,
+                        ..FibrePhaseParams::default()
+                    }
+                    .with_colour(Rgb::new(0.72, 0.3, 0.09)),
+                )
+                .unwrap()
+            })
+            .collect();
+        let colour = FibreColour::new(Rgb::new(0.2, 0.5, 0.8), 0.3);
+        let bits =
+            |(v, p): (Rgb, f32)| [v[0].to_bits(), v[1].to_bits(), v[2].to_bits(), p.to_bits()];
+        let mut slot = PreparedFibre::empty();
+        let mut stale = 0;
+        for i in 0..600 {
+            let phase = &phases[(i * 7 + i / 5) % phases.len()];
+            let (wo, wi) = (dir(&mut rng), dir(&mut rng));
+            let t = if i % 23 == 0 {
+                Vec3::ZERO
+            } else {
+                dir(&mut rng)
+            };
+            let u = [
+                rng.next_f32(),
+                rng.next_f32(),
+                rng.next_f32(),
+                rng.next_f32(),
+            ];
+            let (fresh, reused) = if i % 3 == 0 {
+                phase.prepare_coloured_into(&mut slot, wo, t, &colour);
+                (phase.prepare_coloured(wo, t, &colour), &slot)
+            } else {
+                phase.prepare_into(&mut slot, wo, t);
+                (phase.prepare(wo, t), &slot)
+            };
+            if let NodeTable::Inline(table) = &reused.table {
+                let unique = phase.h_node_count().div_ceil(2);
+                stale += usize::from(table.phi[0][unique..].iter().any(|&x| x != 0.0));
+            }
+            assert_eq!(
+                bits(phase.eval_pdf_prepared(reused, wi)),
+                bits(phase.eval_pdf_prepared(&fresh, wi)),
+                "vertex {i}"
+            );
+            let sample = |p: &PreparedFibre| {
+                phase
+                    .sample_prepared(p, u)
+                    .map(|s| (s.wi.to_array().map(f32::to_bits), bits((s.weight, s.pdf))))
+            };
+            assert_eq!(sample(reused), sample(&fresh), "vertex {i}");
+        }
+        // The check reached tables whose entries past the node count were not zero.
+        assert!(stale > 50, "{stale} vertices with stale entries");
     }
 
     /// Every cell of the tangent grid maps back to itself from its centre, `t` and `−t` share

@@ -24,10 +24,11 @@ use fibre_lean::{FibreLean, LeanWeight};
 use interiors::{boundary_surface_at, current_medium, enter, is_false_intersection, scene_medium};
 
 use crate::bsdf::Surface;
+use crate::fabric::PreparedFibre;
 use crate::film::MAX_LIGHT_LAYERS;
 use crate::geometry::Hit;
 use crate::math::{Frame, Ray, Vec3};
-use crate::medium::{Medium, NeeStrategy, PreparedPhase, ScatterVertex, VertexPhase};
+use crate::medium::{Medium, NeeStrategy, PreparedPhase, ScatterVertex, VertexPhase, VertexSlots};
 use crate::sampling::PixelSampler;
 use crate::scene::{Object, ObjectSurface, Roulette, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
@@ -236,10 +237,11 @@ fn radiance(
     stats: &mut TraceStats,
 ) -> (Rgb, Aov, [Rgb; MAX_LIGHT_LAYERS]) {
     let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
+    let mut slots = VertexSlots::new();
     loop {
         stats.rays += 1;
         sampler.start_vertex();
-        let (step, hit) = path.interior_step(scene, sampler, stats);
+        let (step, hit) = path.interior_step(scene, sampler, stats, &mut slots);
         match step {
             Step::Trace => continue,
             Step::Stop => break,
@@ -320,13 +322,14 @@ impl<'s> PathState<'s> {
         scene: &'s Scene,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slots: &mut VertexSlots,
     ) -> (Step, Option<Hit>) {
         // A medium of the scene itself outlives the step: a fibre lean made in it can leave
         // its weight to the next vertex. One made for this walk (`scratch`) cannot.
         if let Some((medium, obj)) =
             scene_medium(scene, &self.stack).filter(|_| !fibre_lean::eager_weights())
         {
-            return self.interior_step_in(scene, medium, obj, sampler, stats, Some);
+            return self.interior_step_in(scene, medium, obj, sampler, stats, slots, Some);
         }
         let mut scratch = None;
         let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
@@ -336,12 +339,13 @@ impl<'s> PathState<'s> {
             }
             return (Step::Boundary, hit);
         };
-        self.interior_step_in(scene, medium, obj, sampler, stats, |_| None)
+        self.interior_step_in(scene, medium, obj, sampler, stats, slots, |_| None)
     }
 
     /// [`PathState::interior_step`] in `medium`, the interior of `obj`; `keep` gives a fibre
     /// lean of this medium a lifetime of the scene's where it has one
     /// ([`PathState::scatter_in_medium`]).
+    #[allow(clippy::too_many_arguments)]
     fn interior_step_in<'m>(
         &mut self,
         scene: &Scene,
@@ -349,6 +353,7 @@ impl<'s> PathState<'s> {
         obj: &Object,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slots: &mut VertexSlots,
         keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
     ) -> (Step, Option<Hit>) {
         let mut hit = None;
@@ -390,7 +395,7 @@ impl<'s> PathState<'s> {
                 // entry's grown over the walk's last segment (the sum of a random walk's
                 // segments would overstate how far it spread).
                 self.cone.widen();
-                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats, keep)
+                self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats, slots, keep)
             }
             None if self.beta.is_black() || behind_estimated => Step::Stop,
             None => {
@@ -482,6 +487,7 @@ impl<'s> PathState<'s> {
         vertex: &ScatterVertex<'m>,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slots: &mut VertexSlots,
         keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
     ) -> Step {
         self.depth += 1;
@@ -496,7 +502,7 @@ impl<'s> PathState<'s> {
         }
         let wo = -self.ray.d;
         let interior_nee = obj.nee == NeeStrategy::Interior;
-        let phase = vertex.phase.prepare(wo);
+        let phase = vertex.phase.prepare(wo, &mut slots.vertex);
         let lean = if interior_nee && medium.sun_lean() && matches!(phase, PreparedPhase::Hg { .. })
         {
             SunLean::for_scene(scene)
@@ -572,7 +578,16 @@ impl<'s> PathState<'s> {
                     _ => None,
                 };
                 if let Some(drawn) = drawn {
-                    let c = self.lean_estimate(scene, medium, light, drawn, p, sampler, stats);
+                    let c = self.lean_estimate(
+                        scene,
+                        medium,
+                        light,
+                        drawn,
+                        p,
+                        sampler,
+                        stats,
+                        &mut slots.lean,
+                    );
                     self.add_light(scene, Some(light), c / play);
                 }
             }
@@ -649,6 +664,7 @@ impl<'s> PathState<'s> {
         p: Vec3,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
+        slot: &mut PreparedFibre,
     ) -> Rgb {
         let ray = Ray::new(p, d);
         stats.rays += 1;
@@ -672,7 +688,7 @@ impl<'s> PathState<'s> {
         if beta.is_black() {
             return Rgb::ZERO;
         }
-        let phase2 = v2.phase.prepare(-d);
+        let phase2 = v2.phase.prepare(-d, slot);
         let st = self.stack;
         let p2 = v2.p;
         // The same roulette as the vertex's own sun shadow ray ([`SunLean::shadow_survival`]).

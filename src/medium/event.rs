@@ -68,12 +68,52 @@ pub enum VertexPhase<'a> {
     },
 }
 
-/// The prepared fibre vertex of `phase` for `wo` around `tangent`, in the walk's colour
-/// `dye` when there is one.
-fn prepare_fibre(phase: &FibrePhase, wo: Vec3, tangent: Vec3, dye: Option<Rgb>) -> PreparedFibre {
+/// Makes `slot` the prepared fibre vertex of `phase` for `wo` around `tangent`, in the walk's
+/// colour `dye` when there is one.
+fn prepare_fibre(
+    slot: &mut PreparedFibre,
+    phase: &FibrePhase,
+    wo: Vec3,
+    tangent: Vec3,
+    dye: Option<Rgb>,
+) {
     match dye {
-        None => phase.prepare(wo, tangent),
-        Some(c) => phase.prepare_coloured(wo, tangent, &FibreColour::new(c, phase.params().beta_n)),
+        None => phase.prepare_into(slot, wo, tangent),
+        Some(c) => phase.prepare_coloured_into(
+            slot,
+            wo,
+            tangent,
+            &FibreColour::new(c, phase.params().beta_n),
+        ),
+    }
+}
+
+/// Storage for the prepared fibre vertices of one path ([`VertexPhase::prepare`]): the path's
+/// own scattering vertex and the next vertex a sun lean's flight finds. Kept across the path's
+/// vertices, each slot's node table is made (and cleared) at its first fibre vertex and then
+/// refilled in place ([`FibrePhase::prepare_into`]).
+#[derive(Debug)]
+pub struct VertexSlots {
+    /// For the path's scattering vertex.
+    pub vertex: PreparedFibre,
+    /// For the vertex a lean's flight scatters at.
+    pub lean: PreparedFibre,
+}
+
+impl VertexSlots {
+    /// Two empty slots ([`PreparedFibre::empty`]).
+    #[must_use]
+    pub fn new() -> Self {
+        VertexSlots {
+            vertex: PreparedFibre::empty(),
+            lean: PreparedFibre::empty(),
+        }
+    }
+}
+
+impl Default for VertexSlots {
+    fn default() -> Self {
+        Self::new()
     }
 }
 
@@ -99,15 +139,26 @@ impl<'a> VertexPhase<'a> {
                 tangent,
                 dye,
                 ..
-            } => phase.eval_pdf_prepared(&prepare_fibre(phase, wo, *tangent, *dye), wi),
+            } => {
+                let mut slot = PreparedFibre::empty();
+                prepare_fibre(&mut slot, phase, wo, *tangent, *dye);
+                phase.eval_pdf_prepared(&slot, wi)
+            }
         }
     }
 
     /// Fixes the outgoing direction `wo` of this vertex: what every evaluation and the sample
     /// there share is computed once (the fibre phase function's per-offset lobe terms).
-    /// Results are bit-identical to [`VertexPhase::eval`] and [`VertexPhase::sample`].
+    /// Results are bit-identical to [`VertexPhase::eval`] and [`VertexPhase::sample`]. A fibre
+    /// vertex's terms are made in `slot`, storage the caller owns (a fresh
+    /// [`PreparedFibre::empty()`] or an earlier vertex's), which the result borrows: the
+    /// vertex (up to 2.6 KiB) is then never copied, whatever the compiler inlines. An
+    /// Henyey–Greenstein vertex leaves `slot` as it is.
     #[must_use]
-    pub fn prepare(&self, wo: Vec3) -> PreparedPhase<'a> {
+    pub fn prepare<'s>(&self, wo: Vec3, slot: &'s mut PreparedFibre) -> PreparedPhase<'s>
+    where
+        'a: 's,
+    {
         match *self {
             VertexPhase::Hg(p) => PreparedPhase::Hg { phase: p, wo },
             VertexPhase::Fibre {
@@ -115,10 +166,13 @@ impl<'a> VertexPhase<'a> {
                 tangent,
                 dye,
                 ..
-            } => PreparedPhase::Fibre {
-                phase,
-                prepared: prepare_fibre(phase, wo, tangent, dye),
-            },
+            } => {
+                prepare_fibre(slot, phase, wo, tangent, dye);
+                PreparedPhase::Fibre {
+                    phase,
+                    prepared: slot,
+                }
+            }
         }
     }
 
@@ -145,7 +199,9 @@ impl<'a> VertexPhase<'a> {
                     sampler.next_1d(),
                     sampler.next_1d(),
                 ];
-                let s = phase.sample_prepared(&prepare_fibre(phase, wo, *tangent, *dye), u)?;
+                let mut slot = PreparedFibre::empty();
+                prepare_fibre(&mut slot, phase, wo, *tangent, *dye);
+                let s = phase.sample_prepared(&slot, u)?;
                 (s.pdf > 0.0).then_some(PhaseDirection {
                     wi: s.wi,
                     weight: s.weight,
@@ -156,8 +212,9 @@ impl<'a> VertexPhase<'a> {
     }
 }
 
-/// A [`VertexPhase`] with its outgoing direction fixed ([`VertexPhase::prepare`]).
-#[derive(Clone, Debug)]
+/// A [`VertexPhase`] with its outgoing direction fixed ([`VertexPhase::prepare`]); a fibre
+/// vertex's terms are borrowed from the caller's slot.
+#[derive(Clone, Copy, Debug)]
 pub enum PreparedPhase<'a> {
     /// Henyey–Greenstein (nothing to precompute).
     Hg {
@@ -170,8 +227,8 @@ pub enum PreparedPhase<'a> {
     Fibre {
         /// The yarn family's phase function.
         phase: &'a FibrePhase,
-        /// Frame, outgoing angles and per-offset terms of this vertex.
-        prepared: PreparedFibre,
+        /// Frame, outgoing angles and per-offset terms of this vertex (in the caller's slot).
+        prepared: &'a PreparedFibre,
     },
 }
 

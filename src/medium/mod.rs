@@ -30,7 +30,9 @@ pub use artist::{
     MAX_SINGLE_SCATTERING_ALBEDO,
 };
 pub use dyed::{DyedFabric, FabricInterior};
-pub use event::{MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase};
+pub use event::{
+    MediumEvent, PhaseDirection, PreparedPhase, ScatterVertex, VertexPhase, VertexSlots,
+};
 pub use grids::{AlbedoGrid, AlbedoSource, EmissionGrid, EmissionKind};
 pub use heterogeneous::{
     DensityField, HeterogeneousMedium, MediumSegments, MediumSegmentsOf, MipChain, RayFootprint,
