@@ -1,8 +1,12 @@
 //! An 8-wide BVH with full-precision boxes in structure-of-arrays layout, traversed nearest
-//! child first with SIMD slab tests: one 8-wide AVX2 test per node where the CPU has AVX2
-//! (detected at run time), else two 4-wide halves (glam's `Vec4`: SSE on x86-64). Both do
-//! the same IEEE operations per child in the same order (no FMA), so they cull the same
-//! children and report the same entry distances: hits are bit-identical either way.
+//! child first with SIMD slab tests: one 8-wide AVX2 test per node where the CPU has AVX2 and
+//! FMA (detected at run time), its distances fused multiply-adds with directed origin terms
+//! ([`FMA_FAR_SCALE`]), else two 4-wide halves (glam's `Vec4`: SSE on x86-64) with an exact
+//! subtraction. Both tests are conservative (neither culls a box the ray enters); they may
+//! differ on grazed boxes and in the last bits of entry distances, so the order of two
+//! children at almost the same distance may differ. The closest hit is the triangle test's
+//! nearest, found either way; only two triangles hit at the very same distance could be
+//! reported differently.
 //!
 //! The binary hierarchy comes from `obvhs` (PLOC build, then SAH reinsertion of every node:
 //! [`REINSERTION_BATCH_RATIO`]); it is collapsed
@@ -88,7 +92,8 @@ pub struct WideBvh {
     /// The traversal stack never outgrows its inline entries ([`WideBvh::shallow`]), set
     /// once the depth is known.
     shallow: bool,
-    /// The CPU runs AVX2 (detected when the hierarchy is built): the 8-wide node test.
+    /// The CPU runs AVX2, FMA and POPCNT (detected when the hierarchy is built): the 8-wide
+    /// node test.
     avx2: bool,
 }
 
@@ -224,74 +229,99 @@ impl NodeTest for SlabRay {
     }
 }
 
-/// The 8-wide AVX2 node test: [`SlabRay`]'s operations on all eight children at once.
+/// The 8-wide node test's slab distances `P·inv − c` are one fused multiply-add each, with
+/// the origin's term `c = o·inv` rounded up for the entry planes and down for the exit planes
+/// ([`directed_products`]). With exact subtraction the distance would be `(P − o)·inv`; the
+/// directed constants make the computed entry distance at most, and the exit distance at
+/// least, the rounding (one rounding, monotonic) of that exact value, whatever the
+/// cancellation between `P·inv` and `c`. The reciprocal's own rounding (relative `u`) and the
+/// two roundings of the distances are then covered by enlarging the far distance once per
+/// node by [`FMA_FAR_SCALE`] ≥ (1 + u)² / (1 − u)³ and [`FMA_FAR_FLOOR`] (absolute errors of
+/// subnormal distances): a box the exact slab test enters within `[0, t_max]` is entered.
+/// (The 4-wide test, [`SlabRay`], keeps the exact subtraction and the 1 + 2γ₃ bound of Ize
+/// 2013; both are conservative, and the closest hit is decided by the triangle test.)
+const FMA_FAR_SCALE: f32 = 1.0 + 3.0 * f32::EPSILON;
+
+/// The absolute term added to the far distance with [`FMA_FAR_SCALE`]: the smallest normal
+/// float, far above the 2⁻¹⁵⁰ a subnormal distance's rounding can lose.
+const FMA_FAR_FLOOR: f32 = f32::MIN_POSITIVE;
+
+/// Per axis, a bound at least and a bound at most the exact product `o·inv`, in four lanes
+/// (the last is 0): `c ± (|c|·2⁻²³ + 2⁻¹²⁶)` for `c = o·inv` rounded to nearest. The step is
+/// at least one unit in the last place of `c` (`|c|·2⁻²³` is exact for `|c| ≥ 2⁻¹⁰²`, and
+/// 2⁻¹²⁶ is at least the unit below that), `c ± ulp(c)` is a float, and rounding is
+/// monotonic, so each bound is at least one unit from `c`, where the rounding of `c` was at
+/// most half of one. `None` when a bound is not finite (an origin so far out that `o·inv`
+/// overflows; such a ray takes the 4-wide test).
+#[inline(always)]
+fn directed_products(o: Vec3, inv: Vec4) -> Option<(Vec4, Vec4)> {
+    let c = Vec4::from((o, 0.0)) * inv;
+    let step = c.abs() * f32::EPSILON + Vec4::splat(f32::MIN_POSITIVE);
+    let (up, down) = (c + step, c - step);
+    (up.is_finite() && down.is_finite()).then_some((up, down))
+}
+
+/// The 8-wide AVX2 node test: the entry and exit distances of all eight children, each a fused
+/// multiply-add with a directed origin term ([`FMA_FAR_SCALE`]).
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
-        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        __m256, _mm256_cmp_ps, _mm256_fmadd_ps, _mm256_fmsub_ps, _mm256_loadu_ps, _mm256_max_ps,
+        _mm256_min_ps, _mm256_movemask_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
         _CMP_EQ_OQ, _CMP_LE_OS, _CMP_LT_OQ,
     };
 
-    #[cfg(test)]
-    use super::SlabRay;
-    use super::{slab_constants, Node8, NodeTest, FAR_SCALE, OCTANT_PLANES, WIDTH};
+    use super::{
+        directed_products, slab_constants, Node8, NodeTest, FMA_FAR_FLOOR, FMA_FAR_SCALE,
+        OCTANT_PLANES, WIDTH,
+    };
     use crate::math::Ray;
 
-    /// The ray of a [`SlabRay`] splatted to 8 lanes. Made only by [`AvxSlab::new`], which
-    /// needs AVX.
+    /// A ray's constants for the 8-wide test, splatted to 8 lanes. Made only by
+    /// [`AvxSlab::from_ray`], which needs AVX2 and FMA.
     pub(super) struct AvxSlab {
-        o: [__m256; 3],
-        ninv: [__m256; 3],
+        /// The capped reciprocal direction ([`slab_constants`]).
+        inv: [__m256; 3],
+        /// `o·inv` rounded up: the entry planes' origin term.
+        c_near: [__m256; 3],
+        /// `o·inv` rounded down: the exit planes' origin term.
+        c_far: [__m256; 3],
         near: [usize; 3],
         far: [usize; 3],
     }
 
     impl AvxSlab {
-        /// # Safety
-        /// The CPU must support AVX2.
-        #[target_feature(enable = "avx2")]
-        #[cfg(test)]
-        pub(super) unsafe fn new(s: &SlabRay) -> Self {
-            AvxSlab {
-                o: [
-                    _mm256_set1_ps(s.o[0].x),
-                    _mm256_set1_ps(s.o[1].x),
-                    _mm256_set1_ps(s.o[2].x),
-                ],
-                ninv: [
-                    _mm256_set1_ps(s.ninv[0].x),
-                    _mm256_set1_ps(s.ninv[1].x),
-                    _mm256_set1_ps(s.ninv[2].x),
-                ],
-                near: s.near,
-                far: s.far,
-            }
-        }
-
-        /// The same constants as `AvxSlab::new(&SlabRay::new(ray))`, without the 4-wide
-        /// splats in between.
+        /// The constants of `ray`, or `None` when `o·inv` overflows on some axis.
+        /// (Not a `target_feature` function, so that it is inlined into the traversal.)
         ///
         /// # Safety
-        /// The CPU must support AVX2.
-        #[target_feature(enable = "avx2")]
-        #[inline]
-        pub(super) unsafe fn from_ray(ray: &Ray) -> Self {
+        /// The CPU must support AVX2 and FMA.
+        #[inline(always)]
+        pub(super) unsafe fn from_ray(ray: &Ray) -> Option<Self> {
             let (inv, neg) = slab_constants(ray);
             let p = OCTANT_PLANES[(neg & 7) as usize];
-            AvxSlab {
-                o: [
-                    _mm256_set1_ps(ray.o.x),
-                    _mm256_set1_ps(ray.o.y),
-                    _mm256_set1_ps(ray.o.z),
-                ],
-                ninv: [
-                    _mm256_set1_ps(-inv.x),
-                    _mm256_set1_ps(-inv.y),
-                    _mm256_set1_ps(-inv.z),
-                ],
-                near: [p[0], p[1], p[2]],
-                far: [p[3], p[4], p[5]],
+            let (up, down) = directed_products(ray.o, inv)?;
+            // SAFETY: AVX is available (the caller's contract).
+            unsafe {
+                Some(AvxSlab {
+                    inv: [
+                        _mm256_set1_ps(inv.x),
+                        _mm256_set1_ps(inv.y),
+                        _mm256_set1_ps(inv.z),
+                    ],
+                    c_near: [
+                        _mm256_set1_ps(up.x),
+                        _mm256_set1_ps(up.y),
+                        _mm256_set1_ps(up.z),
+                    ],
+                    c_far: [
+                        _mm256_set1_ps(down.x),
+                        _mm256_set1_ps(down.y),
+                        _mm256_set1_ps(down.z),
+                    ],
+                    near: [p[0], p[1], p[2]],
+                    far: [p[3], p[4], p[5]],
+                })
             }
         }
     }
@@ -299,14 +329,14 @@ mod avx2 {
     impl NodeTest for AvxSlab {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
-            // SAFETY: an `AvxSlab` exists only where AVX2 is available (its constructor needs
-            // it); the plane indices are `k` or `k + 3` (below 6, set by `SlabRay::new`); the loads read the 8 contiguous floats of a `[Vec4; 2]` plane, the store
-            // writes the 8 floats of `out`.
+            // SAFETY: an `AvxSlab` exists only where AVX2 and FMA are available (its
+            // constructor needs them); the plane indices are `k` or `k + 3` (below 6, from
+            // `OCTANT_PLANES`); the loads read the 8 contiguous floats of a `[Vec4; 2]`
+            // plane, the store writes the 8 floats of `out`.
             unsafe {
                 let mut near = _mm256_setzero_ps();
                 let mut far = _mm256_set1_ps(t_max);
                 for k in 0..3 {
-                    // (`near[k]` and `far[k]` are `k` and `k + 3`, below 6.)
                     let n = _mm256_loadu_ps(
                         node.planes
                             .get_unchecked(self.near[k])
@@ -319,18 +349,14 @@ mod avx2 {
                             .as_ptr()
                             .cast::<f32>(),
                     );
-                    near = _mm256_max_ps(
-                        near,
-                        _mm256_mul_ps(_mm256_sub_ps(self.o[k], n), self.ninv[k]),
-                    );
-                    far = _mm256_min_ps(
-                        far,
-                        _mm256_mul_ps(
-                            _mm256_mul_ps(_mm256_sub_ps(self.o[k], f), self.ninv[k]),
-                            _mm256_set1_ps(FAR_SCALE),
-                        ),
-                    );
+                    near = _mm256_max_ps(near, _mm256_fmsub_ps(n, self.inv[k], self.c_near[k]));
+                    far = _mm256_min_ps(far, _mm256_fmsub_ps(f, self.inv[k], self.c_far[k]));
                 }
+                let far = _mm256_fmadd_ps(
+                    far,
+                    _mm256_set1_ps(FMA_FAR_SCALE),
+                    _mm256_set1_ps(FMA_FAR_FLOOR),
+                );
                 let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(near, far)) as u32;
                 let mut out = [0.0f32; WIDTH];
                 _mm256_storeu_ps(out.as_mut_ptr(), near);
@@ -463,7 +489,7 @@ impl WideBvh {
         ReinsertionOptimizer::default().run(&mut bvh2, REINSERTION_BATCH_RATIO, None);
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
-            avx2: avx2_and_popcnt(),
+            avx2: avx2_fma_and_popcnt(),
             ..WideBvh::default()
         };
         if counts[0] <= MAX_LEAF_PRIMITIVES {
@@ -555,7 +581,7 @@ impl WideBvh {
         }
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
-            // SAFETY: `avx2` is set only when the CPU reported AVX2.
+            // SAFETY: `avx2` is set only when the CPU reported AVX2, FMA and POPCNT.
             unsafe { self.traverse_avx2(ray, t_max, primitive) };
             return;
         }
@@ -575,15 +601,24 @@ impl WideBvh {
         self.shallow
     }
 
-    /// [`Self::traverse`] compiled for AVX2, with the 8-wide node test.
+    /// [`Self::traverse`] compiled for AVX2 and FMA, with the 8-wide node test.
     ///
     /// # Safety
-    /// The CPU must support AVX2.
+    /// The CPU must support AVX2, FMA and POPCNT.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,popcnt")]
+    #[target_feature(enable = "avx2,fma,popcnt")]
     unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
-        // SAFETY: this function runs only with AVX2.
-        let wide = unsafe { avx2::AvxSlab::from_ray(ray) };
+        // SAFETY: this function runs only with AVX2 and FMA.
+        let Some(wide) = (unsafe { avx2::AvxSlab::from_ray(ray) }) else {
+            // `o·inv` overflows `f32`: the 4-wide test, which has no such term.
+            let slab = SlabRay::new(ray);
+            if self.shallow() {
+                self.traverse_with::<_, false>(&slab, t_max, primitive);
+            } else {
+                self.traverse_with::<_, true>(&slab, t_max, primitive);
+            }
+            return;
+        };
         if self.shallow() {
             self.traverse_with::<_, false>(&wide, t_max, primitive);
         } else {
@@ -780,11 +815,14 @@ fn fits_inline_stack(depth: usize) -> bool {
 }
 
 /// Whether the CPU runs the 8-wide node test: AVX2 ([`crate::math::avx2_enabled`], which
-/// `VELOUR_NO_AVX2=1` turns off) and POPCNT (the ranks of the children it orders).
-fn avx2_and_popcnt() -> bool {
+/// `VELOUR_NO_AVX2=1` turns off), FMA (its slab distances) and POPCNT (the ranks of the
+/// children it orders).
+fn avx2_fma_and_popcnt() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        crate::math::avx2_enabled() && std::is_x86_feature_detected!("popcnt")
+        crate::math::avx2_enabled()
+            && std::is_x86_feature_detected!("fma")
+            && std::is_x86_feature_detected!("popcnt")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -1123,59 +1161,154 @@ mod tests {
         );
     }
 
-    #[test]
-    fn the_8_wide_and_4_wide_node_tests_visit_the_same_leaves_in_the_same_order() {
-        if !avx2_and_popcnt() {
-            eprintln!("no AVX2 on this CPU: only the 4-wide test runs");
-            return;
-        }
-        let mut rng = Lcg(17);
-        let boxes = rng.boxes(3000, 0.1);
-        let wide = WideBvh::build(&boxes);
-        assert!(wide.avx2);
-        let narrow = wide.clone().without_avx2();
-        // Direct node tests too: entry distances and masks bit for bit.
-        for i in 0..20_000 {
-            let mut d = rng.vec().normalize_or(Vec3::X);
-            if i % 5 == 0 {
-                d[i % 3] = 0.0;
+    /// Entry and exit of the ray through a box in f64 within `[0, t_max]`, or `None`; a zero
+    /// direction component leaves its axis unbounded when the origin lies strictly inside
+    /// the slab (callers avoid origins on such an axis's planes).
+    fn exact_slab(ray: &Ray, lo: Vec3, hi: Vec3, t_max: f32) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (0.0f64, f64::from(t_max));
+        for k in 0..3 {
+            let (o, d) = (f64::from(ray.o[k]), f64::from(ray.d[k]));
+            let (lo, hi) = (f64::from(lo[k]), f64::from(hi[k]));
+            if d == 0.0 {
+                if !(lo < o && o < hi) {
+                    return None;
+                }
+                continue;
             }
-            let ray = Ray::new(rng.vec() * 1.5, d);
+            let (a, b) = ((lo - o) / d, (hi - o) / d);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    /// The bounds of `directed_products` enclose the exact product `o·inv` (in f64, where it
+    /// is exact) and are at most two units in the last place from it, for magnitudes from
+    /// subnormal to near overflow, signs, zeros and exactly representable products.
+    #[test]
+    fn directed_products_enclose_the_exact_product() {
+        let mut rng = Lcg(5);
+        let mut checked = 0;
+        for i in 0..200_000 {
+            let e = |r: f32| 2f32.powi((r * 120.0) as i32 - 60);
+            let mut o = rng.vec() * Vec3::new(e(rng.next()), e(rng.next()), e(rng.next()));
+            let mut inv =
+                Vec4::from((rng.vec(), 1.0)) * Vec4::new(e(rng.next()), e(rng.next()), 1e20, 1.0);
+            match i % 7 {
+                0 => o[i % 3] = 0.0,
+                1 => o = o.round(),
+                2 => inv = Vec4::new(0.5, -0.25, 1e20, 1.0),
+                3 => o *= 1e-30,
+                4 => o = Vec3::splat(f32::MIN_POSITIVE * 3.0),
+                _ => {}
+            }
+            let Some((up, down)) = directed_products(o, inv) else {
+                continue;
+            };
+            for k in 0..3 {
+                let exact = f64::from(o[k]) * f64::from(inv[k]);
+                let (u, d) = (f64::from(up[k]), f64::from(down[k]));
+                assert!(d <= exact && exact <= u, "{i} axis {k}: {d} {exact} {u}");
+                let ulp = (exact.abs() * 2f64.powi(-22)).max(2f64.powi(-124));
+                assert!(u - d <= 2.0 * ulp, "{i} axis {k}: {d} {exact} {u}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 500_000, "{checked}");
+        // An overflowing product has no finite bounds.
+        let far = Vec3::new(1e30, 0.0, 0.0);
+        assert!(directed_products(far, Vec4::new(1e20, 1.0, 1.0, 1.0)).is_none());
+    }
+
+    /// The node tests never cull a child the exact slab test (f64) enters within
+    /// `[0, t_max]`, the 8-wide test with its fused multiply-adds and the 4-wide one, and
+    /// their entry distances stay within a few units of rounding of the exact ones: random
+    /// rays, half of them from a point exactly on one or more of a child's planes, a fifth
+    /// with a zero direction component, grazing rays along a child's face, long and short
+    /// `t_max`.
+    #[test]
+    fn the_node_tests_never_cull_a_box_the_exact_slab_test_enters() {
+        let mut rng = Lcg(23);
+        let boxes = rng.boxes(2000, 0.1);
+        let bvh = WideBvh::build(&boxes);
+        let avx = avx2_fma_and_popcnt();
+        let (mut entered, mut on_plane) = (0, 0);
+        for i in 0..60_000 {
+            let node = &bvh.nodes[i % bvh.nodes.len()];
+            let c = i / 2 % WIDTH;
+            let plane = |p: usize, c: usize| node.planes[p][c / 4].to_array()[c % 4];
+            if !plane(0, c).is_finite() {
+                continue;
+            }
+            let (lo, hi) = (
+                Vec3::new(plane(0, c), plane(1, c), plane(2, c)),
+                Vec3::new(plane(3, c), plane(4, c), plane(5, c)),
+            );
+            let mut d = rng.vec().normalize_or(Vec3::X);
+            let zero_axis = (i % 5 == 0).then_some(i % 3);
+            if let Some(k) = zero_axis {
+                d[k] = 0.0;
+            }
+            let mut o = rng.vec() * 1.5;
+            if i % 2 == 0 {
+                for k in 0..=(i / 16 % 3) {
+                    if Some(k) != zero_axis {
+                        o[k] = if i / 4 % 2 == 0 { lo[k] } else { hi[k] };
+                        on_plane += 1;
+                    }
+                }
+            }
+            if i % 11 == 0 {
+                // Grazing: aimed at a point on the child's face, from outside.
+                let mut target = lo + (hi - lo) * Vec3::new(rng.next(), rng.next(), rng.next());
+                target[i % 3] = lo[i % 3];
+                o = target - d * (1.0 + rng.next());
+            }
+            if let Some(k) = zero_axis {
+                if o[k] == lo[k] || o[k] == hi[k] {
+                    continue;
+                }
+            }
+            let ray = Ray::new(o, d);
             let t_max = if i % 3 == 0 {
                 rng.next() * 2.0
             } else {
                 f32::INFINITY
             };
-            let slab = SlabRay::new(&ray);
-            // SAFETY: AVX2 was detected above.
-            let avx = unsafe { avx2::AvxSlab::new(&slab) };
-            let node = &wide.nodes[i % wide.nodes.len()];
-            // SAFETY: AVX2 was detected above.
-            let direct = unsafe { avx2::AvxSlab::from_ray(&ray) };
-            let (a, ma) = slab.test(node, t_max);
-            let (b, mb) = avx.test(node, t_max);
-            let (c, mc) = direct.test(node, t_max);
-            assert_eq!(ma, mb, "ray {i}");
-            assert_eq!(ma, mc, "ray {i}");
-            for k in 0..WIDTH {
-                if ma & (1 << k) != 0 {
-                    assert_eq!(a[k].to_bits(), b[k].to_bits(), "ray {i} child {k}");
-                    assert_eq!(a[k].to_bits(), c[k].to_bits(), "ray {i} child {k}");
-                }
+            let Some((t0, _)) = exact_slab(&ray, lo, hi, t_max) else {
+                continue;
+            };
+            entered += 1;
+            let mut tests = vec![SlabRay::new(&ray).test(node, t_max)];
+            #[cfg(target_arch = "x86_64")]
+            if avx {
+                // SAFETY: AVX2 and FMA were detected.
+                let wide = unsafe { avx2::AvxSlab::from_ray(&ray) }.expect("a finite ray");
+                tests.push(wide.test(node, t_max));
             }
-            let mut seen = (Vec::new(), Vec::new());
-            // A closest-hit-like query: every third leaf primitive shortens the ray.
-            let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
-            wide.traverse(&ray, t_max, |pos, t: f32| {
-                seen.0.push((pos, t.to_bits()));
-                shorten(pos, t)
-            });
-            narrow.traverse(&ray, t_max, |pos, t: f32| {
-                seen.1.push((pos, t.to_bits()));
-                shorten(pos, t)
-            });
-            assert_eq!(seen.0, seen.1, "ray {i}");
+            // The 8-wide test's distances are off by up to two units of `o·inv` (its
+            // origin terms), the 4-wide test's by a few units of the distance.
+            let origin_term = (0..3)
+                .filter(|&k| d[k] != 0.0)
+                .map(|k| f64::from(o[k] / d[k]).abs())
+                .fold(0.0, f64::max);
+            for (which, (near, mask)) in tests.iter().enumerate() {
+                assert!(
+                    mask & (1 << c) != 0,
+                    "ray {i} child {c} test {which}: culled"
+                );
+                let err = (f64::from(near[c]) - t0).abs();
+                assert!(
+                    err <= (t0 + origin_term) * 1e-6 + 1e-30,
+                    "ray {i} child {c} test {which}: entry {} against {t0}",
+                    near[c]
+                );
+            }
         }
+        assert!(
+            entered > 8_000 && on_plane > 10_000,
+            "{entered} entered, {on_plane} on planes"
+        );
     }
 
     /// The rank placement of the traversal's three-or-more case against a stable sort by
@@ -1186,9 +1319,9 @@ mod tests {
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
         let slab = SlabRay::new(&ray);
         #[cfg(target_arch = "x86_64")]
-        let avx = avx2_and_popcnt().then(|| {
-            // SAFETY: AVX2 was detected.
-            unsafe { avx2::AvxSlab::from_ray(&ray) }
+        let avx = avx2_fma_and_popcnt().then(|| {
+            // SAFETY: AVX2 and FMA were detected.
+            unsafe { avx2::AvxSlab::from_ray(&ray) }.expect("a finite ray")
         });
         for _ in 0..20_000 {
             // Few distinct values, so that ties are common.
