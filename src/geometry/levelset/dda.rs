@@ -185,8 +185,8 @@ mod tests {
                                 dda.update(k);
                             }
                             let got = first_exits(cell, ray.step, size, o, ray.inv);
-                            for k in 0..3 {
-                                assert_eq!(got[k].to_bits(), dda.t_next[k].to_bits());
+                            for (g, want) in got.iter().zip(dda.t_next) {
+                                assert_eq!(g.to_bits(), want.to_bits());
                             }
                             n += 1;
                         }
