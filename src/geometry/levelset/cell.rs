@@ -4,7 +4,7 @@
 //! Tracing": the cubic along the ray, split at its extrema, then a bracketed refinement;
 //! docs/references.md §12.5).
 
-use glam::{IVec3, Vec3};
+use glam::{IVec3, Vec3, Vec4};
 
 use crate::grid::Accessor;
 
@@ -12,6 +12,19 @@ use crate::grid::Accessor;
 #[inline]
 pub(super) fn corner_values(acc: &mut Accessor<'_>, ijk: IVec3) -> [f32; 8] {
     acc.corners(ijk)
+}
+
+/// Whether any of the corner values is `<= 0` and whether any is `>= 0`: the cell's range
+/// `[min, max]` straddles zero exactly when both hold, and lies below zero when the second
+/// does not (NaN corners count in neither, as `f32::min`/`max` skip them). Four 4-wide
+/// compares instead of a sixteen-step min/max fold.
+#[inline]
+pub(super) fn corner_signs(c: &[f32; 8]) -> (bool, bool) {
+    let a = Vec4::new(c[0], c[1], c[2], c[3]);
+    let b = Vec4::new(c[4], c[5], c[6], c[7]);
+    let le = (a.cmple(Vec4::ZERO) | b.cmple(Vec4::ZERO)).any();
+    let ge = (a.cmpge(Vec4::ZERO) | b.cmpge(Vec4::ZERO)).any();
+    (le, ge)
 }
 
 /// The trilinear interpolant at local point `u` (`[0, 1]³` inside the cell; extrapolates
@@ -232,6 +245,60 @@ fn refine(k: &[f32; 4], mut s0: f32, mut f0: f32, mut s1: f32, mut f1: f32, tol:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `corner_signs` decides as the min/max fold it replaced (`straddles` = min <= 0 <= max,
+    /// `below` = max < 0) on corners drawn from a set with ±0, infinities, NaN and values
+    /// of both signs.
+    #[test]
+    fn corner_signs_equal_the_range_fold() {
+        let pool = [
+            -2.5f32,
+            -1e-30,
+            -0.0,
+            0.0,
+            1e-30,
+            0.75,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let (mut straddling, mut below, mut above) = (0, 0, 0);
+        for _ in 0..50_000 {
+            let mut c = [0.0f32; 8];
+            for v in &mut c {
+                state = state
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                // Mostly one sign per cell, so both outcomes are common.
+                let i = (state >> 33) as usize % pool.len();
+                *v = pool[i];
+            }
+            if (state >> 40) & 1 == 0 {
+                for v in &mut c {
+                    *v = v.abs();
+                }
+            }
+            let (min, max) = c
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            let (le, ge) = corner_signs(&c);
+            assert_eq!(le && ge, min <= 0.0 && max >= 0.0, "{c:?}");
+            if !(le && ge) {
+                assert_eq!(!ge, max < 0.0, "{c:?}");
+                if max < 0.0 {
+                    below += 1;
+                } else {
+                    above += 1;
+                }
+            } else {
+                straddling += 1;
+            }
+        }
+        assert!(straddling > 1000 && below > 0 && above > 1000);
+    }
 
     /// A plane φ = x − 0.3 (corners 0 − 0.3 and 1 − 0.3): a ray along +x crosses at x = 0.3.
     #[test]

@@ -38,13 +38,12 @@ impl DdaRay {
         let size = (1i32 << shift) as f32;
         // Division by a power of two is the multiplication by its (exact) reciprocal.
         let p = (self.o + self.d * t0) * (1.0 / size);
-        let cell = IVec3::new(floor_i32(p.x), floor_i32(p.y), floor_i32(p.z))
-            .clamp(lo, hi)
-            .to_array();
-        let mut dda = Dda {
-            cell,
+        let cell = IVec3::new(floor_i32(p.x), floor_i32(p.y), floor_i32(p.z)).clamp(lo, hi);
+        let t_next = first_exits(cell, self.step, size, self.o, self.inv);
+        Dda {
+            cell: cell.to_array(),
             step: self.step,
-            t_next: [f32::INFINITY; 3],
+            t_next,
             o: self.o.to_array(),
             inv: self.inv,
             size,
@@ -53,12 +52,20 @@ impl DdaRay {
             lo: lo.to_array(),
             hi: hi.to_array(),
             done: !(t0 <= t1) || lo.cmpgt(hi).any(),
-        };
-        for k in 0..3 {
-            dda.update(k);
         }
-        dda
     }
+}
+
+/// The exit distances of cell `cell` (edge `size`) across each axis, as [`Dda::update`]
+/// computes them one axis at a time (the same operations lane by lane, so the same bits),
+/// without its per-axis branch: `INFINITY` where the step is 0.
+#[inline(always)]
+fn first_exits(cell: IVec3, step: [i32; 3], size: f32, o: Vec3, inv: [f32; 3]) -> [f32; 3] {
+    let step = IVec3::from_array(step);
+    let up = IVec3::select(step.cmpgt(IVec3::ZERO), IVec3::ONE, IVec3::ZERO);
+    let plane = (cell + up).as_vec3() * size;
+    let t = (plane - o) * Vec3::from_array(inv);
+    Vec3::select(step.cmpeq(IVec3::ZERO), Vec3::INFINITY, t).to_array()
 }
 
 /// `x.floor() as i32` (saturating, NaN to 0) without a library call: truncation, one lower
@@ -146,6 +153,49 @@ fn sign(x: f32) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `first_exits` gives `Dda::update`'s distances bit for bit (zero, tiny and large
+    /// direction components, cells on both sides of the origin, all four cell sizes).
+    #[test]
+    fn first_exits_equal_the_per_axis_update() {
+        let comps = [0.0f32, -0.0, 1e-30, -1e-30, 0.37, -0.81, 3.5, -1e6];
+        let mut n = 0;
+        for &dx in &comps {
+            for &dy in &comps {
+                for &dz in &comps {
+                    for shift in [0, 2, 3, 6] {
+                        for cell in [IVec3::new(-3, 0, 7), IVec3::new(12, -40, 1)] {
+                            let o = Vec3::new(0.3, -17.25, 5.5);
+                            let ray = DdaRay::new(o, Vec3::new(dx, dy, dz));
+                            let size = (1i32 << shift) as f32;
+                            let mut dda = Dda {
+                                cell: cell.to_array(),
+                                step: ray.step,
+                                t_next: [0.0; 3],
+                                o: o.to_array(),
+                                inv: ray.inv,
+                                size,
+                                t: 0.0,
+                                t_end: 1.0,
+                                lo: [i32::MIN; 3],
+                                hi: [i32::MAX; 3],
+                                done: false,
+                            };
+                            for k in 0..3 {
+                                dda.update(k);
+                            }
+                            let got = first_exits(cell, ray.step, size, o, ray.inv);
+                            for (g, want) in got.iter().zip(dda.t_next) {
+                                assert_eq!(g.to_bits(), want.to_bits());
+                            }
+                            n += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(n, 8 * 8 * 8 * 4 * 2);
+    }
 
     /// The walk as it was written before (per-walk reciprocal and steps, `Vec3` state,
     /// `floor` by the library): the reference the shared-ray walk must reproduce bit for bit.

@@ -26,7 +26,7 @@ use glam::{DAffine3, IVec3};
 use crate::grid::{ChannelKind, Node, SparseGrid, BRICK_DIM, BRICK_LOG2};
 use crate::math::{Aabb, Mat3, Ray, Vec3};
 
-use self::cell::{corner_values, first_root, smooth_gradient, trilinear_gradient};
+use self::cell::{corner_signs, corner_values, first_root, smooth_gradient, trilinear_gradient};
 use self::dda::DdaRay;
 
 /// Bricks per edge of a coarse cell (8 bricks = 64 voxels).
@@ -364,11 +364,11 @@ impl LevelSet {
                             return None;
                         }
                         let c = corner_values(&mut acc, ijk);
-                        let r = c
-                            .iter()
-                            .fold(Range::EMPTY, |r, &v| r.add(Range { min: v, max: v }));
-                        if !r.straddles_zero() {
-                            inside = side(r);
+                        // The corners' range straddles zero exactly when some corner is
+                        // `<= 0` and some `>= 0`; else the cell is inside when none is `>= 0`.
+                        let (any_le, any_ge) = corner_signs(&c);
+                        if !(any_le && any_ge) {
+                            inside = Some(!any_ge);
                             continue;
                         }
                         let local = o - ijk.as_vec3();
