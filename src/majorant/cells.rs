@@ -244,8 +244,9 @@ fn window_min_max(
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_grids::{mixed_grid, Mix};
     use super::*;
-    use crate::grid::{ChannelKind, SparseGridBuilder, Storage, TileLevel};
+    use crate::grid::{ChannelKind, SparseGridBuilder, Storage};
     use glam::Vec3;
 
     /// The cell bounds as they were computed before the separable passes: every voxel of the
@@ -302,21 +303,6 @@ mod tests {
         out
     }
 
-    /// A small generator (splitmix64) for the test's values.
-    struct Mix(u64);
-    impl Mix {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        fn f32(&mut self) -> f32 {
-            (self.next() >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
-
     /// Sparse grids (both storages, a scalar and a vector channel before the density so that
     /// the density is not channel 0 of a one-component layout) with scattered voxels, brick
     /// tiles and a block tile: every brick key around them gives the reference's bounds, bit
@@ -326,42 +312,7 @@ mod tests {
         let mut checked = 0;
         for (seed, storage) in [(1u64, Storage::F32), (2, Storage::F16), (3, Storage::F32)] {
             let mut rng = Mix(seed);
-            let mut b = SparseGridBuilder::new(storage);
-            b.add_channel("colour", ChannelKind::Vec3, Vec3::splat(0.5));
-            let density = b.add_channel("density", ChannelKind::Scalar, Vec3::splat(0.0));
-            b.set_tile(
-                TileLevel::Block,
-                IVec3::new(-1, 0, 0),
-                &[0.2, 0.3, 0.4, 0.75],
-                true,
-            )
-            .expect("block tile");
-            b.set_tile(
-                TileLevel::Brick,
-                IVec3::new(1, 1, 1),
-                &[0.1, 0.1, 0.1, 0.3],
-                true,
-            )
-            .expect("brick tile");
-            for _ in 0..3000 {
-                let p = IVec3::new(
-                    (rng.next() % 40) as i32,
-                    (rng.next() % 24) as i32 - 4,
-                    (rng.next() % 32) as i32 - 8,
-                );
-                if (p >> 3) == IVec3::new(1, 1, 1) {
-                    continue;
-                }
-                let v = match rng.next() % 8 {
-                    0 => 0.0,
-                    1 => 1.0,
-                    _ => rng.f32() * 3.0,
-                };
-                b.set_value(density, p, v).expect("voxel");
-                b.set_value_vec3(0, p, Vec3::new(v, 1.0 - v, 2.0))
-                    .expect("colour");
-            }
-            let grid = b.build();
+            let (grid, density) = mixed_grid(storage, &mut rng);
             for kz in -3..6 {
                 for ky in -2..5 {
                     for kx in -2..7 {

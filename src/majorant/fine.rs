@@ -396,56 +396,23 @@ mod tests {
     /// windows crossing brick boundaries on every axis and depths from 0 to 17 voxels.
     #[test]
     fn column_ranges_equal_the_accessor_scan() {
-        use crate::grid::{ChannelKind, SparseGridBuilder, Storage, TileLevel};
-        let mut state = 0x1234_5678_9abc_def0u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            state >> 33
-        };
+        use super::super::test_grids::{mixed_grid, Mix};
+        use crate::grid::Storage;
+        let mut rng = Mix(11);
         let mut checked = 0usize;
         for storage in [Storage::F32, Storage::F16] {
-            let mut b = SparseGridBuilder::new(storage);
-            b.add_channel("colour", ChannelKind::Vec3, Vec3::splat(0.5));
-            let density = b.add_channel("density", ChannelKind::Scalar, Vec3::splat(0.0));
-            b.set_tile(
-                TileLevel::Block,
-                IVec3::new(-1, 0, 0),
-                &[0.2, 0.3, 0.4, 0.75],
-                true,
-            )
-            .expect("block tile");
-            b.set_tile(
-                TileLevel::Brick,
-                IVec3::new(1, 1, 1),
-                &[0.1, 0.1, 0.1, 0.3],
-                true,
-            )
-            .expect("brick tile");
-            for _ in 0..3000 {
-                let p = IVec3::new(
-                    (next() % 40) as i32,
-                    (next() % 24) as i32 - 4,
-                    (next() % 32) as i32 - 8,
-                );
-                if (p >> 3i32) == IVec3::ONE {
-                    continue;
-                }
-                let v = (next() % 1000) as f32 / 300.0;
-                b.set_value(density, p, v).expect("voxel");
-                b.set_value_vec3(0, p, Vec3::new(v, 1.0 - v, 2.0))
-                    .expect("colour");
-            }
-            let grid = b.build();
+            let (grid, density) = mixed_grid(storage, &mut rng);
             for _ in 0..300 {
                 let corner = IVec3::new(
-                    (next() % 60) as i32 - 20,
-                    (next() % 40) as i32 - 12,
-                    (next() % 50) as i32 - 16,
+                    (rng.next() % 60) as i32 - 20,
+                    (rng.next() % 40) as i32 - 12,
+                    (rng.next() % 50) as i32 - 16,
                 );
-                let (nx, ny) = (1 + (next() % 30) as usize, 1 + (next() % 30) as usize);
-                let depth = (next() % 18) as i32;
+                let (nx, ny) = (
+                    1 + (rng.next() % 30) as usize,
+                    1 + (rng.next() % 30) as usize,
+                );
+                let depth = (rng.next() % 18) as i32;
                 for channel in [0, density] {
                     let mut got = vec![[f32::INFINITY, f32::NEG_INFINITY]; nx * ny];
                     column_ranges(&grid, channel, corner, (nx, ny), depth, &mut got);

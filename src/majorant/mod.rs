@@ -17,6 +17,8 @@ mod cells;
 mod fine;
 mod plan;
 mod segments;
+#[cfg(test)]
+mod test_grids;
 mod walk;
 
 pub use fine::{LocalBounds, MAX_LOCAL_CELLS};
