@@ -113,7 +113,7 @@ mod tests {
                 cases.push(Vec3::new(-3.5, a, b));
             }
         }
-        let mut rng = Rng::new(23);
+        let mut rng = Rng::new(23, 0);
         for _ in 0..200_000 {
             let scale = 2.0f32.powi((rng.next_f32() * 70.0) as i32 - 20);
             let r = |rng: &mut Rng| (rng.next_f32() * 2.0 - 1.0) * scale;
