@@ -33,6 +33,7 @@
 
 mod fibre_fast_math;
 pub mod fibre_scattering;
+mod floor;
 pub mod lod;
 pub mod look;
 pub mod patch_file;
@@ -45,6 +46,7 @@ pub use fibre_scattering::{
     FibreColour, FibreLobes, FibrePhase, FibrePhaseParams, FibreSample, PreparedFibre,
     SggxFibrePhase, SggxSample,
 };
+pub use floor::floor_ivec3;
 pub use look::{
     projected_width, FabricLook, FibreExtinction, FibreGridLookup, ShellLookup, YarnColours,
 };
@@ -183,19 +185,4 @@ pub fn tangent_near(p: glam::Vec3, mut fetch: impl FnMut(glam::IVec3) -> glam::V
         }
     }
     best.1
-}
-
-/// `p.floor().as_ivec3()` without a libm call (the x86-64 baseline has no rounding
-/// instruction): the same result for every `p` within the `i32` range (saturating outside
-/// it; NaN gives 0, as the cast does).
-#[inline(always)]
-#[must_use]
-pub fn floor_ivec3(p: glam::Vec3) -> glam::IVec3 {
-    let t = p.as_ivec3(); // truncation toward zero, saturating
-    let tf = t.as_vec3();
-    t - glam::IVec3::new(
-        i32::from(tf.x > p.x),
-        i32::from(tf.y > p.y),
-        i32::from(tf.z > p.z),
-    )
 }
