@@ -316,6 +316,10 @@ mod tests {
         // The first object's interior is invalid (albedo out of range) and the second
         // object's mesh file is missing: the object-by-object build meets the first.
         let text = r#"
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+
 [[light]]
 type = "environment"
 
