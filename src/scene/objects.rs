@@ -98,18 +98,34 @@ pub(super) fn stage(
 }
 
 /// Whether every object's world shape can be made before its interior ([`place_early`]): its
-/// `shape` is a mesh or a sphere and its interior, if any, is not a fabric (whose shell is
-/// the object's shape). Level sets, `shape = "bounds"` and fabrics are placed after their
-/// interiors, as [`ObjectList::add`] does.
+/// `shape` is a mesh or a sphere and its interior, if any, holds no fabric (whose shell may be
+/// the object's shape, also as a look of a blend). Level sets, `shape = "bounds"` and fabrics
+/// are placed after their interiors, as [`ObjectList::add`] does.
 pub(super) fn all_placeable_early(objects: &[Spanned<ObjectDesc>]) -> bool {
     objects.iter().all(|o| {
         let d = o.get_ref();
         matches!(d.shape.as_str(), "mesh" | "sphere")
-            && !matches!(
-                d.interior.as_ref().map(Spanned::get_ref),
-                Some(InteriorDesc::Fabric(_))
-            )
+            && !d
+                .interior
+                .as_ref()
+                .is_some_and(|i| holds_fabric(i.get_ref()))
     })
+}
+
+/// Whether interior `d` is a fabric or has one among its blend looks or mixture media.
+fn holds_fabric(d: &InteriorDesc) -> bool {
+    match d {
+        InteriorDesc::Fabric(_) => true,
+        InteriorDesc::Blend(b) => [&b.a, &b.b]
+            .into_iter()
+            .flatten()
+            .any(|look| holds_fabric(look.get_ref())),
+        InteriorDesc::Mixture(m) => m.media.iter().any(|c| holds_fabric(c.get_ref())),
+        InteriorDesc::Absorption(_)
+        | InteriorDesc::Homogeneous(_)
+        | InteriorDesc::Voxel(_)
+        | InteriorDesc::Fbm(_) => false,
+    }
 }
 
 /// The world shape of a staged mesh or sphere object, made as [`ObjectList::add`] makes it
