@@ -33,6 +33,134 @@ pub(super) struct ObjectList {
     pub auto_guided: Vec<usize>,
 }
 
+/// An object's parts made before its interior: its place, rest shape and surface
+/// ([`stage`]).
+pub(super) struct Staged {
+    line: usize,
+    name: String,
+    xf: Mat4,
+    uniform: Option<f32>,
+    rest: RestShape,
+    has_uvs: bool,
+    surface: ObjectSurface,
+    ior: f32,
+}
+
+/// An object's world shape made before its interior ([`place_early`]) and handed to the
+/// geometry's build: what [`ObjectList::finish`] still needs to know of it.
+pub(super) struct Placed {
+    /// The mesh is open (not every edge shared by exactly two triangles).
+    open_mesh: bool,
+    /// [`uv_per_world`] of the world shape.
+    uv: (f32, Vec<f32>),
+}
+
+/// Builds the `index`-th `[[object]]`'s transform, rest shape (meshes and level sets are
+/// loaded here) and surface: everything [`ObjectList::finish`] does not.
+pub(super) fn stage(
+    ctx: &Ctx,
+    index: usize,
+    spanned: &Spanned<ObjectDesc>,
+) -> Result<Staged, SceneError> {
+    let line = ctx.line_of(spanned.span().start);
+    let desc = spanned.get_ref();
+    let name = desc
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("object {}", index + 1));
+    let (xf, uniform) = object_transform(ctx, line, &name, desc)?;
+    let rest = build_rest_shape(ctx, line, &name, desc, uniform)?;
+    let has_uvs = match &rest {
+        RestShape::Mesh(m) => m.uvs.is_some(),
+        RestShape::Sphere { .. } => true,
+        RestShape::Bounds | RestShape::LevelSet(_) => false,
+    };
+    let (surface, ior) = match &desc.surface {
+        Some(s) => build_surface(
+            ctx,
+            ctx.line_of(s.span().start),
+            &name,
+            Some(s.get_ref()),
+            has_uvs,
+        )?,
+        None => build_surface(ctx, line, &name, None, has_uvs)?,
+    };
+    Ok(Staged {
+        line,
+        name,
+        xf,
+        uniform,
+        rest,
+        has_uvs,
+        surface,
+        ior,
+    })
+}
+
+/// Whether every object's world shape can be made before its interior ([`place_early`]): its
+/// `shape` is a mesh or a sphere and its interior, if any, holds no fabric (whose shell may be
+/// the object's shape, also as a look of a blend). Level sets, `shape = "bounds"` and fabrics
+/// are placed after their interiors, as [`ObjectList::add`] does.
+pub(super) fn all_placeable_early(objects: &[Spanned<ObjectDesc>]) -> bool {
+    objects.iter().all(|o| {
+        let d = o.get_ref();
+        matches!(d.shape.as_str(), "mesh" | "sphere")
+            && !d
+                .interior
+                .as_ref()
+                .is_some_and(|i| holds_fabric(i.get_ref()))
+    })
+}
+
+/// Whether interior `d` is a fabric or has one among its blend looks or mixture media.
+fn holds_fabric(d: &InteriorDesc) -> bool {
+    match d {
+        InteriorDesc::Fabric(_) => true,
+        InteriorDesc::Blend(b) => [&b.a, &b.b]
+            .into_iter()
+            .flatten()
+            .any(|look| holds_fabric(look.get_ref())),
+        InteriorDesc::Mixture(m) => m.media.iter().any(|c| holds_fabric(c.get_ref())),
+        InteriorDesc::Absorption(_)
+        | InteriorDesc::Homogeneous(_)
+        | InteriorDesc::Voxel(_)
+        | InteriorDesc::Fbm(_) => false,
+    }
+}
+
+/// The world shape of a staged mesh or sphere object, made as [`ObjectList::add`] makes it
+/// (a copy of the rest mesh placed by the object transform and, when closed, oriented
+/// outward; a sphere's centre and radius placed), with what [`ObjectList::finish`] needs of
+/// it. `None` for shapes placed after their interiors (level sets, bounds).
+pub(super) fn place_early(staged: &Staged) -> Option<(Shape, Placed)> {
+    let (shape, open_mesh) = match &staged.rest {
+        RestShape::Mesh(rest) => {
+            let mut mesh = rest.transformed(staged.xf);
+            let closed = mesh.is_closed();
+            if closed {
+                mesh.make_outward();
+            }
+            (Shape::Mesh(mesh), !closed)
+        }
+        RestShape::Sphere { center, radius } => (
+            sphere_shape(staged.xf, staged.uniform, *center, *radius),
+            false,
+        ),
+        RestShape::Bounds | RestShape::LevelSet(_) => return None,
+    };
+    let uv = uv_per_world(&shape);
+    Some((shape, Placed { open_mesh, uv }))
+}
+
+/// A sphere placed by object transform `xf` (uniform scale `uniform`).
+fn sphere_shape(xf: Mat4, uniform: Option<f32>, center: Vec3, radius: f32) -> Shape {
+    let scale = uniform.unwrap_or(1.0).abs();
+    Shape::Sphere {
+        center: xf.transform_point3(center),
+        radius: radius * scale,
+    }
+}
+
 impl ObjectList {
     /// Builds the `index`-th `[[object]]` of the file, adds it
     /// and returns its world shape. Warnings and notes go to the scene's lists.
@@ -44,29 +172,34 @@ impl ObjectList {
         warnings: &mut Vec<String>,
         notes: &mut Vec<String>,
     ) -> Result<Shape, SceneError> {
-        let line = ctx.line_of(spanned.span().start);
+        let staged = stage(ctx, index, spanned)?;
+        self.finish(ctx, spanned, staged, None, warnings, notes)?
+            .ok_or_else(|| ctx.invalid(1, "an object's shape was lost".to_string()))
+    }
+
+    /// Builds a staged object's interior and adds the object. With `placed` (its world shape
+    /// made by [`place_early`] and given to the geometry), returns `None`; otherwise makes and
+    /// returns the world shape, as [`Self::add`].
+    pub fn finish(
+        &mut self,
+        ctx: &Ctx,
+        spanned: &Spanned<ObjectDesc>,
+        staged: Staged,
+        placed: Option<Placed>,
+        warnings: &mut Vec<String>,
+        notes: &mut Vec<String>,
+    ) -> Result<Option<Shape>, SceneError> {
         let desc = spanned.get_ref();
-        let name = desc
-            .name
-            .clone()
-            .unwrap_or_else(|| format!("object {}", index + 1));
-        let (xf, uniform) = object_transform(ctx, line, &name, desc)?;
-        let rest = build_rest_shape(ctx, line, &name, desc, uniform)?;
-        let has_uvs = match &rest {
-            RestShape::Mesh(m) => m.uvs.is_some(),
-            RestShape::Sphere { .. } => true,
-            RestShape::Bounds | RestShape::LevelSet(_) => false,
-        };
-        let (surface, ior) = match &desc.surface {
-            Some(s) => build_surface(
-                ctx,
-                ctx.line_of(s.span().start),
-                &name,
-                Some(s.get_ref()),
-                has_uvs,
-            )?,
-            None => build_surface(ctx, line, &name, None, has_uvs)?,
-        };
+        let Staged {
+            line,
+            name,
+            xf,
+            uniform,
+            rest,
+            has_uvs,
+            surface,
+            ior,
+        } = staged;
         let mut walk = None;
         let (medium, nee) = match &desc.interior {
             Some(interior) => {
@@ -120,57 +253,64 @@ impl ObjectList {
             },
             _ => None,
         });
-        let (shape, open_mesh) = match (rest, shell_boundary) {
-            // A fabric shell: the object is the closed shell around the cloth mesh.
-            (RestShape::Mesh(_), Some(mesh)) => {
-                let closed = mesh.is_closed();
-                (Shape::Mesh(mesh), !closed)
-            }
-            (RestShape::Mesh(mut mesh), None) => {
-                mesh.transform(xf);
-                let closed = mesh.is_closed();
-                if closed {
-                    mesh.make_outward();
-                }
-                (Shape::Mesh(mesh), !closed)
-            }
-            (RestShape::Sphere { center, radius }, _) => {
-                let scale = uniform.unwrap_or(1.0).abs();
-                (
-                    Shape::Sphere {
-                        center: xf.transform_point3(center),
-                        radius: radius * scale,
-                    },
-                    false,
-                )
-            }
-            (RestShape::LevelSet(mut ls), _) => {
-                ls.transform(xf).map_err(|e| {
-                    ctx.invalid(line, format!("{name}: placing the level set: {e}"))
-                })?;
-                (Shape::LevelSet(std::sync::Arc::new(ls)), false)
-            }
-            (RestShape::Bounds, _) => {
-                let bounds = match medium.map(|m| &media[m as usize]) {
-                    Some(Medium::Heterogeneous(h)) => Ok(h.world_bounds()),
-                    Some(Medium::Mixture(m)) => Ok(m.world_bounds()),
-                    _ => Err(ctx.invalid(
+        let (shape, open_mesh, early_uv) = match placed {
+            Some(p) => {
+                if shell_boundary.is_some() {
+                    return Err(ctx.invalid(
                         line,
-                        format!(
-                            "{name}: shape \"bounds\" needs a \"voxel\", \"fabric\" or \"mixture\" interior"
-                        ),
-                    )),
-                }?;
-                let b = bounds.ok_or_else(|| {
-                    ctx.invalid(line, format!("{name}: the interior's grid is empty"))
-                })?;
-                (
-                    Shape::Box {
-                        min: b.min,
-                        max: b.max,
-                    },
-                    false,
-                )
+                        format!("{name}: a fabric shell cannot be placed before its interior"),
+                    ));
+                }
+                (None, p.open_mesh, Some(p.uv))
+            }
+            None => {
+                let (shape, open_mesh) = match (rest, shell_boundary) {
+                    // A fabric shell: the object is the closed shell around the cloth mesh.
+                    (RestShape::Mesh(_), Some(mesh)) => {
+                        let closed = mesh.is_closed();
+                        (Shape::Mesh(mesh), !closed)
+                    }
+                    (RestShape::Mesh(mut mesh), None) => {
+                        mesh.transform(xf);
+                        let closed = mesh.is_closed();
+                        if closed {
+                            mesh.make_outward();
+                        }
+                        (Shape::Mesh(mesh), !closed)
+                    }
+                    (RestShape::Sphere { center, radius }, _) => {
+                        (sphere_shape(xf, uniform, center, radius), false)
+                    }
+                    (RestShape::LevelSet(mut ls), _) => {
+                        ls.transform(xf).map_err(|e| {
+                            ctx.invalid(line, format!("{name}: placing the level set: {e}"))
+                        })?;
+                        (Shape::LevelSet(std::sync::Arc::new(ls)), false)
+                    }
+                    (RestShape::Bounds, _) => {
+                        let bounds = match medium.map(|m| &media[m as usize]) {
+                        Some(Medium::Heterogeneous(h)) => Ok(h.world_bounds()),
+                        Some(Medium::Mixture(m)) => Ok(m.world_bounds()),
+                        _ => Err(ctx.invalid(
+                            line,
+                            format!(
+                                "{name}: shape \"bounds\" needs a \"voxel\", \"fabric\" or \"mixture\" interior"
+                            ),
+                        )),
+                    }?;
+                        let b = bounds.ok_or_else(|| {
+                            ctx.invalid(line, format!("{name}: the interior's grid is empty"))
+                        })?;
+                        (
+                            Shape::Box {
+                                min: b.min,
+                                max: b.max,
+                            },
+                            false,
+                        )
+                    }
+                };
+                (Some(shape), open_mesh, None)
             }
         };
         // Exit-point NEE needs a scattering boundary: behind an index-matched one (no surface,
@@ -218,7 +358,11 @@ impl ObjectList {
             ));
         }
         let (uv_scale, uv_scales) = if surface.is_textured() || walk.is_some() {
-            uv_per_world(&shape)
+            match (&shape, early_uv) {
+                (Some(shape), _) => uv_per_world(shape),
+                (None, Some(uv)) => uv,
+                (None, None) => (0.0, Vec::new()),
+            }
         } else {
             (0.0, Vec::new())
         };
