@@ -12,8 +12,8 @@ use super::free_shells::FreeShells;
 use super::levelset::LevelSetHit;
 use super::sphere::{sphere_candidate, SphereCandidate};
 use super::sphere_lanes::SphereBlock;
-use super::triangle::{ShearedRay, TriangleHit, TriangleSoa};
-use super::wide_bvh::{LeafVisitor, WideBvh};
+use super::triangle::{ShearedRay, TriangleBlock, TriangleHit, TriangleSoa};
+use super::wide_bvh::{Leaf, LeafVisitor, WideBvh, LEAF_BLOCK, MAX_PRIMITIVES};
 use super::{GeometryError, Hit, HitUv, MeshTopology, Shape};
 
 mod beyond;
@@ -44,6 +44,10 @@ pub struct SceneGeometry {
     /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
     /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB.
     verts: Vec<Vec4>,
+    /// Each leaf's triangles in blocks of four, transposed for the four-lane test, numbered
+    /// by `Leaf::block` (144 bytes a block; the traversal reads these, `tris` and `verts`
+    /// serve the hit record and the exact path of edge functions that are exactly zero).
+    blocks: Vec<TriangleBlock>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
     /// The shells about the spheres' centres that no triangle touches: segments inside one
@@ -197,7 +201,7 @@ impl SceneGeometry {
                 Shape::LevelSet(_) => analytic.push(Analytic::LevelSet { shape: si as u32 }),
             }
         }
-        if prims.len() > (u32::MAX / 2) as usize {
+        if prims.len() > MAX_PRIMITIVES as usize {
             return Err(GeometryError::InvalidShape {
                 shape: 0,
                 message: "too many primitives".to_string(),
@@ -256,6 +260,18 @@ impl SceneGeometry {
                 .collect();
             FreeShells::build(&centres, &corners)
         };
+        let mut blocks = Vec::new();
+        for leaf in bvh.leaves() {
+            debug_assert_eq!(leaf.block as usize, blocks.len());
+            let order = &bvh.order()[leaf.first as usize..(leaf.first + leaf.count) as usize];
+            for chunk in order.chunks(LEAF_BLOCK as usize) {
+                let tris: Vec<[Vec3; 3]> = chunk
+                    .iter()
+                    .map(|&i| corners[i as usize].map(|v| positions[v as usize]))
+                    .collect();
+                blocks.push(TriangleBlock::new(&tris));
+            }
+        }
         let sole_box = match analytic.as_slice() {
             [Analytic::Box { min, max, shape }] if ordered.is_empty() => {
                 Some(((*min).into(), (*max).into(), *shape))
@@ -275,6 +291,7 @@ impl SceneGeometry {
             prims: ordered,
             tris,
             verts,
+            blocks,
             empty,
             analytic,
             shapes,
@@ -475,6 +492,15 @@ impl SceneGeometry {
         } else {
             &[]
         }
+    }
+
+    /// Block `index` of the leaves' triangles (`Leaf::block`).
+    #[inline(always)]
+    fn block(&self, index: u32) -> &TriangleBlock {
+        debug_assert!((index as usize) < self.blocks.len());
+        // SAFETY: the traversal reports leaves of `bvh`, whose blocks `build` stored, all
+        // below `blocks.len()`.
+        unsafe { self.blocks.get_unchecked(index as usize) }
     }
 
     /// The triangle at BVH position `slot`, transposed for the triangle test.
@@ -711,6 +737,36 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
             None => t_max,
         }
     }
+
+    /// The leaf's triangles four at a time ([`ShearedRay::intersect4`]): the nearest lane's
+    /// hit, as the one-by-one visit in position order keeps; a block with an edge function
+    /// exactly zero one triangle at a time ([`Self::visit`], which takes the exact path).
+    #[inline(always)]
+    fn visit_leaf(&mut self, leaf: Leaf, mut t_max: f32) -> f32 {
+        let mut block = leaf.block;
+        let mut first = leaf.first;
+        let end = leaf.first + leaf.count;
+        while first < end {
+            let n = (end - first).min(LEAF_BLOCK);
+            let h = self
+                .sr
+                .intersect4(self.geometry.block(block), (1 << n) - 1, t_max);
+            if h.unsure != 0 {
+                for slot in first..first + n {
+                    t_max = self.visit(slot, t_max);
+                }
+            } else if h.hit != 0 {
+                let (lane, hit) = h.nearest();
+                let slot = first + lane as u32;
+                self.geometry.prefetch_prim(slot as usize);
+                *self.best = Some((slot, hit));
+                t_max = hit.t;
+            }
+            block += 1;
+            first += n;
+        }
+        t_max
+    }
 }
 
 /// The occlusion query's triangle test as the traversal's [`LeafVisitor`]: ends the
@@ -731,6 +787,32 @@ impl LeafVisitor for AnyTriangle<'_, '_> {
         } else {
             t_max
         }
+    }
+
+    /// The leaf's triangles four at a time ([`ShearedRay::intersect4`]); a block with an
+    /// edge function exactly zero one triangle at a time ([`Self::visit`], the exact path).
+    #[inline(always)]
+    fn visit_leaf(&mut self, leaf: Leaf, t_max: f32) -> f32 {
+        let mut block = leaf.block;
+        let mut first = leaf.first;
+        let end = leaf.first + leaf.count;
+        while first < end {
+            let n = (end - first).min(LEAF_BLOCK);
+            let h = self
+                .sr
+                .intersect4(self.geometry.block(block), (1 << n) - 1, t_max);
+            let found = h.hit != 0
+                || (h.unsure != 0
+                    && (first..first + n)
+                        .any(|slot| test_slot(self.geometry, self.sr, slot, t_max).is_some()));
+            if found {
+                *self.found = true;
+                return 0.0;
+            }
+            block += 1;
+            first += n;
+        }
+        t_max
     }
 }
 

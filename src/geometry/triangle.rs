@@ -222,6 +222,135 @@ impl ShearedRay {
     }
 }
 
+/// Up to four triangles transposed for [`ShearedRay::intersect4`]: `v[j][k]` holds coordinate
+/// `k` of vertex `j` of the four triangles, triangle `i` in lane `i` (a leaf of the hierarchy,
+/// stored once, so that the test reads its lanes without a gather).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub(crate) struct TriangleBlock {
+    v: [[Vec4; 3]; 3],
+}
+
+impl TriangleBlock {
+    /// The block of `tris` (one to four; lanes past them repeat the first triangle, and the
+    /// test is told to ignore them).
+    pub(crate) fn new(tris: &[[Vec3; 3]]) -> Self {
+        let lane = |i: usize| {
+            tris.get(i)
+                .or(tris.first())
+                .copied()
+                .unwrap_or([Vec3::ZERO; 3])
+        };
+        let l = [lane(0), lane(1), lane(2), lane(3)];
+        let coord = |j: usize, k: usize| Vec4::new(l[0][j][k], l[1][j][k], l[2][j][k], l[3][j][k]);
+        TriangleBlock {
+            v: [0, 1, 2].map(|j| [coord(j, 0), coord(j, 1), coord(j, 2)]),
+        }
+    }
+}
+
+/// The four lanes of [`ShearedRay::intersect4`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Hits4 {
+    t: Vec4,
+    b: [Vec4; 3],
+    /// Bit `i`: lane `i` is valid, has no edge function exactly zero, and hits with
+    /// `0 < t < t_max`.
+    pub(crate) hit: u32,
+    /// Bit `i`: lane `i` is valid and has an edge function exactly zero in f32; it is not in
+    /// `hit` (the caller tests it with [`ShearedRay::intersect`], which takes the exact path).
+    pub(crate) unsure: u32,
+}
+
+impl Hits4 {
+    /// The lane of the nearest hit in `hit` (the lowest lane among equal distances: the one
+    /// a one-by-one visit in lane order keeps, as it accepts only `t < t_max`), with its hit.
+    /// `hit` must not be empty.
+    #[inline(always)]
+    pub(crate) fn nearest(&self) -> (usize, TriangleHit) {
+        let t = self.t.to_array();
+        let mut best = (self.hit.trailing_zeros() & 3) as usize;
+        let mut rest = self.hit & self.hit.wrapping_sub(1);
+        while rest != 0 {
+            let i = (rest.trailing_zeros() & 3) as usize;
+            if t[i] < t[best] {
+                best = i;
+            }
+            rest &= rest - 1;
+        }
+        let [b0, b1, b2] = self.b.map(|b| b.to_array()[best]);
+        (
+            best,
+            TriangleHit {
+                t: t[best],
+                b0,
+                b1,
+                b2,
+            },
+        )
+    }
+}
+
+impl ShearedRay {
+    /// [`ShearedRay::intersect`] on the four lanes of `block` at once, lanes outside `valid`
+    /// (a bit mask) ignored. Every lane goes through exactly the IEEE operations of the
+    /// one-triangle test, in the same order (no FMA), so a lane's hit is bit-identical to it;
+    /// lanes with an edge function exactly zero are reported in `unsure` instead of taking
+    /// the exact path.
+    #[inline(always)]
+    pub(crate) fn intersect4(&self, block: &TriangleBlock, valid: u32, t_max: f32) -> Hits4 {
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
+        let sheared = |v: &[Vec4; 3]| {
+            // SAFETY: `kx`, `ky` and `kz` are a permutation of 0, 1, 2 (set by `new`).
+            let (vx, vy, vz) = unsafe {
+                (
+                    *v.get_unchecked(self.kx),
+                    *v.get_unchecked(self.ky),
+                    *v.get_unchecked(self.kz),
+                )
+            };
+            let px = vx - self.okx;
+            let py = vy - self.oky;
+            let pz = vz - self.okz;
+            (px - self.sxv * pz, py - self.syv * pz, pz)
+        };
+        let (xa, ya, za) = sheared(&block.v[0]);
+        let (xb, yb, zb) = sheared(&block.v[1]);
+        let (xc, yc, zc) = sheared(&block.v[2]);
+        // The one-triangle test's lanes 0, 1, 2: E(B, C), E(C, A), E(A, B).
+        let u = xc * yb - yc * xb;
+        let v = xa * yc - ya * xc;
+        let w = xb * ya - yb * xa;
+        let zero = Vec4::ZERO;
+        let unsure = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & valid;
+        // Mixed signs miss (a NaN lane compares false both ways; its `t` is NaN below).
+        let neg = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+        let pos = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+        let inside = !(neg & pos).bitmask();
+        if valid & inside & !unsure == 0 {
+            // No lane left to hit (most leaves a ray enters): skip the division.
+            return Hits4 {
+                t: zero,
+                b: [zero; 3],
+                hit: 0,
+                unsure,
+            };
+        }
+        let sz = Vec4::splat(self.sz);
+        let det = (u + v) + w;
+        let tn = (u * (za * sz) + v * (zb * sz)) + w * (zc * sz);
+        let inv = Vec4::ONE / det;
+        let t = tn * inv;
+        let in_range = (t.cmpgt(zero) & t.cmplt(Vec4::splat(t_max))).bitmask();
+        Hits4 {
+            t,
+            b: [u * inv, v * inv, w * inv],
+            hit: valid & !unsure & inside & in_range & 15,
+            unsure,
+        }
+    }
+}
+
 /// `(a.x, b.x, …)`, `(a.y, b.y, …)` and `(a.z, b.z, …)`: lanes 0 and 1 of each hold one
 /// coordinate of `a` and of `b` (lanes 2 and 3 are not used).
 #[inline(always)]
@@ -462,5 +591,86 @@ mod tests {
             zeros > 5_000,
             "{zeros} cases with an edge function exactly zero"
         );
+    }
+
+    /// Every valid lane of [`ShearedRay::intersect4`] is the one-triangle test bit for bit:
+    /// a lane in `hit` has its hit, a lane in `unsure` has an edge function exactly zero, any
+    /// other valid lane is a miss; [`Hits4::nearest`] is the first nearest of the lanes, as
+    /// the one-by-one visit in lane order keeps. Blocks of one to four triangles, some on a
+    /// coarse grid (zero edge functions), some sharing the first triangle's edge.
+    #[test]
+    fn the_four_lane_test_is_the_one_triangle_test_per_lane() {
+        let mut next = uniform_stream(0x2545_f491_4f6c_dd1d);
+        let (mut hits, mut unsure, mut nearest_not_first) = (0, 0, 0);
+        for i in 0..100_000 {
+            let grid = i % 3 == 0;
+            let mut coord = || coordinate(&mut next, grid);
+            let n = 1 + i % 4;
+            let mut tris: Vec<[Vec3; 3]> = (0..n)
+                .map(|_| {
+                    [
+                        Vec3::new(coord(), coord(), coord()),
+                        Vec3::new(coord(), coord(), coord()),
+                        Vec3::new(coord(), coord(), coord()),
+                    ]
+                })
+                .collect();
+            if n > 1 && i % 5 == 0 {
+                // A neighbour across the first triangle's edge.
+                tris[1][0] = tris[0][1];
+                tris[1][1] = tris[0][0];
+            }
+            let o = Vec3::new(coord(), coord(), coord()) * 2.0;
+            let target = Vec3::new(coord(), coord(), coord());
+            let Some(d) = (target - o).try_normalize() else {
+                continue;
+            };
+            let ray = Ray::new(o, d);
+            let t_max = if i % 7 == 0 { 2.0 } else { f32::INFINITY };
+            let sr = ShearedRay::new(&ray);
+            let block = TriangleBlock::new(&tris);
+            let valid = (1u32 << n) - 1;
+            let h = sr.intersect4(&block, valid, t_max);
+            assert_eq!(
+                (h.hit | h.unsure) & !valid,
+                0,
+                "case {i}: invalid lanes reported"
+            );
+            assert_eq!(h.hit & h.unsure, 0, "case {i}");
+            let mut first_nearest: Option<(usize, TriangleHit)> = None;
+            for (lane, p) in tris.iter().enumerate() {
+                let one = sr.intersect(&TriangleSoa::new(p[0], p[1], p[2]), t_max);
+                if h.unsure & (1 << lane) != 0 {
+                    unsure += 1;
+                    continue;
+                }
+                if h.hit & (1 << lane) != 0 {
+                    let got = TriangleHit {
+                        t: h.t.to_array()[lane],
+                        b0: h.b[0].to_array()[lane],
+                        b1: h.b[1].to_array()[lane],
+                        b2: h.b[2].to_array()[lane],
+                    };
+                    assert_eq!(bits(Some(got)), bits(one), "case {i}, lane {lane}");
+                    hits += 1;
+                    if first_nearest.is_none_or(|(_, f)| got.t < f.t) {
+                        first_nearest = Some((lane, got));
+                    }
+                } else {
+                    assert_eq!(bits(one), None, "case {i}, lane {lane}: missed");
+                }
+            }
+            if let Some((lane, f)) = first_nearest {
+                let (l, g) = h.nearest();
+                assert_eq!((l, bits(Some(g))), (lane, bits(Some(f))), "case {i}");
+                nearest_not_first += usize::from(lane > 0);
+            }
+        }
+        assert!(hits > 10_000, "{hits} lane hits");
+        assert!(
+            unsure > 1_000,
+            "{unsure} lanes with an edge function exactly zero"
+        );
+        assert!(nearest_not_first > 1_000, "{nearest_not_first}");
     }
 }
