@@ -42,7 +42,9 @@ pub struct SceneGeometry {
     /// Every triangle vertex once, as `(x, y, z, 0)`, numbered in the order the BVH's
     /// positions first use them. With `tris` this is the compact layout (16 bytes per vertex
     /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
-    /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB.
+    /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB. The
+    /// traversal reads the leaves' `blocks` instead; these serve the hit record and the exact
+    /// path of a block with an edge function exactly zero.
     verts: Vec<Vec4>,
     /// Each leaf's triangles in blocks of four, transposed for the four-lane test, numbered
     /// by `Leaf::block` (144 bytes a block; the traversal reads these, `tris` and `verts`
