@@ -745,11 +745,7 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
     /// exactly zero one triangle at a time ([`Self::visit`], which takes the exact path).
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, mut t_max: f32) -> f32 {
-        let mut block = leaf.block;
-        let mut first = leaf.first;
-        let end = leaf.first + leaf.count;
-        while first < end {
-            let n = (end - first).min(LEAF_BLOCK);
+        for (block, first, n) in leaf.block_spans() {
             let h = self
                 .sr
                 .intersect4(self.geometry.block(block), (1 << n) - 1, t_max);
@@ -764,8 +760,6 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
                 *self.best = Some((slot, hit));
                 t_max = hit.t;
             }
-            block += 1;
-            first += n;
         }
         t_max
     }
@@ -795,11 +789,7 @@ impl LeafVisitor for AnyTriangle<'_, '_> {
     /// edge function exactly zero one triangle at a time ([`Self::visit`], the exact path).
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, t_max: f32) -> f32 {
-        let mut block = leaf.block;
-        let mut first = leaf.first;
-        let end = leaf.first + leaf.count;
-        while first < end {
-            let n = (end - first).min(LEAF_BLOCK);
+        for (block, first, n) in leaf.block_spans() {
             let h = self
                 .sr
                 .intersect4(self.geometry.block(block), (1 << n) - 1, t_max);
@@ -811,8 +801,6 @@ impl LeafVisitor for AnyTriangle<'_, '_> {
                 *self.found = true;
                 return 0.0;
             }
-            block += 1;
-            first += n;
         }
         t_max
     }
