@@ -4,9 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use super::context::Ctx;
-use super::desc::{LightDesc, ObjectDesc};
-use super::{camera, lights, objects, read, Scene, SceneError, ShapeOwner};
-use crate::geometry::{SceneGeometry, Shape};
+use super::{camera, lights, objects, place, read, Scene, SceneError};
+use crate::geometry::SceneGeometry;
 use crate::light::{Light, LightSampler};
 use crate::medium::NeeStrategy;
 
@@ -29,6 +28,13 @@ pub fn load_scene_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
 
 /// [`load_scene_str`]; with `overlap` false, the geometry is never built beside the interiors
 /// (the object-by-object build, which the overlapped one must equal).
+///
+/// The steps, in this order (which fixes the order of the input files, warnings and notes, and
+/// which error is reported first): the film and camera; the objects ([`place::place_objects`],
+/// whose geometry may be building meanwhile); the lights ([`lights::build_lights`]) and the
+/// sphere lights' shapes; the interiors' default NEE ([`super::nee::resolve_defaults`]) and
+/// the checks of manifold NEE ([`check_manifold`]); the geometry; the light selection
+/// ([`LightSelection::new`]) and the interiors' sun maps ([`prepare_sun_maps`]).
 fn load_scene_placing(text: &str, path: &Path, overlap: bool) -> Result<Scene, SceneError> {
     let ctx = Ctx {
         path,
@@ -41,189 +47,143 @@ fn load_scene_placing(text: &str, path: &Path, overlap: bool) -> Result<Scene, S
     let mut notes = Vec::new();
     let film = camera::build_film(&ctx, file.film.as_ref())?;
     let (camera, camera_params) = camera::build_camera(&ctx, file.camera.as_ref(), &film)?;
-
-    // The BVH over the objects' triangles is the largest serial step of loading a scene with a
-    // large mesh: when every shape is known before the interiors (and no sphere light adds
-    // one), it is built on its own thread while the interiors are.
-    let sphere_lights = file
-        .light
-        .iter()
-        .any(|l| matches!(l.get_ref(), LightDesc::Sphere(_)));
-    let early = overlap && !sphere_lights && objects::all_placeable_early(&file.object);
+    let overlap = overlap && place::can_overlap(&file.object, &file.light);
     std::thread::scope(|scope| {
-        let mut shapes: Vec<Shape> = Vec::new();
-        let mut shape_owner = Vec::new();
-        let mut built = objects::ObjectList::default();
-        let mut pending = None;
-        if early {
-            let staged = stage_all(&ctx, &file.object, &mut built, &mut warnings, &mut notes)?;
-            let mut placed = Vec::with_capacity(staged.len());
-            for (s, _) in &staged {
-                let (shape, p) = objects::place_early(s)
-                    .ok_or_else(|| ctx.invalid(1, "an object's shape cannot be placed early"))?;
-                shapes.push(shape);
-                placed.push(p);
-            }
-            let early_shapes = std::mem::take(&mut shapes);
-            pending = Some(scope.spawn(move || SceneGeometry::build(early_shapes)));
-            let mut own_inputs = Vec::with_capacity(staged.len());
-            for (((s, stage_inputs), p), desc) in staged.into_iter().zip(placed).zip(&file.object) {
-                let from = ctx.inputs.borrow().len();
-                built.finish(&ctx, desc, s, Some(p), &mut warnings, &mut notes)?;
-                let interior_inputs = ctx.inputs.borrow_mut().split_off(from);
-                own_inputs.push((stage_inputs, interior_inputs));
-                shape_owner.push(ShapeOwner::Object((built.objects.len() - 1) as u32));
-            }
-            // The files in the order the serial build reads them: each object's own, its
-            // interior's after its shape's and surface's.
-            let mut inputs = ctx.inputs.borrow_mut();
-            for (stage_inputs, interior_inputs) in own_inputs {
-                inputs.extend(stage_inputs);
-                inputs.extend(interior_inputs);
-            }
-        } else {
-            for (index, desc) in file.object.iter().enumerate() {
-                let shape = built.add(&ctx, index, desc, &mut warnings, &mut notes)?;
-                shapes.push(shape);
-                shape_owner.push(ShapeOwner::Object((built.objects.len() - 1) as u32));
-            }
-        }
-
-        let mut lights = Vec::new();
-        let mut light_layers = Vec::new();
-        let mut layer_names: Vec<String> = Vec::new();
-        for spanned in &file.light {
-            let line = ctx.line_of(spanned.span().start);
-            let light = lights::build_light(&ctx, line, spanned.get_ref())?;
-            light_layers.push(match spanned.get_ref().name() {
-                None => None,
-                Some(name) => Some(lights::layer_slot(&ctx, line, name, &mut layer_names)?),
-            });
-            if let Light::Sphere { center, radius, .. } = &light {
-                shapes.push(Shape::Sphere {
-                    center: *center,
-                    radius: *radius,
-                });
-                shape_owner.push(ShapeOwner::Light(lights.len() as u32));
-            }
-            lights.push(light);
-        }
-        super::nee::resolve_defaults(&mut built.objects, &built.auto_guided, &lights);
-        if !lights
-            .iter()
-            .any(|l| matches!(l, Light::Sphere { .. } | Light::Distant { .. }))
-        {
-            if let Some((name, line, _)) = built.manifold.first() {
-                return Err(ctx.invalid(
-                *line,
-                format!("{name}: interior.nee = \"manifold\" connects to sphere and distant lights, but the scene has none (only environments, or no light)"),
-            ));
-            }
-        }
-        let any_interface = built
-            .objects
-            .iter()
-            .any(|o| super::objects::is_smooth_refractor(&o.surface));
-        if let Some((name, line, _)) = built.manifold.iter().find(|m| m.2 && !any_interface) {
-            return Err(ctx.invalid(
-            *line,
-            format!("{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0), but it has no surface and no object of the scene has such a boundary to enclose it"),
-        ));
-        }
-        if lights.is_empty() {
+        let mut placed = place::place_objects(
+            scope,
+            &ctx,
+            &file.object,
+            overlap,
+            &mut warnings,
+            &mut notes,
+        )?;
+        let lights = lights::build_lights(&ctx, &file.light)?;
+        placed.add_light_shapes(&lights.lights);
+        super::nee::resolve_defaults(
+            &mut placed.built.objects,
+            &placed.built.auto_guided,
+            &lights.lights,
+        );
+        check_manifold(&ctx, &placed.built, &lights.lights)?;
+        if lights.lights.is_empty() {
             warnings.push(format!(
                 "{}: the scene has no lights; the image will be black",
                 ctx.path.display()
             ));
         }
+        let geometry = placed.geometry(&ctx)?;
+        let selection = LightSelection::new(&lights.lights, &geometry);
+        prepare_sun_maps(&placed.built, &lights.lights, selection.brightest_delta_sun);
+        Ok(Scene {
+            camera,
+            camera_params,
+            film,
+            lights: lights.lights,
+            light_sampler: selection.light_sampler,
+            nee_light_sampler: selection.nee_light_sampler,
+            brightest_delta_sun: selection.brightest_delta_sun,
+            brightest_sun: selection.brightest_sun,
+            geometry,
+            objects: placed.built.objects,
+            media: placed.built.media,
+            shape_owner: placed.shape_owner,
+            warnings,
+            notes,
+            source: ctx.path.to_path_buf(),
+            inputs: ctx.inputs.take(),
+            light_layers: lights.layers,
+            light_layer_names: lights.layer_names,
+        })
+    })
+}
 
-        let geometry = match pending {
-            Some(handle) => {
-                debug_assert!(shapes.is_empty(), "sphere lights are placed serially");
-                handle
-                    .join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-            }
-            None => SceneGeometry::build(shapes),
+/// Checks the objects with `nee = "manifold"` against the scene: the first of them (in file
+/// order) needs a sphere or distant light to connect to, and one without a surface of its own
+/// needs an object of the scene with a smooth refractive boundary to enclose it. Each error
+/// names the object and its interior table's line.
+fn check_manifold(
+    ctx: &Ctx,
+    built: &objects::ObjectList,
+    lights: &[Light],
+) -> Result<(), SceneError> {
+    if !lights
+        .iter()
+        .any(|l| matches!(l, Light::Sphere { .. } | Light::Distant { .. }))
+    {
+        if let Some((name, line, _)) = built.manifold.first() {
+            return Err(ctx.invalid(
+                *line,
+                format!("{name}: interior.nee = \"manifold\" connects to sphere and distant lights, but the scene has none (only environments, or no light)"),
+            ));
         }
-        .map_err(|e| ctx.invalid(1, format!("building the geometry: {e}")))?;
+    }
+    let any_interface = built
+        .objects
+        .iter()
+        .any(|o| objects::is_smooth_refractor(&o.surface));
+    if let Some((name, line, _)) = built.manifold.iter().find(|m| m.2 && !any_interface) {
+        return Err(ctx.invalid(
+            *line,
+            format!("{name}: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0), but it has no surface and no object of the scene has such a boundary to enclose it"),
+        ));
+    }
+    Ok(())
+}
+
+/// How the renderer picks among the scene's lights, found once at load.
+struct LightSelection {
+    /// [`LightSampler::new`].
+    light_sampler: LightSampler,
+    /// [`LightSampler::for_nee`].
+    nee_light_sampler: LightSampler,
+    /// [`crate::light::brightest_delta_sun`].
+    brightest_delta_sun: Option<usize>,
+    /// [`crate::light::brightest_distant`], discs included.
+    brightest_sun: Option<usize>,
+}
+
+impl LightSelection {
+    /// The selection among `lights` in a scene of `geometry`: the samplers see the scene as
+    /// a ball of half the diagonal of its bounds (at least 10⁻³; 1 when it has no bounds).
+    fn new(lights: &[Light], geometry: &SceneGeometry) -> Self {
         let b = geometry.bounds();
         let radius = if b.is_valid() {
             (b.extent().length() * 0.5).max(1e-3)
         } else {
             1.0
         };
-        let light_sampler = LightSampler::new(&lights, radius);
-        let nee_light_sampler = LightSampler::for_nee(&lights, radius);
-        let brightest_delta_sun = crate::light::brightest_delta_sun(&lights);
-        let brightest_sun = crate::light::brightest_distant(&lights, true);
-        // The sun map of every interior whose sun lean will ask for it, made now (in parallel)
-        // rather than by the first render thread to need it.
-        if let Some(Light::Distant { to_light, .. }) =
-            brightest_delta_sun.and_then(|l| lights.get(l))
-        {
-            for obj in built
-                .objects
-                .iter()
-                .filter(|o| o.nee == NeeStrategy::Interior)
-            {
-                if let Some(m) = obj.medium.and_then(|m| built.media.get(m as usize)) {
-                    if m.sun_lean() {
-                        m.prepare_sun_map(*to_light);
-                    }
-                }
-            }
+        LightSelection {
+            light_sampler: LightSampler::new(lights, radius),
+            nee_light_sampler: LightSampler::for_nee(lights, radius),
+            brightest_delta_sun: crate::light::brightest_delta_sun(lights),
+            brightest_sun: crate::light::brightest_distant(lights, true),
         }
-        Ok(Scene {
-            camera,
-            camera_params,
-            film,
-            lights,
-            light_sampler,
-            nee_light_sampler,
-            brightest_delta_sun,
-            brightest_sun,
-            geometry,
-            objects: built.objects,
-            media: built.media,
-            shape_owner,
-            warnings,
-            notes,
-            source: ctx.path.to_path_buf(),
-            inputs: ctx.inputs.take(),
-            light_layers,
-            light_layer_names: layer_names,
-        })
-    })
+    }
 }
 
-/// Stages every object ([`objects::stage`]) with the input files each one reads. When one
-/// fails, the objects before it are built in full first ([`objects::ObjectList::finish`]), so
-/// that the error reported is the one the object-by-object build meets first.
-fn stage_all(
-    ctx: &Ctx,
-    descs: &[toml::Spanned<ObjectDesc>],
-    built: &mut objects::ObjectList,
-    warnings: &mut Vec<String>,
-    notes: &mut Vec<String>,
-) -> Result<Vec<(objects::Staged, Vec<PathBuf>)>, SceneError> {
-    let mut staged = Vec::with_capacity(descs.len());
-    for (index, desc) in descs.iter().enumerate() {
-        let from = ctx.inputs.borrow().len();
-        match objects::stage(ctx, index, desc) {
-            Ok(s) => {
-                let own = ctx.inputs.borrow_mut().split_off(from);
-                staged.push((s, own));
-            }
-            Err(e) => {
-                for ((s, _), desc) in staged.into_iter().zip(descs) {
-                    built.finish(ctx, desc, s, None, warnings, notes)?;
-                }
-                return Err(e);
+/// Makes now (in parallel) the sun map of every interior whose sun lean will ask for it
+/// (interior NEE, [`crate::medium::Medium::sun_lean`]) towards the delta sun
+/// `brightest_delta_sun` of `lights`, rather than by the first render thread to need it.
+fn prepare_sun_maps(
+    built: &objects::ObjectList,
+    lights: &[Light],
+    brightest_delta_sun: Option<usize>,
+) {
+    let Some(Light::Distant { to_light, .. }) = brightest_delta_sun.and_then(|l| lights.get(l))
+    else {
+        return;
+    };
+    for obj in built
+        .objects
+        .iter()
+        .filter(|o| o.nee == NeeStrategy::Interior)
+    {
+        if let Some(m) = obj.medium.and_then(|m| built.media.get(m as usize)) {
+            if m.sun_lean() {
+                m.prepare_sun_map(*to_light);
             }
         }
     }
-    Ok(staged)
 }
 
 /// The text of the built-in default scene (`scenes/creature.toml`).

@@ -7,6 +7,40 @@ use super::SceneError;
 use crate::light::{EnvironmentMap, Light};
 use crate::spectrum::Rgb;
 
+/// The scene's lights and their beauty layers.
+pub(super) struct SceneLights {
+    /// The lights, in file order.
+    pub lights: Vec<Light>,
+    /// Per light: its beauty layer's slot, for named lights ([`layer_slot`]).
+    pub layers: Vec<Option<u8>>,
+    /// The names of the light layers, by slot.
+    pub layer_names: Vec<String>,
+}
+
+/// Builds every `[[light]]` of `descs` in file order ([`build_light`], then the layer of a
+/// named light); the first error met is returned.
+pub(super) fn build_lights(
+    ctx: &Ctx,
+    descs: &[toml::Spanned<LightDesc>],
+) -> Result<SceneLights, SceneError> {
+    let mut built = SceneLights {
+        lights: Vec::with_capacity(descs.len()),
+        layers: Vec::with_capacity(descs.len()),
+        layer_names: Vec::new(),
+    };
+    for spanned in descs {
+        let line = ctx.line_of(spanned.span().start);
+        built
+            .lights
+            .push(build_light(ctx, line, spanned.get_ref())?);
+        built.layers.push(match spanned.get_ref().name() {
+            None => None,
+            Some(name) => Some(layer_slot(ctx, line, name, &mut built.layer_names)?),
+        });
+    }
+    Ok(built)
+}
+
 /// The light of a `[[light]]` table starting at `line`.
 pub(super) fn build_light(ctx: &Ctx, line: usize, l: &LightDesc) -> Result<Light, SceneError> {
     match l {

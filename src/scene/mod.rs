@@ -6,8 +6,9 @@
 //! holds the shared checks; `camera` builds the film and camera, `lights` the lights,
 //! `objects` the shapes, transforms and object list, `surface` the boundaries and `interior`
 //! the media (a file per kind of interior); `nee` resolves the default next event estimation
-//! of each interior from its boundary and the lights; `build` puts them together. The fabric
-//! level-of-detail policy the interiors apply is [`crate::fabric::lod`].
+//! of each interior from its boundary and the lights; `place` places the objects (and builds
+//! the geometry beside their interiors where it can); `build` puts them together in named
+//! steps. The fabric level-of-detail policy the interiors apply is [`crate::fabric::lod`].
 
 mod build;
 mod camera;
@@ -17,6 +18,7 @@ mod interior;
 mod lights;
 mod nee;
 mod objects;
+mod place;
 mod read;
 mod surface;
 mod textures;
