@@ -556,3 +556,43 @@ fn memory_per_active_voxel_of_dense_bricks() {
         assert!(m.bytes_per_active_brick_voxel <= 1.25 * raw, "{m:?}");
     }
 }
+
+/// The grid's integer floor ([`velour::grid::floor_frac`]) and fabric's three-lane one
+/// ([`velour::fabric::floor_ivec3`]) are one function: the same integers for every input,
+/// the `i32` range's edges, infinities and NaN included.
+#[test]
+fn grid_and_fabric_floors_give_the_same_integers() {
+    let edges = [
+        0.0f32,
+        -0.0,
+        0.5,
+        -0.5,
+        -1.0e-30,
+        8_388_607.5,
+        -8_388_607.5,
+        2_147_483_520.0,
+        -2_147_483_520.0,
+        2_147_483_648.0,
+        -2_147_483_648.0,
+        -2_147_483_904.0,
+        f32::MAX,
+        f32::MIN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+    ];
+    let mut cases: Vec<Vec3> = edges.iter().map(|&x| Vec3::new(x, -x, 0.25)).collect();
+    let mut rng = Rng::new(24, 0);
+    for _ in 0..100_000 {
+        let scale = 2.0f32.powi((rng.next_f32() * 70.0) as i32 - 20);
+        let mut r = || (rng.next_f32() * 2.0 - 1.0) * scale;
+        cases.push(Vec3::new(r(), r(), r()));
+    }
+    for p in cases {
+        assert_eq!(
+            velour::grid::floor_frac(p).0,
+            velour::fabric::floor_ivec3(p),
+            "{p:?}"
+        );
+    }
+}

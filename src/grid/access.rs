@@ -416,18 +416,24 @@ fn padded_corners(pad: &[f32], e: u32, l: IVec3) -> Option<[f32; 8]> {
 }
 
 /// Integer floor and fractional part of each coordinate, without a libm call (the x86-64
-/// baseline has no rounding instruction). Saturates outside the `i32` range; NaN gives 0.
-/// [`Accessor::sample_trilinear`]'s cell and weights.
+/// baseline has no rounding instruction): `p.floor().as_ivec3()` and `p - ⌊p⌋` for every `p`
+/// within the `i32` range; saturating above it, NaN gives 0, and below −2³¹ the correction
+/// step wraps (to `i32::MAX`). [`Accessor::sample_trilinear`]'s cell and weights.
+///
+/// The integers are those of `fabric::floor_ivec3` for every input (the level above computes
+/// them three lanes at once in SSE2; this layer cannot import it). It is not the level set
+/// DDA's floor, which saturates below −2³¹ too (its cell key is clamped next), nor the
+/// texture lookups' `floor_exact`, a float floor exact at every magnitude.
 #[inline(always)]
 #[must_use]
 pub fn floor_frac(p: Vec3) -> (IVec3, Vec3) {
     let t = p.as_ivec3(); // truncation toward zero, saturating
     let tf = t.as_vec3();
-    let i = t - IVec3::new(
+    let i = t.wrapping_sub(IVec3::new(
         i32::from(tf.x > p.x),
         i32::from(tf.y > p.y),
         i32::from(tf.z > p.z),
-    );
+    ));
     (i, p - i.as_vec3())
 }
 
@@ -460,8 +466,68 @@ fn padded_voxels() -> impl Iterator<Item = (usize, usize)> {
 
 #[cfg(test)]
 mod tests {
+    use super::floor_frac;
     use crate::grid::{ChannelKind, SparseGridBuilder, Storage};
     use glam::{IVec3, Vec3};
+
+    /// [`floor_frac`] is the plain floor bit for bit within the `i32` range (its integers the
+    /// floor cast, its fractions `p - p.floor()`): signed zeros, values just around integers
+    /// and halves, the 2²³ and 2³¹ boundaries, and random bit patterns of every exponent;
+    /// and saturating above 2³¹, wrapping below −2³¹, NaN to 0 as documented.
+    #[test]
+    fn floor_frac_is_the_plain_floor() {
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            -8_388_608.0,
+            2_147_483_520.0,
+            -2_147_483_520.0,
+            -2_147_483_648.0,
+        ];
+        for k in -2000..2000 {
+            let x = k as f32 * 0.25;
+            values.extend([x, x.next_up(), x.next_down()]);
+        }
+        let mut bits = 0x9e37_79b9u32;
+        for _ in 0..300_000 {
+            bits ^= bits << 13;
+            bits ^= bits >> 17;
+            bits ^= bits << 5;
+            let x = f32::from_bits(bits);
+            if x.is_finite() && x.abs() < 2_147_483_648.0 {
+                values.push(x);
+            }
+        }
+        for &x in &values {
+            let p = Vec3::new(x, -x, 0.25);
+            let (i, f) = floor_frac(p);
+            let want = p.floor();
+            assert_eq!(i, want.as_ivec3(), "{p:?}");
+            // Bit for bit but for the sign of a zero fraction (−0 − (−0) is +0).
+            assert_eq!(f, p - want, "{p:?}");
+            assert!(
+                f.cmpge(Vec3::ZERO).all() && f.cmple(Vec3::ONE).all(),
+                "{p:?}"
+            );
+        }
+        let (i, _) = floor_frac(Vec3::new(3.0e9, -3.0e9, f32::NAN));
+        assert_eq!(i, IVec3::new(i32::MAX, i32::MAX, 0));
+        let (i, _) = floor_frac(Vec3::new(
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -2_147_483_904.0,
+        ));
+        assert_eq!(i, IVec3::new(i32::MAX, i32::MAX, i32::MAX));
+    }
 
     /// A 16-bit scalar channel gets its padded copy too (the media's fast lookups), holding
     /// the f32 values the plain accessor converts its voxels to: the same lookups bit for bit.

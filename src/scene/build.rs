@@ -231,6 +231,7 @@ pub(super) fn default_scene() -> Result<Scene, SceneError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::ShapeOwner;
 
     /// Loads `scenes/NAME` both ways.
     fn both(name: &str) -> (Scene, Scene) {
@@ -298,5 +299,98 @@ file = "meshes/does_not_exist.ply"
         let b = load_scene_placing(text, &path, false).expect_err("invalid");
         assert_eq!(a.to_string(), b.to_string());
         assert!(a.to_string().contains("first"), "{a}");
+    }
+
+    /// A scene of a camera, `lights` and `objects` (TOML tables).
+    fn scene_text(lights: &str, objects: &str) -> String {
+        format!("[camera]\neye = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n{lights}\n{objects}")
+    }
+
+    /// Loads `text` both ways (as `bad.toml`); both give the same error, which is returned.
+    fn error_both_ways(text: &str) -> String {
+        let path = Path::new("bad.toml");
+        let a = load_scene_placing(text, path, true).expect_err("invalid");
+        let b = load_scene_placing(text, path, false).expect_err("invalid");
+        assert_eq!(a.to_string(), b.to_string());
+        a.to_string()
+    }
+
+    const ENVIRONMENT: &str = "[[light]]\ntype = \"environment\"";
+    const SUN: &str = "[[light]]\ntype = \"distant\"\ndirection = [0.0, -1.0, 0.0]";
+
+    /// An object `name` with `surface` (a TOML value, or none) and a manifold-NEE interior.
+    fn manifold_object(name: &str, surface: Option<&str>) -> String {
+        let surface = surface.map_or(String::new(), |s| format!("surface = {s}\n"));
+        format!(
+            "[[object]]\nname = \"{name}\"\nshape = \"sphere\"\n{surface}interior = {{ type = \"homogeneous\", albedo = 0.8, nee = \"manifold\" }}\n"
+        )
+    }
+
+    const SMOOTH: &str = "{ type = \"dielectric\", ior = 1.4 }";
+
+    #[test]
+    fn manifold_nee_without_a_sphere_or_distant_light_names_the_first_such_object() {
+        let objects = format!(
+            "{}{}",
+            manifold_object("first", Some(SMOOTH)),
+            manifold_object("second", Some(SMOOTH))
+        );
+        for lights in [ENVIRONMENT, ""] {
+            let e = error_both_ways(&scene_text(lights, &objects));
+            // The first object's interior table is on its fifth line (after the camera's
+            // three lines and the lights').
+            let line = 3 + lights.lines().count().max(1) + 1 + 4;
+            assert_eq!(
+                e,
+                format!("bad.toml:{line}: first: interior.nee = \"manifold\" connects to sphere and distant lights, but the scene has none (only environments, or no light)"),
+            );
+        }
+        // With a distant light the scene loads.
+        load_scene_placing(&scene_text(SUN, &objects), Path::new("ok.toml"), true).expect("loads");
+    }
+
+    #[test]
+    fn manifold_nee_without_a_surface_needs_an_enclosing_smooth_boundary() {
+        let inside = manifold_object("iris", None);
+        let e = error_both_ways(&scene_text(SUN, &inside));
+        assert_eq!(
+            e,
+            "bad.toml:10: iris: interior.nee = \"manifold\" needs a smooth refractive boundary (surface type = \"dielectric\", roughness = 0), but it has no surface and no object of the scene has such a boundary to enclose it",
+        );
+        // The light check comes first.
+        let e = error_both_ways(&scene_text(ENVIRONMENT, &inside));
+        assert!(e.contains("connects to sphere and distant lights"), "{e}");
+        // An enclosing smooth dielectric object (here, a second manifold object) is enough.
+        let objects = format!("{inside}{}", manifold_object("globe", Some(SMOOTH)));
+        load_scene_placing(&scene_text(SUN, &objects), Path::new("ok.toml"), true).expect("loads");
+    }
+
+    #[test]
+    fn sphere_lights_own_shapes_after_the_objects_and_a_scene_without_lights_warns() {
+        let sphere_light =
+            "[[light]]\ntype = \"sphere\"\ncenter = [0.0, 3.0, 0.0]\nradius = 0.5\nradiance = 2.0";
+        let lights = format!("{ENVIRONMENT}\n{sphere_light}\n{sphere_light}");
+        let object = "[[object]]\nname = \"ball\"\nshape = \"sphere\"\nsurface = { type = \"lambertian\" }\n";
+        let scene =
+            load_scene_str(&scene_text(&lights, object), Path::new("ok.toml")).expect("loads");
+        assert_eq!(
+            scene.shape_owner,
+            [
+                ShapeOwner::Object(0),
+                ShapeOwner::Light(1),
+                ShapeOwner::Light(2)
+            ]
+        );
+        assert_eq!(scene.geometry.shape_count(), 3);
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+        for overlap in [true, false] {
+            let dark = load_scene_placing(&scene_text("", object), Path::new("dark.toml"), overlap)
+                .expect("loads");
+            assert_eq!(
+                dark.warnings,
+                ["dark.toml: the scene has no lights; the image will be black"]
+            );
+            assert_eq!(dark.shape_owner, [ShapeOwner::Object(0)]);
+        }
     }
 }

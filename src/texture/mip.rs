@@ -53,6 +53,10 @@ fn box_weights(src: usize, dst: usize) -> Vec<Vec<(usize, f32)>> {
 /// is a library call per coordinate. Bit for bit the same for every `f32` (`−0.0` stays
 /// `−0.0`; values of magnitude 2²³ or more, infinities and NaN are returned as they are,
 /// as `floor` returns them: they have no fraction).
+///
+/// A float, not an integer as the grid's, fabric's and level set's floors return: the
+/// bilinear weights are `x − ⌊x⌋` and the texel index an `i64`, right at every magnitude of a
+/// repeated texture coordinate, where an `i32` floor would saturate.
 #[inline(always)]
 fn floor_exact(x: f32) -> f32 {
     const INTEGRAL: f32 = 8_388_608.0; // 2^23: every f32 at least this large is an integer

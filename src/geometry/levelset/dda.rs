@@ -70,6 +70,11 @@ fn first_exits(cell: IVec3, step: [i32; 3], size: f32, o: Vec3, inv: [f32; 3]) -
 
 /// `x.floor() as i32` (saturating, NaN to 0) without a library call: truncation, one lower
 /// where it rounded up.
+///
+/// Not `grid::floor_frac`'s (or `fabric::floor_ivec3`'s) integers, which wrap below −2³¹ to
+/// `i32::MAX`: the cell key is clamped into `[lo, hi]` next, so a point far below the grid
+/// must give the lowest key. Not the texture lookups' `floor_exact` either, which returns the
+/// float floor (`floor_exact(x) as i32` is this function, with more work per call).
 #[inline(always)]
 fn floor_i32(x: f32) -> i32 {
     let i = x as i32;
