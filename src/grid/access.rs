@@ -365,11 +365,11 @@ impl<'a> Accessor<'a> {
             let cz = usize::from(l.z == 7);
             // e[(dx & cx) << 2 | (dy & cy) << 1 | (dz & cz)]
             let mut e = [e0; 8];
-            for n in 1..8usize {
+            for (n, en) in e.iter_mut().enumerate().skip(1) {
                 let (nx, ny, nz) = (n >> 2, (n >> 1) & 1, n & 1);
                 if nx <= cx && ny <= cy && nz <= cz {
                     let d = IVec3::new(nx as i32, ny as i32, nz as i32);
-                    e[n] = self.peek(k0 + d);
+                    *en = self.peek(k0 + d);
                 }
             }
             if e0 & TILE_BIT != 0 && e.iter().all(|&x| x == e0) {
@@ -391,15 +391,15 @@ impl<'a> Accessor<'a> {
     /// Trilinear interpolation of a vector channel at index-space point `p`.
     pub fn sample_trilinear_vec3(&mut self, p: Vec3) -> Vec3 {
         let (i, t) = floor_frac(p);
-        let mut c = [[0.0f32; 8]; 3];
-        for k in 0..8 {
+        let c: [Vec3; 8] = std::array::from_fn(|k| {
             let d = IVec3::new((k >> 2) as i32, ((k >> 1) & 1) as i32, (k & 1) as i32);
-            let v = self.value_vec3(i.wrapping_add(d));
-            c[0][k] = v.x;
-            c[1][k] = v.y;
-            c[2][k] = v.z;
-        }
-        Vec3::new(trilerp(&c[0], t), trilerp(&c[1], t), trilerp(&c[2], t))
+            self.value_vec3(i.wrapping_add(d))
+        });
+        Vec3::new(
+            trilerp(&c.map(|v| v.x), t),
+            trilerp(&c.map(|v| v.y), t),
+            trilerp(&c.map(|v| v.z), t),
+        )
     }
 }
 

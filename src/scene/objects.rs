@@ -285,7 +285,7 @@ impl ObjectList {
                         ls.transform(xf).map_err(|e| {
                             ctx.invalid(line, format!("{name}: placing the level set: {e}"))
                         })?;
-                        (Shape::LevelSet(std::sync::Arc::new(ls)), false)
+                        (Shape::LevelSet(std::sync::Arc::new(*ls)), false)
                     }
                     (RestShape::Bounds, _) => {
                         let bounds = match medium.map(|m| &media[m as usize]) {
@@ -587,8 +587,9 @@ enum RestShape {
     },
     /// The world box of the interior's grid.
     Bounds,
-    /// A level set (placed by its file's transform; the object transform comes on top).
-    LevelSet(LevelSet),
+    /// A level set (placed by its file's transform; the object transform comes on top;
+    /// boxed: it is much larger than the other shapes).
+    LevelSet(Box<LevelSet>),
 }
 
 impl RestShape {
@@ -692,7 +693,9 @@ fn build_rest_shape(
             })?;
             let path = ctx.resolve(file);
             let grid = d.grid.as_deref().unwrap_or("surface");
-            Ok(RestShape::LevelSet(load_level_set(ctx, line, name, &path, grid)?))
+            Ok(RestShape::LevelSet(Box::new(load_level_set(
+                ctx, line, name, &path, grid,
+            )?)))
         }
         other => Err(ctx.invalid(
             line,

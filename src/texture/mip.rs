@@ -199,7 +199,7 @@ impl MipPyramid {
     #[inline]
     #[must_use]
     pub fn level_for_width(&self, texels: f32) -> f32 {
-        if !(texels > 1.0) {
+        if texels.is_nan() || texels <= 1.0 {
             return 0.0;
         }
         texels.log2().min((self.levels.len() - 1) as f32)

@@ -274,7 +274,7 @@ fn build_fabric(
         // Mip levels are summed from the fine accumulators.
         None => {
             let (vp, albedos) = generate(at, d, auto_mip || mip.is_some_and(|l| l > 0))?;
-            (PatchSource::Generated(vp), albedos)
+            (PatchSource::Generated(Box::new(vp)), albedos)
         }
     };
     let fibre = fibre_phase(at, d.fibre_phase.as_ref())?;

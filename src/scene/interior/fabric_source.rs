@@ -15,8 +15,8 @@ use crate::spectrum::Rgb;
 /// from a file `velour weave` wrote.
 pub(super) enum PatchSource {
     /// Generated and voxelised at load (level 0, with accumulators when coarser levels are
-    /// needed).
-    Generated(VoxelisedPatch),
+    /// needed; boxed: it is much larger than the file's box).
+    Generated(Box<VoxelisedPatch>),
     /// A patch file (its stored levels; missing levels are built from level 0).
     File(Box<PatchFile>),
 }
@@ -25,7 +25,7 @@ impl PatchSource {
     /// Level 0.
     pub(super) fn base(&self) -> Option<&VoxelisedPatch> {
         match self {
-            PatchSource::Generated(vp) => Some(vp),
+            PatchSource::Generated(vp) => Some(vp.as_ref()),
             PatchSource::File(f) => f.levels.first().and_then(Option::as_ref),
         }
     }
@@ -33,7 +33,7 @@ impl PatchSource {
     /// Mip level `l`.
     pub(super) fn level(&self, l: u32) -> Result<VoxelisedPatch, crate::fabric::FabricError> {
         match self {
-            PatchSource::Generated(vp) if l == 0 => Ok(vp.clone()),
+            PatchSource::Generated(vp) if l == 0 => Ok(vp.as_ref().clone()),
             PatchSource::Generated(vp) => vp.mip(l),
             PatchSource::File(f) => f.level(l),
         }

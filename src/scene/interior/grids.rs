@@ -242,7 +242,7 @@ pub(super) fn emission_grid(
         )));
     }
     let temperature_scale = match d.temperature_scale {
-        Some(s) if !(s >= 0.0) || !s.is_finite() => {
+        Some(s) if !s.is_finite() || s < 0.0 => {
             return Err(at.invalid(format!(
             "{owner}.temperature_scale = {s}: must be a finite number ≥ 0 (kelvin per grid unit)"
         )))

@@ -275,7 +275,7 @@ impl DensityLook {
         if keys.base_albedo.is_some() || keys.base_attenuation.is_some() {
             let base_albedo = at.unit_colour("base_albedo", keys.base_albedo, Rgb::splat(0.8))?;
             let base_attenuation = crate::scene::validate::color(keys.base_attenuation, Rgb::ONE);
-            if base_attenuation.0.iter().any(|v| !(*v > 0.0)) {
+            if base_attenuation.0.iter().any(|v| v.is_nan() || *v <= 0.0) {
                 return Err(at.invalid(format!(
                     "{}.base_attenuation = {:?}: every channel must be a distance > 0",
                     at.owner, base_attenuation.0

@@ -217,7 +217,7 @@ fn extinction_and_nee(
     let density = at.range("density", density.unwrap_or(1.0), 0.0, 1e12)?;
     let attenuation = color(attenuation, Rgb::ONE);
     for v in attenuation.0 {
-        if !(v > 0.0) || v.is_nan() {
+        if v.is_nan() || v <= 0.0 {
             return Err(at.invalid(format!("{}.attenuation = {:?}: every channel must be a distance > 0 (use a large value for no attenuation)", at.owner, attenuation.0)));
         }
     }
