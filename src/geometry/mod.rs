@@ -29,6 +29,7 @@ mod ply;
 pub mod ray_log;
 mod sphere;
 mod sphere_lanes;
+mod sweep_sah;
 mod triangle;
 mod wide_bvh;
 

@@ -27,9 +27,8 @@ use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb as OAabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::Bvh2;
-use obvhs::ploc::PlocBuilder;
-use obvhs::{Boundable, BvhBuildParams};
 
+use super::sweep_sah;
 use crate::math::{Ray, Vec3};
 
 /// Leaves hold at most this many primitives: two blocks of [`LEAF_BLOCK`] (the lanes of the
@@ -169,14 +168,6 @@ pub struct WideBvh {
     /// The CPU runs AVX2, FMA and POPCNT (detected when the hierarchy is built): the 8-wide
     /// node test.
     avx2: bool,
-}
-
-struct BoxPrim(OAabb);
-
-impl Boundable for BoxPrim {
-    fn aabb(&self) -> OAabb {
-        self.0
-    }
 }
 
 /// The ray quantities the slab test needs, per axis.
@@ -563,18 +554,11 @@ impl WideBvh {
         if n == 0 {
             return (WideBvh::default(), f32::NAN);
         }
-        let prims: Vec<BoxPrim> = boxes
+        let prims: Vec<OAabb> = boxes
             .iter()
-            .map(|(lo, hi)| BoxPrim(OAabb::new(Vec3A::from(*lo), Vec3A::from(*hi))))
+            .map(|(lo, hi)| OAabb::new(Vec3A::from(*lo), Vec3A::from(*hi)))
             .collect();
-        let params = BvhBuildParams::medium_build();
-        let mut bvh2 = PlocBuilder::with_capacity(n).build(
-            params.ploc_search_distance,
-            &prims,
-            (0..n as u32).collect(),
-            params.sort_precision,
-            params.search_depth_threshold,
-        );
+        let mut bvh2 = sweep_sah::build(&prims);
         ReinsertionOptimizer::default().run(&mut bvh2, REINSERTION_BATCH_RATIO, None);
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
