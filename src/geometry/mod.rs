@@ -1,6 +1,6 @@
 //! Surface geometry: triangle meshes (PLY reading of our own, writing through `ply-rs-bw`),
-//! analytic spheres, level-set boundaries (zero crossings of a grid, [`LevelSet`]), and one BVH over every triangle of a scene (PLOC build from `obvhs`,
-//! collapsed into our own 8-wide BVH and traversal) with our own robust primitive tests.
+//! analytic spheres, level-set boundaries (zero crossings of a grid, [`LevelSet`]), and one BVH over every triangle of a scene (a full-sweep SAH
+//! binary build with `obvhs`'s reinsertion, collapsed into our own 8-wide BVH and traversal) with our own robust primitive tests.
 //!
 //! Robustness contract (what the integrator relies on):
 //! - Ray–triangle hits use the watertight test of Woop, Benthin & Wald 2013 ("Watertight
@@ -29,6 +29,7 @@ mod ply;
 pub mod ray_log;
 mod sphere;
 mod sphere_lanes;
+mod sweep_sah;
 mod triangle;
 mod wide_bvh;
 

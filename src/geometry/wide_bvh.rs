@@ -8,8 +8,9 @@
 //! nearest, found either way; only two triangles hit at the very same distance could be
 //! reported differently.
 //!
-//! The binary hierarchy comes from `obvhs` (PLOC build, then SAH reinsertion of every node:
-//! [`REINSERTION_BATCH_RATIO`]); it is collapsed
+//! The binary hierarchy is built top-down by a full sweep of the surface area heuristic
+//! ([`super::sweep_sah`]), then every node is offered to `obvhs`'s SAH reinsertion
+//! ([`REINSERTION_BATCH_RATIO`]); it is collapsed
 //! into nodes of up to eight children by the surface area heuristic's dynamic programme of
 //! Ylitie, Karras and Laine 2017 ("Efficient incoherent ray traversal on GPUs through
 //! compressed wide BVHs"): every binary node becomes a leaf (at most [`MAX_LEAF_PRIMITIVES`]
@@ -27,9 +28,8 @@ use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb as OAabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::Bvh2;
-use obvhs::ploc::PlocBuilder;
-use obvhs::{Boundable, BvhBuildParams};
 
+use super::sweep_sah;
 use crate::math::{Ray, Vec3};
 
 /// Leaves hold at most this many primitives: two blocks of [`LEAF_BLOCK`] (the lanes of the
@@ -106,10 +106,11 @@ impl Iterator for BlockSpans {
 
 /// The share of the binary hierarchy's nodes that `obvhs`'s reinsertion optimiser (Meister
 /// and Bittner 2018, "Parallel reinsertion for bounding volume hierarchy optimization") tries
-/// to move to a cheaper place after the PLOC build: all of them, in one batch (its medium
-/// build's 0.05 and slow build's 0.2 leave more surface area). On the 20k icosphere the wide
-/// tree then costs 3.6 % fewer instructions a ray from outside and 3.0 % from inside, for
-/// about twice the build time (0.11 → 0.23 s of CPU for 82k triangles).
+/// to move to a cheaper place after the binary build: all of them, in one batch (its medium
+/// build's 0.05 and slow build's 0.2 leave more surface area). After `obvhs`'s PLOC build it
+/// saved 3.6 % of the instructions a ray from outside and 3.0 % from inside on the 20k
+/// icosphere; after the sweep build ([`super::sweep_sah`]) it moves little (node tests a
+/// query of the skin scene's recorded `mix20k` rays 4.49 without it, 4.45 with it).
 const REINSERTION_BATCH_RATIO: f32 = 1.0;
 
 /// Entries of the traversal stack kept on the machine stack; deeper trees spill to the heap.
@@ -169,14 +170,6 @@ pub struct WideBvh {
     /// The CPU runs AVX2, FMA and POPCNT (detected when the hierarchy is built): the 8-wide
     /// node test.
     avx2: bool,
-}
-
-struct BoxPrim(OAabb);
-
-impl Boundable for BoxPrim {
-    fn aabb(&self) -> OAabb {
-        self.0
-    }
 }
 
 /// The ray quantities the slab test needs, per axis.
@@ -563,18 +556,11 @@ impl WideBvh {
         if n == 0 {
             return (WideBvh::default(), f32::NAN);
         }
-        let prims: Vec<BoxPrim> = boxes
+        let prims: Vec<OAabb> = boxes
             .iter()
-            .map(|(lo, hi)| BoxPrim(OAabb::new(Vec3A::from(*lo), Vec3A::from(*hi))))
+            .map(|(lo, hi)| OAabb::new(Vec3A::from(*lo), Vec3A::from(*hi)))
             .collect();
-        let params = BvhBuildParams::medium_build();
-        let mut bvh2 = PlocBuilder::with_capacity(n).build(
-            params.ploc_search_distance,
-            &prims,
-            (0..n as u32).collect(),
-            params.sort_precision,
-            params.search_depth_threshold,
-        );
+        let mut bvh2 = sweep_sah::build(&prims);
         ReinsertionOptimizer::default().run(&mut bvh2, REINSERTION_BATCH_RATIO, None);
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
@@ -947,7 +933,7 @@ fn avx2_fma_and_popcnt() -> bool {
 /// Primitives under each bvh2 node.
 fn subtree_counts(bvh2: &Bvh2) -> Vec<u32> {
     let mut counts = vec![0u32; bvh2.nodes.len()];
-    // Children come after their parents in PLOC's layout only sometimes: compute iteratively
+    // Children come after their parents only sometimes (reinsertion moves nodes): compute iteratively
     // in post-order.
     let mut stack = vec![(0usize, false)];
     while let Some((i, done)) = stack.pop() {
@@ -998,7 +984,9 @@ const NODE_COST: f32 = 1.0;
 /// one to four triangles costs the same, so the collapse fills its leaves; at 0.5 the 20k
 /// icosphere's tree has 789 nodes (96 % of the slots used) and 5,279 leaves in 6,537 blocks,
 /// against 1,702 nodes and 11,655 leaves when a leaf was priced at 0.2 a triangle (costs
-/// from 0.3 to 1.2 measured in concurrent pairs: 0.5 was the fastest on closest hits).
+/// from 0.3 to 1.2 measured in concurrent pairs: 0.5 was the fastest on closest hits). Those
+/// counts are over `obvhs`'s PLOC hierarchy; over the sweep build ([`super::sweep_sah`]) the
+/// tree has 704 nodes (97.6 %) and 4,793 leaves in 6,392 blocks.
 const BLOCK_COST: f32 = 0.5;
 
 /// The collapse's cost of a leaf with `count` primitives, per unit of its box's half area:
