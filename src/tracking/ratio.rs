@@ -407,4 +407,93 @@ mod tests {
         let s = seg(2.0, 0.7, 0.7, 0.7);
         assert_eq!(control_density(&s, ControlVariate::Novak, 5.0), 0.7);
     }
+
+    /// The transmittance over the test segments by quadrature of the test density.
+    fn exact_transmittance(coeff: &DensityCoefficients) -> f64 {
+        let mut tau = 0.0f64;
+        for seg in test_segments() {
+            let steps = 4000;
+            let h = seg.length() / steps as f32;
+            let d: f64 = if seg.is_homogeneous() {
+                f64::from(seg.max) * f64::from(seg.length())
+            } else {
+                (0..steps)
+                    .map(|i| f64::from(test_density(seg.t0 + (i as f32 + 0.5) * h)))
+                    .sum::<f64>()
+                    * f64::from(h)
+            };
+            tau += f64::from(coeff.sigma_t[0]) * d;
+        }
+        (-tau).exp()
+    }
+
+    #[test]
+    fn tracking_at_a_fraction_of_the_majorant_stays_unbiased_with_fewer_lookups() {
+        let coeff = DensityCoefficients::new(Rgb::splat(1.5), Rgb::splat(1.2));
+        let exact = exact_transmittance(&coeff);
+        let modes = [
+            TransmittanceMode::Ratio,
+            TransmittanceMode::ResidualRatio(ControlVariate::Novak),
+        ];
+        for mode in modes {
+            // At rate 1, the plain estimator bit for bit.
+            for seed in 0..200u64 {
+                let (mut u, mut v) = (Stream::new(seed), Stream::new(seed));
+                let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
+                let a = transmittance(
+                    test_segments(),
+                    &coeff,
+                    test_density,
+                    mode,
+                    &mut || u.next(),
+                    &mut s1,
+                );
+                let b = transmittance_at_rate(
+                    test_segments(),
+                    &coeff,
+                    test_density,
+                    mode,
+                    1.0,
+                    &mut || v.next(),
+                    &mut s2,
+                );
+                assert_eq!(a, b, "{mode:?}, seed {seed}");
+                assert_eq!(s1, s2, "{mode:?}, seed {seed}");
+            }
+            let mut lookups = Vec::new();
+            for rate in [1.0f32, 0.5, 0.25] {
+                let n = 200_000u64;
+                let mut stats = TrackingStats::default();
+                let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+                for seed in 0..n {
+                    let mut u = Stream::new(seed + 1_000_000);
+                    let t = transmittance_at_rate(
+                        test_segments(),
+                        &coeff,
+                        test_density,
+                        mode,
+                        rate,
+                        &mut || u.next(),
+                        &mut stats,
+                    );
+                    let t = f64::from(t[0]);
+                    sum += t;
+                    sum2 += t * t;
+                }
+                let mean = sum / n as f64;
+                let se = ((sum2 / n as f64 - mean * mean) / n as f64).sqrt();
+                let z = (mean - exact) / se;
+                assert!(
+                    z.abs() < 4.5,
+                    "{mode:?} at rate {rate}: {mean} vs {exact}, z {z}"
+                );
+                lookups.push(stats.transmittance_lookups as f64);
+            }
+            // Fewer lookups at lower rates (the roulette ends some estimates sooner at rate 1).
+            assert!(
+                lookups[1] < 0.62 * lookups[0] && lookups[2] < 0.62 * lookups[1],
+                "{mode:?}: lookups {lookups:?}"
+            );
+        }
+    }
 }
