@@ -11,14 +11,13 @@ use velour::fabric::{
 };
 use velour::fabric::{FabricLook, FibreExtinction};
 use velour::geometry::TriangleMesh;
-use velour::majorant::MajorantMode;
 use velour::majorant::MajorantPyramid;
 use velour::math::{Aabb, Ray};
-use velour::medium::{DensityField, HeterogeneousMedium, Medium};
+use velour::medium::{DensityField, HeterogeneousMedium};
 use velour::phase::PhaseFunction;
 use velour::sampling::Rng;
 use velour::spectrum::Rgb;
-use velour::tracking::{DensityCoefficients, TrackingConfig, TrackingStats, TransmittanceMode};
+use velour::tracking::{DensityCoefficients, TrackingStats, TransmittanceMode};
 
 /// A 1 × 1 tile filled with straight fibres along x at z ∈ [0.4, 0.6].
 fn slab() -> VoxelisedPatch {
@@ -186,91 +185,5 @@ fn a_shell_projects_its_fibres_like_the_grid() {
     assert!(
         across > 0.99 * plain && across <= plain * 1.0001,
         "across {across} of {plain}"
-    );
-}
-
-/// A fabric shell's shadow rays track at `fabric::SHADOW_RAY_RATE` (one half) of the
-/// majorant: about half the lookups of ratio tracking over the same (global) segment, and
-/// the same transmittance in expectation: the mean of many estimates agrees with exp(−τ),
-/// τ by quadrature of the same lookups, within four standard errors.
-#[test]
-fn a_shells_shadow_rays_take_half_the_lookups_without_bias() {
-    let vp = slab();
-    let mesh = TriangleMesh {
-        positions: vec![
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-        ],
-        normals: None,
-        uvs: Some(vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y]),
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-    };
-    let shell = FabricShell::new(&vp, &mesh, &ShellParams { tiles: [1.0, 1.0] }).unwrap();
-    let thick = shell.thickness();
-    let pyramid = shell.majorant_pyramid().unwrap();
-    let mut h = medium(&vp, FibreExtinction::Projected, 1.0);
-    h.field = DensityField::Shell(Box::new(shell));
-    h.pyramid = pyramid;
-    h.tracking = TrackingConfig {
-        majorant: MajorantMode::Global,
-        transmittance: TransmittanceMode::Ratio,
-        ..Default::default()
-    };
-    // Up through the slab, across its fibres, from below the shell to above it.
-    let o = Vec3::new(0.31, 0.42, -0.6 * thick);
-    let d = Vec3::new(0.05, 0.3, 1.0).normalize();
-    let ray = Ray::new(o, d);
-    let len = 1.2 * thick / d.z;
-    // σ_t⁰ for an optical depth of about 1.2 along the ray.
-    let integral: f64 = {
-        let mut lookup = h.density_along(&ray);
-        let steps = 40_000;
-        (0..steps)
-            .map(|i| f64::from(lookup.at((i as f32 + 0.5) * len / steps as f32)))
-            .sum::<f64>()
-            * f64::from(len)
-            / steps as f64
-    };
-    assert!(integral > 0.0, "the ray misses the slab");
-    let sigma = (1.2 / integral) as f32;
-    h.coefficients = DensityCoefficients::new(Rgb::splat(sigma), Rgb::splat(sigma));
-    let exact = (-f64::from(sigma) * integral).exp();
-
-    let n = 40_000;
-    let mut rng = Rng::new(11, 3);
-    let mut full = TrackingStats::default();
-    for _ in 0..n {
-        let mut lookup = h.density_along(&ray);
-        let mut u = || rng.next_f32();
-        velour::tracking::transmittance(
-            h.segments_along(&ray, 0.0, len),
-            &h.coefficients,
-            |t| lookup.at(t),
-            TransmittanceMode::Ratio,
-            &mut u,
-            &mut full,
-        );
-    }
-    let m = Medium::Heterogeneous(Box::new(h));
-    let mut shadow = TrackingStats::default();
-    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
-    for _ in 0..n {
-        let mut u = || rng.next_f32();
-        let t = f64::from(m.transmittance(&ray, len, &mut u, &mut shadow)[0]);
-        sum += t;
-        sum2 += t * t;
-    }
-    let mean = sum / n as f64;
-    let se = ((sum2 / n as f64 - mean * mean) / n as f64).sqrt();
-    let z = (mean - exact) / se;
-    assert!(z.abs() < 4.0, "mean {mean} vs exp(-tau) {exact}: z {z}");
-    let ratio = shadow.transmittance_lookups as f64 / full.transmittance_lookups as f64;
-    assert!(
-        (0.4..0.6).contains(&ratio),
-        "shadow rays' lookups {} against full-rate ratio tracking's {}: {ratio}",
-        shadow.transmittance_lookups,
-        full.transmittance_lookups
     );
 }
