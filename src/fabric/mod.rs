@@ -51,7 +51,7 @@ pub use look::{
     projected_width, FabricLook, FibreExtinction, FibreGridLookup, ShellLookup, YarnColours,
 };
 pub use patch_file::{read_patch_file, PatchFile, PatchFileError, WeaveRecord};
-pub use shell::{FabricShell, FibreVoxel, ShellCursor, ShellParams, ShellPoint, SHADOW_RAY_RATE};
+pub use shell::{FabricShell, FibreVoxel, ShellCursor, ShellParams, ShellPoint};
 pub use voxelise::{
     render_preview, voxelise, write_patch_vdb, write_patch_vdb_with_metadata, PreviewImage,
     PreviewOptions, VoxelStats, VoxeliseOptions, VoxelisedPatch,

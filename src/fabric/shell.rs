@@ -43,18 +43,6 @@ use crate::grid::{Accessor, SparseGrid};
 use crate::majorant::{Bounds, MajorantPyramid};
 use crate::math::{Aabb, Ray};
 
-/// The rate of a fabric shell's shadow-ray tentative collisions, as a fraction of each
-/// majorant segment's (`tracking::transmittance_at_rate`). The shell's world-space majorants
-/// are loose (the mean density is about 7.5 % of the segment's bound at a draped cloth's
-/// shadow-ray lookups, 41 % of which land between the yarns and read 0), so ratio tracking at
-/// the full rate spends about 25 lookups a shadow ray on an estimate whose variance is a
-/// small part of the image's. At one half the lookups halve, every factor `1 − σ/(M/2)` of a
-/// segment without a control stays in [−1, 1], and on the draped cloth the CPU falls about
-/// 10 % at 5.5 % more variance per sample, efficiency about ×1.05 (docs/BENCHMARKS.md,
-/// "draped_cloth: the shadow rays' ratio tracking at half the majorant rate"). Unbiased at
-/// any rate.
-pub const SHADOW_RAY_RATE: f32 = 0.5;
-
 /// Largest number of tetrahedra a shell may have (three per triangle).
 pub const MAX_SHELL_TETS: usize = 30_000_000;
 /// Largest extent of one tetrahedron in patch voxels (f32 precision of the shell map).

@@ -18,7 +18,7 @@ use crate::procedural::{FbmField, LazyFbmGrid};
 use crate::spectrum::Rgb;
 use crate::tracking::{
     decomposition_track, decomposition_track_local, delta_track, delta_track_local,
-    ray_march_free_flight, split_flight, transmittance_at_rate, DensityCoefficients, Flight,
+    ray_march_free_flight, split_flight, transmittance, DensityCoefficients, Flight,
     FreeFlightMethod, TrackingConfig, TrackingStats, TransmittanceMode,
 };
 
@@ -584,18 +584,11 @@ impl HeterogeneousMedium {
         let mut inner = self.pyramid_segments(c, ray, 0.0, t_max, self.shadow_model());
         let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
         let mut lookup = self.density_along(ray);
-        // A fabric shell's majorants are loose: its shadow rays draw tentative collisions at
-        // a fraction of them (`fabric::SHADOW_RAY_RATE`; 1 elsewhere, the plain estimator).
-        let rate = match self.field {
-            DensityField::Shell(_) => crate::fabric::SHADOW_RAY_RATE,
-            _ => 1.0,
-        };
-        transmittance_at_rate(
+        transmittance(
             &mut segments,
             c,
             |t| lookup.at(t),
             self.tracking.transmittance,
-            rate,
             u,
             stats,
         )

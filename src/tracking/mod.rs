@@ -46,7 +46,7 @@ pub use march_estimators::{
     comb_teeth, jackknife_segment, order_survival, unbiased_ray_march_segment, URM_MAX_ORDER,
 };
 pub use mixture::{mixture_track, MixFlight, MixPoint, RateSegment, MAX_COMPONENTS};
-pub use ratio::{transmittance, transmittance_at_rate, transmittance_local};
+pub use ratio::{transmittance, transmittance_local};
 pub use spectral::{
     spectral_delta_track, spectral_delta_track_segments, spectral_ratio_transmittance,
     spectral_ratio_transmittance_segments, SPECTRAL_MAX_STEPS,

@@ -51,56 +51,6 @@ where
     transmittance_local(segments, coeff, density, NoPointBounds, mode, u, stats)
 }
 
-/// [`transmittance`] with ratio and residual ratio tracking's tentative collisions drawn at
-/// `rate` times each segment's (residual) majorant, `rate > 0` (the other modes ignore it).
-/// Unbiased for any rate: ratio tracking's product is the Poisson estimator of exp(−∫σ),
-/// whatever the rate of its points (Georgiev et al. 2019, docs/references.md §4.10), and a
-/// rate below the majorant only lets factors `1 − σ/(rate·M)` turn negative. Its relative
-/// second moment is exp(∫σ²/(rate·M)): below 1 the lookups fall in proportion while the
-/// variance grows from what a loose majorant leaves. At `rate = 1/2` no factor of a
-/// segment with a zero control leaves [−1, 1] (σ ≤ M), so no estimate grows on the way.
-/// Used by fabric shells' shadow rays, whose majorants are loose (docs/fabric.md).
-pub fn transmittance_at_rate<S, D, U>(
-    segments: S,
-    coeff: &DensityCoefficients,
-    density: D,
-    mode: TransmittanceMode,
-    rate: f32,
-    u: &mut U,
-    stats: &mut TrackingStats,
-) -> Rgb
-where
-    S: IntoIterator<Item = MajorantSegment>,
-    D: FnMut(f32) -> f32,
-    U: FnMut() -> f32,
-{
-    match coeff.grey() {
-        Some(grey) => estimate(
-            segments,
-            coeff,
-            &grey,
-            density,
-            NoPointBounds,
-            mode,
-            rate,
-            u,
-            stats,
-        )
-        .to_rgb(),
-        None => estimate(
-            segments,
-            coeff,
-            &coeff.rgb(),
-            density,
-            NoPointBounds,
-            mode,
-            rate,
-            u,
-            stats,
-        ),
-    }
-}
-
 /// [`transmittance`] with point bounds (docs/references.md §4.10): ratio and residual ratio
 /// tracking accept each tentative collision of a segment (rate M, its residual majorant) with
 /// probability m(x)/M, m(x) the residual majorant of the point's local bounds, without a
@@ -132,7 +82,6 @@ where
             density,
             local_bounds,
             mode,
-            1.0,
             u,
             stats,
         )
@@ -144,7 +93,6 @@ where
             density,
             local_bounds,
             mode,
-            1.0,
             u,
             stats,
         ),
@@ -153,8 +101,7 @@ where
 
 /// [`transmittance_local`] with the coefficients in channel type `V` (one scalar for a grey
 /// medium: the same estimate as in RGB, bit for bit). `rgb` is the same coefficients for the
-/// estimators that work in RGB only (unbiased ray marching, the jackknife). `rate` scales
-/// ratio tracking's majorant ([`transmittance_at_rate`]; 1 for the majorant itself).
+/// estimators that work in RGB only (unbiased ray marching, the jackknife).
 #[allow(clippy::too_many_arguments)]
 fn estimate<V, S, D, P, U>(
     segments: S,
@@ -163,7 +110,6 @@ fn estimate<V, S, D, P, U>(
     mut density: D,
     mut local_bounds: P,
     mode: TransmittanceMode,
-    rate: f32,
     u: &mut U,
     stats: &mut TrackingStats,
 ) -> V
@@ -223,7 +169,7 @@ where
                     if !analytic.is_zero() {
                         tr *= analytic.map(|x| (-x).exp());
                     }
-                    let majorant = residual_bound * s_max * rate;
+                    let majorant = residual_bound * s_max;
                     if majorant > 0.0 && majorant.is_finite() {
                         let mut local = 0.0f32;
                         loop {
@@ -299,7 +245,6 @@ mod tests {
                 test_density,
                 bounds(),
                 mode,
-                1.0,
                 &mut || u.next(),
                 s1,
             ),
@@ -310,7 +255,6 @@ mod tests {
                 test_density,
                 bounds(),
                 mode,
-                1.0,
                 &mut || v.next(),
                 s2,
             ),
