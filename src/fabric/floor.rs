@@ -26,18 +26,13 @@ pub fn floor_ivec3(p: Vec3) -> IVec3 {
 }
 
 /// The scalar form: truncation toward zero (saturating, NaN to 0), one less where that
-/// rounded up.
+/// rounded up. It is the grid's [`crate::grid::floor_frac`]'s integer part, the one scalar
+/// algorithm both layers use.
 #[cfg(any(test, not(target_arch = "x86_64")))]
 #[inline(always)]
 #[must_use]
 pub fn floor_ivec3_scalar(p: Vec3) -> IVec3 {
-    let t = p.as_ivec3(); // truncation toward zero, saturating
-    let tf = t.as_vec3();
-    IVec3::new(
-        t.x.wrapping_sub(i32::from(tf.x > p.x)),
-        t.y.wrapping_sub(i32::from(tf.y > p.y)),
-        t.z.wrapping_sub(i32::from(tf.z > p.z)),
-    )
+    crate::grid::floor_frac(p).0
 }
 
 /// [`floor_ivec3_scalar`] in SSE2 lanes. `cvttps2dq` truncates toward zero and gives
