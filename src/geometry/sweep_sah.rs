@@ -75,21 +75,36 @@ impl Lists {
     }
 }
 
+/// `x`'s place in [`f32::total_cmp`]'s order as an unsigned integer: the bits with the
+/// negative values' magnitude bits flipped (as `total_cmp` does), then the sign bit flipped so
+/// that unsigned comparison agrees.
+#[inline]
+fn total_order_key(x: f32) -> u32 {
+    let b = x.to_bits() as i32;
+    let t = b ^ ((((b >> 31) as u32) >> 1) as i32);
+    (t as u32) ^ 0x8000_0000
+}
+
+/// The primitives sorted by their centre's `axis` coordinate ([`f32::total_cmp`]), then by
+/// index: each as one `u64` key (order key above the index), all distinct, so an unstable sort
+/// of plain integers gives that order without a comparison closure.
+fn sorted_by_key(centres: &[Vec3A], axis: usize) -> Vec<u32> {
+    let mut keys: Vec<u64> = centres
+        .iter()
+        .enumerate()
+        .map(|(i, c)| (u64::from(total_order_key(c[axis])) << 32) | i as u64)
+        .collect();
+    keys.sort_unstable();
+    keys.into_iter().map(|k| k as u32).collect()
+}
+
 /// Builds the binary hierarchy over `boxes` (at least one): the root is node 0, a node's
 /// children are `first_index` and `first_index + 1`, and each leaf holds one primitive.
 pub(crate) fn build(boxes: &[Aabb]) -> Bvh2 {
     let n = boxes.len();
     assert!(n > 0, "a hierarchy needs at least one primitive");
     let centres: Vec<Vec3A> = boxes.iter().map(Aabb::center).collect();
-    let sorted_by = |axis: usize| {
-        let mut v: Vec<u32> = (0..n as u32).collect();
-        v.sort_by(|&a, &b| {
-            centres[a as usize][axis]
-                .total_cmp(&centres[b as usize][axis])
-                .then(a.cmp(&b))
-        });
-        v
-    };
+    let sorted_by = |axis: usize| sorted_by_key(&centres, axis);
     let mut lists = Lists {
         sorted: [sorted_by(0), sorted_by(1), sorted_by(2)],
         scratch: Vec::with_capacity(n),
@@ -161,6 +176,58 @@ mod tests {
         } else {
             under(bvh, node.first_index as usize, out);
             under(bvh, node.first_index as usize + 1, out);
+        }
+    }
+
+    /// The integer keys sort the centres exactly as `total_cmp` then the index do: random
+    /// coordinates with repeats, ±0, subnormals, infinities and NaNs of both signs.
+    #[test]
+    fn integer_keys_sort_as_total_cmp_then_index() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            1e-45,
+            -1e-45,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+            f32::MAX,
+            f32::MIN,
+            1.0,
+            -1.0,
+        ];
+        let mut s = 7u64;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 33) as u32
+        };
+        let centres: Vec<Vec3A> = (0..5000)
+            .map(|_| {
+                let mut c = [0.0f32; 3];
+                for v in &mut c {
+                    let r = next();
+                    *v = match r % 4 {
+                        0 => specials[(r / 4) as usize % specials.len()],
+                        1 => ((r / 4) % 16) as f32 - 8.0, // repeats
+                        _ => f32::from_bits(next()),
+                    };
+                }
+                Vec3A::from_array(c)
+            })
+            .collect();
+        for axis in 0..3 {
+            let mut expected: Vec<u32> = (0..centres.len() as u32).collect();
+            expected.sort_by(|&a, &b| {
+                centres[a as usize][axis]
+                    .total_cmp(&centres[b as usize][axis])
+                    .then(a.cmp(&b))
+            });
+            assert_eq!(sorted_by_key(&centres, axis), expected, "axis {axis}");
         }
     }
 
