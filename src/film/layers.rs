@@ -37,8 +37,8 @@ impl LayerSums {
             .iter_mut()
             .zip(&s.lights)
         {
-            for c in 0..3 {
-                sum[c] = sum[c].add(Fixed192::from_f64(f64::from(light.0[c]), SUM_BITS));
+            for (acc, v) in sum.iter_mut().zip(light.0) {
+                *acc = acc.add(Fixed192::from_f64(f64::from(v), SUM_BITS));
             }
         }
     }
