@@ -80,8 +80,8 @@ impl LayerSums {
 mod tests {
     use super::*;
     use crate::film::MAX_LIGHT_LAYERS;
-    use crate::spectrum::Rgb;
     use crate::math::Vec3;
+    use crate::spectrum::Rgb;
 
     /// A sample whose light slots hold `lights` (the other fields are unused by the layers).
     fn sample(lights: &[Rgb]) -> PixelSample {
