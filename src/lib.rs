@@ -5,6 +5,12 @@
 //! Modules are layered: each imports only from the layers below it (docs/architecture.md
 //! names the layers; `tests/architecture_layers.rs` enforces them).
 
+// Negated comparisons are the crate's NaN-rejecting idiom: `!(x > 0.0)` reads "not positive"
+// and is true for NaN, where `x <= 0.0` would be false, so a NaN density, distance or pdf takes
+// the rejecting branch. They are written this way on purpose wherever they appear (one policy
+// for the whole crate, in place of the former per-module allows).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod math;
 pub mod sampling;
 pub mod spectrum;

@@ -232,7 +232,7 @@ impl PixelSampler {
     #[inline(never)]
     fn next_sobol(&mut self, j: u32) -> f32 {
         self.used = j + 1;
-        if j % 4 == 0 {
+        if j.is_multiple_of(4) {
             let set = self.first_set + j / 4;
             self.sobol = sobol_4d(nibble_tables(), self.nibbles, set, self.sobol_seed)
                 .map(|v| v.min(ONE_MINUS_EPSILON));

@@ -137,7 +137,8 @@ fn tiles_and_sample_ranges_merge_to_the_same_bits() {
     let mut with_corrupt = passes[1..].to_vec();
     with_corrupt.push(corrupt);
     merge(&bad, &with_corrupt).assert_failure_mentioning(&["corrupt.exr"]);
-    merge(&bad, &[one.clone()]).assert_failure_mentioning(&["one.exr", "not a velour part"]);
+    merge(&bad, std::slice::from_ref(&one))
+        .assert_failure_mentioning(&["one.exr", "not a velour part"]);
     assert!(!bad.exists(), "a refused merge wrote its output");
 
     // Bad splits are refused by render itself.

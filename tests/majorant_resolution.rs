@@ -267,8 +267,10 @@ fn lookups_per_real_collision(n: i32, tracking: TrackingConfig) -> f64 {
 #[test]
 fn default_tracking_takes_at_most_two_free_flight_lookups_per_real_collision() {
     // Issue 12: with the default settings (local bounds on), at every resolution.
-    let mut off = TrackingConfig::default();
-    off.local_bounds = false;
+    let off = TrackingConfig {
+        local_bounds: false,
+        ..TrackingConfig::default()
+    };
     for n in [128, 256, 512] {
         let default = lookups_per_real_collision(n, TrackingConfig::default());
         let without = lookups_per_real_collision(n, off);

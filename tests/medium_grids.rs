@@ -210,8 +210,7 @@ fn a_scattering_emitter_in_equilibrium_with_its_environment_is_invisible() {
     // out-scattering cancel). Emitting σ_t·L_e, or missing the scattered light, would not.
     let dir = TempDir::new("emission-furnace");
     volumes(&dir);
-    let text = format!(
-        r#"
+    let text = r#"
 [camera]
 eye = [0.0, 0.0, 4.0]
 look_at = [0.0, 0.0, 0.0]
@@ -228,10 +227,9 @@ radiance = [1.2, 0.6, 0.3]
 name = "ember"
 shape = "sphere"
 radius = 1.0
-interior = {{ type = "voxel", file = "grids.vdb", albedo = [0.7, 0.4, 0.9], albedo_mode = "single", attenuation = [0.5, 1.0, 0.3], phase = {{ g = 0.5 }}, emission_grid = "power", emission_color = [1.5, 0.75, 0.375], nee = "interior" }}
-"#
-    );
-    let film = render(&dir, &text, 9);
+interior = { type = "voxel", file = "grids.vdb", albedo = [0.7, 0.4, 0.9], albedo_mode = "single", attenuation = [0.5, 1.0, 0.3], phase = { g = 0.5 }, emission_grid = "power", emission_color = [1.5, 0.75, 0.375], nee = "interior" }
+"#;
+    let film = render(&dir, text, 9);
     assert_image(&film, [1.2, 0.6, 0.3], "emitter in equilibrium");
 }
 

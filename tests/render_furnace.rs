@@ -115,8 +115,8 @@ interior = {{ type = "absorption", attenuation = [{}, {}, {}] }}
         1.0 / sigma[2]
     );
     let film = render_scene(&text, 0);
-    for c in 0..3 {
-        let expected = (-(sigma[c] as f64) * 2.0).exp();
+    for (c, &s) in sigma.iter().enumerate() {
+        let expected = (-(s as f64) * 2.0).exp();
         for y in 0..4 {
             for x in 0..4 {
                 let v = film.mean(x, y)[c] as f64;

@@ -68,7 +68,7 @@ fn write_voxels(dir: &TempDir) {
         class: "fog volume",
         ..GridToWrite::new("density", &grid)
     }];
-    write_vdb(&dir.join("density.vdb"), &list, &WriteOptions::default()).unwrap();
+    write_vdb(dir.join("density.vdb"), &list, &WriteOptions::default()).unwrap();
 }
 
 const FBM: &str = r#"type = "fbm", noise = { frequency = 3.0, offset = 0.4, amplitude = 1.0 }, voxel_size = 0.05"#;
@@ -264,14 +264,14 @@ fn the_projected_field_is_bounded_by_the_field_times_the_textures() {
     let field = p.field.as_ref().expect("a projected field");
     // σ_t⁰ bound: max density 3 over attenuations 0.5, 1, 2; the grid's largest density is 1.
     let want = [6.0, 3.0, 1.5];
-    for c in 0..3 {
+    for (c, &want) in want.iter().enumerate() {
         assert!(
-            (field.bound.sigma_t.0[c] - want[c]).abs() < 1e-4,
+            (field.bound.sigma_t.0[c] - want).abs() < 1e-4,
             "{:?}",
             field.bound
         );
         assert!(
-            (p.sigma_t_max.0[c] - want[c]).abs() < 1e-3,
+            (p.sigma_t_max.0[c] - want).abs() < 1e-3,
             "{:?}",
             p.sigma_t_max
         );

@@ -151,8 +151,7 @@ fn a_value_of_the_wrong_type_names_its_key() {
     let text =
         "[camera]\neye = [0, 0, 3]\nlook_at = [0, 0, 0]\nfov = 30\n[film]\nwidth = \"wide\"\n";
     let e = velour::scene::load_scene_str(text, std::path::Path::new("typed.toml"))
-        .err()
-        .expect("a string width is refused")
+        .expect_err("a string width is refused")
         .to_string();
     assert!(e.contains("typed.toml:6") && e.contains("`width`"), "{e}");
 }

@@ -68,11 +68,11 @@ fn scatter_integral(coeff: &DensityCoefficients) -> (Rgb, Rgb) {
     for i in 0..n {
         let t = (i as f64 + 0.5) * dt;
         let d = ramp(t as f32) as f64;
-        for k in 0..3 {
+        for (k, sum_k) in sum.iter_mut().enumerate() {
             let tau =
                 f64::from(coeff.base_t[k]) * t + f64::from(coeff.sigma_t[k]) * ramp_depth(t as f32);
             let ss = f64::from(coeff.base_s[k]) + f64::from(coeff.sigma_s[k]) * d;
-            sum[k] += ss * (-tau).exp() * dt;
+            *sum_k += ss * (-tau).exp() * dt;
         }
     }
     let tr = Rgb([0, 1, 2].map(|k| {

@@ -60,13 +60,16 @@ fn both_are_exact_for_a_constant_density() {
     }
 }
 
+/// A named case: the segment, the exact transmittance over it and the density along it.
+type MarchCase<'a> = (&'a str, MajorantSegment, f64, &'a dyn Fn(f32) -> f32);
+
 #[test]
 fn unbiased_ray_marching_agrees_with_the_exact_transmittance() {
     let coeff = grey(1.0);
     // A ramp σ = 0.5 + 4t on [0, 1] (τ = 2.5) and a step (σ = 8 on the first tenth, 0.2 after).
     let ramp = |t: f32| 0.5 + 4.0 * t;
     let step = |t: f32| if t < 0.1 { 8.0 } else { 0.2 };
-    let cases: [(&str, MajorantSegment, f64, &dyn Fn(f32) -> f32); 2] = [
+    let cases: [MarchCase; 2] = [
         ("ramp", segment(1.0, 0.5, 4.5, 2.5), (-2.5f64).exp(), &ramp),
         (
             "step",

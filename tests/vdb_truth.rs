@@ -72,8 +72,8 @@ fn check_grid(t: &Value, g: &VdbGrid, s: &GridStats) {
     // Transform: voxel size and where the unit points land.
     let m = g.grid.index_to_world();
     let vs = vec3(&t["voxel_size"]);
-    for k in 0..3 {
-        assert_close(g.grid.voxel_size()[k], vs[k], 1e-12, &w("voxel size"));
+    for (k, &want) in vs.iter().enumerate() {
+        assert_close(g.grid.voxel_size()[k], want, 1e-12, &w("voxel size"));
     }
     assert_index_to_world(t, m, 1e-12, file);
     let n = s.components;
@@ -281,8 +281,8 @@ fn cpp_fixtures_match_openvdb_figures() {
         }
         if n == 1 {
             let want = vec3(&t["moment"]);
-            for k in 0..3 {
-                assert_close(s.moment[k], want[k], 1e-6, &format!("{w} moment"));
+            for (&got, &expected) in s.moment.iter().zip(&want) {
+                assert_close(got, expected, 1e-6, &format!("{w} moment"));
             }
         }
         assert_index_to_world(&t, g.grid.index_to_world(), 1e-12, &w);

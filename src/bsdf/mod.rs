@@ -21,9 +21,6 @@
 //! denominators below `1e-7` give zero `f`, zero pdf and no sample; microfacet lobes with
 //! `α < 1e-3` become delta lobes; no function returns NaN or infinity.
 
-// Comparisons are written `!(x > 0.0)` on purpose throughout: they also reject NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 pub mod fresnel;
 pub mod microfacet;
 pub mod special;

@@ -57,7 +57,7 @@ pub(super) fn asin_fast(x: f32) -> f32 {
     let zb = 0.5 * (1.0 - a);
     let z = if big { zb } else { a * a };
     let r = if big { zb.sqrt() } else { a };
-    let p = ((((4.216_32e-2 * z + 2.418_131_1e-2) * z + 4.547_002_6e-2) * z + 7.495_300_3e-2) * z
+    let p = ((((4.216_32e-2 * z + 2.418_131e-2) * z + 4.547_002_6e-2) * z + 7.495_300_3e-2) * z
         + 0.166_667_52)
         * z
         * r

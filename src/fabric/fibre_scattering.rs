@@ -528,6 +528,8 @@ impl<const N: usize> LobeTable<N> {
 }
 
 /// Where a [`PreparedFibre`] keeps its per-node terms.
+// The inline table is large on purpose: the common case needs no heap allocation per vertex.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 enum NodeTable {
     /// Up to [`INLINE_NODES`] unique nodes, in place.
@@ -1191,6 +1193,8 @@ impl FibrePhase {
             let inv_total = if total > 0.0 { 1.0 / total } else { 0.0 };
             let gamma_t = table.gamma_t[k];
             let gamma_o = self.node_gamma_o[k];
+            // `p` is the lobe's order in the phase (2pγ_t − 2γ_o + pπ) as well as an index.
+            #[allow(clippy::needless_range_loop)]
             for p in 0..3 {
                 table.phi[p][k] = 2.0 * p as f32 * gamma_t - 2.0 * gamma_o + p as f32 * PI;
                 table.share[p][k] = w[p] * inv_total;
@@ -1256,6 +1260,8 @@ impl FibrePhase {
             let count = if n_nodes - 1 - k != k { 2.0 } else { 1.0 };
             table.mirror[k] = count - 1.0;
             let inv_total = if total > 0.0 { 1.0 / total } else { 0.0 };
+            // `p` is the lobe's order in the phase (2pγ_t − 2γ_o + pπ) as well as an index.
+            #[allow(clippy::needless_range_loop)]
             for p in 0..3 {
                 table.phi[p][k] =
                     2.0 * p as f32 * table.gamma_t[k] - 2.0 * self.nodes[k].1 + p as f32 * PI;
@@ -1351,6 +1357,8 @@ impl FibrePhase {
                     break;
                 }
                 let mut lobe_pdf = wd * dd;
+                // `p` picks the lobe (three azimuthal, then the residual) in four tables.
+                #[allow(clippy::needless_range_loop)]
                 for p in 0..4 {
                     let n = if p < 3 {
                         let phi = sign * node.phi[p];

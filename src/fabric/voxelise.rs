@@ -36,9 +36,6 @@
 //! (rayon) into private brick accumulators, which are added into the patch accumulator in
 //! chunk order. The result is bit-identical whatever the number of threads.
 
-// `!(x > 0.0)` is deliberate throughout: it is also true for NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::fibre_scattering::{extinction_scale, FibrePhaseParams};
 use super::{FabricError, FabricPatch, FabricShading, YarnId};
 use crate::grid::{

@@ -69,13 +69,25 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let f = dir.join("a.bin");
         std::fs::write(&f, b"one").unwrap();
-        let a = scene_hash("x = 1", &[f.clone()], "spp=4").unwrap();
+        let a = scene_hash("x = 1", std::slice::from_ref(&f), "spp=4").unwrap();
         assert_eq!(a.len(), 64);
-        assert_eq!(a, scene_hash("x = 1", &[f.clone()], "spp=4").unwrap());
-        assert_ne!(a, scene_hash("x = 2", &[f.clone()], "spp=4").unwrap());
-        assert_ne!(a, scene_hash("x = 1", &[f.clone()], "spp=8").unwrap());
+        assert_eq!(
+            a,
+            scene_hash("x = 1", std::slice::from_ref(&f), "spp=4").unwrap()
+        );
+        assert_ne!(
+            a,
+            scene_hash("x = 2", std::slice::from_ref(&f), "spp=4").unwrap()
+        );
+        assert_ne!(
+            a,
+            scene_hash("x = 1", std::slice::from_ref(&f), "spp=8").unwrap()
+        );
         std::fs::write(&f, b"two").unwrap();
-        assert_ne!(a, scene_hash("x = 1", &[f.clone()], "spp=4").unwrap());
+        assert_ne!(
+            a,
+            scene_hash("x = 1", std::slice::from_ref(&f), "spp=4").unwrap()
+        );
         assert!(scene_hash("x", &[dir.join("missing")], "").is_err());
         let _ = std::fs::remove_dir_all(&dir);
     }

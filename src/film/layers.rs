@@ -37,8 +37,8 @@ impl LayerSums {
             .iter_mut()
             .zip(&s.lights)
         {
-            for c in 0..3 {
-                sum[c] = sum[c].add(Fixed192::from_f64(f64::from(light.0[c]), SUM_BITS));
+            for (acc, v) in sum.iter_mut().zip(light.0) {
+                *acc = acc.add(Fixed192::from_f64(f64::from(v), SUM_BITS));
             }
         }
     }
@@ -73,5 +73,43 @@ impl LayerSums {
     /// Clears every sum.
     pub fn clear(&mut self) {
         self.sums.fill([Fixed192::ZERO; 3]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::film::MAX_LIGHT_LAYERS;
+    use crate::math::Vec3;
+    use crate::spectrum::Rgb;
+
+    /// A sample whose light slots hold `lights` (the other fields are unused by the layers).
+    fn sample(lights: &[Rgb]) -> PixelSample {
+        let mut s = PixelSample {
+            radiance: Rgb::ZERO,
+            albedo: Rgb::ZERO,
+            normal: Vec3::ZERO,
+            depth: f32::INFINITY,
+            lights: [Rgb::ZERO; MAX_LIGHT_LAYERS],
+        };
+        s.lights[..lights.len()].copy_from_slice(lights);
+        s
+    }
+
+    #[test]
+    fn add_sums_each_lights_channels_into_its_own_pixel_and_slot() {
+        let mut sums = LayerSums::new(3, 2).expect("a small layer table");
+        let a = Rgb([1.0, 2.0, 3.0]);
+        let b = Rgb([0.5, 0.25, -4.0]);
+        sums.add(1, &sample(&[a, b]));
+        sums.add(1, &sample(&[a, b]));
+        sums.add(2, &sample(&[b, a]));
+        let read = |i, k| sums.get(i, k).map(|f| f.to_f64(SUM_BITS));
+        assert_eq!(read(1, 0), [2.0, 4.0, 6.0]);
+        assert_eq!(read(1, 1), [1.0, 0.5, -8.0]);
+        assert_eq!(read(2, 0), [0.5, 0.25, -4.0]);
+        assert_eq!(read(2, 1), [1.0, 2.0, 3.0]);
+        assert_eq!(read(0, 0), [0.0; 3]);
+        assert_eq!(read(0, 1), [0.0; 3]);
     }
 }

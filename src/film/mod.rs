@@ -570,6 +570,8 @@ impl Film {
                     channels.push(words);
                 }
             }
+            // `i` indexes every one of the 6 × 3 word channels and the film's pixels.
+            #[allow(clippy::needless_range_loop)]
             for i in 0..film.pixels.len() {
                 let v = std::array::from_fn(|c| {
                     fixed::Fixed192::from_words(std::array::from_fn(|w| channels[c * 6 + w][i]))

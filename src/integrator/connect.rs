@@ -28,9 +28,6 @@
 //! transmittance factors omitted). Exit-point NEE is not done at such exit vertices; it
 //! remains for exit vertices reached otherwise (internal reflections, unscattered flights).
 
-// Comparisons are written `!(x > 0.0)` on purpose: they also reject NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use super::direct::{shadow_transmittance, ShadowMode};
 use super::interiors::{boundary_surface_at, is_false_intersection, InteriorStack};
 use super::{RayCone, TraceStats};

@@ -445,7 +445,7 @@ impl SunLean {
 
     /// Unit direction towards the light.
     #[inline]
-    pub(super) fn to_light(&self) -> Vec3 {
+    pub(super) fn to_light(self) -> Vec3 {
         self.to_light
     }
 

@@ -313,10 +313,10 @@ impl<'s> PathState<'s> {
     }
 
     /// 1. The interior the ray travels through, up to the next boundary (Algorithm 1, lines
-    /// 3–11): a free flight that passes, or scatters. Returns the boundary hit when the flight
-    /// reached it (the closest hit of the ray; in vacuum, the ray is traced to the first hit).
-    /// The boundary is searched only as far as the medium needs: up to the sampled distance in
-    /// a homogeneous medium.
+    ///    3–11): a free flight that passes, or scatters. Returns the boundary hit when the
+    ///    flight reached it (the closest hit of the ray; in vacuum, the ray is traced to the
+    ///    first hit). The boundary is searched only as far as the medium needs: up to the
+    ///    sampled distance in a homogeneous medium.
     fn interior_step(
         &mut self,
         scene: &'s Scene,
@@ -778,7 +778,7 @@ impl<'s> PathState<'s> {
     }
 
     /// 4. False intersections with lower-priority boundaries, and null boundaries, only
-    /// update the stack.
+    ///    update the stack.
     fn cross_boundary(
         &mut self,
         scene: &Scene,
@@ -808,7 +808,9 @@ impl<'s> PathState<'s> {
     }
 
     /// 5. A true surface interaction: the boundary BSDF for the media meeting there, NEE
-    /// through it, and a sampled reflection or refraction.
+    ///    through it, and a sampled reflection or refraction.
+    // The hit's parts and the path's sampler and counters, as the other steps take them.
+    #[allow(clippy::too_many_arguments)]
     fn surface_interaction(
         &mut self,
         scene: &Scene,
@@ -1036,6 +1038,8 @@ struct SurfaceVertex<'a> {
 impl SurfaceVertex<'_> {
     /// NEE through the boundary BSDF (exit-point NEE for the interior behind it), MIS against
     /// BSDF sampling; shadow rays see opaque dielectric boundaries.
+    // The path's state this NEE reads, passed as parts (the vertex is borrowed beside them).
+    #[allow(clippy::too_many_arguments)]
     fn direct_light(
         &self,
         scene: &Scene,

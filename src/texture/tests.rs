@@ -123,7 +123,7 @@ fn a_checker_at_a_coarse_level_gives_the_mean() {
     let n = 64u32;
     let texels: Vec<f32> = (0..n * n)
         .map(|i| {
-            if ((i % n) / 4 + (i / n) / 4) % 2 == 0 {
+            if ((i % n) / 4 + (i / n) / 4).is_multiple_of(2) {
                 1.0
             } else {
                 0.0

@@ -61,8 +61,8 @@ impl GridStats {
                 return;
             }
             let mut len2 = 0.0;
-            for k in 0..comps {
-                let x = f64::from(v[k]);
+            for (k, &vk) in v[..comps].iter().enumerate() {
+                let x = f64::from(vk);
                 s.min[k] = s.min[k].min(x);
                 s.max[k] = s.max[k].max(x);
                 s.sum[k] += x * count;
@@ -71,8 +71,8 @@ impl GridStats {
             s.sum_len += len2.sqrt() * count;
             if comps == 1 {
                 let x = f64::from(v[0]);
-                for a in 0..3 {
-                    s.moment[a] += x * count * centre[a];
+                for (m, c) in s.moment.iter_mut().zip(centre) {
+                    *m += x * count * c;
                 }
             }
         };

@@ -72,7 +72,7 @@ pub fn write_voxels(dir: &TempDir) {
         class: "fog volume",
         ..GridToWrite::new("density", &grid)
     }];
-    write_vdb(&dir.join("density.vdb"), &list, &WriteOptions::default())
+    write_vdb(dir.join("density.vdb"), &list, &WriteOptions::default())
         .unwrap_or_else(|e| panic!("{e}"));
 }
 

@@ -184,6 +184,8 @@ pub(super) fn first_root(
     let mut s0 = 0.0f32;
     let mut fa = f0;
     let tol = 1e-5 / d.abs().max_element().max(1e-30);
+    // `i == n` is the interval's end, not a root: the indexed form keeps this hot loop plain.
+    #[allow(clippy::needless_range_loop)]
     for i in 0..=n {
         let s1 = if i < n { ext[i] } else { len };
         let fb = horner(&k, s1);

@@ -51,6 +51,7 @@ impl DdaRay {
             t_end: t1,
             lo: lo.to_array(),
             hi: hi.to_array(),
+            // `!(t0 <= t1)`: an empty or NaN interval is done at once (the crate's idiom).
             done: !(t0 <= t1) || lo.cmpgt(hi).any(),
         }
     }

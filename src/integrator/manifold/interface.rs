@@ -5,9 +5,6 @@
 //! derivatives along the tangent plane give the curvature the constraint needs), and on the
 //! face's plane for boxes.
 
-// Comparisons are written `!(x > 0.0)` on purpose: they also reject NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use glam::DVec3;
 
 use super::super::interiors::{

@@ -44,9 +44,6 @@
 //! connections whose walk fails are lost (counted in [`ManifoldStats`]); docs/references.md
 //! §5.6 and docs/choosing-estimators.md give the measured size.
 
-// Comparisons are written `!(x > 0.0)` on purpose: they also reject NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 mod interface;
 pub mod solve;
 

@@ -13,9 +13,6 @@
 //! projected back along the ray from `x0` (as in the paper), so a mesh is walked across
 //! triangles by the ray casts, and every iterate is a point that `x0` sees.
 
-// Comparisons are written `!(x > 0.0)` on purpose: they also reject NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 use glam::DVec3;
 
 /// The surface around a point of the interface, in world units (`f64`).
