@@ -247,6 +247,15 @@ impl TriangleBlock {
             v: [0, 1, 2].map(|j| [coord(j, 0), coord(j, 1), coord(j, 2)]),
         }
     }
+
+    /// The corners of the triangle in lane `lane` (taken modulo 4) as `(x, y, z, 0)`: the
+    /// values [`Self::new`] was given, read back from the block's lanes (the hit record reads
+    /// them here, from lines the test has just loaded, instead of through the mesh's indices).
+    #[inline(always)]
+    pub(crate) fn corners(&self, lane: usize) -> [Vec4; 3] {
+        let l = lane & 3;
+        self.v.map(|[x, y, z]| Vec4::new(x[l], y[l], z[l], 0.0))
+    }
 }
 
 /// The four lanes of [`ShearedRay::intersect4`].
