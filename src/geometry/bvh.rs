@@ -43,12 +43,15 @@ pub struct SceneGeometry {
     /// positions first use them. With `tris` this is the compact layout (16 bytes per vertex
     /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
     /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB. The
-    /// traversal reads the leaves' `blocks` instead; these serve the hit record and the exact
-    /// path of a block with an edge function exactly zero.
+    /// traversal reads the leaves' `blocks` instead; these serve the exact path of a block
+    /// with an edge function exactly zero, and the hit records of queries that do not test
+    /// blocks ([`BlockLane::NONE`]).
     verts: Vec<Vec4>,
     /// Each leaf's triangles in blocks of four, transposed for the four-lane test, numbered
-    /// by `Leaf::block` (144 bytes a block; the traversal reads these, `tris` and `verts`
-    /// serve the hit record and the exact path of edge functions that are exactly zero).
+    /// by `Leaf::block` (144 bytes a block). The traversal reads these, and the closest
+    /// hit's record reads its corners back from them ([`SceneGeometry::corners`]): the
+    /// test has just loaded the block's lines, where `tris` then `verts` are two dependent
+    /// loads, often from outside the first-level cache.
     blocks: Vec<TriangleBlock>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
@@ -1757,6 +1760,18 @@ mod tests {
                     .map(|h| (h.t.to_bits(), h.prim));
                 let want = expected.map(|[t, slot, ..]| (t, g.prims[slot as usize].prim));
                 assert_eq!(got, want, "ray {k}: {ray:?} (avx2 {avx2})");
+                // The whole record, its point from the corners the exact path's block lane
+                // gives back, as computed from the mesh.
+                let reference = expected.map(|[t, slot, b0, b1, b2]| {
+                    let [t, b0, b1, b2] = [t, b0, b1, b2].map(f32::from_bits);
+                    let h = TriangleHit { t, b0, b1, b2 };
+                    all_bits(&reference_hit(&g, &ray, slot as usize, h))
+                });
+                assert_eq!(
+                    g.intersect(&ray, f32::INFINITY).as_ref().map(all_bits),
+                    reference,
+                    "ray {k}: {ray:?} (avx2 {avx2})"
+                );
                 assert!(g.occluded(&ray, f32::INFINITY), "ray {k}");
             }
         }
