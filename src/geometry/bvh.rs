@@ -785,9 +785,9 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
     }
 }
 
-/// Where a hit triangle's corners are read back for its record: lane `0 & 3` of leaf block
-/// `0 >> 2` ([`TriangleBlock::corners`]), or [`BlockLane::NONE`] (through the mesh's
-/// indices). Blocks number at most [`MAX_PRIMITIVES`] < 2³⁰, so the
+/// Where a hit triangle's corners are read back for its record: the low two bits are the
+/// lane and the rest the index of a leaf block ([`TriangleBlock::corners`]), or
+/// [`BlockLane::NONE`] (through `tris` and `verts`). Blocks number at most [`MAX_PRIMITIVES`] < 2³⁰, so the
 /// product fits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct BlockLane(u32);
