@@ -43,12 +43,15 @@ pub struct SceneGeometry {
     /// positions first use them. With `tris` this is the compact layout (16 bytes per vertex
     /// and 12 per triangle instead of 48 per transposed triangle), so that the 20k-triangle
     /// icosphere's hierarchy, nodes and triangles, takes about 0.8 MB instead of 1.4 MB. The
-    /// traversal reads the leaves' `blocks` instead; these serve the hit record and the exact
-    /// path of a block with an edge function exactly zero.
+    /// traversal reads the leaves' `blocks` instead; these serve the exact path of a block
+    /// with an edge function exactly zero, and the hit records of queries that do not test
+    /// blocks ([`BlockLane::NONE`]).
     verts: Vec<Vec4>,
     /// Each leaf's triangles in blocks of four, transposed for the four-lane test, numbered
-    /// by `Leaf::block` (144 bytes a block; the traversal reads these, `tris` and `verts`
-    /// serve the hit record and the exact path of edge functions that are exactly zero).
+    /// by `Leaf::block` (144 bytes a block). The traversal reads these, and the closest
+    /// hit's record reads its corners back from them ([`SceneGeometry::corners`]): the
+    /// test has just loaded the block's lines, where `tris` then `verts` are two dependent
+    /// loads, often from outside the first-level cache.
     blocks: Vec<TriangleBlock>,
     /// The cells no triangle touches: short segments inside them skip the traversal.
     empty: Option<EmptyCells>,
@@ -91,7 +94,9 @@ enum Analytic {
 }
 
 enum Best {
-    Tri(usize, TriangleHit),
+    /// A triangle: its BVH position, where its corners are read back ([`BlockLane`]) and
+    /// the hit.
+    Tri(usize, BlockLane, TriangleHit),
     /// A sphere's candidate with the sphere's centre and radius: its record is made only
     /// for the nearest hit ([`SceneGeometry::make_hit`]).
     Sphere(u32, SphereCandidate, Vec3, f32),
@@ -342,7 +347,7 @@ impl SceneGeometry {
                 best: &mut best,
             },
         );
-        best.map(|(slot, h)| self.make_hit(ray, Best::Tri(slot as usize, h)))
+        best.map(|(slot, lane, h)| self.make_hit(ray, Best::Tri(slot as usize, lane, h)))
     }
 
     /// [`Self::closest`] in a scene with analytic shapes.
@@ -429,8 +434,8 @@ impl SceneGeometry {
                     best: &mut tri,
                 },
             );
-            if let Some((slot, h)) = tri {
-                best = Some(Best::Tri(slot as usize, h));
+            if let Some((slot, lane, h)) = tri {
+                best = Some(Best::Tri(slot as usize, lane, h));
             }
         }
         best.map(|b| self.make_hit(ray, b))
@@ -521,6 +526,24 @@ impl SceneGeometry {
         }
     }
 
+    /// The corners of the triangle at BVH position `slot` as stored (`w` = 0): from block lane
+    /// `lane` of the leaves' blocks, whose lines the four-lane test has just read, or through
+    /// `tris` and `verts` when `lane` is [`BlockLane::NONE`]. Both hold the same floats
+    /// (`build` fills both from the mesh's positions).
+    #[inline(always)]
+    fn corners(&self, slot: usize, lane: BlockLane) -> [Vec4; 3] {
+        if lane == BlockLane::NONE {
+            debug_assert!(slot < self.tris.len());
+            // SAFETY: as in `triangle`.
+            unsafe {
+                let [a, b, c] = *self.tris.get_unchecked(slot);
+                [a, b, c].map(|v| *self.verts.get_unchecked(v as usize))
+            }
+        } else {
+            self.block(lane.0 >> 2).corners(lane.0 as usize)
+        }
+    }
+
     /// Asks the CPU to bring triangle `slot`'s record (`prims`) towards the core: a hint
     /// issued when the traversal finds a nearer triangle, so that [`SceneGeometry::make_hit`]
     /// does not wait for it (no fault and no visible effect, whatever `slot`).
@@ -602,20 +625,12 @@ impl SceneGeometry {
                 prim: 0,
                 p_error: h.p_error,
             },
-            Best::Tri(slot, h) => {
-                debug_assert!(slot < self.tris.len() && slot < self.prims.len());
+            Best::Tri(slot, lane, h) => {
+                debug_assert!(slot < self.prims.len());
                 // SAFETY: `slot` is a BVH position the traversal reported, below
-                // `bvh.order().len() == tris.len() == prims.len()`, and `build` numbers every
-                // vertex a triangle names below `verts.len()` (as in `triangle`).
-                let (p, a4, b4, c4) = unsafe {
-                    let [ia, ib, ic] = *self.tris.get_unchecked(slot);
-                    (
-                        self.prims.get_unchecked(slot),
-                        *self.verts.get_unchecked(ia as usize),
-                        *self.verts.get_unchecked(ib as usize),
-                        *self.verts.get_unchecked(ic as usize),
-                    )
-                };
+                // `bvh.order().len() == prims.len()`.
+                let p = unsafe { self.prims.get_unchecked(slot) };
+                let [a4, b4, c4] = self.corners(slot, lane);
                 // The corners as stored (`w` = 0), combined in SIMD lanes: the same
                 // per-coordinate IEEE operations as on `Vec3`s.
                 let pos = (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate();
@@ -724,7 +739,7 @@ struct NearestTriangle<'g, 'b> {
     /// The ray's shear constants, by reference: the traversal reads them from the caller's
     /// frame instead of copying them into its own.
     sr: &'b ShearedRay,
-    best: &'b mut Option<(u32, TriangleHit)>,
+    best: &'b mut Option<(u32, BlockLane, TriangleHit)>,
 }
 
 impl LeafVisitor for NearestTriangle<'_, '_> {
@@ -733,7 +748,7 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
         match test_slot(self.geometry, self.sr, slot, t_max) {
             Some(h) => {
                 self.geometry.prefetch_prim(slot as usize);
-                *self.best = Some((slot, h));
+                *self.best = Some((slot, BlockLane::NONE, h));
                 h.t
             }
             None => t_max,
@@ -750,18 +765,42 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
                 .sr
                 .intersect4(self.geometry.block(block), (1 << n) - 1, t_max);
             if h.unsure != 0 {
-                for slot in first..first + n {
-                    t_max = self.visit(slot, t_max);
+                for lane in 0..n {
+                    let slot = first + lane;
+                    if let Some(hit) = test_slot(self.geometry, self.sr, slot, t_max) {
+                        self.geometry.prefetch_prim(slot as usize);
+                        *self.best = Some((slot, BlockLane::new(block, lane), hit));
+                        t_max = hit.t;
+                    }
                 }
             } else if h.hit != 0 {
                 let (lane, hit) = h.nearest();
                 let slot = first + lane as u32;
                 self.geometry.prefetch_prim(slot as usize);
-                *self.best = Some((slot, hit));
+                *self.best = Some((slot, BlockLane::new(block, lane as u32), hit));
                 t_max = hit.t;
             }
         }
         t_max
+    }
+}
+
+/// Where a hit triangle's corners are read back for its record: the low two bits are the
+/// lane and the rest the index of a leaf block ([`TriangleBlock::corners`]), or
+/// [`BlockLane::NONE`] (through `tris` and `verts`). Blocks number at most [`MAX_PRIMITIVES`] < 2³⁰, so the
+/// product fits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct BlockLane(u32);
+
+impl BlockLane {
+    /// No block: the corners come from `tris` and `verts`.
+    const NONE: BlockLane = BlockLane(u32::MAX);
+
+    /// Lane `lane` (below 4) of block `block`.
+    #[inline(always)]
+    fn new(block: u32, lane: u32) -> Self {
+        debug_assert!(lane < 4 && block < u32::MAX >> 2);
+        BlockLane(block << 2 | (lane & 3))
     }
 }
 
@@ -1721,6 +1760,18 @@ mod tests {
                     .map(|h| (h.t.to_bits(), h.prim));
                 let want = expected.map(|[t, slot, ..]| (t, g.prims[slot as usize].prim));
                 assert_eq!(got, want, "ray {k}: {ray:?} (avx2 {avx2})");
+                // The whole record, its point from the corners the exact path's block lane
+                // gives back, as computed from the mesh.
+                let reference = expected.map(|[t, slot, b0, b1, b2]| {
+                    let [t, b0, b1, b2] = [t, b0, b1, b2].map(f32::from_bits);
+                    let h = TriangleHit { t, b0, b1, b2 };
+                    all_bits(&reference_hit(&g, &ray, slot as usize, h))
+                });
+                assert_eq!(
+                    g.intersect(&ray, f32::INFINITY).as_ref().map(all_bits),
+                    reference,
+                    "ray {k}: {ray:?} (avx2 {avx2})"
+                );
                 assert!(g.occluded(&ray, f32::INFINITY), "ray {k}");
             }
         }

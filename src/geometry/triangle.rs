@@ -247,6 +247,15 @@ impl TriangleBlock {
             v: [0, 1, 2].map(|j| [coord(j, 0), coord(j, 1), coord(j, 2)]),
         }
     }
+
+    /// The corners of the triangle in lane `lane` (taken modulo 4) as `(x, y, z, 0)`: the
+    /// values [`Self::new`] was given, read back from the block's lanes (the hit record reads
+    /// them here, from lines the test has just loaded, instead of through the mesh's indices).
+    #[inline(always)]
+    pub(crate) fn corners(&self, lane: usize) -> [Vec4; 3] {
+        let l = lane & 3;
+        self.v.map(|[x, y, z]| Vec4::new(x[l], y[l], z[l], 0.0))
+    }
 }
 
 /// The four lanes of [`ShearedRay::intersect4`].
@@ -672,5 +681,34 @@ mod tests {
             "{unsure} lanes with an edge function exactly zero"
         );
         assert!(nearest_not_first > 1_000, "{nearest_not_first}");
+    }
+
+    #[test]
+    fn a_block_gives_back_each_lanes_corners_as_stored() {
+        let mut next = uniform_stream(29);
+        let mut coord = move || (next() - 0.5) * 1.0e3;
+        for n in 1..=4 {
+            let tris: Vec<[Vec3; 3]> = (0..n)
+                .map(|_| [(); 3].map(|_| Vec3::new(coord(), -coord(), coord())))
+                .collect();
+            let block = TriangleBlock::new(&tris);
+            for lane in 0..4 {
+                // Lanes past the block's triangles repeat the first.
+                let want = tris.get(lane).unwrap_or(&tris[0]).map(|v| v.extend(0.0));
+                let got = block.corners(lane);
+                assert_eq!(
+                    got.map(|v| v.to_array().map(f32::to_bits)),
+                    want.map(|v| v.to_array().map(f32::to_bits)),
+                    "{n} triangles, lane {lane}"
+                );
+                // The lane is taken modulo 4.
+                assert_eq!(
+                    block
+                        .corners(lane + 4)
+                        .map(|v| v.to_array().map(f32::to_bits)),
+                    got.map(|v| v.to_array().map(f32::to_bits))
+                );
+            }
+        }
     }
 }

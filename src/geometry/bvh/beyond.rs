@@ -6,7 +6,7 @@
 //! where there is none it visits every node the ray passes through once, where the two
 //! searches visited the nodes around the crossing twice.
 
-use super::{Best, SceneGeometry};
+use super::{Best, BlockLane, SceneGeometry};
 use crate::geometry::triangle::{ShearedRay, TriangleHit};
 use crate::geometry::Hit;
 use crate::math::Ray;
@@ -63,7 +63,7 @@ impl SceneGeometry {
         });
         let clear = first.is_some() && second.is_infinite();
         (
-            first.map(|(slot, h)| self.make_hit(ray, Best::Tri(slot, h))),
+            first.map(|(slot, h)| self.make_hit(ray, Best::Tri(slot, BlockLane::NONE, h))),
             clear,
         )
     }
