@@ -22,10 +22,10 @@ use glam::Vec3;
 use super::artist::Coefficients;
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
 use super::grids::{AlbedoGrid, EmissionGrid, GridRay};
-use super::heterogeneous::{HeterogeneousMedium, MediumSegments};
+use super::heterogeneous::{HeterogeneousMedium, MediumSegmentsOf};
 use super::lookup::DensityLookup;
 use super::walk::{EntryInterior, WalkMedium};
-use crate::majorant::MajorantSegment;
+use crate::majorant::{MajorantSegment, Segments};
 use crate::math::{Ray, Vec2};
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
@@ -143,25 +143,33 @@ struct MixRay<'a> {
 }
 
 impl<'a> MixRay<'a> {
-    fn new(medium: &'a MixtureMedium, k: &'a WalkCoefficients, ray: &Ray, emission: bool) -> Self {
-        let mut density: [Option<DensityLookup<'a>>; MAX_COMPONENTS] = [None, None, None, None];
-        let mut em: [Option<GridRay<'a>>; MAX_COMPONENTS] = [None, None, None, None];
-        for (i, c) in medium.components.iter().take(MAX_COMPONENTS).enumerate() {
-            if let (ComponentDensity::Field(h), Some(slot)) = (&c.density, density.get_mut(i)) {
-                *slot = Some(h.density_along(ray));
-            }
-            if emission {
-                if let (Some(e), Some(slot)) = (&c.emission, em.get_mut(i)) {
-                    *slot = Some(GridRay::new(&e.grid, ray));
-                }
-            }
-        }
+    /// The per-ray state without its lookups: [`Self::prepare`] makes them in place (the
+    /// lookups are large, and a state built and returned by value is copied).
+    #[inline(always)]
+    fn idle(medium: &'a MixtureMedium, k: &'a WalkCoefficients, ray: &Ray) -> Self {
         MixRay {
             medium,
             k,
             ray: *ray,
-            density,
-            emission: em,
+            density: [None, None, None, None],
+            emission: [None, None, None, None],
+        }
+    }
+
+    /// Makes the components' density lookups (and emission lookups when `emission`).
+    fn prepare(&mut self, emission: bool) {
+        let medium = self.medium;
+        let ray = self.ray;
+        let slots = self.density.iter_mut().zip(self.emission.iter_mut());
+        for (c, (density, em)) in medium.components.iter().take(MAX_COMPONENTS).zip(slots) {
+            if let ComponentDensity::Field(h) = &c.density {
+                *density = Some(h.density_along(&ray));
+            }
+            if emission {
+                if let Some(e) = &c.emission {
+                    *em = Some(GridRay::new(&e.grid, &ray));
+                }
+            }
         }
     }
 
@@ -203,8 +211,11 @@ impl<'a> MixRay<'a> {
 /// The merged majorant segments of a mixture along a ray: the components' walks joined at
 /// every boundary of any of them, each piece's majorant the sum of the components'
 /// (constant components everywhere, field components where their walk has a segment).
-struct MixSegments<'a> {
-    streams: [Option<MediumSegments<'a>>; MAX_COMPONENTS],
+///
+/// The fields' walks are held by the caller ([`FieldWalks`]) and lent: a walk's iterator holds
+/// its DDA stack, which every move copies.
+struct MixSegments<'a, 'w> {
+    streams: [Option<MediumSegmentsOf<&'w mut Segments<'a>>>; MAX_COMPONENTS],
     current: [Option<MajorantSegment>; MAX_COMPONENTS],
     scale: [Rgb; MAX_COMPONENTS],
     constant: Rgb,
@@ -212,11 +223,23 @@ struct MixSegments<'a> {
     end: f32,
 }
 
-impl<'a> MixSegments<'a> {
+/// The majorant walks of a mixture's field components along one ray (entry `i` for
+/// component `i`; `None` for constant components), held where a flight is sampled and lent
+/// to [`MixSegments`].
+type FieldWalks<'a> = [Option<Segments<'a>>; MAX_COMPONENTS];
+
+impl<'a, 'w> MixSegments<'a, 'w> {
     /// The merged segments of `medium` with coefficients `k` along `ray` over `[t0, t1]`:
-    /// each field's density bounds times its σ_t per unit density in `k`.
-    fn new(medium: &'a MixtureMedium, k: &WalkCoefficients, ray: &Ray, t0: f32, t1: f32) -> Self {
-        // Filled in place (the streams are large: one DDA stack each).
+    /// each field's density bounds times its σ_t per unit density in `k`. The fields' walks
+    /// are prepared in `walks` (which must hold no walk yet).
+    fn new(
+        medium: &'a MixtureMedium,
+        k: &WalkCoefficients,
+        ray: &Ray,
+        t0: f32,
+        t1: f32,
+        walks: &'w mut FieldWalks<'a>,
+    ) -> Self {
         let mut m = MixSegments {
             streams: [None, None, None, None],
             current: [None; MAX_COMPONENTS],
@@ -226,14 +249,16 @@ impl<'a> MixSegments<'a> {
             end: t1,
         };
         let comps = medium.components.iter().take(MAX_COMPONENTS);
-        for (i, (c, own)) in comps.zip(k.iter()).enumerate() {
+        let slots = walks
+            .iter_mut()
+            .zip(m.streams.iter_mut().zip(m.scale.iter_mut()));
+        for ((c, own), (walk, (s, scale))) in comps.zip(k.iter()).zip(slots) {
             match &c.density {
                 ComponentDensity::Constant(_) => m.constant += own.sigma_t,
                 ComponentDensity::Field(h) => {
-                    if let (Some(s), Some(k)) = (m.streams.get_mut(i), m.scale.get_mut(i)) {
-                        *s = Some(h.segments_along(ray, t0, t1));
-                        *k = own.sigma_t;
-                    }
+                    let w = walk.insert(h.flight_walk(ray, t0, t1));
+                    *s = Some(h.flight_segments_of(w, t0, t1));
+                    *scale = own.sigma_t;
                 }
             }
         }
@@ -244,7 +269,7 @@ impl<'a> MixSegments<'a> {
     }
 }
 
-impl Iterator for MixSegments<'_> {
+impl Iterator for MixSegments<'_, '_> {
     type Item = RateSegment;
 
     fn next(&mut self) -> Option<RateSegment> {
@@ -423,12 +448,14 @@ impl MixtureMedium {
         // ([`super::Medium::flight_before_boundary`]).
         // Held here and lent to the tracker: the merged walk holds one DDA stack per
         // component and is too large to move around by value.
-        let mut merged = MixSegments::new(self, k, ray, 0.0, f32::INFINITY);
+        let mut walks: FieldWalks<'_> = [None, None, None, None];
+        let mut merged = MixSegments::new(self, k, ray, 0.0, f32::INFINITY, &mut walks);
         let segments = ClippedSegments {
             inner: &mut merged,
             end: t_max,
         };
-        let mut state = MixRay::new(self, k, ray, emits);
+        let mut state = MixRay::idle(self, k, ray);
+        state.prepare(emits);
         let probs = channel_probabilities(beta, Rgb::ONE);
         let none = ComponentCoefficients::ZERO;
         let flight = mixture_track(
@@ -687,7 +714,8 @@ mod tests {
         };
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
         let own = m.own_coefficients();
-        let segs: Vec<RateSegment> = MixSegments::new(&m, &own, &ray, 0.0, 2.0).collect();
+        let segs: Vec<RateSegment> =
+            MixSegments::new(&m, &own, &ray, 0.0, 2.0, &mut [None, None, None, None]).collect();
         assert_eq!(
             segs,
             vec![RateSegment {
@@ -698,7 +726,15 @@ mod tests {
             }]
         );
         // Open interiors: one infinite segment.
-        let open: Vec<RateSegment> = MixSegments::new(&m, &own, &ray, 0.0, f32::INFINITY).collect();
+        let open: Vec<RateSegment> = MixSegments::new(
+            &m,
+            &own,
+            &ray,
+            0.0,
+            f32::INFINITY,
+            &mut [None, None, None, None],
+        )
+        .collect();
         assert_eq!(open.len(), 1);
     }
 
@@ -731,7 +767,8 @@ mod tests {
             sigma_s: Rgb::new(1.0, 1.0, 1.0),
         };
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
-        let segs: Vec<RateSegment> = MixSegments::new(&m, &k, &ray, 0.0, 1.0).collect();
+        let segs: Vec<RateSegment> =
+            MixSegments::new(&m, &k, &ray, 0.0, 1.0, &mut [None, None, None, None]).collect();
         assert_eq!(segs.len(), 1);
         assert!((segs[0].majorant - 5.0).abs() < 1e-6, "{segs:?}");
         let walk = ScaledMixture {
