@@ -787,4 +787,133 @@ mod tests {
         };
         assert_eq!(fixed.at(Vec2::ZERO, 1.0).coefficients, m.own_coefficients());
     }
+
+    /// Clear water (constant) and a sparse foam field over 6³ bricks: blobs of density in
+    /// some bricks, empty bricks between them.
+    fn water_and_foam() -> MixtureMedium {
+        use crate::grid::{ChannelKind, SparseGridBuilder, Storage};
+        use crate::majorant::MajorantPyramid;
+        use crate::medium::heterogeneous::DensityField;
+        use crate::tracking::TrackingConfig;
+        let mut b = SparseGridBuilder::new(Storage::F32);
+        let density = b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
+        let blobs = [
+            (glam::IVec3::new(6, 30, 9), 5),
+            (glam::IVec3::new(30, 8, 36), 7),
+            (glam::IVec3::new(40, 40, 12), 4),
+        ];
+        for (c, r) in blobs {
+            for x in -r..=r {
+                for y in -r..=r {
+                    for z in -r..=r {
+                        let d = glam::IVec3::new(x, y, z);
+                        if d.length_squared() <= r * r {
+                            let v = 1.0 - (d.length_squared() as f32) / (r * r) as f32;
+                            b.set_value(density, c + d, 0.25 + v).expect("voxel");
+                        }
+                    }
+                }
+            }
+        }
+        let grid = b.build();
+        let pyramid = MajorantPyramid::from_grid(&grid, density).expect("pyramid");
+        let foam = HeterogeneousMedium {
+            field: DensityField::Grid {
+                grid,
+                channel: density,
+            },
+            pyramid,
+            coefficients: DensityCoefficients::new(Rgb::splat(40.0), Rgb::splat(39.0)),
+            phase: PhaseFunction::HenyeyGreenstein { g: 0.8 },
+            tracking: TrackingConfig::default(),
+            fabric: None,
+            mips: None,
+        };
+        let water = Coefficients {
+            sigma_a: Rgb::new(0.28, 0.06, 0.01),
+            sigma_s: Rgb::new(0.002, 0.003, 0.006),
+        };
+        MixtureMedium {
+            components: vec![
+                MixtureComponent {
+                    density: ComponentDensity::Constant(water),
+                    phase: PhaseFunction::HenyeyGreenstein { g: 0.0 },
+                    albedo: None,
+                    emission: None,
+                },
+                MixtureComponent {
+                    density: ComponentDensity::Field(Box::new(foam)),
+                    phase: PhaseFunction::HenyeyGreenstein { g: 0.8 },
+                    albedo: None,
+                    emission: None,
+                },
+            ],
+        }
+    }
+
+    #[test]
+    fn lent_walks_give_the_fields_segments_and_their_merge() {
+        let m = water_and_foam();
+        let ComponentDensity::Field(foam) = &m.components[1].density else {
+            unreachable!("the second component is the field")
+        };
+        let own = m.own_coefficients();
+        let water = own[0].sigma_t;
+        let scale = own[1].sigma_t;
+        let mut rng = crate::sampling::Rng::new(25, 1);
+        let (mut varying, mut gaps) = (0usize, 0usize);
+        for r in 0..3000 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 56.0 - 4.0;
+            let d = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
+                .normalize_or(Vec3::Z);
+            let ray = Ray::new(o, d);
+            let t1 = if r % 3 == 0 { 20.0 } else { f32::INFINITY };
+            // The walk made in two parts and lent gives the segments of the one-part call.
+            let whole: Vec<MajorantSegment> = foam.segments_along(&ray, 0.0, t1).collect();
+            let mut walk = foam.flight_walk(&ray, 0.0, t1);
+            let lent: Vec<MajorantSegment> = foam.flight_segments_of(&mut walk, 0.0, t1).collect();
+            assert_eq!(lent, whole, "ray {r}");
+            // The merged segments: the water alone between the foam's segments, water and
+            // foam on them.
+            let mut expected = Vec::new();
+            let mut t = 0.0f32;
+            for s in whole.iter().filter(|s| s.t1 > s.t0) {
+                if s.t0 > t {
+                    expected.push(RateSegment {
+                        t0: t,
+                        t1: s.t0,
+                        majorant: water.max_component(),
+                        varying: false,
+                    });
+                }
+                let rate = scale * s.max.max(0.0);
+                expected.push(RateSegment {
+                    t0: s.t0.max(t),
+                    t1: s.t1,
+                    majorant: (water + rate).max_component(),
+                    varying: !rate.is_black() || !s.exact,
+                });
+                t = s.t1;
+            }
+            if t < t1 {
+                expected.push(RateSegment {
+                    t0: t,
+                    t1,
+                    majorant: water.max_component(),
+                    varying: false,
+                });
+            }
+            let mut walks: FieldWalks<'_> = [None, None, None, None];
+            let merged: Vec<RateSegment> =
+                MixSegments::new(&m, &own, &ray, 0.0, t1, &mut walks).collect();
+            assert_eq!(merged, expected, "ray {r}");
+            varying += merged.iter().filter(|s| s.varying).count();
+            gaps += merged.iter().filter(|s| !s.varying).count();
+        }
+        // Both kinds of pieces, in numbers.
+        assert!(
+            varying > 500 && gaps > 2000,
+            "{varying} varying, {gaps} gaps"
+        );
+    }
 }
