@@ -446,8 +446,8 @@ impl MixtureMedium {
         // (the walks' cells do not depend on where the ray ends), which is what lets a caller
         // sample the flight first and search the boundary only up to the collision
         // ([`super::Medium::flight_before_boundary`]).
-        // Held here and lent to the tracker: the merged walk holds one DDA stack per
-        // component and is too large to move around by value.
+        // The fields' walks are held here and lent to the merged walk, which is lent to the
+        // tracker: a walk holds a DDA stack, too large to move around by value.
         let mut walks: FieldWalks<'_> = [None, None, None, None];
         let mut merged = MixSegments::new(self, k, ray, 0.0, f32::INFINITY, &mut walks);
         let segments = ClippedSegments {
