@@ -267,14 +267,38 @@ impl HeterogeneousMedium {
     /// adjustments.
     #[must_use]
     pub fn segments_along(&self, ray: &Ray, t0: f32, t1: f32) -> MediumSegments<'_> {
+        self.segments_with(&self.coefficients, ray, t0, t1, self.flight_model())
+    }
+
+    /// The walk's lookup model of free flights.
+    fn flight_model(&self) -> LookupModel {
         // With point bounds a tentative collision costs a probe, and the lookups left depend on
         // the local bounds only.
-        let model = if self.uses_local_bounds() {
+        if self.uses_local_bounds() {
             LookupModel::Probed
         } else {
             self.unprobed_flight_model()
-        };
-        self.segments_with(&self.coefficients, ray, t0, t1, model)
+        }
+    }
+
+    /// [`Self::segments_along`] in two parts, for callers that hold the pyramid's walk in
+    /// place and lend it ([`Self::flight_segments_of`]): moving the walk's iterator copies its
+    /// DDA stack. The pyramid's segments of `[t0, t1]` along `ray` for free flights.
+    #[inline]
+    pub(super) fn flight_walk(&self, ray: &Ray, t0: f32, t1: f32) -> Segments<'_> {
+        self.pyramid_segments(&self.coefficients, ray, t0, t1, self.flight_model())
+    }
+
+    /// The second part of [`Self::segments_along`]: the free flights' segments from `walk`
+    /// (made by [`Self::flight_walk`] over the same `[t0, t1]`), borrowed.
+    #[inline]
+    pub(super) fn flight_segments_of<'w, 'a>(
+        &self,
+        walk: &'w mut Segments<'a>,
+        t0: f32,
+        t1: f32,
+    ) -> MediumSegmentsOf<&'w mut Segments<'a>> {
+        self.medium_segments(&self.coefficients, walk, t0, t1)
     }
 
     /// The walk's lookup model of shadow rays.

@@ -22,10 +22,10 @@ use glam::Vec3;
 use super::artist::Coefficients;
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
 use super::grids::{AlbedoGrid, EmissionGrid, GridRay};
-use super::heterogeneous::{HeterogeneousMedium, MediumSegments};
+use super::heterogeneous::{HeterogeneousMedium, MediumSegmentsOf};
 use super::lookup::DensityLookup;
 use super::walk::{EntryInterior, WalkMedium};
-use crate::majorant::MajorantSegment;
+use crate::majorant::{MajorantSegment, Segments};
 use crate::math::{Ray, Vec2};
 use crate::phase::PhaseFunction;
 use crate::spectrum::Rgb;
@@ -143,25 +143,33 @@ struct MixRay<'a> {
 }
 
 impl<'a> MixRay<'a> {
-    fn new(medium: &'a MixtureMedium, k: &'a WalkCoefficients, ray: &Ray, emission: bool) -> Self {
-        let mut density: [Option<DensityLookup<'a>>; MAX_COMPONENTS] = [None, None, None, None];
-        let mut em: [Option<GridRay<'a>>; MAX_COMPONENTS] = [None, None, None, None];
-        for (i, c) in medium.components.iter().take(MAX_COMPONENTS).enumerate() {
-            if let (ComponentDensity::Field(h), Some(slot)) = (&c.density, density.get_mut(i)) {
-                *slot = Some(h.density_along(ray));
-            }
-            if emission {
-                if let (Some(e), Some(slot)) = (&c.emission, em.get_mut(i)) {
-                    *slot = Some(GridRay::new(&e.grid, ray));
-                }
-            }
-        }
+    /// The per-ray state without its lookups: [`Self::prepare`] makes them in place (the
+    /// lookups are large, and a state built and returned by value is copied).
+    #[inline(always)]
+    fn idle(medium: &'a MixtureMedium, k: &'a WalkCoefficients, ray: &Ray) -> Self {
         MixRay {
             medium,
             k,
             ray: *ray,
-            density,
-            emission: em,
+            density: [None, None, None, None],
+            emission: [None, None, None, None],
+        }
+    }
+
+    /// Makes the components' density lookups (and emission lookups when `emission`).
+    fn prepare(&mut self, emission: bool) {
+        let medium = self.medium;
+        let ray = self.ray;
+        let slots = self.density.iter_mut().zip(self.emission.iter_mut());
+        for (c, (density, em)) in medium.components.iter().take(MAX_COMPONENTS).zip(slots) {
+            if let ComponentDensity::Field(h) = &c.density {
+                *density = Some(h.density_along(&ray));
+            }
+            if emission {
+                if let Some(e) = &c.emission {
+                    *em = Some(GridRay::new(&e.grid, &ray));
+                }
+            }
         }
     }
 
@@ -203,8 +211,11 @@ impl<'a> MixRay<'a> {
 /// The merged majorant segments of a mixture along a ray: the components' walks joined at
 /// every boundary of any of them, each piece's majorant the sum of the components'
 /// (constant components everywhere, field components where their walk has a segment).
-struct MixSegments<'a> {
-    streams: [Option<MediumSegments<'a>>; MAX_COMPONENTS],
+///
+/// The fields' walks are held by the caller ([`FieldWalks`]) and lent: a walk's iterator holds
+/// its DDA stack, which every move copies.
+struct MixSegments<'a, 'w> {
+    streams: [Option<MediumSegmentsOf<&'w mut Segments<'a>>>; MAX_COMPONENTS],
     current: [Option<MajorantSegment>; MAX_COMPONENTS],
     scale: [Rgb; MAX_COMPONENTS],
     constant: Rgb,
@@ -212,11 +223,23 @@ struct MixSegments<'a> {
     end: f32,
 }
 
-impl<'a> MixSegments<'a> {
+/// The majorant walks of a mixture's field components along one ray (entry `i` for
+/// component `i`; `None` for constant components), held where a flight is sampled and lent
+/// to [`MixSegments`].
+type FieldWalks<'a> = [Option<Segments<'a>>; MAX_COMPONENTS];
+
+impl<'a, 'w> MixSegments<'a, 'w> {
     /// The merged segments of `medium` with coefficients `k` along `ray` over `[t0, t1]`:
-    /// each field's density bounds times its σ_t per unit density in `k`.
-    fn new(medium: &'a MixtureMedium, k: &WalkCoefficients, ray: &Ray, t0: f32, t1: f32) -> Self {
-        // Filled in place (the streams are large: one DDA stack each).
+    /// each field's density bounds times its σ_t per unit density in `k`. The fields' walks
+    /// are prepared in `walks` (which must hold no walk yet).
+    fn new(
+        medium: &'a MixtureMedium,
+        k: &WalkCoefficients,
+        ray: &Ray,
+        t0: f32,
+        t1: f32,
+        walks: &'w mut FieldWalks<'a>,
+    ) -> Self {
         let mut m = MixSegments {
             streams: [None, None, None, None],
             current: [None; MAX_COMPONENTS],
@@ -226,14 +249,16 @@ impl<'a> MixSegments<'a> {
             end: t1,
         };
         let comps = medium.components.iter().take(MAX_COMPONENTS);
-        for (i, (c, own)) in comps.zip(k.iter()).enumerate() {
+        let slots = walks
+            .iter_mut()
+            .zip(m.streams.iter_mut().zip(m.scale.iter_mut()));
+        for ((c, own), (walk, (s, scale))) in comps.zip(k.iter()).zip(slots) {
             match &c.density {
                 ComponentDensity::Constant(_) => m.constant += own.sigma_t,
                 ComponentDensity::Field(h) => {
-                    if let (Some(s), Some(k)) = (m.streams.get_mut(i), m.scale.get_mut(i)) {
-                        *s = Some(h.segments_along(ray, t0, t1));
-                        *k = own.sigma_t;
-                    }
+                    let w = walk.insert(h.flight_walk(ray, t0, t1));
+                    *s = Some(h.flight_segments_of(w, t0, t1));
+                    *scale = own.sigma_t;
                 }
             }
         }
@@ -244,7 +269,7 @@ impl<'a> MixSegments<'a> {
     }
 }
 
-impl Iterator for MixSegments<'_> {
+impl Iterator for MixSegments<'_, '_> {
     type Item = RateSegment;
 
     fn next(&mut self) -> Option<RateSegment> {
@@ -421,14 +446,16 @@ impl MixtureMedium {
         // (the walks' cells do not depend on where the ray ends), which is what lets a caller
         // sample the flight first and search the boundary only up to the collision
         // ([`super::Medium::flight_before_boundary`]).
-        // Held here and lent to the tracker: the merged walk holds one DDA stack per
-        // component and is too large to move around by value.
-        let mut merged = MixSegments::new(self, k, ray, 0.0, f32::INFINITY);
+        // The fields' walks are held here and lent to the merged walk, which is lent to the
+        // tracker: a walk holds a DDA stack, too large to move around by value.
+        let mut walks: FieldWalks<'_> = [None, None, None, None];
+        let mut merged = MixSegments::new(self, k, ray, 0.0, f32::INFINITY, &mut walks);
         let segments = ClippedSegments {
             inner: &mut merged,
             end: t_max,
         };
-        let mut state = MixRay::new(self, k, ray, emits);
+        let mut state = MixRay::idle(self, k, ray);
+        state.prepare(emits);
         let probs = channel_probabilities(beta, Rgb::ONE);
         let none = ComponentCoefficients::ZERO;
         let flight = mixture_track(
@@ -687,7 +714,8 @@ mod tests {
         };
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
         let own = m.own_coefficients();
-        let segs: Vec<RateSegment> = MixSegments::new(&m, &own, &ray, 0.0, 2.0).collect();
+        let segs: Vec<RateSegment> =
+            MixSegments::new(&m, &own, &ray, 0.0, 2.0, &mut [None, None, None, None]).collect();
         assert_eq!(
             segs,
             vec![RateSegment {
@@ -698,7 +726,15 @@ mod tests {
             }]
         );
         // Open interiors: one infinite segment.
-        let open: Vec<RateSegment> = MixSegments::new(&m, &own, &ray, 0.0, f32::INFINITY).collect();
+        let open: Vec<RateSegment> = MixSegments::new(
+            &m,
+            &own,
+            &ray,
+            0.0,
+            f32::INFINITY,
+            &mut [None, None, None, None],
+        )
+        .collect();
         assert_eq!(open.len(), 1);
     }
 
@@ -731,7 +767,8 @@ mod tests {
             sigma_s: Rgb::new(1.0, 1.0, 1.0),
         };
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
-        let segs: Vec<RateSegment> = MixSegments::new(&m, &k, &ray, 0.0, 1.0).collect();
+        let segs: Vec<RateSegment> =
+            MixSegments::new(&m, &k, &ray, 0.0, 1.0, &mut [None, None, None, None]).collect();
         assert_eq!(segs.len(), 1);
         assert!((segs[0].majorant - 5.0).abs() < 1e-6, "{segs:?}");
         let walk = ScaledMixture {
@@ -749,5 +786,134 @@ mod tests {
             textures: vec![ComponentTextures::Fixed, ComponentTextures::Fixed],
         };
         assert_eq!(fixed.at(Vec2::ZERO, 1.0).coefficients, m.own_coefficients());
+    }
+
+    /// Clear water (constant) and a sparse foam field over 6³ bricks: blobs of density in
+    /// some bricks, empty bricks between them.
+    fn water_and_foam() -> MixtureMedium {
+        use crate::grid::{ChannelKind, SparseGridBuilder, Storage};
+        use crate::majorant::MajorantPyramid;
+        use crate::medium::heterogeneous::DensityField;
+        use crate::tracking::TrackingConfig;
+        let mut b = SparseGridBuilder::new(Storage::F32);
+        let density = b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
+        let blobs = [
+            (glam::IVec3::new(6, 30, 9), 5),
+            (glam::IVec3::new(30, 8, 36), 7),
+            (glam::IVec3::new(40, 40, 12), 4),
+        ];
+        for (c, r) in blobs {
+            for x in -r..=r {
+                for y in -r..=r {
+                    for z in -r..=r {
+                        let d = glam::IVec3::new(x, y, z);
+                        if d.length_squared() <= r * r {
+                            let v = 1.0 - (d.length_squared() as f32) / (r * r) as f32;
+                            b.set_value(density, c + d, 0.25 + v).expect("voxel");
+                        }
+                    }
+                }
+            }
+        }
+        let grid = b.build();
+        let pyramid = MajorantPyramid::from_grid(&grid, density).expect("pyramid");
+        let foam = HeterogeneousMedium {
+            field: DensityField::Grid {
+                grid,
+                channel: density,
+            },
+            pyramid,
+            coefficients: DensityCoefficients::new(Rgb::splat(40.0), Rgb::splat(39.0)),
+            phase: PhaseFunction::HenyeyGreenstein { g: 0.8 },
+            tracking: TrackingConfig::default(),
+            fabric: None,
+            mips: None,
+        };
+        let water = Coefficients {
+            sigma_a: Rgb::new(0.28, 0.06, 0.01),
+            sigma_s: Rgb::new(0.002, 0.003, 0.006),
+        };
+        MixtureMedium {
+            components: vec![
+                MixtureComponent {
+                    density: ComponentDensity::Constant(water),
+                    phase: PhaseFunction::HenyeyGreenstein { g: 0.0 },
+                    albedo: None,
+                    emission: None,
+                },
+                MixtureComponent {
+                    density: ComponentDensity::Field(Box::new(foam)),
+                    phase: PhaseFunction::HenyeyGreenstein { g: 0.8 },
+                    albedo: None,
+                    emission: None,
+                },
+            ],
+        }
+    }
+
+    #[test]
+    fn lent_walks_give_the_fields_segments_and_their_merge() {
+        let m = water_and_foam();
+        let ComponentDensity::Field(foam) = &m.components[1].density else {
+            unreachable!("the second component is the field")
+        };
+        let own = m.own_coefficients();
+        let water = own[0].sigma_t;
+        let scale = own[1].sigma_t;
+        let mut rng = crate::sampling::Rng::new(25, 1);
+        let (mut varying, mut gaps) = (0usize, 0usize);
+        for r in 0..3000 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 56.0 - 4.0;
+            let d = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
+                .normalize_or(Vec3::Z);
+            let ray = Ray::new(o, d);
+            let t1 = if r % 3 == 0 { 20.0 } else { f32::INFINITY };
+            // The walk made in two parts and lent gives the segments of the one-part call.
+            let whole: Vec<MajorantSegment> = foam.segments_along(&ray, 0.0, t1).collect();
+            let mut walk = foam.flight_walk(&ray, 0.0, t1);
+            let lent: Vec<MajorantSegment> = foam.flight_segments_of(&mut walk, 0.0, t1).collect();
+            assert_eq!(lent, whole, "ray {r}");
+            // The merged segments: the water alone between the foam's segments, water and
+            // foam on them.
+            let mut expected = Vec::new();
+            let mut t = 0.0f32;
+            for s in whole.iter().filter(|s| s.t1 > s.t0) {
+                if s.t0 > t {
+                    expected.push(RateSegment {
+                        t0: t,
+                        t1: s.t0,
+                        majorant: water.max_component(),
+                        varying: false,
+                    });
+                }
+                let rate = scale * s.max.max(0.0);
+                expected.push(RateSegment {
+                    t0: s.t0.max(t),
+                    t1: s.t1,
+                    majorant: (water + rate).max_component(),
+                    varying: !rate.is_black() || !s.exact,
+                });
+                t = s.t1;
+            }
+            if t < t1 {
+                expected.push(RateSegment {
+                    t0: t,
+                    t1,
+                    majorant: water.max_component(),
+                    varying: false,
+                });
+            }
+            let mut walks: FieldWalks<'_> = [None, None, None, None];
+            let merged: Vec<RateSegment> =
+                MixSegments::new(&m, &own, &ray, 0.0, t1, &mut walks).collect();
+            assert_eq!(merged, expected, "ray {r}");
+            varying += merged.iter().filter(|s| s.varying).count();
+            gaps += merged.iter().filter(|s| !s.varying).count();
+        }
+        // Both kinds of pieces, in numbers.
+        assert!(
+            varying > 500 && gaps > 2000,
+            "{varying} varying, {gaps} gaps"
+        );
     }
 }
