@@ -1429,6 +1429,9 @@ mod tests {
         );
     }
 
+    /// A node test's `before`: the slots nearer than a distance, and those equal to it.
+    type BeforeFn<'a> = dyn Fn(&[f32; WIDTH], f32) -> (u32, u32) + 'a;
+
     /// The rank placement of the traversal's three-or-more case against a stable sort by
     /// entry distance (ties by slot), with both node tests' `before`.
     #[test]
@@ -1450,7 +1453,7 @@ mod tests {
                 .map(|s| (s, near[s as usize]))
                 .collect();
             expected.sort_by(|a, b| a.1.total_cmp(&b.1)); // stable: ties keep slot order
-            let place = |before: &dyn Fn(&[f32; WIDTH], f32) -> (u32, u32)| {
+            let place = |before: &BeforeFn<'_>| {
                 let mut order = [(0u32, 0.0f32); WIDTH];
                 let mut rest = mask;
                 while rest != 0 {
@@ -1672,7 +1675,7 @@ mod tests {
             let ray = Ray::new(rng.vec() * 1.5, rng.vec().normalize_or(Vec3::X));
             let slab = SlabRay::new(&ray);
             let mut seen = (Vec::new(), Vec::new());
-            let shorten = |pos: u32, t: f32| if pos % 3 == 0 { t * 0.9 } else { t };
+            let shorten = |pos: u32, t: f32| if pos.is_multiple_of(3) { t * 0.9 } else { t };
             bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t: f32| {
                 seen.0.push((pos, t.to_bits()));
                 shorten(pos, t)

@@ -23,6 +23,9 @@ use crate::tracking::{
 };
 
 /// Where a heterogeneous interior's density comes from.
+// The grid, the common case, stays inline (its lookups start without a pointer to follow); the
+// larger rare fields are boxed.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum DensityField {
     /// A grid channel (an OpenVDB grid, a baked procedural, a voxelised weave).

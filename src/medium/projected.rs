@@ -363,6 +363,9 @@ impl ProjectedMedium {
 
     /// A free flight through a projected field: spectral delta tracking over the field's
     /// majorant segments.
+    // The field, the ray and its clip, the footprint, the throughput, the numbers and the
+    // counters: the flight's inputs, each used once.
+    #[allow(clippy::too_many_arguments)]
     fn field_flight<'a, U: FnMut() -> f32>(
         &'a self,
         field: &'a ProjectedDensity,

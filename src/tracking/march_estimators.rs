@@ -182,7 +182,7 @@ mod tests {
         let d = [0.3, -1.2, 2.5, 0.7, -0.4, 1.1];
         let mut m = [0.0; 7];
         elementary_symmetric_means(&d, &mut m);
-        for k in 0..=d.len() {
+        for (k, mk) in m.iter().enumerate() {
             let mut sum = 0.0;
             let mut count = 0.0;
             for mask in 0u32..(1 << d.len()) {
@@ -196,9 +196,9 @@ mod tests {
                 }
             }
             assert!(
-                (m[k] - sum / count).abs() < 1e-12,
+                (mk - sum / count).abs() < 1e-12,
                 "k = {k}: {} vs {}",
-                m[k],
+                mk,
                 sum / count
             );
         }
