@@ -700,15 +700,15 @@ impl<I: Iterator<Item = MajorantSegment>> Iterator for MediumSegmentsOf<I> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::grid::{ChannelKind, SparseGridBuilder, Storage};
     use crate::majorant::MajorantPyramid;
     use crate::sampling::Rng;
 
     /// Three dense blobs in a 48³ index box with empty bricks between them (the ocean's foam
-    /// in miniature).
-    fn blobs() -> HeterogeneousMedium {
+    /// in miniature; the mixture's tests use it too), σ_t 0.4 and σ_s 0.39 per unit density.
+    pub(in crate::medium) fn blobs() -> HeterogeneousMedium {
         let mut b = SparseGridBuilder::new(Storage::F32);
         let density = b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
         let blobs = [

@@ -791,44 +791,9 @@ mod tests {
     /// Clear water (constant) and a sparse foam field over 6³ bricks: blobs of density in
     /// some bricks, empty bricks between them.
     fn water_and_foam() -> MixtureMedium {
-        use crate::grid::{ChannelKind, SparseGridBuilder, Storage};
-        use crate::majorant::MajorantPyramid;
-        use crate::medium::heterogeneous::DensityField;
-        use crate::tracking::TrackingConfig;
-        let mut b = SparseGridBuilder::new(Storage::F32);
-        let density = b.add_channel("density", ChannelKind::Scalar, Vec3::ZERO);
-        let blobs = [
-            (glam::IVec3::new(6, 30, 9), 5),
-            (glam::IVec3::new(30, 8, 36), 7),
-            (glam::IVec3::new(40, 40, 12), 4),
-        ];
-        for (c, r) in blobs {
-            for x in -r..=r {
-                for y in -r..=r {
-                    for z in -r..=r {
-                        let d = glam::IVec3::new(x, y, z);
-                        if d.length_squared() <= r * r {
-                            let v = 1.0 - (d.length_squared() as f32) / (r * r) as f32;
-                            b.set_value(density, c + d, 0.25 + v).expect("voxel");
-                        }
-                    }
-                }
-            }
-        }
-        let grid = b.build();
-        let pyramid = MajorantPyramid::from_grid(&grid, density).expect("pyramid");
-        let foam = HeterogeneousMedium {
-            field: DensityField::Grid {
-                grid,
-                channel: density,
-            },
-            pyramid,
-            coefficients: DensityCoefficients::new(Rgb::splat(40.0), Rgb::splat(39.0)),
-            phase: PhaseFunction::HenyeyGreenstein { g: 0.8 },
-            tracking: TrackingConfig::default(),
-            fabric: None,
-            mips: None,
-        };
+        // The heterogeneous tests' three blobs, a hundred times as dense.
+        let mut foam = super::super::heterogeneous::tests::blobs();
+        foam.coefficients = DensityCoefficients::new(Rgb::splat(40.0), Rgb::splat(39.0));
         let water = Coefficients {
             sigma_a: Rgb::new(0.28, 0.06, 0.01),
             sigma_s: Rgb::new(0.002, 0.003, 0.006),
