@@ -25,27 +25,46 @@ impl Fixed192 {
     pub const ZERO: Fixed192 = Fixed192([0; 3]);
 
     /// `v · 2^frac_bits`, rounded to the nearest integer (ties away from zero). `v` must be
-    /// finite with `|v| · 2^frac_bits < 2^190`; larger values saturate to that bound.
+    /// finite with `|v| · 2^frac_bits < 2^190`; larger values saturate to that bound. (The
+    /// film adds values in place, [`Fixed192::add_f64`]; this is that sum from zero.)
+    #[cfg(test)]
+    #[must_use]
+    pub fn from_f64(v: f64, frac_bits: u32) -> Fixed192 {
+        Fixed192::ZERO.add_f64(v, frac_bits)
+    }
+
+    /// `self` plus `v · 2^frac_bits` rounded to the nearest integer (ties away from zero),
+    /// wrapping; `v` must be finite with `|v| · 2^frac_bits < 2^190` (larger values saturate
+    /// to that bound, non-finite ones add nothing). The film's usual case: a normal number
+    /// (not zero, subnormal, infinite or NaN: those have exponent field 0, or 0x7ff and a
+    /// shift of at least 972) whose value in units, mantissa · 2^shift with 0 ≤ shift ≤ 75,
+    /// is below 2^128. That magnitude is added to (for a negative `v`, subtracted from) the
+    /// two low limbs with one carry (borrow) into the top limb, without building and
+    /// negating a 192-bit number.
     #[must_use]
     #[inline]
-    pub fn from_f64(v: f64, frac_bits: u32) -> Fixed192 {
+    pub fn add_f64(self, v: f64, frac_bits: u32) -> Fixed192 {
         let bits = v.abs().to_bits();
         let exp = (bits >> 52) as i64;
-        // The film's usual case: a normal number (not zero, subnormal, infinite or NaN: those
-        // have exponent field 0, or 0x7ff and a shift of at least 972) whose value in units,
-        // mantissa · 2^shift with 0 ≤ shift ≤ 75, is below 2^128: one `u128` shift, the limbs
-        // `shl` gives for it.
         let shift = exp - 1075 + i64::from(frac_bits);
         if exp != 0 && (shift as u64) <= 75 {
             let m = (bits & ((1u64 << 52) - 1)) | (1u64 << 52);
             let w = u128::from(m) << shift;
-            let out = Fixed192([w as u64, (w >> 64) as u64, 0]);
-            return if v < 0.0 { out.neg() } else { out };
+            let low = u128::from(self.0[0]) | (u128::from(self.0[1]) << 64);
+            let (low, top) = if v < 0.0 {
+                let (d, borrow) = low.overflowing_sub(w);
+                (d, self.0[2].wrapping_sub(u64::from(borrow)))
+            } else {
+                let (d, carry) = low.overflowing_add(w);
+                (d, self.0[2].wrapping_add(u64::from(carry)))
+            };
+            return Fixed192([low as u64, (low >> 64) as u64, top]);
         }
-        Fixed192::from_f64_general(v, frac_bits)
+        self.add(Fixed192::from_f64_general(v, frac_bits))
     }
 
-    /// [`Fixed192::from_f64`] for every value (the fast path's cases included).
+    /// `v · 2^frac_bits` rounded as [`Fixed192::add_f64`] rounds it, for every value (the
+    /// fast path's cases included).
     fn from_f64_general(v: f64, frac_bits: u32) -> Fixed192 {
         let bits = v.abs().to_bits();
         let exp = (bits >> 52) as i64;
@@ -248,6 +267,50 @@ mod tests {
             1.0 + 2f64.powi(-52),
             "just above the tie rounds up"
         );
+    }
+
+    #[test]
+    fn adding_a_value_in_place_is_adding_its_conversion() {
+        let mut rng = crate::sampling::Rng::new(9, 4);
+        // Accumulators on both sides of zero and of the limb boundaries (carries and
+        // borrows across both low limbs and into the top one).
+        let mut accs = vec![
+            Fixed192::ZERO,
+            Fixed192([u64::MAX, u64::MAX, 0]),
+            Fixed192([u64::MAX, 0, 0]),
+            Fixed192([0, 0, 1]),
+            Fixed192([0, 1, 0]),
+            Fixed192::from_f64(-1.0, 96),
+            Fixed192([u64::MAX; 3]),
+        ];
+        let mut limb = || u64::from(rng.next_u32()) << 32 | u64::from(rng.next_u32());
+        for _ in 0..64 {
+            accs.push(Fixed192([limb(), limb(), limb() >> 3]));
+        }
+        for bits in [0, 28, 80, 96, 120] {
+            let mut values = vec![0.0, -0.0, f64::MIN_POSITIVE, -5.0e-324, f64::NAN, 1.0e300];
+            for e in -140..40 {
+                for m in [1.0, 1.5, 2.0 - f64::EPSILON] {
+                    values.push(m * 2f64.powi(e));
+                }
+            }
+            for _ in 0..2_000 {
+                let x = f64::from(rng.next_f32()) * 2f64.powi((rng.next_u32() % 160) as i32 - 120);
+                values.push(x);
+                values.push(x * x);
+            }
+            let negated: Vec<f64> = values.iter().map(|v| -v).collect();
+            values.extend(negated);
+            for a in &accs {
+                for &v in &values {
+                    assert_eq!(
+                        a.add_f64(v, bits),
+                        a.add(Fixed192::from_f64_general(v, bits)),
+                        "{a:?} + {v:e} at {bits} bits"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -38,7 +38,7 @@ impl LayerSums {
             .zip(&s.lights)
         {
             for (acc, v) in sum.iter_mut().zip(light.0) {
-                *acc = acc.add(Fixed192::from_f64(f64::from(v), SUM_BITS));
+                *acc = acc.add_f64(f64::from(v), SUM_BITS);
             }
         }
     }

@@ -4,6 +4,7 @@
 
 use super::fixed::{Fixed192, MAX_SAMPLE};
 use super::PixelSample;
+use crate::math::Vec3;
 use crate::spectrum::Rgb;
 
 /// Fractional bits of the radiance sums.
@@ -43,13 +44,22 @@ pub(super) fn accepts(s: &PixelSample, layers: usize) -> bool {
     s.radiance.0.iter().all(ok) && s.lights.iter().take(layers).all(|l| l.0.iter().all(ok))
 }
 
+/// Fixed-point units of an albedo or normal component: `v` clamped to ±4, times
+/// 2^[`AUX_BITS`], rounded to the nearest integer with ties away from zero; 0 for a non-finite
+/// `v`. In `f32` throughout: the scaled value is exact (a power-of-two scale of an `f32` of
+/// magnitude at most 4, so at most 2^30, and no subnormal result), its truncation is an `f32`
+/// too, and so is the fraction `x − trunc(x)`; the answer is [`round_small`]'s on the same
+/// value in `f64`, without the saturating `f64 → i64` conversion.
 #[inline]
 fn aux_units(v: f32) -> i64 {
-    if v.is_finite() {
-        round_small(f64::from(v.clamp(-4.0, 4.0)) * f64::from(1u32 << AUX_BITS))
-    } else {
-        0
+    if !v.is_finite() {
+        return 0;
     }
+    let x = v.clamp(-4.0, 4.0) * (1u32 << AUX_BITS) as f32;
+    // SAFETY: `x` is finite and |x| ≤ 2^30 < 2^31, so its truncation is an `i32`.
+    let t = unsafe { x.to_int_unchecked::<i32>() };
+    let frac = x - t as f32;
+    i64::from(t) + i64::from(frac >= 0.5) - i64::from(frac <= -0.5)
 }
 
 /// `x.round() as i64` (nearest integer, ties away from zero) for `|x| < 2^52`, without the
@@ -86,12 +96,18 @@ impl Pixel {
         self.n += 1;
         for c in 0..3 {
             let x = f64::from(s.radiance.0[c]);
-            self.sum[c] = self.sum[c].add(Fixed192::from_f64(x, SUM_BITS));
-            self.sum_sq[c] = self.sum_sq[c].add(Fixed192::from_f64(x * x, SQ_BITS));
-            self.albedo[c] = self.albedo[c].wrapping_add(aux_units(s.albedo.0[c]));
+            self.sum[c] = self.sum[c].add_f64(x, SUM_BITS);
+            self.sum_sq[c] = self.sum_sq[c].add_f64(x * x, SQ_BITS);
         }
-        for (sum, v) in self.normal.iter_mut().zip(s.normal.to_array()) {
-            *sum = sum.wrapping_add(aux_units(v));
+        // A sample that saw nothing has zero albedo and normal (most of a thin medium's
+        // samples): adding their zero units changes nothing.
+        if s.albedo.0 != [0.0; 3] || s.normal != Vec3::ZERO {
+            for c in 0..3 {
+                self.albedo[c] = self.albedo[c].wrapping_add(aux_units(s.albedo.0[c]));
+            }
+            for (sum, v) in self.normal.iter_mut().zip(s.normal.to_array()) {
+                *sum = sum.wrapping_add(aux_units(v));
+            }
         }
         if s.depth.is_finite() && s.depth >= 0.0 && s.depth <= MAX_DEPTH {
             self.hits += 1;
@@ -198,6 +214,90 @@ mod tests {
             };
             assert_eq!(round_small(x), x.round() as i64, "{x}");
         }
+    }
+
+    /// The `f64` rounding `aux_units` replaced: the clamped, scaled value rounded by the
+    /// library (ties away from zero).
+    fn aux_units_by_library(v: f32) -> i64 {
+        if v.is_finite() {
+            (f64::from(v.clamp(-4.0, 4.0)) * f64::from(1u32 << AUX_BITS)).round() as i64
+        } else {
+            0
+        }
+    }
+
+    #[test]
+    fn aux_units_match_the_library_rounding_of_the_scaled_value() {
+        let half_unit = 2f32.powi(-(AUX_BITS as i32) - 1);
+        let mut edges = vec![
+            0.0,
+            -0.0,
+            4.0,
+            -4.0,
+            4.5,
+            -1.0e30,
+            f32::MIN_POSITIVE,
+            -f32::from_bits(1),
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        // Ties and their neighbours on the unit grid, near zero and near the clamp.
+        for k in [0.0f32, 1.0, 2.0, 1000.0] {
+            let tie = (2.0 * k + 1.0) * half_unit;
+            for t in [tie, -tie] {
+                edges.extend([
+                    t,
+                    f32::from_bits(t.to_bits() - 1),
+                    f32::from_bits(t.to_bits() + 1),
+                ]);
+            }
+        }
+        let near_four = 4.0 - half_unit;
+        edges.extend([near_four, -near_four]);
+        for v in edges {
+            assert_eq!(aux_units(v), aux_units_by_library(v), "{v:e}");
+        }
+        let mut rng = Rng::new(7, 3);
+        for n in 0..1_000_000u32 {
+            let v = match n % 3 {
+                0 => rng.next_f32() * 10.0 - 5.0,
+                // Tiny components (normals near an axis): a few bits below the unit.
+                1 => (rng.next_f32() - 0.5) * 2f32.powi(-(AUX_BITS as i32) + 4),
+                _ => f32::from_bits(rng.next_u32()),
+            };
+            assert_eq!(aux_units(v), aux_units_by_library(v), "{v:e}");
+        }
+    }
+
+    #[test]
+    fn a_sample_with_only_an_albedo_or_only_a_normal_adds_that_layer() {
+        let unit = 1i64 << AUX_BITS;
+        let mut p = Pixel::default();
+        let mut s = PixelSample {
+            radiance: Rgb([1.0, 2.0, 3.0]),
+            albedo: Rgb::ZERO,
+            normal: Vec3::new(0.0, 0.0, -1.0),
+            depth: f32::INFINITY,
+            lights: [Rgb::ZERO; crate::film::MAX_LIGHT_LAYERS],
+        };
+        p.add(&s);
+        assert_eq!((p.albedo, p.normal), ([0; 3], [0, 0, -unit]));
+        s.albedo = Rgb([0.5, 0.0, 0.25]);
+        s.normal = Vec3::ZERO;
+        p.add(&s);
+        assert_eq!(
+            (p.albedo, p.normal),
+            ([unit / 2, 0, unit / 4], [0, 0, -unit])
+        );
+        // Neither: the sums stay, the count and the radiance grow.
+        s.albedo = Rgb::ZERO;
+        p.add(&s);
+        assert_eq!(
+            (p.n, p.albedo, p.normal),
+            (3, [unit / 2, 0, unit / 4], [0, 0, -unit])
+        );
+        assert_eq!(p.mean_f64(), [1.0, 2.0, 3.0]);
     }
 
     #[test]
