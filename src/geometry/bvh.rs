@@ -743,9 +743,6 @@ struct NearestTriangle<'g, 'b> {
 }
 
 impl LeafVisitor for NearestTriangle<'_, '_> {
-    /// A leaf behind a nearer inner child waits: a hit in that child culls it.
-    const DEFER_LEAVES: bool = true;
-
     #[inline(always)]
     fn visit(&mut self, slot: u32, t_max: f32) -> f32 {
         match test_slot(self.geometry, self.sr, slot, t_max) {

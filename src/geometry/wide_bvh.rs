@@ -456,13 +456,6 @@ mod avx2 {
 /// `#[inline(always)]`, so that the primitive test is compiled into the traversal's loop
 /// whatever its size (a closure is inlined at the compiler's discretion).
 pub trait LeafVisitor {
-    /// Whether a leaf met after a nearer inner child of the same node waits on the traversal
-    /// stack at its entry distance (and is dropped there if a hit in that child is nearer)
-    /// instead of being tested at once. A closest-hit query gains (the leaf is tested only
-    /// if nothing nearer was found first); an any-hit query, which stops at its first hit,
-    /// does not, so the default is `false`.
-    const DEFER_LEAVES: bool = false;
-
     /// Tests primitive `position` against the ray up to `t_max`; returns the new `t_max`.
     fn visit(&mut self, position: u32, t_max: f32) -> f32;
 
@@ -489,15 +482,11 @@ impl<F: FnMut(u32, f32) -> f32> LeafVisitor for F {
     }
 }
 
-/// A traversal stack entry: an inner node with the distance the ray enters it, or (with
-/// [`LeafVisitor::DEFER_LEAVES`]) a leaf child waiting behind a nearer inner child.
+/// A traversal stack entry: an inner node with the distance the ray enters it.
 #[derive(Clone, Copy, Debug, Default)]
 struct Entry {
-    /// The inner node's index, or the leaf's first position ([`Node8::child`]).
     node: u32,
     t: f32,
-    /// 0 for an inner node; a leaf's [`Node8::count`] word.
-    count: u32,
 }
 
 /// The traversal stack: inline entries, spilling to the heap only for unusually deep trees
@@ -697,9 +686,9 @@ impl WideBvh {
         }
         let slab = SlabRay::new(ray);
         if self.shallow() {
-            self.traverse_with::<_, _, false>(&slab, t_max, primitive);
+            self.traverse_with::<_, false>(&slab, t_max, primitive);
         } else {
-            self.traverse_with::<_, _, true>(&slab, t_max, primitive);
+            self.traverse_with::<_, true>(&slab, t_max, primitive);
         }
     }
 
@@ -723,16 +712,16 @@ impl WideBvh {
             // `o·inv` overflows `f32`: the 4-wide test, which has no such term.
             let slab = SlabRay::new(ray);
             if self.shallow() {
-                self.traverse_with::<_, _, false>(&slab, t_max, primitive);
+                self.traverse_with::<_, false>(&slab, t_max, primitive);
             } else {
-                self.traverse_with::<_, _, true>(&slab, t_max, primitive);
+                self.traverse_with::<_, true>(&slab, t_max, primitive);
             }
             return;
         };
         if self.shallow() {
-            self.traverse_with::<_, _, false>(&wide, t_max, primitive);
+            self.traverse_with::<_, false>(&wide, t_max, primitive);
         } else {
-            self.traverse_with::<_, _, true>(&wide, t_max, primitive);
+            self.traverse_with::<_, true>(&wide, t_max, primitive);
         }
     }
 
@@ -773,11 +762,11 @@ impl WideBvh {
     /// order the general one does (nearest first, ties by slot), tests leaves at once and
     /// pushes inner children farthest first, so hits are the same.
     #[inline(always)]
-    fn traverse_with<T: NodeTest, V: LeafVisitor, const SPILL: bool>(
+    fn traverse_with<T: NodeTest, const SPILL: bool>(
         &self,
         slab: &T,
         mut t_max: f32,
-        mut primitive: V,
+        mut primitive: impl LeafVisitor,
     ) {
         let mut stack_entries = MaybeUninit::uninit();
         let mut stack = Stack::<SPILL>::new(&mut stack_entries);
@@ -790,14 +779,11 @@ impl WideBvh {
         // `primitive` ends it.
         macro_rules! leaf {
             ($node:expr, $slot:expr) => {{
-                leaf!(count $node.count[$slot], $node.child[$slot])
-            }};
-            (count $c:expr, $first:expr) => {{
-                let c = $c;
+                let c = $node.count[$slot];
                 t_max = primitive.visit_leaf(
                     Leaf {
                         block: c >> LEAF_COUNT_BITS,
-                        first: $first,
+                        first: $node.child[$slot],
                         count: c & LEAF_COUNT_MASK,
                     },
                     t_max,
@@ -849,16 +835,6 @@ impl WideBvh {
                         }
                     }
                 } else if node.count[b] > 0 {
-                    if V::DEFER_LEAVES {
-                        // The leaf waits behind the nearer inner child.
-                        stack.push(Entry {
-                            node: node.child[b],
-                            t: tb,
-                            count: node.count[b],
-                        });
-                        current = node.child[a];
-                        continue;
-                    }
                     leaf!(node, b);
                     // (The leaf may have shortened the ray.)
                     if !(ta > t_max) {
@@ -870,7 +846,6 @@ impl WideBvh {
                     stack.push(Entry {
                         node: node.child[b],
                         t: tb,
-                        count: 0,
                     });
                     current = node.child[a];
                     continue;
@@ -898,19 +873,13 @@ impl WideBvh {
                         break;
                     }
                     let slot = (slot & 7) as usize;
-                    let count = node.count[slot];
-                    if count > 0 && !(V::DEFER_LEAVES && m > 0) {
+                    if node.count[slot] > 0 {
                         leaf!(node, slot);
                     } else {
-                        if count == 0 {
-                            self.prefetch_node(node.child[slot]);
-                        }
-                        // (With `DEFER_LEAVES`, leaves after the first inner child wait
-                        // with the inner children; `inner[0]` is always an inner child.)
+                        self.prefetch_node(node.child[slot]);
                         inner[m] = Entry {
                             node: node.child[slot],
                             t,
-                            count,
                         };
                         m += 1;
                     }
@@ -932,10 +901,6 @@ impl WideBvh {
                 match stack.pop() {
                     None => return,
                     Some(e) if !(e.t > t_max) => {
-                        if V::DEFER_LEAVES && e.count > 0 {
-                            leaf!(count e.count, e.node);
-                            continue;
-                        }
                         current = e.node;
                         break;
                     }
@@ -1691,7 +1656,6 @@ mod tests {
             stack.push(Entry {
                 node: i,
                 t: i as f32,
-                count: 0,
             });
         }
         for i in (0..3 * STACK_INLINE as u32).rev() {
@@ -1712,11 +1676,11 @@ mod tests {
             let slab = SlabRay::new(&ray);
             let mut seen = (Vec::new(), Vec::new());
             let shorten = |pos: u32, t: f32| if pos.is_multiple_of(3) { t * 0.9 } else { t };
-            bvh.traverse_with::<_, _, true>(&slab, f32::INFINITY, |pos, t: f32| {
+            bvh.traverse_with::<_, true>(&slab, f32::INFINITY, |pos, t: f32| {
                 seen.0.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
-            bvh.traverse_with::<_, _, false>(&slab, f32::INFINITY, |pos, t: f32| {
+            bvh.traverse_with::<_, false>(&slab, f32::INFINITY, |pos, t: f32| {
                 seen.1.push((pos, t.to_bits()));
                 shorten(pos, t)
             });
@@ -1879,86 +1843,6 @@ mod tests {
                 }
             }
         }
-    }
-
-    /// A closure visitor whose leaves behind a nearer inner child wait on the stack.
-    struct Deferring<F>(F);
-
-    impl<F: FnMut(u32, f32) -> f32> LeafVisitor for Deferring<F> {
-        const DEFER_LEAVES: bool = true;
-        fn visit(&mut self, position: u32, t_max: f32) -> f32 {
-            (self.0)(position, t_max)
-        }
-    }
-
-    #[test]
-    fn deferred_leaves_give_the_closest_hit_and_fewer_leaf_tests() {
-        let mut rng = Lcg(91);
-        let (mut at_once, mut deferred) = (0usize, 0usize);
-        for n in [3usize, 40, 700, 5000] {
-            let tris: Vec<[Vec3; 3]> = (0..n)
-                .map(|_| {
-                    let c = rng.vec();
-                    [c, c + rng.vec() * 0.15, c + rng.vec() * 0.15]
-                })
-                .collect();
-            let boxes: Vec<(Vec3, Vec3)> = tris
-                .iter()
-                .map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
-                .collect();
-            let wide = WideBvh::build(&boxes);
-            for bvh in [wide.clone(), wide.without_avx2()] {
-                for i in 0..1500 {
-                    // From inside the cloud, as most of a render's long rays start.
-                    let ray = Ray::new(rng.vec() * 0.8, rng.vec().normalize_or(Vec3::X));
-                    let t_max = if i % 4 == 3 { rng.next() * 2.0 } else { f32::INFINITY };
-                    // The nearest hit (f32 distance, lowest index on a tie) and the leaf
-                    // positions tested, in either order.
-                    let run = |defer: bool| {
-                        let mut found: Option<(f32, u32)> = None;
-                        let mut tested = 0usize;
-                        let visit = |pos: u32, t_cur: f32| {
-                            tested += 1;
-                            let k = bvh.order()[pos as usize];
-                            match hit_triangle(&ray, &tris[k as usize]) {
-                                Some(t) if (t as f32) < t_cur => {
-                                    found = Some((t as f32, k));
-                                    t as f32
-                                }
-                                _ => t_cur,
-                            }
-                        };
-                        if defer {
-                            bvh.traverse(&ray, t_max, Deferring(visit));
-                        } else {
-                            bvh.traverse(&ray, t_max, visit);
-                        }
-                        (found.map(|(t, k)| (t.to_bits(), k)), tested)
-                    };
-                    let (plain, plain_tests) = run(false);
-                    let (defer, defer_tests) = run(true);
-                    let mut best: Option<(f32, u32)> = None;
-                    for (k, tri) in tris.iter().enumerate() {
-                        if let Some(t) = hit_triangle(&ray, tri) {
-                            let t = t as f32;
-                            if t < t_max && best.is_none_or(|b| t < b.0) {
-                                best = Some((t, k as u32));
-                            }
-                        }
-                    }
-                    let best = best.map(|(t, k)| (t.to_bits(), k));
-                    assert_eq!(defer, best, "{n} triangles, ray {i}");
-                    assert_eq!(plain, best, "{n} triangles, ray {i}");
-                    at_once += plain_tests;
-                    deferred += defer_tests;
-                }
-            }
-        }
-        // Leaves behind a nearer hit are dropped, not tested.
-        assert!(
-            deferred < at_once,
-            "deferred {deferred} against {at_once} primitive tests"
-        );
     }
 
     #[test]
