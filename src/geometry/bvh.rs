@@ -758,13 +758,19 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
     /// The leaf's triangles four at a time ([`ShearedRay::intersect4`]): the nearest lane's
     /// hit, as the one-by-one visit in position order keeps; a block with an edge function
     /// exactly zero one triangle at a time ([`Self::visit`], which takes the exact path).
+    ///
+    /// Every lane of a block is tested: lanes past the leaf's count repeat the block's first
+    /// triangle ([`TriangleBlock::new`]), so they hit, or are unsure, exactly when lane 0 is,
+    /// at its distance, and [`Hits4::nearest`](super::triangle::Hits4::nearest) keeps the lowest of equally near lanes. The
+    /// answer is the masked test's, without the mask and the block's count in the loop.
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, mut t_max: f32) -> f32 {
-        for (block, first, n) in leaf.block_spans() {
-            let h = self
-                .sr
-                .intersect4(self.geometry.block(block), (1 << n) - 1, t_max);
+        let end = leaf.first + leaf.count;
+        let (mut block, mut first) = (leaf.block, leaf.first);
+        while first < end {
+            let h = self.sr.intersect4(self.geometry.block(block), 15, t_max);
             if h.unsure != 0 {
+                let n = (end - first).min(LEAF_BLOCK);
                 for lane in 0..n {
                     let slot = first + lane;
                     if let Some(hit) = test_slot(self.geometry, self.sr, slot, t_max) {
@@ -780,6 +786,8 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
                 *self.best = Some((slot, BlockLane::new(block, lane as u32), hit));
                 t_max = hit.t;
             }
+            block += 1;
+            first += LEAF_BLOCK;
         }
         t_max
     }
@@ -826,20 +834,23 @@ impl LeafVisitor for AnyTriangle<'_, '_> {
 
     /// The leaf's triangles four at a time ([`ShearedRay::intersect4`]); a block with an
     /// edge function exactly zero one triangle at a time ([`Self::visit`], the exact path).
+    /// Every lane of a block is tested, as in [`NearestTriangle::visit_leaf`].
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, t_max: f32) -> f32 {
-        for (block, first, n) in leaf.block_spans() {
-            let h = self
-                .sr
-                .intersect4(self.geometry.block(block), (1 << n) - 1, t_max);
+        let end = leaf.first + leaf.count;
+        let (mut block, mut first) = (leaf.block, leaf.first);
+        while first < end {
+            let h = self.sr.intersect4(self.geometry.block(block), 15, t_max);
             let found = h.hit != 0
                 || (h.unsure != 0
-                    && (first..first + n)
+                    && (first..first + (end - first).min(LEAF_BLOCK))
                         .any(|slot| test_slot(self.geometry, self.sr, slot, t_max).is_some()));
             if found {
                 *self.found = true;
                 return 0.0;
             }
+            block += 1;
+            first += LEAF_BLOCK;
         }
         t_max
     }

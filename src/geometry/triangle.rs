@@ -332,10 +332,11 @@ impl ShearedRay {
         let w = xb * ya - yb * xa;
         let zero = Vec4::ZERO;
         let unsure = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & valid;
-        // Mixed signs miss (a NaN lane compares false both ways; its `t` is NaN below).
-        let neg = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
-        let pos = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
-        let inside = !(neg & pos).bitmask();
+        // Mixed signs miss. In a lane with no edge function zero, a sign bit is the sign, so
+        // the signs agree exactly when the sign bits do ([`same_sign_bits`]); zero lanes
+        // are `unsure` and left out of `hit` whatever this says, and a NaN lane, whichever
+        // way this goes, has a NaN `t` below, which no distance test accepts.
+        let inside = same_sign_bits(u, v, w);
         if valid & inside & !unsure == 0 {
             // No lane left to hit (most leaves a ray enters): skip the division.
             return Hits4 {
@@ -357,6 +358,30 @@ impl ShearedRay {
             hit: valid & !unsure & inside & in_range & 15,
             unsure,
         }
+    }
+}
+
+/// The lanes (bit `i` for lane `i`, bits 0–3) where `u`, `v` and `w` have the same sign bit:
+/// neither `u ^ v` nor `u ^ w` has its sign bit set (two `xor`s, an `or` and one sign mask,
+/// where comparing each with zero both ways takes six compares).
+#[inline(always)]
+fn same_sign_bits(u: Vec4, v: Vec4, w: Vec4) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128, _mm_movemask_ps, _mm_or_ps, _mm_xor_ps};
+        let (u, v, w) = (__m128::from(u), __m128::from(v), __m128::from(w));
+        // SAFETY: SSE is part of the x86-64 baseline; these are register operations.
+        let differ = unsafe { _mm_movemask_ps(_mm_or_ps(_mm_xor_ps(u, v), _mm_xor_ps(u, w))) };
+        !(differ as u32) & 15
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let (su, sv, sw) = (
+            u.is_negative_bitmask(),
+            v.is_negative_bitmask(),
+            w.is_negative_bitmask(),
+        );
+        !((su ^ sv) | (su ^ sw)) & 15
     }
 }
 
@@ -611,6 +636,7 @@ mod tests {
     fn the_four_lane_test_is_the_one_triangle_test_per_lane() {
         let mut next = uniform_stream(0x2545_f491_4f6c_dd1d);
         let (mut hits, mut unsure, mut nearest_not_first) = (0, 0, 0);
+        let mut padded_hits = 0;
         for i in 0..100_000 {
             let grid = i % 3 == 0;
             let mut coord = || coordinate(&mut next, grid);
@@ -674,7 +700,30 @@ mod tests {
                 assert_eq!((l, bits(Some(g))), (lane, bits(Some(f))), "case {i}");
                 nearest_not_first += usize::from(lane > 0);
             }
+            // All four lanes, as the traversal's visitors test a block: the lanes past `n`
+            // repeat the first triangle, so the block is unsure, hits, and has its nearest
+            // lane exactly as with the mask.
+            let all = sr.intersect4(&block, 15, t_max);
+            assert_eq!(
+                all.unsure != 0,
+                h.unsure != 0,
+                "case {i}: all lanes, unsure"
+            );
+            assert_eq!(all.hit != 0, h.hit != 0, "case {i}: all lanes, hit");
+            if h.unsure == 0 && h.hit != 0 {
+                let ((l, g), (la, ga)) = (h.nearest(), all.nearest());
+                assert_eq!(
+                    (la, bits(Some(ga))),
+                    (l, bits(Some(g))),
+                    "case {i}: all lanes"
+                );
+                padded_hits += usize::from(n < 4 && all.hit != h.hit);
+            }
         }
+        assert!(
+            padded_hits > 1_000,
+            "{padded_hits} blocks whose repeated lanes hit"
+        );
         assert!(hits > 10_000, "{hits} lane hits");
         assert!(
             unsure > 1_000,

@@ -70,42 +70,6 @@ impl Leaf {
     pub fn blocks(&self) -> u32 {
         self.count.div_ceil(LEAF_BLOCK)
     }
-
-    /// Its blocks in order, each as (block index, first primitive position, primitives in
-    /// the block: [`LEAF_BLOCK`], or fewer in the last).
-    #[inline(always)]
-    pub fn block_spans(self) -> BlockSpans {
-        BlockSpans {
-            block: self.block,
-            first: self.first,
-            end: self.first + self.count,
-        }
-    }
-}
-
-/// The blocks of a [`Leaf`], in order ([`Leaf::block_spans`]).
-#[derive(Clone, Debug)]
-pub struct BlockSpans {
-    block: u32,
-    first: u32,
-    end: u32,
-}
-
-impl Iterator for BlockSpans {
-    /// (block index, first primitive position, primitives in the block).
-    type Item = (u32, u32, u32);
-
-    #[inline(always)]
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.first >= self.end {
-            return None;
-        }
-        let n = (self.end - self.first).min(LEAF_BLOCK);
-        let span = (self.block, self.first, n);
-        self.block += 1;
-        self.first += n;
-        Some(span)
-    }
 }
 
 /// The share of the binary hierarchy's nodes that `obvhs`'s reinsertion optimiser (Meister
@@ -1885,27 +1849,6 @@ mod tests {
         for leaf in bvh.leaves() {
             assert_eq!(leaf.block, blocks);
             blocks += leaf.blocks();
-        }
-    }
-
-    #[test]
-    fn block_spans_tile_a_leaf_in_consecutive_blocks() {
-        for count in 1..=MAX_LEAF_PRIMITIVES {
-            let leaf = Leaf {
-                block: 7,
-                first: 30,
-                count,
-            };
-            let spans: Vec<_> = leaf.block_spans().collect();
-            assert_eq!(spans.len() as u32, leaf.blocks(), "count {count}");
-            let mut next = leaf.first;
-            for (i, &(block, first, n)) in spans.iter().enumerate() {
-                assert_eq!(block, leaf.block + i as u32, "count {count}");
-                assert_eq!(first, next, "count {count}");
-                assert!((1..=LEAF_BLOCK).contains(&n), "count {count}: {n}");
-                next += n;
-            }
-            assert_eq!(next, leaf.first + count, "count {count}");
         }
     }
 }
