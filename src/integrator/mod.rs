@@ -237,21 +237,26 @@ fn radiance(
     stats: &mut TraceStats,
 ) -> (Rgb, Aov, [Rgb; MAX_LIGHT_LAYERS]) {
     let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
-    let mut slots = VertexSlots::new();
+    // The fibre slots (two 2.6 KiB records) are made at the path's first scattering vertex
+    // that needs them: most paths through a thin medium scatter nowhere.
+    let mut slots = None;
+    // The step's boundary hit, written in place by the ray cast (a hit returned by value
+    // was copied twice on its way here, through loads wider than the cast's stores).
+    let mut hit = None;
     loop {
         stats.rays += 1;
         sampler.start_vertex();
-        let (step, hit) = path.interior_step(scene, sampler, stats, &mut slots);
+        let step = path.interior_step(scene, sampler, stats, &mut slots, &mut hit);
         match step {
             Step::Trace => continue,
             Step::Stop => break,
             Step::Boundary => path.lean_weight = None,
         }
-        let Some(hit) = hit else {
+        let Some(h) = &hit else {
             path.escape(scene);
             break;
         };
-        if path.boundary_step(scene, &hit, sampler, stats) == Step::Stop {
+        if path.boundary_step(scene, h, sampler, stats) == Step::Stop {
             break;
         }
     }
@@ -313,33 +318,35 @@ impl<'s> PathState<'s> {
     }
 
     /// 1. The interior the ray travels through, up to the next boundary (Algorithm 1, lines
-    ///    3–11): a free flight that passes, or scatters. Returns the boundary hit when the
-    ///    flight reached it (the closest hit of the ray; in vacuum, the ray is traced to the
-    ///    first hit). The boundary is searched only as far as the medium needs: up to the
-    ///    sampled distance in a homogeneous medium.
+    ///    3–11): a free flight that passes, or scatters. Sets `hit` to the boundary hit when
+    ///    the flight reached it (the closest hit of the ray; in vacuum, the ray is traced to
+    ///    the first hit), to `None` otherwise. The boundary is searched only as far as the
+    ///    medium needs: up to the sampled distance in a homogeneous medium. `slots` holds the
+    ///    path's fibre slots once a scattering vertex has made them.
     fn interior_step(
         &mut self,
         scene: &'s Scene,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
-        slots: &mut VertexSlots,
-    ) -> (Step, Option<Hit>) {
+        slots: &mut Option<VertexSlots>,
+        hit: &mut Option<Hit>,
+    ) -> Step {
         // A medium of the scene itself outlives the step: a fibre lean made in it can leave
         // its weight to the next vertex. One made for this walk (`scratch`) cannot.
         if let Some((medium, obj)) =
             scene_medium(scene, &self.stack).filter(|_| !fibre_lean::eager_weights())
         {
-            return self.interior_step_in(scene, medium, obj, sampler, stats, slots, Some);
+            return self.interior_step_in(scene, medium, obj, sampler, stats, slots, hit, Some);
         }
         let mut scratch = None;
         let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
-            let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
-            if let Some(h) = &hit {
+            *hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
+            if let Some(h) = hit {
                 self.cone.advance(h.t);
             }
-            return (Step::Boundary, hit);
+            return Step::Boundary;
         };
-        self.interior_step_in(scene, medium, obj, sampler, stats, slots, |_| None)
+        self.interior_step_in(scene, medium, obj, sampler, stats, slots, hit, |_| None)
     }
 
     /// [`PathState::interior_step`] in `medium`, the interior of `obj`; `keep` gives a fibre
@@ -353,18 +360,19 @@ impl<'s> PathState<'s> {
         obj: &Object,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
-        slots: &mut VertexSlots,
+        slots: &mut Option<VertexSlots>,
+        hit: &mut Option<Hit>,
         keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
-    ) -> (Step, Option<Hit>) {
-        let mut hit = None;
+    ) -> Step {
+        *hit = None;
         let ray = self.ray;
         // What lies behind a thin medium, estimated by transmittance: the boundary is needed
         // first, and the flight below then only samples collisions.
         let mut behind_estimated = false;
         let mut known_boundary = None;
         if medium.estimates_behind() {
-            hit = scene.geometry.intersect(&ray, f32::INFINITY);
-            if let Some(h) = &hit {
+            *hit = scene.geometry.intersect(&ray, f32::INFINITY);
+            if let Some(h) = hit {
                 known_boundary = Some(h.t);
                 behind_estimated = self.add_light_behind(scene, medium, h, sampler, stats);
             }
@@ -380,7 +388,7 @@ impl<'s> PathState<'s> {
                 Some(t) if t <= limit => t,
                 Some(_) => f32::INFINITY,
                 None => {
-                    hit = scene.geometry.intersect(&ray, limit);
+                    *hit = scene.geometry.intersect(&ray, limit);
                     hit.as_ref().map_or(f32::INFINITY, |h| h.t)
                 }
             },
@@ -395,17 +403,18 @@ impl<'s> PathState<'s> {
                 // entry's grown over the walk's last segment (the sum of a random walk's
                 // segments would overstate how far it spread).
                 self.cone.widen();
+                let slots = slots.get_or_insert_with(VertexSlots::new);
                 self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats, slots, keep)
             }
             None if self.beta.is_black() || behind_estimated => Step::Stop,
             None => {
-                if let Some(h) = &hit {
+                if let Some(h) = hit {
                     self.cone.advance(h.t);
                 }
                 Step::Boundary
             }
         };
-        (step, hit)
+        step
     }
 
     /// The light behind the current medium along the ray, estimated by transmittance
