@@ -331,6 +331,11 @@ impl<'s> PathState<'s> {
         slots: &mut Option<VertexSlots>,
         hit: &mut Option<Hit>,
     ) -> Step {
+        // In vacuum (no interior entered: the stack's top is `None`, and so is the current
+        // medium) the ray is traced to the first hit without looking for a medium.
+        if self.stack.entries().is_empty() {
+            return self.vacuum_step(scene, hit);
+        }
         // A medium of the scene itself outlives the step: a fibre lean made in it can leave
         // its weight to the next vertex. One made for this walk (`scratch`) cannot.
         if let Some((medium, obj)) =
@@ -340,13 +345,19 @@ impl<'s> PathState<'s> {
         }
         let mut scratch = None;
         let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
-            *hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
-            if let Some(h) = hit {
-                self.cone.advance(h.t);
-            }
-            return Step::Boundary;
+            return self.vacuum_step(scene, hit);
         };
         self.interior_step_in(scene, medium, obj, sampler, stats, slots, hit, |_| None)
+    }
+
+    /// [`PathState::interior_step`] outside every interior: the ray's first hit.
+    #[inline]
+    fn vacuum_step(&mut self, scene: &Scene, hit: &mut Option<Hit>) -> Step {
+        *hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
+        if let Some(h) = hit {
+            self.cone.advance(h.t);
+        }
+        Step::Boundary
     }
 
     /// [`PathState::interior_step`] in `medium`, the interior of `obj`; `keep` gives a fibre
