@@ -1143,3 +1143,93 @@ fn russian_roulette(
     *beta /= q;
     true
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::sampling::Rng;
+    use crate::scene::load_scene_str;
+
+    /// A glass sphere without an interior (an object on the stack with no medium) beside a
+    /// sphere of medium, under a sky.
+    const SPHERES: &str = r#"
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 40
+[film]
+width = 8
+height = 8
+spp = 1
+[[light]]
+type = "environment"
+radiance = 0.5
+[[object]]
+name = "glass"
+shape = "sphere"
+center = [1.0, 0.0, 0.0]
+radius = 0.6
+surface = { type = "dielectric", ior = 1.5 }
+[[object]]
+name = "fog"
+shape = "sphere"
+center = [-1.0, 0.0, 0.0]
+radius = 0.8
+interior = { type = "homogeneous", albedo = 0.9, attenuation = 1.0 }
+"#;
+
+    #[test]
+    fn a_step_in_vacuum_is_the_first_hit_with_its_cone_advanced() {
+        let scene = load_scene_str(SPHERES, Path::new("spheres.toml")).expect("scene");
+        let glass = scene
+            .objects
+            .iter()
+            .position(|o| o.medium.is_none())
+            .expect("glass") as u32;
+        let mut rng = Rng::new(11, 2);
+        let (mut hits, mut misses) = (0, 0);
+        for r in 0..4000 {
+            let o = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 1.0) * 4.0;
+            let target = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 0.0) * 5.0;
+            let ray = Ray::new(o, (target - o).normalize());
+            let expected = scene.geometry.intersect(&ray, f32::INFINITY);
+            // An empty stack (the vacuum's own step) and the glass on the stack (no medium:
+            // the general step's vacuum), each with a stale hit in the slot.
+            for inside_glass in [false, true] {
+                let mut path = PathState::new(ray, 0.01);
+                path.cone.width = 0.5;
+                if inside_glass {
+                    path.stack.push(glass);
+                }
+                let mut sampler = PixelSampler::new(1, 0, 0, r);
+                sampler.start_vertex();
+                let (mut stats, mut slots) = (TraceStats::default(), None);
+                let mut hit = Some(Hit {
+                    t: -1.0,
+                    ..expected.unwrap_or_else(|| {
+                        scene
+                            .geometry
+                            .intersect(&Ray::new(Vec3::new(1.0, 0.0, 3.0), -Vec3::Z), 9.0)
+                            .expect("the glass")
+                    })
+                });
+                let step =
+                    path.interior_step(&scene, &mut sampler, &mut stats, &mut slots, &mut hit);
+                assert_eq!(step, Step::Boundary, "ray {r}");
+                assert_eq!(hit, expected, "ray {r}");
+                let width = expected.map_or(0.5, |h| 0.5 + 0.01 * h.t);
+                assert_eq!(path.cone.width.to_bits(), width.to_bits(), "ray {r}");
+                assert_eq!(sampler.position(), (1, 0), "ray {r}: no number drawn");
+                assert!(slots.is_none(), "ray {r}");
+            }
+            if expected.is_some() {
+                hits += 1;
+            } else {
+                misses += 1;
+            }
+        }
+        assert!(hits > 500 && misses > 500, "{hits} hits, {misses} misses");
+    }
+}
