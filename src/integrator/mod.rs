@@ -237,21 +237,26 @@ fn radiance(
     stats: &mut TraceStats,
 ) -> (Rgb, Aov, [Rgb; MAX_LIGHT_LAYERS]) {
     let mut path = PathState::new(ray, scene.camera.pixel_spread_angle());
-    let mut slots = VertexSlots::new();
+    // The fibre slots (two 2.6 KiB records) are made at the path's first scattering vertex
+    // that needs them: most paths through a thin medium scatter nowhere.
+    let mut slots = None;
+    // The step's boundary hit, written in place by the ray cast (a hit returned by value
+    // was copied twice on its way here, through loads wider than the cast's stores).
+    let mut hit = None;
     loop {
         stats.rays += 1;
         sampler.start_vertex();
-        let (step, hit) = path.interior_step(scene, sampler, stats, &mut slots);
+        let step = path.interior_step(scene, sampler, stats, &mut slots, &mut hit);
         match step {
             Step::Trace => continue,
             Step::Stop => break,
             Step::Boundary => path.lean_weight = None,
         }
-        let Some(hit) = hit else {
+        let Some(h) = &hit else {
             path.escape(scene);
             break;
         };
-        if path.boundary_step(scene, &hit, sampler, stats) == Step::Stop {
+        if path.boundary_step(scene, h, sampler, stats) == Step::Stop {
             break;
         }
     }
@@ -313,33 +318,46 @@ impl<'s> PathState<'s> {
     }
 
     /// 1. The interior the ray travels through, up to the next boundary (Algorithm 1, lines
-    ///    3–11): a free flight that passes, or scatters. Returns the boundary hit when the
-    ///    flight reached it (the closest hit of the ray; in vacuum, the ray is traced to the
-    ///    first hit). The boundary is searched only as far as the medium needs: up to the
-    ///    sampled distance in a homogeneous medium.
+    ///    3–11): a free flight that passes, or scatters. Sets `hit` to the boundary hit when
+    ///    the flight reached it (the closest hit of the ray; in vacuum, the ray is traced to
+    ///    the first hit), to `None` otherwise. The boundary is searched only as far as the
+    ///    medium needs: up to the sampled distance in a homogeneous medium. `slots` holds the
+    ///    path's fibre slots once a scattering vertex has made them.
     fn interior_step(
         &mut self,
         scene: &'s Scene,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
-        slots: &mut VertexSlots,
-    ) -> (Step, Option<Hit>) {
+        slots: &mut Option<VertexSlots>,
+        hit: &mut Option<Hit>,
+    ) -> Step {
+        // In vacuum (no interior entered: the stack's top is `None`, and so is the current
+        // medium) the ray is traced to the first hit without looking for a medium.
+        if self.stack.entries().is_empty() {
+            return self.vacuum_step(scene, hit);
+        }
         // A medium of the scene itself outlives the step: a fibre lean made in it can leave
         // its weight to the next vertex. One made for this walk (`scratch`) cannot.
         if let Some((medium, obj)) =
             scene_medium(scene, &self.stack).filter(|_| !fibre_lean::eager_weights())
         {
-            return self.interior_step_in(scene, medium, obj, sampler, stats, slots, Some);
+            return self.interior_step_in(scene, medium, obj, sampler, stats, slots, hit, Some);
         }
         let mut scratch = None;
         let Some((medium, obj)) = current_medium(scene, &self.stack, &mut scratch) else {
-            let hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
-            if let Some(h) = &hit {
-                self.cone.advance(h.t);
-            }
-            return (Step::Boundary, hit);
+            return self.vacuum_step(scene, hit);
         };
-        self.interior_step_in(scene, medium, obj, sampler, stats, slots, |_| None)
+        self.interior_step_in(scene, medium, obj, sampler, stats, slots, hit, |_| None)
+    }
+
+    /// [`PathState::interior_step`] outside every interior: the ray's first hit.
+    #[inline]
+    fn vacuum_step(&mut self, scene: &Scene, hit: &mut Option<Hit>) -> Step {
+        *hit = scene.geometry.intersect(&self.ray, f32::INFINITY);
+        if let Some(h) = hit {
+            self.cone.advance(h.t);
+        }
+        Step::Boundary
     }
 
     /// [`PathState::interior_step`] in `medium`, the interior of `obj`; `keep` gives a fibre
@@ -353,18 +371,19 @@ impl<'s> PathState<'s> {
         obj: &Object,
         sampler: &mut PixelSampler,
         stats: &mut TraceStats,
-        slots: &mut VertexSlots,
+        slots: &mut Option<VertexSlots>,
+        hit: &mut Option<Hit>,
         keep: impl Fn(FibreLean<'m>) -> Option<FibreLean<'s>>,
-    ) -> (Step, Option<Hit>) {
-        let mut hit = None;
+    ) -> Step {
+        *hit = None;
         let ray = self.ray;
         // What lies behind a thin medium, estimated by transmittance: the boundary is needed
         // first, and the flight below then only samples collisions.
         let mut behind_estimated = false;
         let mut known_boundary = None;
         if medium.estimates_behind() {
-            hit = scene.geometry.intersect(&ray, f32::INFINITY);
-            if let Some(h) = &hit {
+            *hit = scene.geometry.intersect(&ray, f32::INFINITY);
+            if let Some(h) = hit {
                 known_boundary = Some(h.t);
                 behind_estimated = self.add_light_behind(scene, medium, h, sampler, stats);
             }
@@ -380,7 +399,7 @@ impl<'s> PathState<'s> {
                 Some(t) if t <= limit => t,
                 Some(_) => f32::INFINITY,
                 None => {
-                    hit = scene.geometry.intersect(&ray, limit);
+                    *hit = scene.geometry.intersect(&ray, limit);
                     hit.as_ref().map_or(f32::INFINITY, |h| h.t)
                 }
             },
@@ -395,17 +414,18 @@ impl<'s> PathState<'s> {
                 // entry's grown over the walk's last segment (the sum of a random walk's
                 // segments would overstate how far it spread).
                 self.cone.widen();
+                let slots = slots.get_or_insert_with(VertexSlots::new);
                 self.scatter_in_medium(scene, medium, obj, &vertex, sampler, stats, slots, keep)
             }
             None if self.beta.is_black() || behind_estimated => Step::Stop,
             None => {
-                if let Some(h) = &hit {
+                if let Some(h) = hit {
                     self.cone.advance(h.t);
                 }
                 Step::Boundary
             }
         };
-        (step, hit)
+        step
     }
 
     /// The light behind the current medium along the ray, estimated by transmittance
@@ -1122,4 +1142,94 @@ fn russian_roulette(
     }
     *beta /= q;
     true
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::sampling::Rng;
+    use crate::scene::load_scene_str;
+
+    /// A glass sphere without an interior (an object on the stack with no medium) beside a
+    /// sphere of medium, under a sky.
+    const SPHERES: &str = r#"
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 40
+[film]
+width = 8
+height = 8
+spp = 1
+[[light]]
+type = "environment"
+radiance = 0.5
+[[object]]
+name = "glass"
+shape = "sphere"
+center = [1.0, 0.0, 0.0]
+radius = 0.6
+surface = { type = "dielectric", ior = 1.5 }
+[[object]]
+name = "fog"
+shape = "sphere"
+center = [-1.0, 0.0, 0.0]
+radius = 0.8
+interior = { type = "homogeneous", albedo = 0.9, attenuation = 1.0 }
+"#;
+
+    #[test]
+    fn a_step_in_vacuum_is_the_first_hit_with_its_cone_advanced() {
+        let scene = load_scene_str(SPHERES, Path::new("spheres.toml")).expect("scene");
+        let glass = scene
+            .objects
+            .iter()
+            .position(|o| o.medium.is_none())
+            .expect("glass") as u32;
+        let mut rng = Rng::new(11, 2);
+        let (mut hits, mut misses) = (0, 0);
+        for r in 0..4000 {
+            let o = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 1.0) * 4.0;
+            let target = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 0.0) * 5.0;
+            let ray = Ray::new(o, (target - o).normalize());
+            let expected = scene.geometry.intersect(&ray, f32::INFINITY);
+            // An empty stack (the vacuum's own step) and the glass on the stack (no medium:
+            // the general step's vacuum), each with a stale hit in the slot.
+            for inside_glass in [false, true] {
+                let mut path = PathState::new(ray, 0.01);
+                path.cone.width = 0.5;
+                if inside_glass {
+                    path.stack.push(glass);
+                }
+                let mut sampler = PixelSampler::new(1, 0, 0, r);
+                sampler.start_vertex();
+                let (mut stats, mut slots) = (TraceStats::default(), None);
+                let mut hit = Some(Hit {
+                    t: -1.0,
+                    ..expected.unwrap_or_else(|| {
+                        scene
+                            .geometry
+                            .intersect(&Ray::new(Vec3::new(1.0, 0.0, 3.0), -Vec3::Z), 9.0)
+                            .expect("the glass")
+                    })
+                });
+                let step =
+                    path.interior_step(&scene, &mut sampler, &mut stats, &mut slots, &mut hit);
+                assert_eq!(step, Step::Boundary, "ray {r}");
+                assert_eq!(hit, expected, "ray {r}");
+                let width = expected.map_or(0.5, |h| 0.5 + 0.01 * h.t);
+                assert_eq!(path.cone.width.to_bits(), width.to_bits(), "ray {r}");
+                assert_eq!(sampler.position(), (1, 0), "ray {r}: no number drawn");
+                assert!(slots.is_none(), "ray {r}");
+            }
+            if expected.is_some() {
+                hits += 1;
+            } else {
+                misses += 1;
+            }
+        }
+        assert!(hits > 500 && misses > 500, "{hits} hits, {misses} misses");
+    }
 }

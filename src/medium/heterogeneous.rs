@@ -561,8 +561,10 @@ impl HeterogeneousMedium {
                 _ => delta_track_local(segments, c, density, probe, beta, u, stats),
             };
         }
-        let (mut lookup, probe) = self.lookups_along(ray);
-        match (self.tracking.free_flight, probe) {
+        // The probe is lent to the tracker, not moved into it (a move copied it through
+        // memory, with loads wider than the stores that had just built it).
+        let (mut lookup, mut probe) = self.lookups_along(ray);
+        match (self.tracking.free_flight, probe.as_mut()) {
             (FreeFlightMethod::DeltaTracking, Some(probe)) => {
                 delta_track_local(segments, c, |t| lookup.at(t), probe, beta, u, stats)
             }

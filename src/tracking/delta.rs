@@ -415,6 +415,7 @@ mod tests {
     use super::*;
     use crate::majorant::Bounds;
     use crate::tracking::test_support::{test_density, test_segments, Stream, TestBounds};
+    use std::cell::Cell;
 
     /// `choice`'s flight over the test segments tracked in RGB (stream `u`, statistics `s1`) and
     /// in one scalar (`v`, `s2`), each with point bounds made by `bounds`.
@@ -510,6 +511,113 @@ mod tests {
 
     fn close(a: Rgb, b: Rgb, rel: f32) -> bool {
         (0..3).all(|k| (a[k] - b[k]).abs() <= rel * b[k].abs().max(1e-30))
+    }
+
+    /// Proven point bounds with a coarser bound of their own (`probe`), counting the calls
+    /// of each method in cells outside it: what a lent probe must forward.
+    struct CountingBounds<'c> {
+        at: &'c Cell<u32>,
+        probes: &'c Cell<u32>,
+    }
+
+    impl PointBounds for CountingBounds<'_> {
+        fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+            self.at.set(self.at.get() + 1);
+            let d = test_density(t);
+            Some(((d - 0.05).max(0.0), (d + 0.05).min(1.0)))
+        }
+        fn probe(&mut self, t: f32, skip: impl FnOnce(f32) -> bool) -> Probe {
+            self.probes.set(self.probes.get() + 1);
+            if skip((test_density(t) + 0.1).min(1.0)) {
+                return Probe::Skipped;
+            }
+            Probe::from_bounds(self.at(t))
+        }
+        fn proven_minorant(&self) -> bool {
+            true
+        }
+    }
+
+    /// One flight with [`CountingBounds`] moved into the tracker or lent to it: the flight,
+    /// the counters, the numbers drawn and the bounds' calls.
+    fn counted_flight(
+        coeff: &DensityCoefficients,
+        seed: u64,
+        decompose: bool,
+        lend: bool,
+    ) -> (Flight, TrackingStats, u32, u32, u32) {
+        let (at, probes) = (Cell::new(0), Cell::new(0));
+        let mut u = Stream::new(seed);
+        let mut stats = TrackingStats::default();
+        let mut bounds = CountingBounds {
+            at: &at,
+            probes: &probes,
+        };
+        let beta = Rgb::new(0.3, 0.6, 0.9);
+        let (segs, d) = (test_segments(), test_density);
+        let flight = match (decompose, lend) {
+            (false, false) => {
+                delta_track_local(segs, coeff, d, bounds, beta, &mut || u.next(), &mut stats)
+            }
+            (false, true) => delta_track_local(
+                segs,
+                coeff,
+                d,
+                &mut bounds,
+                beta,
+                &mut || u.next(),
+                &mut stats,
+            ),
+            (true, false) => decomposition_track_local(
+                segs,
+                coeff,
+                d,
+                bounds,
+                beta,
+                &mut || u.next(),
+                &mut stats,
+            ),
+            (true, true) => decomposition_track_local(
+                segs,
+                coeff,
+                d,
+                &mut bounds,
+                beta,
+                &mut || u.next(),
+                &mut stats,
+            ),
+        };
+        (flight, stats, u.draws, at.get(), probes.get())
+    }
+
+    #[test]
+    fn lent_point_bounds_track_as_the_bounds_themselves() {
+        let coeffs = [
+            // Grey without a constant part: the proven minorant's control part applies.
+            DensityCoefficients::new(Rgb::splat(0.8), Rgb::splat(0.7)),
+            DensityCoefficients::new(Rgb::new(0.5, 0.8, 1.1), Rgb::new(0.4, 0.7, 0.6)),
+        ];
+        let (mut skipped, mut unlooked) = (0u64, 0u64);
+        for coeff in &coeffs {
+            for seed in 0..1500u64 {
+                let decompose = seed % 3 == 0;
+                let own = counted_flight(coeff, seed, decompose, false);
+                let lent = counted_flight(coeff, seed, decompose, true);
+                assert_eq!(own.0, lent.0, "seed {seed}");
+                assert_eq!(own.1, lent.1, "seed {seed}");
+                assert_eq!(
+                    (own.2, own.3, own.4),
+                    (lent.2, lent.3, lent.4),
+                    "seed {seed}"
+                );
+                skipped += lent.1.probed;
+                // Real collisions decided without a lookup (a control part).
+                unlooked +=
+                    u64::from(matches!(lent.0, Flight::Scatter { .. }) && lent.1.lookups == 0);
+            }
+        }
+        // The coarser bound skipped lookups, and control parts decided collisions.
+        assert!(skipped > 1000 && unlooked > 20, "{skipped} {unlooked}");
     }
 
     /// Point bounds that hold: a band around the density, the whole range, or none.

@@ -158,6 +158,25 @@ impl Probe {
     }
 }
 
+/// Point bounds lent to a tracker: the same answers as the bounds themselves, without
+/// moving them into the tracker (a move copies the probe through memory).
+impl<P: PointBounds + ?Sized> PointBounds for &mut P {
+    #[inline(always)]
+    fn at(&mut self, t: f32) -> Option<(f32, f32)> {
+        (**self).at(t)
+    }
+
+    #[inline(always)]
+    fn probe(&mut self, t: f32, skip: impl FnOnce(f32) -> bool) -> Probe {
+        (**self).probe(t, skip)
+    }
+
+    #[inline(always)]
+    fn proven_minorant(&self) -> bool {
+        (**self).proven_minorant()
+    }
+}
+
 /// No point bounds: the trackers use the segments' bounds alone.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct NoPointBounds;
