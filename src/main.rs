@@ -54,6 +54,7 @@ fn reset_sigpipe() {
 }
 
 fn main() {
+    cli::cpu::exit_unless_supported();
     reset_sigpipe();
     let cli = Cli::parse();
     let result = match &cli.command {

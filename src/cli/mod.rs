@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod checksum;
 pub mod convert;
+pub mod cpu;
 pub mod diff;
 pub mod inspect;
 pub mod majorants;
