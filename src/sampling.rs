@@ -108,6 +108,19 @@ fn shuffled_nibbles_keyed(sample_index: u32, key: u32) -> [u8; 4] {
     [28, 24, 20, 16].map(|shift| ((rev >> shift) & 15) as u8)
 }
 
+/// Sobol sets whose scramble keys ([`scramble_key`]) a [`PixelSeed`] holds: the camera's set and
+/// the two sets of each of the first two vertices (what most paths of a thin medium draw).
+const KEYED_SETS: usize = 5;
+
+/// The key of the Owen scrambling of Sobol set `set` for a pixel's Sobol `seed`: what
+/// `sobol_burley::sample_4d` hashes from (seed, set) before scrambling the set's four numbers.
+#[inline]
+fn scramble_key(seed: u32, set: u32) -> Int4 {
+    let seed: Int4 = [seed.wrapping_mul(0x9c8f_2d3b); 4].into();
+    let ds: Int4 = [set; 4].into();
+    hash_int4(seed ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into())
+}
+
 /// The part of a [`PixelSampler`] that depends on the pixel only (not on the sample): made
 /// once per pixel by a render loop that takes many samples there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,6 +129,8 @@ pub struct PixelSeed {
     seed: u64,
     /// [`shuffle_key`] of the pixel's Sobol seed.
     shuffle: u32,
+    /// [`scramble_key`]s of the pixel's first [`KEYED_SETS`] Sobol sets.
+    keys: [[u32; 4]; KEYED_SETS],
 }
 
 impl PixelSeed {
@@ -123,29 +138,35 @@ impl PixelSeed {
     #[must_use]
     pub fn new(seed: u64, px: u32, py: u32) -> Self {
         let seed = hash_words(&[seed, ((px as u64) << 32) | py as u64]);
+        let mut keys = [[0u32; 4]; KEYED_SETS];
+        for (set, key) in (0u32..).zip(keys.iter_mut()) {
+            *key = scramble_key(seed as u32, set).into();
+        }
         PixelSeed {
             seed,
             shuffle: shuffle_key(seed as u32),
+            keys,
         }
     }
 }
 
 /// `sobol_burley::sample_4d(sample_index, set, seed)` bit for bit, with the index shuffled
-/// once per sample (`nibbles`, [`shuffled_nibbles`]) and the direction vectors summed by four
-/// table reads instead of one XOR per set index bit (Burley 2020's scrambling unchanged).
+/// once per sample (`nibbles`, [`shuffled_nibbles`]), the direction vectors summed by four
+/// table reads instead of one XOR per set index bit, and the scramble's key given (`key`,
+/// [`scramble_key`] of the seed and set; Burley 2020's scrambling unchanged).
 #[inline]
-fn sobol_4d(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f32; 4] {
-    let t = &tables[set as usize];
-    let mut sobol: Int4 = t[0][usize::from(nibbles[0] & 15)].into();
+fn sobol_4d_keyed(table: &NibbleTable, nibbles: [u8; 4], key: Int4) -> [f32; 4] {
+    let mut sobol: Int4 = table[0][usize::from(nibbles[0] & 15)].into();
     for k in 1..4 {
-        sobol ^= t[k][usize::from(nibbles[k] & 15)].into();
+        sobol ^= table[k][usize::from(nibbles[k] & 15)].into();
     }
-    let seed: Int4 = [seed.wrapping_mul(0x9c8f_2d3b); 4].into();
-    let ds: Int4 = [set; 4].into();
-    let scramble = seed ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into();
-    owen_scramble_int4_rev(sobol, hash_int4(scramble))
-        .reverse_bits()
-        .to_f32_norm()
+    owen_scramble_int4_rev(sobol, key).reverse_bits().to_f32_norm()
+}
+
+/// [`sobol_4d_keyed`] with the key computed from the pixel's Sobol `seed` and the `set`.
+#[cfg(test)]
+fn sobol_4d(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f32; 4] {
+    sobol_4d_keyed(&tables[set as usize], nibbles, scramble_key(seed, set))
 }
 
 /// Deterministic per-pixel sample stream, grouped by path vertex (see the module docs).
@@ -170,6 +191,8 @@ pub struct PixelSampler {
     sobol: [f32; 4],
     /// The sample's shuffled Sobol index, by nibble ([`shuffled_nibbles`]).
     nibbles: [u8; 4],
+    /// The pixel's [`PixelSeed::keys`].
+    keys: [[u32; 4]; KEYED_SETS],
 }
 
 impl PixelSampler {
@@ -199,6 +222,7 @@ impl PixelSampler {
             first_set: 0,
             sobol: [0.0; 4],
             nibbles: shuffled_nibbles_keyed(sample_index, pixel.shuffle),
+            keys: pixel.keys,
         }
     }
 
@@ -233,11 +257,21 @@ impl PixelSampler {
     fn next_sobol(&mut self, j: u32) -> f32 {
         self.used = j + 1;
         if j.is_multiple_of(4) {
-            let set = self.first_set + j / 4;
-            self.sobol = sobol_4d(nibble_tables(), self.nibbles, set, self.sobol_seed)
-                .map(|v| v.min(ONE_MINUS_EPSILON));
+            self.fill_sobol(self.first_set + j / 4);
         }
         self.sobol[(j % 4) as usize]
+    }
+
+    /// Computes Sobol set `set` of the sample into `self.sobol`. Its numbers are below
+    /// [`ONE_MINUS_EPSILON`] already: the largest is 1 − 2^−23.
+    #[inline(never)]
+    fn fill_sobol(&mut self, set: u32) {
+        let key = match self.keys.get(set as usize) {
+            Some(&key) => key.into(),
+            None => scramble_key(self.sobol_seed, set),
+        };
+        let table = &nibble_tables()[set as usize];
+        self.sobol = sobol_4d_keyed(table, self.nibbles, key);
     }
 
     /// The next two uniform numbers.
