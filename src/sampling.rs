@@ -14,7 +14,7 @@
 
 use std::sync::OnceLock;
 
-use sobol_burley::parts::{hash, hash_int4, owen_scramble_int4_rev, owen_scramble_rev, Int4};
+use sobol_burley::parts::{hash, hash_int4, owen_scramble_rev, Int4};
 
 use crate::math::{Vec2, Vec3, INV_PI, PI};
 
@@ -155,18 +155,32 @@ impl PixelSeed {
 /// table reads instead of one XOR per set index bit, and the scramble's key given (`key`,
 /// [`scramble_key`] of the seed and set; Burley 2020's scrambling unchanged).
 #[inline]
-fn sobol_4d_keyed(table: &NibbleTable, nibbles: [u8; 4], key: Int4) -> [f32; 4] {
-    let mut sobol: Int4 = table[0][usize::from(nibbles[0] & 15)].into();
-    for k in 1..4 {
-        sobol ^= table[k][usize::from(nibbles[k] & 15)].into();
+fn sobol_4d_keyed(table: &NibbleTable, nibbles: [u8; 4], key: [u32; 4]) -> [f32; 4] {
+    let a = table[0][usize::from(nibbles[0] & 15)];
+    let b = table[1][usize::from(nibbles[1] & 15)];
+    let c = table[2][usize::from(nibbles[2] & 15)];
+    let d = table[3][usize::from(nibbles[3] & 15)];
+    let mut out = [0.0f32; 4];
+    for i in 0..4 {
+        // `sobol_burley::parts::owen_scramble_int4_rev`, lane by lane (the compiler makes SSE2
+        // lanes of it with a shorter 32-bit multiply than the crate's), then the reversal
+        // and `to_f32_norm`.
+        let s = key[i];
+        let mut n = a[i] ^ b[i] ^ c[i] ^ d[i];
+        n ^= n.wrapping_mul(0x3d20_adea);
+        n = n.wrapping_add(s);
+        n = n.wrapping_mul((s >> 16) | 1);
+        n ^= n.wrapping_mul(0x0552_6c56);
+        n ^= n.wrapping_mul(0x53a2_2864);
+        out[i] = f32::from_bits((n.reverse_bits() >> 9) | 0x3f80_0000) - 1.0;
     }
-    owen_scramble_int4_rev(sobol, key).reverse_bits().to_f32_norm()
+    out
 }
 
 /// [`sobol_4d_keyed`] with the key computed from the pixel's Sobol `seed` and the `set`.
 #[cfg(test)]
 fn sobol_4d(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f32; 4] {
-    sobol_4d_keyed(&tables[set as usize], nibbles, scramble_key(seed, set))
+    sobol_4d_keyed(&tables[set as usize], nibbles, scramble_key(seed, set).into())
 }
 
 /// Deterministic per-pixel sample stream, grouped by path vertex (see the module docs).
@@ -267,8 +281,8 @@ impl PixelSampler {
     #[inline(never)]
     fn fill_sobol(&mut self, set: u32) {
         let key = match self.keys.get(set as usize) {
-            Some(&key) => key.into(),
-            None => scramble_key(self.sobol_seed, set),
+            Some(&key) => key,
+            None => scramble_key(self.sobol_seed, set).into(),
         };
         let table = &nibble_tables()[set as usize];
         self.sobol = sobol_4d_keyed(table, self.nibbles, key);
