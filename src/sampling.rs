@@ -266,26 +266,29 @@ impl PixelSampler {
         bits_to_unit_f32((bits >> 32) as u32)
     }
 
-    /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets.
+    /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets. The first
+    /// number of a set is returned by [`Self::fill_sobol`] itself (a tail call), so the other
+    /// three keep nothing across a call and cost a few instructions.
     #[inline(never)]
     fn next_sobol(&mut self, j: u32) -> f32 {
         self.used = j + 1;
         if j.is_multiple_of(4) {
-            self.fill_sobol(self.first_set + j / 4);
+            return self.fill_sobol(self.first_set + j / 4);
         }
         self.sobol[(j % 4) as usize]
     }
 
-    /// Computes Sobol set `set` of the sample into `self.sobol`. Its numbers are below
-    /// [`ONE_MINUS_EPSILON`] already: the largest is 1 − 2^−23.
+    /// Computes Sobol set `set` of the sample into `self.sobol` and returns its first number.
+    /// Its numbers are below [`ONE_MINUS_EPSILON`] already: the largest is 1 − 2^−23.
     #[inline(never)]
-    fn fill_sobol(&mut self, set: u32) {
+    fn fill_sobol(&mut self, set: u32) -> f32 {
         let key = match self.keys.get(set as usize) {
             Some(&key) => key,
             None => scramble_key(self.sobol_seed, set).into(),
         };
         let table = &nibble_tables()[set as usize];
         self.sobol = sobol_4d_keyed(table, self.nibbles, key);
+        self.sobol[0]
     }
 
     /// The next two uniform numbers.
