@@ -66,12 +66,14 @@ pub fn bits_to_unit_f32(bits: u32) -> f32 {
 /// in the `nibble`-th group of four bits (from the top) of the reversed 16-bit index.
 type NibbleTable = [[[u32; 4]; 16]; 4];
 
+/// The [`NibbleTable`]s once made ([`nibble_tables`]).
+static NIBBLE_TABLES: OnceLock<Vec<NibbleTable>> = OnceLock::new();
+
 /// The nibble tables of every dimension set (`sobol_burley`'s direction vectors, regrouped):
 /// `sobol_burley::parts::sobol_int4_rev` is linear over GF(2) in the index bits, so the XOR of
 /// the vectors of the set bits, one bit at a time, equals the XOR of four table entries.
 fn nibble_tables() -> &'static [NibbleTable] {
-    static TABLES: OnceLock<Vec<NibbleTable>> = OnceLock::new();
-    TABLES.get_or_init(|| {
+    NIBBLE_TABLES.get_or_init(|| {
         (0..sobol_burley::NUM_DIMENSION_SETS_4D)
             .map(|set| {
                 let mut t = [[[0u32; 4]; 16]; 4];
@@ -282,13 +284,25 @@ impl PixelSampler {
     /// Its numbers are below [`ONE_MINUS_EPSILON`] already: the largest is 1 − 2^−23.
     #[inline(never)]
     fn fill_sobol(&mut self, set: u32) -> f32 {
+        // Before the tables exist (once per process), a tail call makes them: the common path
+        // then keeps no registers across a call.
+        let Some(tables) = NIBBLE_TABLES.get() else {
+            return self.fill_sobol_first(set);
+        };
         let key = match self.keys.get(set as usize) {
             Some(&key) => key,
             None => scramble_key(self.sobol_seed, set).into(),
         };
-        let table = &nibble_tables()[set as usize];
-        self.sobol = sobol_4d_keyed(table, self.nibbles, key);
+        self.sobol = sobol_4d_keyed(&tables[set as usize], self.nibbles, key);
         self.sobol[0]
+    }
+
+    /// [`Self::fill_sobol`] when the nibble tables are not made yet.
+    #[cold]
+    #[inline(never)]
+    fn fill_sobol_first(&mut self, set: u32) -> f32 {
+        nibble_tables();
+        self.fill_sobol(set)
     }
 
     /// The next two uniform numbers.
