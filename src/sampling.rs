@@ -182,7 +182,11 @@ fn sobol_4d_keyed(table: &NibbleTable, nibbles: [u8; 4], key: [u32; 4]) -> [f32;
 /// [`sobol_4d_keyed`] with the key computed from the pixel's Sobol `seed` and the `set`.
 #[cfg(test)]
 fn sobol_4d(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f32; 4] {
-    sobol_4d_keyed(&tables[set as usize], nibbles, scramble_key(seed, set).into())
+    sobol_4d_keyed(
+        &tables[set as usize],
+        nibbles,
+        scramble_key(seed, set).into(),
+    )
 }
 
 /// Deterministic per-pixel sample stream, grouped by path vertex (see the module docs).
@@ -366,6 +370,45 @@ mod tests {
                     &z[..],
                     "seed {seed} pixel ({px}, {py}) sample {s}"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn every_vertex_sobol_draw_matches_sobol_burley_with_keys_kept_or_not() {
+        // The sets whose scramble keys the pixel keeps (the first `KEYED_SETS`) and the later
+        // ones (keys computed per set), every Sobol number of every Sobol vertex, against
+        // `sobol_burley::sample_4d` itself; interleaved samples of one pixel share its keys.
+        let mut rng = Rng::new(21, 5);
+        for _ in 0..60 {
+            let (seed, px, py) = (
+                u64::from(rng.next_u32()),
+                rng.next_u32() >> 20,
+                rng.next_u32() >> 20,
+            );
+            let pixel = PixelSeed::new(seed, px, py);
+            let sobol_seed = pixel.seed as u32;
+            for s in (0..12).chain([rng.next_u32() % SOBOL_SAMPLES, SOBOL_SAMPLES - 1]) {
+                let mut sampler = PixelSampler::in_pixel(&pixel, s);
+                for vertex in 0..=SOBOL_VERTICES {
+                    let (dims, first_set) = if vertex == 0 {
+                        (CAMERA_SOBOL_DIMENSIONS, 0)
+                    } else {
+                        sampler.start_vertex();
+                        (VERTEX_SOBOL_DIMENSIONS, 1 + (vertex - 1) * 2)
+                    };
+                    for j in 0..dims {
+                        let want = sobol_burley::sample_4d(s, first_set + j / 4, sobol_seed)
+                            [(j % 4) as usize];
+                        let got = sampler.next_1d();
+                        assert!(got < ONE_MINUS_EPSILON);
+                        assert_eq!(
+                            got.to_bits(),
+                            want.to_bits(),
+                            "seed {seed} pixel ({px}, {py}) sample {s} vertex {vertex} draw {j}"
+                        );
+                    }
+                }
             }
         }
     }
