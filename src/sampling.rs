@@ -14,7 +14,7 @@
 
 use std::sync::OnceLock;
 
-use sobol_burley::parts::{hash, hash_int4, owen_scramble_int4_rev, owen_scramble_rev, Int4};
+use sobol_burley::parts::{hash, hash_int4, owen_scramble_rev, Int4};
 
 use crate::math::{Vec2, Vec3, INV_PI, PI};
 
@@ -66,12 +66,14 @@ pub fn bits_to_unit_f32(bits: u32) -> f32 {
 /// in the `nibble`-th group of four bits (from the top) of the reversed 16-bit index.
 type NibbleTable = [[[u32; 4]; 16]; 4];
 
+/// The [`NibbleTable`]s once made ([`nibble_tables`]).
+static NIBBLE_TABLES: OnceLock<Vec<NibbleTable>> = OnceLock::new();
+
 /// The nibble tables of every dimension set (`sobol_burley`'s direction vectors, regrouped):
 /// `sobol_burley::parts::sobol_int4_rev` is linear over GF(2) in the index bits, so the XOR of
 /// the vectors of the set bits, one bit at a time, equals the XOR of four table entries.
 fn nibble_tables() -> &'static [NibbleTable] {
-    static TABLES: OnceLock<Vec<NibbleTable>> = OnceLock::new();
-    TABLES.get_or_init(|| {
+    NIBBLE_TABLES.get_or_init(|| {
         (0..sobol_burley::NUM_DIMENSION_SETS_4D)
             .map(|set| {
                 let mut t = [[[0u32; 4]; 16]; 4];
@@ -108,6 +110,19 @@ fn shuffled_nibbles_keyed(sample_index: u32, key: u32) -> [u8; 4] {
     [28, 24, 20, 16].map(|shift| ((rev >> shift) & 15) as u8)
 }
 
+/// Sobol sets whose scramble keys ([`scramble_key`]) a [`PixelSeed`] holds: the camera's set and
+/// the two sets of each of the first two vertices (what most paths of a thin medium draw).
+const KEYED_SETS: usize = 5;
+
+/// The key of the Owen scrambling of Sobol set `set` for a pixel's Sobol `seed`: what
+/// `sobol_burley::sample_4d` hashes from (seed, set) before scrambling the set's four numbers.
+#[inline]
+fn scramble_key(seed: u32, set: u32) -> Int4 {
+    let seed: Int4 = [seed.wrapping_mul(0x9c8f_2d3b); 4].into();
+    let ds: Int4 = [set; 4].into();
+    hash_int4(seed ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into())
+}
+
 /// The part of a [`PixelSampler`] that depends on the pixel only (not on the sample): made
 /// once per pixel by a render loop that takes many samples there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,6 +131,8 @@ pub struct PixelSeed {
     seed: u64,
     /// [`shuffle_key`] of the pixel's Sobol seed.
     shuffle: u32,
+    /// [`scramble_key`]s of the pixel's first [`KEYED_SETS`] Sobol sets.
+    keys: [[u32; 4]; KEYED_SETS],
 }
 
 impl PixelSeed {
@@ -123,29 +140,53 @@ impl PixelSeed {
     #[must_use]
     pub fn new(seed: u64, px: u32, py: u32) -> Self {
         let seed = hash_words(&[seed, ((px as u64) << 32) | py as u64]);
+        let mut keys = [[0u32; 4]; KEYED_SETS];
+        for (set, key) in (0u32..).zip(keys.iter_mut()) {
+            *key = scramble_key(seed as u32, set).into();
+        }
         PixelSeed {
             seed,
             shuffle: shuffle_key(seed as u32),
+            keys,
         }
     }
 }
 
 /// `sobol_burley::sample_4d(sample_index, set, seed)` bit for bit, with the index shuffled
-/// once per sample (`nibbles`, [`shuffled_nibbles`]) and the direction vectors summed by four
-/// table reads instead of one XOR per set index bit (Burley 2020's scrambling unchanged).
+/// once per sample (`nibbles`, [`shuffled_nibbles`]), the direction vectors summed by four
+/// table reads instead of one XOR per set index bit, and the scramble's key given (`key`,
+/// [`scramble_key`] of the seed and set; Burley 2020's scrambling unchanged).
 #[inline]
-fn sobol_4d(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f32; 4] {
-    let t = &tables[set as usize];
-    let mut sobol: Int4 = t[0][usize::from(nibbles[0] & 15)].into();
-    for k in 1..4 {
-        sobol ^= t[k][usize::from(nibbles[k] & 15)].into();
+fn sobol_4d_keyed(table: &NibbleTable, nibbles: [u8; 4], key: [u32; 4]) -> [f32; 4] {
+    let a = table[0][usize::from(nibbles[0] & 15)];
+    let b = table[1][usize::from(nibbles[1] & 15)];
+    let c = table[2][usize::from(nibbles[2] & 15)];
+    let d = table[3][usize::from(nibbles[3] & 15)];
+    let mut out = [0.0f32; 4];
+    for i in 0..4 {
+        // `sobol_burley::parts::owen_scramble_int4_rev`, lane by lane (the compiler makes SSE2
+        // lanes of it with a shorter 32-bit multiply than the crate's), then the reversal
+        // and `to_f32_norm`.
+        let s = key[i];
+        let mut n = a[i] ^ b[i] ^ c[i] ^ d[i];
+        n ^= n.wrapping_mul(0x3d20_adea);
+        n = n.wrapping_add(s);
+        n = n.wrapping_mul((s >> 16) | 1);
+        n ^= n.wrapping_mul(0x0552_6c56);
+        n ^= n.wrapping_mul(0x53a2_2864);
+        out[i] = f32::from_bits((n.reverse_bits() >> 9) | 0x3f80_0000) - 1.0;
     }
-    let seed: Int4 = [seed.wrapping_mul(0x9c8f_2d3b); 4].into();
-    let ds: Int4 = [set; 4].into();
-    let scramble = seed ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into();
-    owen_scramble_int4_rev(sobol, hash_int4(scramble))
-        .reverse_bits()
-        .to_f32_norm()
+    out
+}
+
+/// [`sobol_4d_keyed`] with the key computed from the pixel's Sobol `seed` and the `set`.
+#[cfg(test)]
+fn sobol_4d(tables: &[NibbleTable], nibbles: [u8; 4], set: u32, seed: u32) -> [f32; 4] {
+    sobol_4d_keyed(
+        &tables[set as usize],
+        nibbles,
+        scramble_key(seed, set).into(),
+    )
 }
 
 /// Deterministic per-pixel sample stream, grouped by path vertex (see the module docs).
@@ -170,6 +211,8 @@ pub struct PixelSampler {
     sobol: [f32; 4],
     /// The sample's shuffled Sobol index, by nibble ([`shuffled_nibbles`]).
     nibbles: [u8; 4],
+    /// The pixel's [`PixelSeed::keys`].
+    keys: [[u32; 4]; KEYED_SETS],
 }
 
 impl PixelSampler {
@@ -199,6 +242,7 @@ impl PixelSampler {
             first_set: 0,
             sobol: [0.0; 4],
             nibbles: shuffled_nibbles_keyed(sample_index, pixel.shuffle),
+            keys: pixel.keys,
         }
     }
 
@@ -228,16 +272,41 @@ impl PixelSampler {
         bits_to_unit_f32((bits >> 32) as u32)
     }
 
-    /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets.
+    /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets. The first
+    /// number of a set is returned by [`Self::fill_sobol`] itself (a tail call), so the other
+    /// three keep nothing across a call and cost a few instructions.
     #[inline(never)]
     fn next_sobol(&mut self, j: u32) -> f32 {
         self.used = j + 1;
         if j.is_multiple_of(4) {
-            let set = self.first_set + j / 4;
-            self.sobol = sobol_4d(nibble_tables(), self.nibbles, set, self.sobol_seed)
-                .map(|v| v.min(ONE_MINUS_EPSILON));
+            return self.fill_sobol(self.first_set + j / 4);
         }
         self.sobol[(j % 4) as usize]
+    }
+
+    /// Computes Sobol set `set` of the sample into `self.sobol` and returns its first number.
+    /// Its numbers are below [`ONE_MINUS_EPSILON`] already: the largest is 1 − 2^−23.
+    #[inline(never)]
+    fn fill_sobol(&mut self, set: u32) -> f32 {
+        // Before the tables exist (once per process), a tail call makes them: the common path
+        // then keeps no registers across a call.
+        let Some(tables) = NIBBLE_TABLES.get() else {
+            return self.fill_sobol_first(set);
+        };
+        let key = match self.keys.get(set as usize) {
+            Some(&key) => key,
+            None => scramble_key(self.sobol_seed, set).into(),
+        };
+        self.sobol = sobol_4d_keyed(&tables[set as usize], self.nibbles, key);
+        self.sobol[0]
+    }
+
+    /// [`Self::fill_sobol`] when the nibble tables are not made yet.
+    #[cold]
+    #[inline(never)]
+    fn fill_sobol_first(&mut self, set: u32) -> f32 {
+        nibble_tables();
+        self.fill_sobol(set)
     }
 
     /// The next two uniform numbers.
@@ -301,6 +370,45 @@ mod tests {
                     &z[..],
                     "seed {seed} pixel ({px}, {py}) sample {s}"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn every_vertex_sobol_draw_matches_sobol_burley_with_keys_kept_or_not() {
+        // The sets whose scramble keys the pixel keeps (the first `KEYED_SETS`) and the later
+        // ones (keys computed per set), every Sobol number of every Sobol vertex, against
+        // `sobol_burley::sample_4d` itself; interleaved samples of one pixel share its keys.
+        let mut rng = Rng::new(21, 5);
+        for _ in 0..60 {
+            let (seed, px, py) = (
+                u64::from(rng.next_u32()),
+                rng.next_u32() >> 20,
+                rng.next_u32() >> 20,
+            );
+            let pixel = PixelSeed::new(seed, px, py);
+            let sobol_seed = pixel.seed as u32;
+            for s in (0..12).chain([rng.next_u32() % SOBOL_SAMPLES, SOBOL_SAMPLES - 1]) {
+                let mut sampler = PixelSampler::in_pixel(&pixel, s);
+                for vertex in 0..=SOBOL_VERTICES {
+                    let (dims, first_set) = if vertex == 0 {
+                        (CAMERA_SOBOL_DIMENSIONS, 0)
+                    } else {
+                        sampler.start_vertex();
+                        (VERTEX_SOBOL_DIMENSIONS, 1 + (vertex - 1) * 2)
+                    };
+                    for j in 0..dims {
+                        let want = sobol_burley::sample_4d(s, first_set + j / 4, sobol_seed)
+                            [(j % 4) as usize];
+                        let got = sampler.next_1d();
+                        assert!(got < ONE_MINUS_EPSILON);
+                        assert_eq!(
+                            got.to_bits(),
+                            want.to_bits(),
+                            "seed {seed} pixel ({px}, {py}) sample {s} vertex {vertex} draw {j}"
+                        );
+                    }
+                }
             }
         }
     }
