@@ -318,8 +318,15 @@ impl SceneGeometry {
         hit
     }
 
-    /// [`Self::intersect`]'s search (the ray log's hook is in `intersect`).
+    /// [`Self::intersect`]'s search (the ray log's hook is in `intersect`): the dispatch by
+    /// the kind of scene, inlined where the ray is cast, so that each kind makes one call
+    /// into a function of its own (the sole box's is small enough to need no saved registers
+    /// and no stack frame).
+    #[inline(always)]
     fn closest(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if let Some(sole) = &self.sole_box {
+            return closest_on_sole_box(sole, ray, t_max);
+        }
         if self.analytic.is_empty() {
             return self.closest_triangle(ray, t_max);
         }
@@ -329,7 +336,7 @@ impl SceneGeometry {
     /// [`Self::closest`] in a scene of triangles only (no analytic shape): the general
     /// search below with nothing found before the triangles (`closest = t_max`, no free
     /// shell), without the set-up of the analytic shapes' loops.
-    #[inline(always)]
+    #[inline(never)]
     fn closest_triangle(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         if self.prims.is_empty() || !valid_query(ray, t_max) {
             return None;
@@ -350,16 +357,10 @@ impl SceneGeometry {
         best.map(|(slot, lane, h)| self.make_hit(ray, Best::Tri(slot as usize, lane, h)))
     }
 
-    /// [`Self::closest`] in a scene with analytic shapes.
+    /// [`Self::closest`] in a scene with analytic shapes (a sole box excepted: see
+    /// [`closest_on_sole_box`]).
     #[inline(never)]
     fn closest_any(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        if let Some((min, max, shape)) = self.sole_box {
-            // What the loop below does with one box and no triangles.
-            if moves_away_from_box(ray, min, max) || !valid_query(ray, t_max) {
-                return None;
-            }
-            return intersect_box_lanes(ray, min, max, t_max).map(|h| box_record(ray, shape, h));
-        }
         if !valid_query(ray, t_max) {
             return None;
         }
@@ -870,6 +871,29 @@ fn valid_query(ray: &Ray, t_max: f32) -> bool {
     let finite = o.abs().cmplt(inf).bitmask() & d.abs().cmplt(inf).bitmask();
     let nonzero = d.cmpne(Vec4::ZERO).bitmask();
     (finite & 7 == 7) & (nonzero != 0) & (t_max > 0.0)
+}
+
+/// [`SceneGeometry::closest`] when the scene's only shape is the analytic box `sole`
+/// (`(min, max, shape)`, [`SceneGeometry::sole_box`]): what the general search does with one
+/// box and no triangles. Rays moving away from the box miss it ([`moves_away_from_box`]);
+/// the others are tested by the slab test in lanes. Of [`valid_query`]'s conditions only the
+/// ray's finiteness is checked: a zero direction (every slab parallel, the entry at −∞ and
+/// the exit at +∞, neither strictly between 0 and `t_max`) and a `t_max` that is not
+/// positive (no distance lies strictly between 0 and it) or NaN already give no hit there.
+#[inline(never)]
+fn closest_on_sole_box(sole: &(Vec3A, Vec3A, u32), ray: &Ray, t_max: f32) -> Option<Hit> {
+    let (min, max, shape) = *sole;
+    if moves_away_from_box(ray, min, max) || !finite_ray(ray) {
+        return None;
+    }
+    intersect_box_lanes(ray, min, max, t_max).map(|h| box_record(ray, shape, h))
+}
+
+/// True when the ray's origin and direction are finite (three lane compares).
+#[inline(always)]
+fn finite_ray(ray: &Ray) -> bool {
+    let inf = Vec3A::splat(f32::INFINITY);
+    (Vec3A::from(ray.o).abs().cmplt(inf) & Vec3A::from(ray.d).abs().cmplt(inf)).all()
 }
 
 /// True when `ray` starts strictly outside one of the box `[min, max]`'s slabs and moves away
