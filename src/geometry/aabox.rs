@@ -125,9 +125,11 @@ pub fn intersect_box_lanes(ray: &Ray, min: Vec3A, max: Vec3A, t_max: f32) -> Opt
         return None;
     }
     let (a, b) = ((min - o) / d, (max - o) / d);
-    let ordered = a.cmple(b);
-    let enter = Vec3A::select(parallel, Vec3A::NEG_INFINITY, Vec3A::select(ordered, a, b));
-    let leave = Vec3A::select(parallel, Vec3A::INFINITY, Vec3A::select(ordered, b, a));
+    // The nearer and farther slab plane per lane: lanes that are not parallel hold no NaN, so
+    // `min`/`max` give the written-out slabs' `a <= b` choice, up to the sign of a zero when
+    // `a == b` (a zero distance is never a hit's: see below).
+    let enter = Vec3A::select(parallel, Vec3A::NEG_INFINITY, a.min(b));
+    let leave = Vec3A::select(parallel, Vec3A::INFINITY, a.max(b));
     // No lane is NaN (a finite ray's slab distances are quotients of a finite difference by
     // a nonzero finite component, parallel lanes are ±∞), so the largest entry and the
     // smallest exit are the written-out chains' values whatever the order of the lanes'

@@ -1724,6 +1724,94 @@ mod tests {
         assert!(away > 50_000, "{away} rays moving away");
     }
 
+    /// The sole box's own query ([`closest_on_sole_box`], which checks only the ray's
+    /// finiteness) answers queries [`valid_query`] rejects as the general search does: rays
+    /// with a NaN or infinite origin or direction component, zero directions, and `t_max`
+    /// zero, negative, NaN or tiny, with origins inside, on and outside the box. Every field
+    /// of the record is compared, and the queries that hit are counted so that the test
+    /// cannot pass by answering `None` throughout.
+    #[test]
+    fn a_sole_box_answers_degenerate_queries_as_the_general_search() {
+        let (min, max) = (Vec3::new(-0.5, -0.25, -0.75), Vec3::new(0.5, 0.75, 0.25));
+        let geometry = SceneGeometry::build(vec![Shape::Box { min, max }]).expect("geometry");
+        assert!(geometry.sole_box.is_some());
+        let mut plain = geometry.clone();
+        plain.sole_box = None;
+        let record = |h: Option<Hit>| {
+            h.map(|h| {
+                let f = [
+                    h.t,
+                    h.p.x,
+                    h.p.y,
+                    h.p.z,
+                    h.ng.x,
+                    h.ng.y,
+                    h.ng.z,
+                    h.ns.x,
+                    h.ns.y,
+                    h.ns.z,
+                    h.uv().x,
+                    h.uv().y,
+                    h.p_error,
+                ];
+                (f.map(f32::to_bits), h.shape, h.prim)
+            })
+        };
+        let odd = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.0,
+            -0.0,
+            f32::MAX,
+            -f32::MAX,
+            1e-40,
+        ];
+        let t_maxes = [
+            f32::INFINITY,
+            2.0,
+            0.0,
+            -0.0,
+            -1.0,
+            f32::NAN,
+            f32::NEG_INFINITY,
+            f32::MIN_POSITIVE,
+        ];
+        let mut rng = Rng::new(29, 5);
+        let (mut hits, mut queries) = (0, 0);
+        for i in 0..40_000usize {
+            let mut d = sample_uniform_sphere(rng.next_2d());
+            let mut o = Vec3::new(
+                rng.next_f32() * 3.0 - 1.5,
+                rng.next_f32() * 3.0 - 1.5,
+                rng.next_f32() * 3.0 - 1.5,
+            );
+            if i % 4 == 1 {
+                o = min.lerp(max, rng.next_f32());
+            }
+            let k = (i / 8) % 3;
+            match (i / 24) % 6 {
+                0 => o[k] = odd[i % odd.len()],
+                1 => d[k] = odd[i % odd.len()],
+                2 => d = Vec3::ZERO,
+                3 => d = Vec3::splat(-0.0),
+                _ => {}
+            }
+            let t_max = t_maxes[i % t_maxes.len()];
+            let ray = Ray::new(o, d);
+            let a = geometry.intersect(&ray, t_max);
+            assert_eq!(
+                record(a),
+                record(plain.intersect(&ray, t_max)),
+                "ray {i}: {ray:?}, t_max {t_max}"
+            );
+            queries += 1;
+            hits += usize::from(a.is_some());
+        }
+        assert_eq!(queries, 40_000);
+        assert!(hits > 5_000, "{hits} hits");
+    }
+
     /// Rays through the shared edges and vertices of a flat grid mesh (integer vertices, rays
     /// straight down from grid points and edge midpoints, and slanted through them): their
     /// edge functions are exactly zero, so the traversal's triangle test takes the exact
