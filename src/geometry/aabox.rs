@@ -108,11 +108,12 @@ pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_max: f32) -> Option<BoxH
 }
 
 /// [`intersect_box`] for a ray with a finite origin and direction, in 4-wide lanes: the six
-/// slab distances by two vector divisions, the entry and exit distances by the same chain of
-/// strict comparisons as the written-out slabs, and the face's axis as the first lane that holds
-/// the distance chosen. Every lane performs the operations of the scalar form in the same
-/// order, and SSE's `min`/`max` pick the same operand as glam's scalar ones (the second unless
-/// the first is strictly smaller/larger), so the hit is the same bit for bit
+/// slab distances by two vector divisions, the entry and exit distances as the largest and
+/// smallest lanes (the written-out slabs' chains of strict comparisons give the same values for
+/// lanes without NaN), and the face's axis as the first lane that holds the distance chosen.
+/// Every lane performs the operations of the scalar form in the same order, and SSE's
+/// `min`/`max` pick the same operand as glam's scalar ones (the second unless the first is
+/// strictly smaller/larger), so the hit is the same bit for bit
 /// (`tests::lanes_match_the_written_out_slabs_bit_for_bit`). `min`, `max`: the box's corners.
 #[must_use]
 #[inline(always)]
@@ -124,13 +125,18 @@ pub fn intersect_box_lanes(ray: &Ray, min: Vec3A, max: Vec3A, t_max: f32) -> Opt
         return None;
     }
     let (a, b) = ((min - o) / d, (max - o) / d);
-    let ordered = a.cmple(b);
-    let enter = Vec3A::select(parallel, Vec3A::NEG_INFINITY, Vec3A::select(ordered, a, b));
-    let leave = Vec3A::select(parallel, Vec3A::INFINITY, Vec3A::select(ordered, b, a));
-    let later = |t: f32, e: f32| if e > t { e } else { t };
-    let sooner = |t: f32, e: f32| if e < t { e } else { t };
-    let t_near = later(later(later(f32::NEG_INFINITY, enter.x), enter.y), enter.z);
-    let t_far = sooner(sooner(sooner(f32::INFINITY, leave.x), leave.y), leave.z);
+    // The nearer and farther slab plane per lane: lanes that are not parallel hold no NaN, so
+    // `min`/`max` give the written-out slabs' `a <= b` choice, up to the sign of a zero when
+    // `a == b` (a zero distance is never a hit's: see below).
+    let enter = Vec3A::select(parallel, Vec3A::NEG_INFINITY, a.min(b));
+    let leave = Vec3A::select(parallel, Vec3A::INFINITY, a.max(b));
+    // No lane is NaN (a finite ray's slab distances are quotients of a finite difference by
+    // a nonzero finite component, parallel lanes are ±∞), so the largest entry and the
+    // smallest exit are the written-out chains' values whatever the order of the lanes'
+    // comparisons: equal lanes hold the same float, up to the sign of a zero, and a zero is
+    // only compared below (with `t_far`, with 0), never returned.
+    let t_near = enter.max_element();
+    let t_far = leave.min_element();
     // `!(t_near <= t_far)`: empty, or unordered.
     if !matches!(
         t_near.partial_cmp(&t_far),

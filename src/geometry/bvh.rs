@@ -318,8 +318,15 @@ impl SceneGeometry {
         hit
     }
 
-    /// [`Self::intersect`]'s search (the ray log's hook is in `intersect`).
+    /// [`Self::intersect`]'s search (the ray log's hook is in `intersect`): the dispatch by
+    /// the kind of scene, inlined where the ray is cast, so that each kind makes one call
+    /// into a function of its own (the sole box's is small enough to need no saved registers
+    /// and no stack frame).
+    #[inline(always)]
     fn closest(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        if let Some(sole) = &self.sole_box {
+            return closest_on_sole_box(sole, ray, t_max);
+        }
         if self.analytic.is_empty() {
             return self.closest_triangle(ray, t_max);
         }
@@ -329,7 +336,7 @@ impl SceneGeometry {
     /// [`Self::closest`] in a scene of triangles only (no analytic shape): the general
     /// search below with nothing found before the triangles (`closest = t_max`, no free
     /// shell), without the set-up of the analytic shapes' loops.
-    #[inline(always)]
+    #[inline(never)]
     fn closest_triangle(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         if self.prims.is_empty() || !valid_query(ray, t_max) {
             return None;
@@ -350,16 +357,10 @@ impl SceneGeometry {
         best.map(|(slot, lane, h)| self.make_hit(ray, Best::Tri(slot as usize, lane, h)))
     }
 
-    /// [`Self::closest`] in a scene with analytic shapes.
+    /// [`Self::closest`] in a scene with analytic shapes (a sole box excepted: see
+    /// [`closest_on_sole_box`]).
     #[inline(never)]
     fn closest_any(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        if let Some((min, max, shape)) = self.sole_box {
-            // What the loop below does with one box and no triangles.
-            if moves_away_from_box(ray, min, max) || !valid_query(ray, t_max) {
-                return None;
-            }
-            return intersect_box_lanes(ray, min, max, t_max).map(|h| box_record(ray, shape, h));
-        }
         if !valid_query(ray, t_max) {
             return None;
         }
@@ -870,6 +871,29 @@ fn valid_query(ray: &Ray, t_max: f32) -> bool {
     let finite = o.abs().cmplt(inf).bitmask() & d.abs().cmplt(inf).bitmask();
     let nonzero = d.cmpne(Vec4::ZERO).bitmask();
     (finite & 7 == 7) & (nonzero != 0) & (t_max > 0.0)
+}
+
+/// [`SceneGeometry::closest`] when the scene's only shape is the analytic box `sole`
+/// (`(min, max, shape)`, [`SceneGeometry::sole_box`]): what the general search does with one
+/// box and no triangles. Rays moving away from the box miss it ([`moves_away_from_box`]);
+/// the others are tested by the slab test in lanes. Of [`valid_query`]'s conditions only the
+/// ray's finiteness is checked: a zero direction (every slab parallel, the entry at −∞ and
+/// the exit at +∞, neither strictly between 0 and `t_max`) and a `t_max` that is not
+/// positive (no distance lies strictly between 0 and it) or NaN already give no hit there.
+#[inline(never)]
+fn closest_on_sole_box(sole: &(Vec3A, Vec3A, u32), ray: &Ray, t_max: f32) -> Option<Hit> {
+    let (min, max, shape) = *sole;
+    if moves_away_from_box(ray, min, max) || !finite_ray(ray) {
+        return None;
+    }
+    intersect_box_lanes(ray, min, max, t_max).map(|h| box_record(ray, shape, h))
+}
+
+/// True when the ray's origin and direction are finite (three lane compares).
+#[inline(always)]
+fn finite_ray(ray: &Ray) -> bool {
+    let inf = Vec3A::splat(f32::INFINITY);
+    (Vec3A::from(ray.o).abs().cmplt(inf) & Vec3A::from(ray.d).abs().cmplt(inf)).all()
 }
 
 /// True when `ray` starts strictly outside one of the box `[min, max]`'s slabs and moves away
@@ -1698,6 +1722,94 @@ mod tests {
         }
         assert!(escapes > 290_000, "{escapes} escapes");
         assert!(away > 50_000, "{away} rays moving away");
+    }
+
+    /// The sole box's own query ([`closest_on_sole_box`], which checks only the ray's
+    /// finiteness) answers queries [`valid_query`] rejects as the general search does: rays
+    /// with a NaN or infinite origin or direction component, zero directions, and `t_max`
+    /// zero, negative, NaN or tiny, with origins inside, on and outside the box. Every field
+    /// of the record is compared, and the queries that hit are counted so that the test
+    /// cannot pass by answering `None` throughout.
+    #[test]
+    fn a_sole_box_answers_degenerate_queries_as_the_general_search() {
+        let (min, max) = (Vec3::new(-0.5, -0.25, -0.75), Vec3::new(0.5, 0.75, 0.25));
+        let geometry = SceneGeometry::build(vec![Shape::Box { min, max }]).expect("geometry");
+        assert!(geometry.sole_box.is_some());
+        let mut plain = geometry.clone();
+        plain.sole_box = None;
+        let record = |h: Option<Hit>| {
+            h.map(|h| {
+                let f = [
+                    h.t,
+                    h.p.x,
+                    h.p.y,
+                    h.p.z,
+                    h.ng.x,
+                    h.ng.y,
+                    h.ng.z,
+                    h.ns.x,
+                    h.ns.y,
+                    h.ns.z,
+                    h.uv().x,
+                    h.uv().y,
+                    h.p_error,
+                ];
+                (f.map(f32::to_bits), h.shape, h.prim)
+            })
+        };
+        let odd = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.0,
+            -0.0,
+            f32::MAX,
+            -f32::MAX,
+            1e-40,
+        ];
+        let t_maxes = [
+            f32::INFINITY,
+            2.0,
+            0.0,
+            -0.0,
+            -1.0,
+            f32::NAN,
+            f32::NEG_INFINITY,
+            f32::MIN_POSITIVE,
+        ];
+        let mut rng = Rng::new(29, 5);
+        let (mut hits, mut queries) = (0, 0);
+        for i in 0..40_000usize {
+            let mut d = sample_uniform_sphere(rng.next_2d());
+            let mut o = Vec3::new(
+                rng.next_f32() * 3.0 - 1.5,
+                rng.next_f32() * 3.0 - 1.5,
+                rng.next_f32() * 3.0 - 1.5,
+            );
+            if i % 4 == 1 {
+                o = min.lerp(max, rng.next_f32());
+            }
+            let k = (i / 8) % 3;
+            match (i / 24) % 6 {
+                0 => o[k] = odd[i % odd.len()],
+                1 => d[k] = odd[i % odd.len()],
+                2 => d = Vec3::ZERO,
+                3 => d = Vec3::splat(-0.0),
+                _ => {}
+            }
+            let t_max = t_maxes[i % t_maxes.len()];
+            let ray = Ray::new(o, d);
+            let a = geometry.intersect(&ray, t_max);
+            assert_eq!(
+                record(a),
+                record(plain.intersect(&ray, t_max)),
+                "ray {i}: {ray:?}, t_max {t_max}"
+            );
+            queries += 1;
+            hits += usize::from(a.is_some());
+        }
+        assert_eq!(queries, 40_000);
+        assert!(hits > 1_000, "{hits} hits");
     }
 
     /// Rays through the shared edges and vertices of a flat grid mesh (integer vertices, rays
