@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
 use super::lookup::{
-    index_ray, DensityLookup, GridLookup, LocalProbe, SharedShellProbe, ShellProbe,
+    index_ray, DensityLookup, GridLookup, GridProbe, LocalProbe, SharedShellProbe, ShellProbe,
 };
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
@@ -559,6 +559,32 @@ impl HeterogeneousMedium {
                     decomposition_track_local(segments, c, density, probe, beta, u, stats)
                 }
                 _ => delta_track_local(segments, c, density, probe, beta, u, stats),
+            };
+        }
+        // A grid with its local-bounds table (the common case): the grid's lookup and probe
+        // are built as they are used, from one index-space ray, without the enums around
+        // them. Returned together from `lookups_along`, they were copied through memory (a
+        // `memcpy` call per flight); the trackers see the same lookups and bounds.
+        if let (DensityField::Grid { grid, channel }, true, None, Some(table)) = (
+            &self.field,
+            self.uses_local_bounds(),
+            self.projected_fibres(),
+            self.pyramid.local_bounds(),
+        ) {
+            let (o, d) = index_ray(grid, ray);
+            let mut lookup = GridLookup::from_index_ray(grid, *channel, o, d);
+            let mut probe = GridProbe::from_index_ray(table, o, d, false);
+            return match self.tracking.free_flight {
+                FreeFlightMethod::Decomposition => decomposition_track_local(
+                    segments,
+                    c,
+                    |t| lookup.at(t),
+                    &mut probe,
+                    beta,
+                    u,
+                    stats,
+                ),
+                _ => delta_track_local(segments, c, |t| lookup.at(t), &mut probe, beta, u, stats),
             };
         }
         // The probe is lent to the tracker, not moved into it (a move copied it through
