@@ -521,8 +521,9 @@ impl MajorantPyramid {
         self.clip_index(o, d, t_min, t_max)
     }
 
-    /// [`Self::clip`] for a ray already in index space.
-    #[inline]
+    /// [`Self::clip`] for a ray already in index space. Inlined into its callers: called out
+    /// of line, its vector arguments and its result went through memory on every free flight.
+    #[inline(always)]
     fn clip_index(&self, o: DVec3, d: DVec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
         let l0 = self.levels.first()?;
         let lo = self.origin.as_dvec3() - DVec3::splat(0.5);
@@ -532,7 +533,7 @@ impl MajorantPyramid {
 }
 
 /// `[t_min, t_max]` of the ray `o + t d` clipped to the box `[lo, hi)` (index space).
-#[inline]
+#[inline(always)]
 fn clip_box(
     o: DVec3,
     d: DVec3,

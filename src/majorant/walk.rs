@@ -276,7 +276,9 @@ pub(super) enum RootStep {
 }
 
 /// Decides the root of `pyramid` over `[t0, t1]`, as [`Walk::new`] does, without preparing
-/// the walk: callers emit a whole root directly.
+/// the walk: callers emit a whole root directly. Inlined into its callers (out of line, its
+/// `RootStep` result, a whole cell, was returned through memory on every free flight).
+#[inline(always)]
 pub(super) fn root_step(
     pyramid: &MajorantPyramid,
     t0: f64,

@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::event::{MediumEvent, ScatterVertex, VertexPhase};
 use super::lookup::{
-    index_ray, DensityLookup, GridLookup, LocalProbe, SharedShellProbe, ShellProbe,
+    index_ray, DensityLookup, GridLookup, GridProbe, LocalProbe, SharedShellProbe, ShellProbe,
 };
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
@@ -561,6 +561,51 @@ impl HeterogeneousMedium {
                 _ => delta_track_local(segments, c, density, probe, beta, u, stats),
             };
         }
+        // A grid with its local-bounds table (the common case): the grid's lookup and probe
+        // are built as they are used, from one index-space ray, without the enums around
+        // them. Returned together from `lookups_along`, they were copied through memory (a
+        // `memcpy` call per flight); the trackers see the same lookups and bounds.
+        if let (DensityField::Grid { grid, channel }, true, None, Some(table)) = (
+            &self.field,
+            self.uses_local_bounds(),
+            self.projected_fibres(),
+            self.pyramid.local_bounds(),
+        ) {
+            let (o, d) = index_ray(grid, ray);
+            let mut lookup = GridLookup::from_index_ray(grid, *channel, o, d);
+            let mut probe = GridProbe::from_index_ray(table, o, d, false);
+            return match self.tracking.free_flight {
+                FreeFlightMethod::Decomposition => decomposition_track_local(
+                    segments,
+                    c,
+                    |t| lookup.at(t),
+                    &mut probe,
+                    beta,
+                    u,
+                    stats,
+                ),
+                _ => delta_track_local(segments, c, |t| lookup.at(t), &mut probe, beta, u, stats),
+            };
+        }
+        self.track_flight_general(segments, c, ray, beta, u, stats)
+    }
+
+    /// [`Self::track_flight`] without its grid case: the lookup and the point bounds (if any)
+    /// as [`Self::lookups_along`] makes them (also the reference its grid case is tested
+    /// against).
+    fn track_flight_general<S, U>(
+        &self,
+        segments: &mut S,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Flight
+    where
+        S: Iterator<Item = MajorantSegment>,
+        U: FnMut() -> f32,
+    {
         // The probe is lent to the tracker, not moved into it (a move copied it through
         // memory, with loads wider than the stores that had just built it).
         let (mut lookup, mut probe) = self.lookups_along(ray);
@@ -798,5 +843,79 @@ pub(super) mod tests {
             none > 300 && some > 300 && below_one > 100,
             "{none} without, {some} with segments, {below_one} below one"
         );
+    }
+    #[test]
+    fn a_grid_flight_tracks_as_the_general_lookup_and_probe() {
+        for method in [
+            FreeFlightMethod::DeltaTracking,
+            FreeFlightMethod::Decomposition,
+        ] {
+            let mut foam = blobs();
+            foam.tracking.free_flight = method;
+            foam.attach_local_bounds().expect("local bounds");
+            assert!(foam.uses_local_bounds() && foam.pyramid.local_bounds().is_some());
+            // Chromatic and denser than the blobs' own coefficients: more collisions.
+            let c = DensityCoefficients::new(Rgb::new(3.0, 2.0, 1.0), Rgb::new(2.9, 1.8, 0.9));
+            let mut rng = Rng::new(26, 2);
+            let (mut scattered, mut escaped, mut lookups) = (0usize, 0usize, 0u64);
+            for r in 0..3000 {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 56.0 - 4.0;
+                // Most rays aimed near a blob (the others anywhere).
+                let aim = [
+                    Vec3::new(6.0, 30.0, 9.0),
+                    Vec3::new(30.0, 8.0, 36.0),
+                    Vec3::new(40.0, 40.0, 12.0),
+                ][r as usize % 3]
+                    + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 8.0;
+                let d = if r % 4 == 0 {
+                    (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
+                        .normalize_or(Vec3::Z)
+                } else {
+                    (aim - o).normalize_or(Vec3::Z)
+                };
+                let ray = Ray::new(o, d);
+                let t_max = if r % 3 == 0 { 20.0 } else { 80.0 };
+                let segments: Vec<MajorantSegment> = foam
+                    .medium_segments(
+                        &c,
+                        foam.pyramid_segments(&c, &ray, 0.0, t_max, LookupModel::Probed),
+                        0.0,
+                        t_max,
+                    )
+                    .collect();
+                let beta = Rgb::new(1.0, 0.7, 0.4);
+                let (mut u1, mut u2) = (Rng::new(r, 9), Rng::new(r, 9));
+                let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
+                let expected = foam.track_flight_general(
+                    &mut segments.iter().copied(),
+                    &c,
+                    &ray,
+                    beta,
+                    &mut || u1.next_f32(),
+                    &mut s1,
+                );
+                let got = foam.track_flight(
+                    &mut segments.iter().copied(),
+                    &c,
+                    &ray,
+                    beta,
+                    &mut || u2.next_f32(),
+                    &mut s2,
+                );
+                assert_eq!(got, expected, "{method:?}, ray {r}");
+                // The same numbers drawn, the same lookups and bound probes counted.
+                assert_eq!(u1.next_f32().to_bits(), u2.next_f32().to_bits(), "ray {r}");
+                assert_eq!(s1, s2, "{method:?}, ray {r}");
+                match got {
+                    Flight::Scatter { .. } => scattered += 1,
+                    Flight::Escape { .. } => escaped += 1,
+                }
+                lookups += s1.lookups;
+            }
+            assert!(
+                scattered > 500 && escaped > 300 && lookups > 3000,
+                "{method:?}: {scattered} scattered, {escaped} escaped, {lookups} lookups"
+            );
+        }
     }
 }
