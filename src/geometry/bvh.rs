@@ -968,6 +968,29 @@ mod tests {
         b
     }
 
+    /// Every field of a hit record as bits: distance, point, both normals, uv, error bound,
+    /// shape and primitive.
+    fn record_bits(h: Option<Hit>) -> Option<([u32; 13], u32, u32)> {
+        h.map(|h| {
+            let f = [
+                h.t,
+                h.p.x,
+                h.p.y,
+                h.p.z,
+                h.ng.x,
+                h.ng.y,
+                h.ng.z,
+                h.ns.x,
+                h.ns.y,
+                h.ns.z,
+                h.uv().x,
+                h.uv().y,
+                h.p_error,
+            ];
+            (f.map(f32::to_bits), h.shape, h.prim)
+        })
+    }
+
     fn hit_bits(h: Option<Hit>) -> Option<[u32; 6]> {
         h.map(|h| {
             [
@@ -1675,32 +1698,9 @@ mod tests {
             let ray = Ray::new(o, d);
             let a = geometry.intersect(&ray, t_max);
             // Every field of the record, the normals, uv and error bound included.
-            let all = |h: Option<Hit>| {
-                h.map(|h| {
-                    [
-                        h.t,
-                        h.p.x,
-                        h.p.y,
-                        h.p.z,
-                        h.ng.x,
-                        h.ng.y,
-                        h.ng.z,
-                        h.ns.x,
-                        h.ns.y,
-                        h.ns.z,
-                        h.uv().x,
-                        h.uv().y,
-                        h.p_error,
-                    ]
-                    .map(f32::to_bits)
-                })
-            };
             assert_eq!(
-                (hit_bits(a), all(a)),
-                (
-                    hit_bits(plain.intersect(&ray, t_max)),
-                    all(plain.intersect(&ray, t_max))
-                ),
+                record_bits(a),
+                record_bits(plain.intersect(&ray, t_max)),
                 "ray {i}: {ray:?}"
             );
             if moves_away_from_box(&ray, lo, hi) {
@@ -1737,26 +1737,6 @@ mod tests {
         assert!(geometry.sole_box.is_some());
         let mut plain = geometry.clone();
         plain.sole_box = None;
-        let record = |h: Option<Hit>| {
-            h.map(|h| {
-                let f = [
-                    h.t,
-                    h.p.x,
-                    h.p.y,
-                    h.p.z,
-                    h.ng.x,
-                    h.ng.y,
-                    h.ng.z,
-                    h.ns.x,
-                    h.ns.y,
-                    h.ns.z,
-                    h.uv().x,
-                    h.uv().y,
-                    h.p_error,
-                ];
-                (f.map(f32::to_bits), h.shape, h.prim)
-            })
-        };
         let odd = [
             f32::NAN,
             f32::INFINITY,
@@ -1801,8 +1781,8 @@ mod tests {
             let ray = Ray::new(o, d);
             let a = geometry.intersect(&ray, t_max);
             assert_eq!(
-                record(a),
-                record(plain.intersect(&ray, t_max)),
+                record_bits(a),
+                record_bits(plain.intersect(&ray, t_max)),
                 "ray {i}: {ray:?}, t_max {t_max}"
             );
             queries += 1;
