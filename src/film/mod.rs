@@ -193,6 +193,43 @@ impl FilmTile {
         }
     }
 
+    /// Adds the samples `make(k)` for `k` in `samples`, in that order, to pixel (`x`, `y`) in
+    /// film coordinates: the same accumulator bits as [`FilmTile::add_sample`] on each (the
+    /// same samples dropped and counted), with the radiance of the run summed in `f64` pairs
+    /// and turned into the fixed-point sums once (see `pixel::RunSums`).
+    #[inline]
+    pub fn add_samples(
+        &mut self,
+        x: u32,
+        y: u32,
+        samples: std::ops::Range<u32>,
+        mut make: impl FnMut(u32) -> PixelSample,
+    ) {
+        let (dx, dy) = (x.wrapping_sub(self.x0), y.wrapping_sub(self.y0));
+        if dx >= self.width || dy >= self.height {
+            for k in samples {
+                make(k);
+                self.dropped += 1;
+            }
+            return;
+        }
+        let i = dy as usize * self.width as usize + dx as usize;
+        let layers = self.layers.count();
+        let mut run = pixel::RunSums::default();
+        for k in samples {
+            let s = make(k);
+            if !pixel::accepts(&s, layers) {
+                self.dropped += 1;
+                continue;
+            }
+            self.pixels[i].add_in_run(&mut run, &s);
+            if layers > 0 {
+                self.layers.add(i, &s);
+            }
+        }
+        self.pixels[i].fold_run(&mut run);
+    }
+
     /// Samples dropped by this tile since it was made.
     #[must_use]
     pub fn dropped_samples(&self) -> u64 {

@@ -89,16 +89,231 @@ fn depth_units(depth: f32) -> i128 {
 /// Bound below which [`round_small`] applies (2^52: every larger `f64` is an integer).
 const SMALL_LIMIT: f64 = 4_503_599_627_370_496.0;
 
+/// Smallest nonzero radiance magnitude a [`RunSums`] takes (2^-17): every `f32` at least this
+/// large is a multiple of 2^-40, so it lies on the sums' grid (2^-[`SUM_BITS`]) and its square,
+/// a multiple of 2^-80, on the squares' grid (2^-[`SQ_BITS`]); neither is rounded by the film.
+const RUN_MIN: f64 = 1.0 / 131_072.0;
+
+/// Four `f64` lanes (the three colour channels and an unused zero lane) with the operations
+/// [`RunSums`] needs: one AVX register where the build has AVX (x86-64-v3), else an array.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+mod lanes {
+    use std::arch::x86_64::{
+        __m256d, _mm256_add_pd, _mm256_andnot_pd, _mm256_cmp_pd, _mm256_cvtps_pd,
+        _mm256_movemask_pd, _mm256_mul_pd, _mm256_or_pd, _mm256_set1_pd, _mm256_setzero_pd,
+        _mm256_storeu_pd, _mm256_sub_pd, _mm_set_ps, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_NEQ_UQ,
+    };
+
+    /// Four `f64` lanes.
+    #[derive(Clone, Copy, Debug)]
+    pub struct Lanes(__m256d);
+
+    impl Default for Lanes {
+        fn default() -> Self {
+            // SAFETY (every intrinsic of this module): the build enables AVX (this module is
+            // compiled only then), and none touches memory but `to_array`'s store.
+            Lanes(unsafe { _mm256_setzero_pd() })
+        }
+    }
+
+    impl Lanes {
+        /// The channels of `rgb` (exact) and a zero lane.
+        #[inline]
+        pub fn from_rgb(rgb: [f32; 3]) -> Lanes {
+            Lanes(unsafe { _mm256_cvtps_pd(_mm_set_ps(0.0, rgb[2], rgb[1], rgb[0])) })
+        }
+        #[inline]
+        pub fn add(self, o: Lanes) -> Lanes {
+            Lanes(unsafe { _mm256_add_pd(self.0, o.0) })
+        }
+        #[inline]
+        pub fn sub(self, o: Lanes) -> Lanes {
+            Lanes(unsafe { _mm256_sub_pd(self.0, o.0) })
+        }
+        #[inline]
+        pub fn mul(self, o: Lanes) -> Lanes {
+            Lanes(unsafe { _mm256_mul_pd(self.0, o.0) })
+        }
+        /// Whether every lane is zero or at least `min` in magnitude.
+        #[inline]
+        pub fn zero_or_at_least(self, min: f64) -> bool {
+            unsafe {
+                let abs = _mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0);
+                let big = _mm256_cmp_pd::<_CMP_GE_OQ>(abs, _mm256_set1_pd(min));
+                let zero = _mm256_cmp_pd::<_CMP_EQ_OQ>(self.0, _mm256_setzero_pd());
+                _mm256_movemask_pd(_mm256_or_pd(big, zero)) == 0b1111
+            }
+        }
+        /// Whether any lane is nonzero.
+        #[inline]
+        pub fn any_nonzero(self) -> bool {
+            unsafe {
+                _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_NEQ_UQ>(self.0, _mm256_setzero_pd())) != 0
+            }
+        }
+        /// The lanes.
+        #[inline]
+        pub fn to_array(self) -> [f64; 4] {
+            let mut out = [0.0; 4];
+            // SAFETY: `out` holds four `f64`s; the store is unaligned.
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), self.0) };
+            out
+        }
+    }
+}
+
+/// Four `f64` lanes (the three colour channels and an unused zero lane) with the operations
+/// [`RunSums`] needs: one AVX register where the build has AVX (x86-64-v3), else an array.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+mod lanes {
+    /// Four `f64` lanes.
+    #[derive(Clone, Copy, Debug, Default)]
+    pub struct Lanes([f64; 4]);
+
+    impl Lanes {
+        /// The channels of `rgb` (exact) and a zero lane.
+        #[inline]
+        pub fn from_rgb(rgb: [f32; 3]) -> Lanes {
+            Lanes([f64::from(rgb[0]), f64::from(rgb[1]), f64::from(rgb[2]), 0.0])
+        }
+        #[inline]
+        pub fn add(self, o: Lanes) -> Lanes {
+            Lanes(std::array::from_fn(|i| self.0[i] + o.0[i]))
+        }
+        #[inline]
+        pub fn sub(self, o: Lanes) -> Lanes {
+            Lanes(std::array::from_fn(|i| self.0[i] - o.0[i]))
+        }
+        #[inline]
+        pub fn mul(self, o: Lanes) -> Lanes {
+            Lanes(std::array::from_fn(|i| self.0[i] * o.0[i]))
+        }
+        /// Whether every lane is zero or at least `min` in magnitude.
+        #[inline]
+        pub fn zero_or_at_least(self, min: f64) -> bool {
+            self.0.iter().all(|&v| v == 0.0 || v.abs() >= min)
+        }
+        /// Whether any lane is nonzero.
+        #[inline]
+        pub fn any_nonzero(self) -> bool {
+            self.0.iter().any(|&v| v != 0.0)
+        }
+        /// The lanes.
+        #[inline]
+        pub fn to_array(self) -> [f64; 4] {
+            self.0
+        }
+    }
+}
+
+use lanes::Lanes;
+
+/// Knuth's TwoSum, lane by lane: `(s, e)` with `s = fl(a + b)` and `a + b = s + e` exactly
+/// (round to nearest, no overflow). When `a` and `b` are multiples of a power of two `g`, so are
+/// `s` and `e`: a rounded `s` is a multiple of its own ulp, which exceeds the lowest set bit of
+/// `a + b`.
+#[inline]
+fn two_sum(a: Lanes, b: Lanes) -> (Lanes, Lanes) {
+    let s = a.add(b);
+    let bb = s.sub(a);
+    (s, a.sub(s.sub(bb)).add(b.sub(bb)))
+}
+
+/// The radiance sums of a run of one pixel's samples, kept in `f64` pairs instead of
+/// [`Fixed192`] (six 192-bit conversions and adds a sample): per channel a sum `hi`, the sum
+/// `lo` of `hi`'s rounding errors, and the same pair for the squares. Only samples whose
+/// channels are zero or at least [`RUN_MIN`] enter, so every value added is on its fixed-point
+/// grid, and by [`two_sum`] so is every partial sum and error; an error of `lo` itself (rare)
+/// goes straight to the pixel. The pixel's integers after [`Pixel::fold_run`] are then exactly
+/// the sum of the samples' units: the same bits as adding each sample with [`Pixel::add`],
+/// whatever the run's length.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct RunSums {
+    hi: Lanes,
+    lo: Lanes,
+    sq_hi: Lanes,
+    sq_lo: Lanes,
+}
+
 impl Pixel {
     /// Adds one sample, which must satisfy [`accepts`].
     #[inline]
     pub fn add(&mut self, s: &PixelSample) {
-        self.n += 1;
+        self.add_radiance(s.radiance.0);
+        self.add_rest(s);
+    }
+
+    /// Adds a sample's radiance to the fixed-point sums, one conversion per value.
+    #[inline]
+    fn add_radiance(&mut self, radiance: [f32; 3]) {
         for c in 0..3 {
-            let x = f64::from(s.radiance.0[c]);
+            let x = f64::from(radiance[c]);
             self.sum[c] = self.sum[c].add_f64(x, SUM_BITS);
             self.sum_sq[c] = self.sum_sq[c].add_f64(x * x, SQ_BITS);
         }
+    }
+
+    /// Adds one sample, which must satisfy [`accepts`], with its radiance summed in `run`
+    /// when it can be (see [`RunSums`]); [`Pixel::fold_run`] must follow the run's last sample.
+    #[inline]
+    pub fn add_in_run(&mut self, run: &mut RunSums, s: &PixelSample) {
+        let x = Lanes::from_rgb(s.radiance.0);
+        if x.zero_or_at_least(RUN_MIN) {
+            let (h, e) = two_sum(run.hi, x);
+            let (l, spill) = two_sum(run.lo, e);
+            let (sq_h, sq_e) = two_sum(run.sq_hi, x.mul(x));
+            let (sq_l, sq_spill) = two_sum(run.sq_lo, sq_e);
+            *run = RunSums {
+                hi: h,
+                lo: l,
+                sq_hi: sq_h,
+                sq_lo: sq_l,
+            };
+            if spill.any_nonzero() || sq_spill.any_nonzero() {
+                self.add_spill(spill, sq_spill);
+            }
+        } else {
+            self.add_radiance(s.radiance.0);
+        }
+        self.add_rest(s);
+    }
+
+    /// Adds the rounding errors of a run's `lo` sums (on the grids, so exact).
+    #[cold]
+    #[inline(never)]
+    fn add_spill(&mut self, spill: Lanes, sq_spill: Lanes) {
+        let (e, sq_e) = (spill.to_array(), sq_spill.to_array());
+        for c in 0..3 {
+            self.sum[c] = self.sum[c].add_f64(e[c], SUM_BITS);
+            self.sum_sq[c] = self.sum_sq[c].add_f64(sq_e[c], SQ_BITS);
+        }
+    }
+
+    /// Adds a run's sums to the fixed-point sums (exact: they are on the grids) and empties it.
+    #[inline]
+    pub fn fold_run(&mut self, run: &mut RunSums) {
+        // Zeros (a black channel, an error-free `lo`) add nothing and would take the
+        // conversion's general path.
+        for (sums, bits, lanes) in [
+            (&mut self.sum, SUM_BITS, [run.hi, run.lo]),
+            (&mut self.sum_sq, SQ_BITS, [run.sq_hi, run.sq_lo]),
+        ] {
+            for v in lanes.into_iter().filter(|v| v.any_nonzero()) {
+                let v = v.to_array();
+                for c in 0..3 {
+                    if v[c] != 0.0 {
+                        sums[c] = sums[c].add_f64(v[c], bits);
+                    }
+                }
+            }
+        }
+        *run = RunSums::default();
+    }
+
+    /// The count, albedo, normal and depth part of [`Pixel::add`].
+    #[inline]
+    fn add_rest(&mut self, s: &PixelSample) {
+        self.n += 1;
         // A sample that saw nothing has zero albedo and normal (most of a thin medium's
         // samples): adding their zero units changes nothing.
         if s.albedo.0 != [0.0; 3] || s.normal != Vec3::ZERO {
