@@ -485,6 +485,86 @@ mod tests {
         }
     }
 
+    fn radiance_sample(radiance: [f32; 3]) -> PixelSample {
+        PixelSample {
+            radiance: Rgb(radiance),
+            albedo: Rgb::ZERO,
+            normal: Vec3::ZERO,
+            depth: f32::INFINITY,
+            lights: [Rgb::ZERO; crate::film::MAX_LIGHT_LAYERS],
+        }
+    }
+
+    #[test]
+    fn a_run_of_samples_adds_the_same_bits_as_one_sample_at_a_time() {
+        let mut rng = Rng::new(11, 6);
+        let value = |rng: &mut Rng| -> f32 {
+            let sign = if rng.next_u32() & 1 == 0 { 1.0 } else { -1.0 };
+            let m = 1.0 + rng.next_f32();
+            match rng.next_u32() % 8 {
+                0 => 0.0,
+                // Around the run's bound 2^-17: the smaller ones are rounded per sample.
+                1 => sign * m * 2f32.powi((rng.next_u32() % 8) as i32 - 21),
+                // Tiny values, rounded on the sums' and squares' grids.
+                2 => sign * m * 2f32.powi(-((rng.next_u32() % 60) as i32) - 20),
+                // Up to the film's largest sample, 2^32.
+                3 => sign * m * 2f32.powi((rng.next_u32() % 32) as i32),
+                _ => sign * m * 2f32.powi((rng.next_u32() % 40) as i32 - 20),
+            }
+        };
+        let mut spilled = 0;
+        for run in 0..3_000 {
+            let len = 1 + rng.next_u32() % if run % 10 == 0 { 300 } else { 70 };
+            let (mut one, mut runs) = (Pixel::default(), Pixel::default());
+            let mut sums = RunSums::default();
+            let samples: Vec<PixelSample> = (0..len)
+                .map(|_| radiance_sample([value(&mut rng), value(&mut rng), value(&mut rng)]))
+                .collect();
+            for s in &samples {
+                one.add(s);
+                runs.add_in_run(&mut sums, s);
+            }
+            // Before the fold the fixed-point sums hold only rounded samples and spilled
+            // errors of the runs' `lo` sums.
+            spilled += usize::from(runs.sum_sq != [Fixed192::ZERO; 3]);
+            runs.fold_run(&mut sums);
+            assert_eq!(one, runs, "run {run} of {len} samples");
+            // A second run on the same pixel (the run sums were emptied by the fold).
+            let extra = radiance_sample([value(&mut rng), 1.0, -3.5]);
+            one.add(&extra);
+            runs.add_in_run(&mut sums, &extra);
+            runs.fold_run(&mut sums);
+            assert_eq!(one, runs, "run {run}, then one more sample");
+        }
+        assert!(spilled > 100, "{spilled} runs spilled or rounded");
+    }
+
+    #[test]
+    fn a_run_whose_error_sum_is_inexact_spills_it_exactly() {
+        // 2^32, then squares with bits 2^64 down to 2^-80: the squares' `lo` sum (errors up to
+        // 2^11 with bits down to 2^-80) cannot hold them all, so its own errors spill.
+        let big = 4_294_967_296.0f32;
+        let odd = [
+            1.0 + f32::EPSILON,
+            1.5 + f32::EPSILON,
+            1.25 + 3.0 * f32::EPSILON,
+        ];
+        let mut samples = vec![radiance_sample([big, big, big])];
+        for k in 0..40 {
+            let v = odd[k % 3] * 2f32.powi(-(k as i32 % 17));
+            samples.push(radiance_sample([v, -v, big - 256.0 * v]));
+        }
+        let (mut one, mut runs, mut sums) =
+            (Pixel::default(), Pixel::default(), RunSums::default());
+        for s in &samples {
+            one.add(s);
+            runs.add_in_run(&mut sums, s);
+        }
+        assert_ne!(runs.sum_sq, [Fixed192::ZERO; 3], "nothing spilled");
+        runs.fold_run(&mut sums);
+        assert_eq!(one, runs);
+    }
+
     #[test]
     fn a_sample_with_only_an_albedo_or_only_a_normal_adds_that_layer() {
         let unit = 1i64 << AUX_BITS;
