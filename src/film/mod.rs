@@ -661,7 +661,11 @@ mod tests {
                 radiance: Rgb([v(), v(), v()]),
                 albedo: Rgb([v(), 0.0, v()]),
                 normal: Vec3::new(0.0, v(), 1.0),
-                depth: if k % 3 == 0 { f32::INFINITY } else { v().abs() },
+                depth: if k.is_multiple_of(3) {
+                    f32::INFINITY
+                } else {
+                    v().abs()
+                },
                 lights: [Rgb::ZERO; MAX_LIGHT_LAYERS],
             };
             s.lights[0] = Rgb([v(), v(), v()]);

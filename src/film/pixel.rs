@@ -246,8 +246,8 @@ impl Pixel {
     /// Adds a sample's radiance to the fixed-point sums, one conversion per value.
     #[inline]
     fn add_radiance(&mut self, radiance: [f32; 3]) {
-        for c in 0..3 {
-            let x = f64::from(radiance[c]);
+        for (c, &r) in radiance.iter().enumerate() {
+            let x = f64::from(r);
             self.sum[c] = self.sum[c].add_f64(x, SUM_BITS);
             self.sum_sq[c] = self.sum_sq[c].add_f64(x * x, SQ_BITS);
         }
