@@ -653,6 +653,53 @@ impl MajorantPyramid {
         let d = self.world_to_index.transform_vector3(ray.d.as_dvec3());
         (o, d)
     }
+
+    /// True when `world_to_index` is bit for bit the pyramid's own map (as for a pyramid built
+    /// over a grid that has not been placed anew since): [`Self::ray_to_index`] then gives
+    /// exactly what the same transform by `world_to_index` gives, and callers may share it.
+    /// Compared by bits (twelve 64-bit words: three 256-bit exclusive-ors and one test with
+    /// AVX2, a fold over the words otherwise; no branch per element); maps equal only as
+    /// numbers (a −0 against a +0) count as different, which is merely conservative.
+    #[inline(always)]
+    #[must_use]
+    pub fn shares_index_space(&self, world_to_index: &DAffine3) -> bool {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        {
+            use std::arch::x86_64::{
+                __m256i, _mm256_loadu_si256, _mm256_or_si256, _mm256_testz_si256, _mm256_xor_si256,
+            };
+            const _: () = assert!(std::mem::size_of::<DAffine3>() == 96);
+            let (a, b) = (
+                std::ptr::from_ref(&self.world_to_index).cast::<__m256i>(),
+                std::ptr::from_ref(world_to_index).cast::<__m256i>(),
+            );
+            // SAFETY: a `DAffine3` is `repr(C)`, twelve `f64`s (96 bytes, three 32-byte
+            // words) with no padding, and both references are valid for those bytes; the
+            // loads are unaligned ones. AVX2 is a compile-time feature of this build.
+            unsafe {
+                let x = _mm256_or_si256(
+                    _mm256_or_si256(
+                        _mm256_xor_si256(_mm256_loadu_si256(a), _mm256_loadu_si256(b)),
+                        _mm256_xor_si256(
+                            _mm256_loadu_si256(a.add(1)),
+                            _mm256_loadu_si256(b.add(1)),
+                        ),
+                    ),
+                    _mm256_xor_si256(_mm256_loadu_si256(a.add(2)), _mm256_loadu_si256(b.add(2))),
+                );
+                _mm256_testz_si256(x, x) == 1
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+        {
+            let a = self.world_to_index.to_cols_array();
+            let b = world_to_index.to_cols_array();
+            a.iter()
+                .zip(&b)
+                .fold(0u64, |acc, (x, y)| acc | (x.to_bits() ^ y.to_bits()))
+                == 0
+        }
+    }
 }
 
 /// The cost of one more segment, in density lookups (a segment costs a DDA step, an

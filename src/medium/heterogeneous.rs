@@ -11,7 +11,9 @@ use super::lookup::{
 };
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
-use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments, SegmentsStart};
+use crate::majorant::{
+    FewSegments, LookupModel, MajorantPyramid, MajorantSegment, Segments, SegmentsStart,
+};
 use crate::math::{Aabb, Ray};
 use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
@@ -473,48 +475,7 @@ impl HeterogeneousMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
-        let model = if self.uses_local_bounds() {
-            LookupModel::Probed
-        } else {
-            self.unprobed_flight_model()
-        };
-        let flight = match self.tracking.free_flight {
-            FreeFlightMethod::Split if t_max.is_finite() => {
-                let mut lookup = self.density_along(ray);
-                split_flight(
-                    |a, b| self.segments_with(c, ray, a, b, model),
-                    c,
-                    |t| lookup.at(t),
-                    self.tracking.transmittance,
-                    t_max,
-                    u,
-                    stats,
-                )
-            }
-            // The segments are made where they are consumed, and passed by reference: the
-            // walk's iterator holds its DDA stack, which a move would copy. Where the walk is
-            // not needed (the root emitted whole, as in thin media) it is not prepared at all.
-            _ => match self.pyramid.segments_start(
-                ray,
-                0.0,
-                t_max,
-                self.tracking.majorant,
-                Some(c.max_sigma_t()),
-                model,
-            ) {
-                SegmentsStart::Few(few) => {
-                    let mut segments = self.medium_segments(c, few, 0.0, t_max);
-                    self.track_flight(&mut segments, c, ray, beta, u, stats)
-                }
-                SegmentsStart::Open(walk) => {
-                    // The adjustments borrow the walk's iterator rather than take it: moving
-                    // it into them copied its DDA stack (twice, 920 bytes each).
-                    let mut inner = walk.segments();
-                    let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
-                    self.track_flight(&mut segments, c, ray, beta, u, stats)
-                }
-            },
-        };
+        let flight = self.flight_with(c, ray, t_max, beta, u, stats);
         match flight {
             Flight::Escape { weight } => MediumEvent::pass(weight),
             Flight::Scatter { t, weight, density } => {
@@ -533,13 +494,94 @@ impl HeterogeneousMedium {
         }
     }
 
+    /// The flight of [`Self::sample_flight_with`], before it is turned into an event.
+    #[inline(always)]
+    fn flight_with<U: FnMut() -> f32>(
+        &self,
+        c: &DensityCoefficients,
+        ray: &Ray,
+        t_max: f32,
+        beta: Rgb,
+        u: &mut U,
+        stats: &mut TrackingStats,
+    ) -> Flight {
+        let model = if self.uses_local_bounds() {
+            LookupModel::Probed
+        } else {
+            self.unprobed_flight_model()
+        };
+        match self.tracking.free_flight {
+            FreeFlightMethod::Split if t_max.is_finite() => {
+                let mut lookup = self.density_along(ray);
+                split_flight(
+                    |a, b| self.segments_with(c, ray, a, b, model),
+                    c,
+                    |t| lookup.at(t),
+                    self.tracking.transmittance,
+                    t_max,
+                    u,
+                    stats,
+                )
+            }
+            // The segments are made where they are consumed, and passed by reference: the
+            // walk's iterator holds its DDA stack, which a move would copy. Where the walk is
+            // not needed (the root emitted whole, as in thin media) it is not prepared at all.
+            _ => {
+                // The pyramid's index-space ray, computed once for the walk's set-up and (where
+                // the grid shares the pyramid's map) the grid's lookup and probe.
+                let (o, d) = self.pyramid.ray_to_index(ray);
+                let index = Some((o, d));
+                match self.pyramid.segments_start_index(
+                    o,
+                    d,
+                    0.0,
+                    t_max,
+                    self.tracking.majorant,
+                    Some(c.max_sigma_t()),
+                    model,
+                ) {
+                    SegmentsStart::Few(few) => {
+                        let mut segments = self.medium_segments(c, few, 0.0, t_max);
+                        // One segment (a thin medium's root emitted whole): tracked without
+                        // the iterator, whose calls and copies cost more than the segment.
+                        match segments.sole() {
+                            Some(s) => self.track_flight(
+                                &mut std::iter::once(s),
+                                c,
+                                ray,
+                                index,
+                                beta,
+                                u,
+                                stats,
+                            ),
+                            None => self.track_flight(&mut segments, c, ray, index, beta, u, stats),
+                        }
+                    }
+                    SegmentsStart::Open(walk) => {
+                        // The adjustments borrow the walk's iterator rather than take it: moving
+                        // it into them copied its DDA stack (twice, 920 bytes each).
+                        let mut inner = walk.segments();
+                        let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
+                        self.track_flight(&mut segments, c, ray, index, beta, u, stats)
+                    }
+                }
+            }
+        }
+    }
+
     /// A free flight over `segments` along `ray` with the interior's free-flight estimator
-    /// (split flights excepted, which make their own segments).
+    /// (split flights excepted, which make their own segments). `index` is the pyramid's
+    /// index-space ray of `ray` ([`MajorantPyramid::ray_to_index`]) where the caller has it:
+    /// a grid whose map is the pyramid's ([`MajorantPyramid::shares_index_space`]) rounds it
+    /// instead of transforming the ray again (the same bits: the same transform of the same
+    /// ray, rounded to single precision as [`index_ray`] rounds it).
+    #[allow(clippy::too_many_arguments)]
     fn track_flight<S, U>(
         &self,
         segments: &mut S,
         c: &DensityCoefficients,
         ray: &Ray,
+        index: Option<(glam::DVec3, glam::DVec3)>,
         beta: Rgb,
         u: &mut U,
         stats: &mut TrackingStats,
@@ -571,7 +613,12 @@ impl HeterogeneousMedium {
             self.projected_fibres(),
             self.pyramid.local_bounds(),
         ) {
-            let (o, d) = index_ray(grid, ray);
+            let (o, d) = match index {
+                Some((o, d)) if self.pyramid.shares_index_space(&grid.world_to_index) => {
+                    (o.as_vec3(), d.as_vec3())
+                }
+                _ => index_ray(grid, ray),
+            };
             let mut lookup = GridLookup::from_index_ray(grid, *channel, o, d);
             let mut probe = GridProbe::from_index_ray(table, o, d, false);
             return match self.tracking.free_flight {
@@ -699,6 +746,22 @@ pub struct MediumSegmentsOf<I> {
 
 /// The majorant segments of a heterogeneous medium along a ray, from the pyramid's iterator.
 pub type MediumSegments<'a> = MediumSegmentsOf<Segments<'a>>;
+
+impl MediumSegmentsOf<FewSegments> {
+    /// The only segment, where the pyramid gave exactly one and no gap is filled around it
+    /// (what the iterator would return, alone).
+    #[inline]
+    fn sole(&self) -> Option<MajorantSegment> {
+        if self.fill.is_some() {
+            return None;
+        }
+        let mut s = self.inner.sole()?;
+        if self.zero_min {
+            s.min = 0.0;
+        }
+        Some(s)
+    }
+}
 
 impl<I: Iterator<Item = MajorantSegment>> MediumSegmentsOf<I> {
     #[inline]
@@ -898,6 +961,7 @@ pub(super) mod tests {
                     &mut segments.iter().copied(),
                     &c,
                     &ray,
+                    None,
                     beta,
                     &mut || u2.next_f32(),
                     &mut s2,
