@@ -730,3 +730,39 @@ pub fn finest_cell_log2(bricks: f64) -> i32 {
         3
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn index_spaces_are_shared_only_by_the_same_bits() {
+        let m = DAffine3::from_scale_rotation_translation(
+            DVec3::new(2.5, 0.75, 1.25),
+            glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -1.1, 0.7),
+            DVec3::new(-3.0, 0.5, 12.0),
+        );
+        let p = MajorantPyramid::empty(0.0, m);
+        assert!(p.shares_index_space(&m));
+        // Every one of the twelve words (each 32-byte third of the map) is compared: one ulp
+        // away anywhere is another map.
+        let words = m.to_cols_array();
+        for k in 0..12 {
+            let mut w = words;
+            w[k] = f64::from_bits(w[k].to_bits() + 1);
+            assert!(
+                !p.shares_index_space(&DAffine3::from_cols_array(&w)),
+                "word {k}"
+            );
+        }
+        // A zero of the other sign is another bit pattern (conservative: not shared).
+        let mut w = words;
+        w[3] = 0.0;
+        let plus = MajorantPyramid::empty(0.0, DAffine3::from_cols_array(&w));
+        w[3] = -0.0;
+        assert!(!plus.shares_index_space(&DAffine3::from_cols_array(&w)));
+        assert!(
+            MajorantPyramid::empty(0.0, DAffine3::IDENTITY).shares_index_space(&DAffine3::IDENTITY)
+        );
+    }
+}
