@@ -653,53 +653,6 @@ impl MajorantPyramid {
         let d = self.world_to_index.transform_vector3(ray.d.as_dvec3());
         (o, d)
     }
-
-    /// True when `world_to_index` is bit for bit the pyramid's own map (as for a pyramid built
-    /// over a grid that has not been placed anew since): [`Self::ray_to_index`] then gives
-    /// exactly what the same transform by `world_to_index` gives, and callers may share it.
-    /// Compared by bits (twelve 64-bit words: three 256-bit exclusive-ors and one test with
-    /// AVX2, a fold over the words otherwise; no branch per element); maps equal only as
-    /// numbers (a −0 against a +0) count as different, which is merely conservative.
-    #[inline(always)]
-    #[must_use]
-    pub fn shares_index_space(&self, world_to_index: &DAffine3) -> bool {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        {
-            use std::arch::x86_64::{
-                __m256i, _mm256_loadu_si256, _mm256_or_si256, _mm256_testz_si256, _mm256_xor_si256,
-            };
-            const _: () = assert!(std::mem::size_of::<DAffine3>() == 96);
-            let (a, b) = (
-                std::ptr::from_ref(&self.world_to_index).cast::<__m256i>(),
-                std::ptr::from_ref(world_to_index).cast::<__m256i>(),
-            );
-            // SAFETY: a `DAffine3` is `repr(C)`, twelve `f64`s (96 bytes, three 32-byte
-            // words) with no padding, and both references are valid for those bytes; the
-            // loads are unaligned ones. AVX2 is a compile-time feature of this build.
-            unsafe {
-                let x = _mm256_or_si256(
-                    _mm256_or_si256(
-                        _mm256_xor_si256(_mm256_loadu_si256(a), _mm256_loadu_si256(b)),
-                        _mm256_xor_si256(
-                            _mm256_loadu_si256(a.add(1)),
-                            _mm256_loadu_si256(b.add(1)),
-                        ),
-                    ),
-                    _mm256_xor_si256(_mm256_loadu_si256(a.add(2)), _mm256_loadu_si256(b.add(2))),
-                );
-                _mm256_testz_si256(x, x) == 1
-            }
-        }
-        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
-        {
-            let a = self.world_to_index.to_cols_array();
-            let b = world_to_index.to_cols_array();
-            a.iter()
-                .zip(&b)
-                .fold(0u64, |acc, (x, y)| acc | (x.to_bits() ^ y.to_bits()))
-                == 0
-        }
-    }
 }
 
 /// The cost of one more segment, in density lookups (a segment costs a DDA step, an
@@ -728,41 +681,5 @@ pub fn finest_cell_log2(bricks: f64) -> i32 {
         2
     } else {
         3
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn index_spaces_are_shared_only_by_the_same_bits() {
-        let m = DAffine3::from_scale_rotation_translation(
-            DVec3::new(2.5, 0.75, 1.25),
-            glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -1.1, 0.7),
-            DVec3::new(-3.0, 0.5, 12.0),
-        );
-        let p = MajorantPyramid::empty(0.0, m);
-        assert!(p.shares_index_space(&m));
-        // Every one of the twelve words (each 32-byte third of the map) is compared: one ulp
-        // away anywhere is another map.
-        let words = m.to_cols_array();
-        for k in 0..12 {
-            let mut w = words;
-            w[k] = f64::from_bits(w[k].to_bits() + 1);
-            assert!(
-                !p.shares_index_space(&DAffine3::from_cols_array(&w)),
-                "word {k}"
-            );
-        }
-        // A zero of the other sign is another bit pattern (conservative: not shared).
-        let mut w = words;
-        w[3] = 0.0;
-        let plus = MajorantPyramid::empty(0.0, DAffine3::from_cols_array(&w));
-        w[3] = -0.0;
-        assert!(!plus.shares_index_space(&DAffine3::from_cols_array(&w)));
-        assert!(
-            MajorantPyramid::empty(0.0, DAffine3::IDENTITY).shares_index_space(&DAffine3::IDENTITY)
-        );
     }
 }

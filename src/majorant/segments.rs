@@ -205,28 +205,6 @@ impl FewSegments {
         }
     }
 
-    /// The set of `s` alone.
-    #[inline(always)]
-    fn one(s: MajorantSegment) -> Self {
-        FewSegments {
-            segs: [s; 3],
-            next: 0,
-            len: 1,
-        }
-    }
-
-    /// The only segment, where there is exactly one and none has been taken: a flight over
-    /// it needs no iterator (the common case of a thin medium, whose root is emitted whole).
-    #[inline]
-    #[must_use]
-    pub fn sole(&self) -> Option<MajorantSegment> {
-        if self.len == 1 && self.next == 0 {
-            self.segs.first().copied()
-        } else {
-            None
-        }
-    }
-
     #[inline]
     fn push(&mut self, s: Option<MajorantSegment>) {
         if let Some(s) = s {
@@ -397,73 +375,25 @@ impl MajorantPyramid {
         sigma_scale: Option<f32>,
         model: LookupModel,
     ) -> SegmentsStart<'_> {
-        self.start_with(
-            || self.ray_to_index(ray),
-            t_min,
-            t_max,
-            mode,
-            sigma_scale,
-            model,
-        )
-    }
-
-    /// [`Self::segments_start`] for a ray whose index-space form `(o, d)` the caller has
-    /// already computed (exactly [`Self::ray_to_index`] of the ray): a free flight that needs
-    /// it for its grid's lookups too computes it once.
-    #[allow(clippy::too_many_arguments)]
-    #[must_use]
-    #[inline]
-    pub fn segments_start_index(
-        &self,
-        o: DVec3,
-        d: DVec3,
-        t_min: f32,
-        t_max: f32,
-        mode: MajorantMode,
-        sigma_scale: Option<f32>,
-        model: LookupModel,
-    ) -> SegmentsStart<'_> {
-        self.start_with(|| (o, d), t_min, t_max, mode, sigma_scale, model)
-    }
-
-    /// The body of [`Self::segments_start`], with the index-space ray from `index` (called
-    /// at most once, and only where it is needed).
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn start_with(
-        &self,
-        index: impl FnOnce() -> (DVec3, DVec3),
-        t_min: f32,
-        t_max: f32,
-        mode: MajorantMode,
-        sigma_scale: Option<f32>,
-        model: LookupModel,
-    ) -> SegmentsStart<'_> {
-        // Each branch makes its own set (one made before the branches was copied into the
-        // result on every path, the sole root's included).
+        let mut few = FewSegments::empty();
         if !(t_max > t_min) {
-            return SegmentsStart::Few(FewSegments::empty());
+            return SegmentsStart::Few(few);
         }
         match mode {
             MajorantMode::Global => {
-                let mut few = FewSegments::empty();
                 let b = self.global_bounds();
                 if !b.is_empty() {
                     if t_max.is_finite() || self.background != 0.0 {
                         few.push(Some(MajorantSegment::new(t_min, t_max, b, self.exact)));
-                    } else if let Some((a, c)) = {
-                        let (o, d) = index();
-                        self.clip_index(o, d, t_min, t_max)
-                    } {
+                    } else if let Some((a, c)) = self.clip(ray, t_min, t_max) {
                         few.push(Some(MajorantSegment::new(a, c, b, self.exact)));
                     }
                 }
                 SegmentsStart::Few(few)
             }
             MajorantMode::Hierarchical { finest } => {
-                let (o, d) = index();
+                let (o, d) = self.ray_to_index(ray);
                 let Some((a, c)) = self.clip_index(o, d, t_min, t_max) else {
-                    let mut few = FewSegments::empty();
                     few.push(self.background_segment(t_min, t_max));
                     return SegmentsStart::Few(few);
                 };
@@ -477,44 +407,38 @@ impl MajorantPyramid {
                 let descent = Descent::new(self, d, sigma, model);
                 let (t0, t1) = (f64::from(a), f64::from(c));
                 match root_step(self, t0, t1, finest, descent, model) {
-                    RootStep::Empty => {
-                        let mut few = FewSegments::empty();
-                        few.push(before);
-                        few.push(after);
-                        SegmentsStart::Few(few)
-                    }
+                    RootStep::Empty => {}
                     // What the merge adapter makes of a walk that emits only its root.
                     RootStep::Whole(cell) => {
-                        let root = MajorantSegment::new(
+                        few.push(before);
+                        few.push(Some(MajorantSegment::new(
                             cell.t0 as f32,
                             cell.t1 as f32,
                             cell.bounds,
                             self.exact,
-                        );
-                        if before.is_none() && after.is_none() {
-                            // The root alone (no background), the common case.
-                            return SegmentsStart::Few(FewSegments::one(root));
-                        }
-                        let mut few = FewSegments::empty();
-                        few.push(before);
-                        few.push(Some(root));
+                        )));
                         few.push(after);
-                        SegmentsStart::Few(few)
+                        return SegmentsStart::Few(few);
                     }
-                    RootStep::Open => SegmentsStart::Open(OpenWalk {
-                        pyramid: self,
-                        before,
-                        after,
-                        o,
-                        d,
-                        t0,
-                        t1,
-                        finest,
-                        descent,
-                        sigma,
-                        model,
-                    }),
+                    RootStep::Open => {
+                        return SegmentsStart::Open(OpenWalk {
+                            pyramid: self,
+                            before,
+                            after,
+                            o,
+                            d,
+                            t0,
+                            t1,
+                            finest,
+                            descent,
+                            sigma,
+                            model,
+                        });
+                    }
                 }
+                few.push(before);
+                few.push(after);
+                SegmentsStart::Few(few)
             }
         }
     }
@@ -590,8 +514,14 @@ impl MajorantPyramid {
             .then(|| MajorantSegment::constant(t0, t1, self.background))
     }
 
-    /// Clips the index-space ray `o + t d` to the pyramid's box (voxel extents: voxel i covers
-    /// [i − 0.5, i + 0.5)). Inlined into its callers: called out
+    /// Clips the ray to the pyramid's box in index space (voxel extents: voxel i covers
+    /// [i − 0.5, i + 0.5)).
+    fn clip(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+        let (o, d) = self.ray_to_index(ray);
+        self.clip_index(o, d, t_min, t_max)
+    }
+
+    /// [`Self::clip`] for a ray already in index space. Inlined into its callers: called out
     /// of line, its vector arguments and its result went through memory on every free flight.
     #[inline(always)]
     fn clip_index(&self, o: DVec3, d: DVec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {

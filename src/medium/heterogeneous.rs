@@ -11,10 +11,7 @@ use super::lookup::{
 };
 use crate::fabric::{FabricLook, FabricShell, FibreGridLookup, FibreVoxel, ShellLookup};
 use crate::grid::SparseGrid;
-use crate::majorant::{
-    FewSegments, LocalBounds, LookupModel, MajorantPyramid, MajorantSegment, Segments,
-    SegmentsStart,
-};
+use crate::majorant::{LookupModel, MajorantPyramid, MajorantSegment, Segments, SegmentsStart};
 use crate::math::{Aabb, Ray};
 use crate::phase::PhaseFunction;
 use crate::procedural::{FbmField, LazyFbmGrid};
@@ -476,7 +473,48 @@ impl HeterogeneousMedium {
         u: &mut U,
         stats: &mut TrackingStats,
     ) -> MediumEvent<'_> {
-        let flight = self.flight_with(c, ray, t_max, beta, u, stats);
+        let model = if self.uses_local_bounds() {
+            LookupModel::Probed
+        } else {
+            self.unprobed_flight_model()
+        };
+        let flight = match self.tracking.free_flight {
+            FreeFlightMethod::Split if t_max.is_finite() => {
+                let mut lookup = self.density_along(ray);
+                split_flight(
+                    |a, b| self.segments_with(c, ray, a, b, model),
+                    c,
+                    |t| lookup.at(t),
+                    self.tracking.transmittance,
+                    t_max,
+                    u,
+                    stats,
+                )
+            }
+            // The segments are made where they are consumed, and passed by reference: the
+            // walk's iterator holds its DDA stack, which a move would copy. Where the walk is
+            // not needed (the root emitted whole, as in thin media) it is not prepared at all.
+            _ => match self.pyramid.segments_start(
+                ray,
+                0.0,
+                t_max,
+                self.tracking.majorant,
+                Some(c.max_sigma_t()),
+                model,
+            ) {
+                SegmentsStart::Few(few) => {
+                    let mut segments = self.medium_segments(c, few, 0.0, t_max);
+                    self.track_flight(&mut segments, c, ray, beta, u, stats)
+                }
+                SegmentsStart::Open(walk) => {
+                    // The adjustments borrow the walk's iterator rather than take it: moving
+                    // it into them copied its DDA stack (twice, 920 bytes each).
+                    let mut inner = walk.segments();
+                    let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
+                    self.track_flight(&mut segments, c, ray, beta, u, stats)
+                }
+            },
+        };
         match flight {
             Flight::Escape { weight } => MediumEvent::pass(weight),
             Flight::Scatter { t, weight, density } => {
@@ -495,96 +533,13 @@ impl HeterogeneousMedium {
         }
     }
 
-    /// The flight of [`Self::sample_flight_with`], before it is turned into an event.
-    #[inline(always)]
-    fn flight_with<U: FnMut() -> f32>(
-        &self,
-        c: &DensityCoefficients,
-        ray: &Ray,
-        t_max: f32,
-        beta: Rgb,
-        u: &mut U,
-        stats: &mut TrackingStats,
-    ) -> Flight {
-        let model = if self.uses_local_bounds() {
-            LookupModel::Probed
-        } else {
-            self.unprobed_flight_model()
-        };
-        match self.tracking.free_flight {
-            FreeFlightMethod::Split if t_max.is_finite() => {
-                let mut lookup = self.density_along(ray);
-                split_flight(
-                    |a, b| self.segments_with(c, ray, a, b, model),
-                    c,
-                    |t| lookup.at(t),
-                    self.tracking.transmittance,
-                    t_max,
-                    u,
-                    stats,
-                )
-            }
-            // The segments are made where they are consumed, and passed by reference: the
-            // walk's iterator holds its DDA stack, which a move would copy. Where the walk is
-            // not needed (the root emitted whole, as in thin media) it is not prepared at all.
-            _ => {
-                // The pyramid's index-space ray, computed once for the walk's set-up and (where
-                // the grid shares the pyramid's map) the grid's lookup and probe.
-                let (o, d) = self.pyramid.ray_to_index(ray);
-                let index = Some((o, d));
-                match self.pyramid.segments_start_index(
-                    o,
-                    d,
-                    0.0,
-                    t_max,
-                    self.tracking.majorant,
-                    Some(c.max_sigma_t()),
-                    model,
-                ) {
-                    SegmentsStart::Few(few) => {
-                        let mut segments = self.medium_segments(c, few, 0.0, t_max);
-                        // One segment (a thin medium's root emitted whole) in a grid: tracked
-                        // without the iterator, whose calls and copies cost more than the
-                        // segment.
-                        match (segments.sole(), self.grid_flight_parts()) {
-                            (Some(s), Some(parts)) => self.track_grid_flight(
-                                parts,
-                                &mut std::iter::once(s),
-                                c,
-                                ray,
-                                index,
-                                beta,
-                                u,
-                                stats,
-                            ),
-                            _ => self.track_flight(&mut segments, c, ray, index, beta, u, stats),
-                        }
-                    }
-                    SegmentsStart::Open(walk) => {
-                        // The adjustments borrow the walk's iterator rather than take it: moving
-                        // it into them copied its DDA stack (twice, 920 bytes each).
-                        let mut inner = walk.segments();
-                        let mut segments = self.medium_segments(c, &mut inner, 0.0, t_max);
-                        self.track_flight(&mut segments, c, ray, index, beta, u, stats)
-                    }
-                }
-            }
-        }
-    }
-
     /// A free flight over `segments` along `ray` with the interior's free-flight estimator
-    /// (split flights excepted, which make their own segments). `index` is the pyramid's
-    /// index-space ray of `ray` ([`MajorantPyramid::ray_to_index`]) where the caller has it:
-    /// a grid whose map is the pyramid's ([`MajorantPyramid::shares_index_space`]) rounds it
-    /// instead of transforming the ray again (the same bits: the same transform of the same
-    /// ray, rounded to single precision as [`index_ray`] rounds it).
-    #[allow(clippy::too_many_arguments)]
+    /// (split flights excepted, which make their own segments).
     fn track_flight<S, U>(
         &self,
         segments: &mut S,
         c: &DensityCoefficients,
         ray: &Ray,
-        index: Option<(glam::DVec3, glam::DVec3)>,
         beta: Rgb,
         u: &mut U,
         stats: &mut TrackingStats,
@@ -610,63 +565,29 @@ impl HeterogeneousMedium {
         // are built as they are used, from one index-space ray, without the enums around
         // them. Returned together from `lookups_along`, they were copied through memory (a
         // `memcpy` call per flight); the trackers see the same lookups and bounds.
-        if let Some(parts) = self.grid_flight_parts() {
-            return self.track_grid_flight(parts, segments, c, ray, index, beta, u, stats);
-        }
-        self.track_flight_general(segments, c, ray, beta, u, stats)
-    }
-
-    /// The grid, its channel and its local-bounds table where [`Self::track_flight`] takes
-    /// its grid case: a grid field with its table, point bounds in use and no fibre projection.
-    #[inline(always)]
-    fn grid_flight_parts(&self) -> Option<(&SparseGrid, usize, &LocalBounds)> {
-        match (
+        if let (DensityField::Grid { grid, channel }, true, None, Some(table)) = (
             &self.field,
             self.uses_local_bounds(),
             self.projected_fibres(),
             self.pyramid.local_bounds(),
         ) {
-            (DensityField::Grid { grid, channel }, true, None, Some(table)) => {
-                Some((grid, *channel, table))
-            }
-            _ => None,
+            let (o, d) = index_ray(grid, ray);
+            let mut lookup = GridLookup::from_index_ray(grid, *channel, o, d);
+            let mut probe = GridProbe::from_index_ray(table, o, d, false);
+            return match self.tracking.free_flight {
+                FreeFlightMethod::Decomposition => decomposition_track_local(
+                    segments,
+                    c,
+                    |t| lookup.at(t),
+                    &mut probe,
+                    beta,
+                    u,
+                    stats,
+                ),
+                _ => delta_track_local(segments, c, |t| lookup.at(t), &mut probe, beta, u, stats),
+            };
         }
-    }
-
-    /// [`Self::track_flight`]'s grid case, on the parts [`Self::grid_flight_parts`] gives:
-    /// called directly (with a sole segment and no iterator) by [`Self::flight_with`], so that
-    /// the other fields' trackers are not instantiated for that case.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn track_grid_flight<S, U>(
-        &self,
-        (grid, channel, table): (&SparseGrid, usize, &LocalBounds),
-        segments: &mut S,
-        c: &DensityCoefficients,
-        ray: &Ray,
-        index: Option<(glam::DVec3, glam::DVec3)>,
-        beta: Rgb,
-        u: &mut U,
-        stats: &mut TrackingStats,
-    ) -> Flight
-    where
-        S: Iterator<Item = MajorantSegment>,
-        U: FnMut() -> f32,
-    {
-        let (o, d) = match index {
-            Some((o, d)) if self.pyramid.shares_index_space(&grid.world_to_index) => {
-                (o.as_vec3(), d.as_vec3())
-            }
-            _ => index_ray(grid, ray),
-        };
-        let mut lookup = GridLookup::from_index_ray(grid, channel, o, d);
-        let mut probe = GridProbe::from_index_ray(table, o, d, false);
-        match self.tracking.free_flight {
-            FreeFlightMethod::Decomposition => {
-                decomposition_track_local(segments, c, |t| lookup.at(t), &mut probe, beta, u, stats)
-            }
-            _ => delta_track_local(segments, c, |t| lookup.at(t), &mut probe, beta, u, stats),
-        }
+        self.track_flight_general(segments, c, ray, beta, u, stats)
     }
 
     /// [`Self::track_flight`] without its grid case: the lookup and the point bounds (if any)
@@ -779,22 +700,6 @@ pub struct MediumSegmentsOf<I> {
 /// The majorant segments of a heterogeneous medium along a ray, from the pyramid's iterator.
 pub type MediumSegments<'a> = MediumSegmentsOf<Segments<'a>>;
 
-impl MediumSegmentsOf<FewSegments> {
-    /// The only segment, where the pyramid gave exactly one and no gap is filled around it
-    /// (what the iterator would return, alone).
-    #[inline]
-    fn sole(&self) -> Option<MajorantSegment> {
-        if self.fill.is_some() {
-            return None;
-        }
-        let mut s = self.inner.sole()?;
-        if self.zero_min {
-            s.min = 0.0;
-        }
-        Some(s)
-    }
-}
-
 impl<I: Iterator<Item = MajorantSegment>> MediumSegmentsOf<I> {
     #[inline]
     fn next_inner(&mut self) -> Option<MajorantSegment> {
@@ -847,7 +752,6 @@ pub(super) mod tests {
     use crate::grid::{ChannelKind, SparseGridBuilder, Storage};
     use crate::majorant::MajorantPyramid;
     use crate::sampling::Rng;
-    use glam::{DAffine3, DVec3};
 
     /// Three dense blobs in a 48³ index box with empty bricks between them (the ocean's foam
     /// in miniature; the mixture's tests use it too), σ_t 0.4 and σ_s 0.39 per unit density.
@@ -994,7 +898,6 @@ pub(super) mod tests {
                     &mut segments.iter().copied(),
                     &c,
                     &ray,
-                    None,
                     beta,
                     &mut || u2.next_f32(),
                     &mut s2,
@@ -1012,117 +915,6 @@ pub(super) mod tests {
             assert!(
                 scattered > 500 && escaped > 300 && lookups > 3000,
                 "{method:?}: {scattered} scattered, {escaped} escaped, {lookups} lookups"
-            );
-        }
-    }
-
-    /// The free flights of a placed grid (rotated, scaled, moved) through
-    /// [`HeterogeneousMedium::flight_with`], which shares the pyramid's index-space ray with
-    /// the grid and tracks a sole segment without the iterator, against the general path (the
-    /// segments collected from the pyramid's walk, the grid's own lookup and probe): the same
-    /// flights bit for bit. Once with the pyramid built over the placed grid (the maps are the
-    /// same: shared), once with the pyramid of the grid before it was placed (another map: the
-    /// grid must transform the ray itself, or its lookups are made at other points).
-    #[test]
-    fn a_flight_shares_the_pyramids_index_ray_only_with_a_grid_of_the_same_map() {
-        let placed = DAffine3::from_scale_rotation_translation(
-            DVec3::splat(0.05),
-            glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.4, -0.9, 0.25),
-            DVec3::new(-1.0, 0.5, 2.0),
-        );
-        for stale in [false, true] {
-            let mut foam = blobs();
-            let DensityField::Grid { grid, channel } = &mut foam.field else {
-                unreachable!("blobs is a grid");
-            };
-            grid.set_index_to_world(placed).expect("invertible");
-            if !stale {
-                foam.pyramid = MajorantPyramid::from_grid(grid, *channel).expect("pyramid");
-            }
-            foam.attach_local_bounds().expect("local bounds");
-            let DensityField::Grid { grid, .. } = &foam.field else {
-                unreachable!("blobs is a grid");
-            };
-            assert_eq!(
-                foam.pyramid.shares_index_space(&grid.world_to_index),
-                !stale
-            );
-            let centre = grid.index_to_world_point(Vec3::splat(24.0));
-            let mut rng = Rng::new(27, u64::from(stale));
-            let (mut sole, mut other, mut scattered, mut lookups) = (0usize, 0usize, 0usize, 0u64);
-            for r in 0..4000u64 {
-                // Thin coefficients (the root emitted whole: one segment) and dense ones (the
-                // walk opened), grey and chromatic.
-                let c = match r % 4 {
-                    0 => DensityCoefficients::new(Rgb::splat(0.02), Rgb::splat(0.018)),
-                    1 => DensityCoefficients::new(Rgb::new(0.03, 0.02, 0.01), Rgb::splat(0.01)),
-                    2 => DensityCoefficients::new(Rgb::splat(300.0), Rgb::splat(290.0)),
-                    _ => DensityCoefficients::new(Rgb::new(60.0, 40.0, 20.0), Rgb::splat(19.0)),
-                };
-                let o = centre
-                    + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 3.0;
-                // Most rays aimed near a blob (the others anywhere).
-                let aim = grid.index_to_world_point(
-                    [
-                        Vec3::new(6.0, 30.0, 9.0),
-                        Vec3::new(30.0, 8.0, 36.0),
-                        Vec3::new(40.0, 40.0, 12.0),
-                    ][r as usize % 3]
-                        + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 6.0,
-                );
-                let d = if r % 5 == 0 {
-                    (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
-                        .normalize_or(Vec3::Z)
-                } else {
-                    (aim - o).normalize_or(Vec3::Z)
-                };
-                let ray = Ray::new(o, d);
-                let t_max = if r % 7 == 0 { 1.0 } else { f32::INFINITY };
-                let (io, id) = foam.pyramid.ray_to_index(&ray);
-                match foam.pyramid.segments_start_index(
-                    io,
-                    id,
-                    0.0,
-                    t_max,
-                    foam.tracking.majorant,
-                    Some(c.max_sigma_t()),
-                    LookupModel::Probed,
-                ) {
-                    SegmentsStart::Few(f) if f.sole().is_some() => sole += 1,
-                    _ => other += 1,
-                }
-                let segments: Vec<MajorantSegment> = foam
-                    .medium_segments(
-                        &c,
-                        foam.pyramid_segments(&c, &ray, 0.0, t_max, LookupModel::Probed),
-                        0.0,
-                        t_max,
-                    )
-                    .collect();
-                let beta = Rgb::new(1.0, 0.7, 0.4);
-                let (mut u1, mut u2) = (Rng::new(r, 5), Rng::new(r, 5));
-                let (mut s1, mut s2) = (TrackingStats::default(), TrackingStats::default());
-                let expected = foam.track_flight_general(
-                    &mut segments.iter().copied(),
-                    &c,
-                    &ray,
-                    beta,
-                    &mut || u1.next_f32(),
-                    &mut s1,
-                );
-                let got = foam.flight_with(&c, &ray, t_max, beta, &mut || u2.next_f32(), &mut s2);
-                assert_eq!(got, expected, "stale {stale}, ray {r}");
-                assert_eq!(u1.next_f32().to_bits(), u2.next_f32().to_bits(), "ray {r}");
-                assert_eq!(s1, s2, "stale {stale}, ray {r}");
-                scattered += usize::from(matches!(got, Flight::Scatter { .. }));
-                lookups += s1.lookups;
-            }
-            // The stale pyramid bounds the grid as it was before it was placed: its flights
-            // meet little density, but they still look the grid up.
-            let least = if stale { 1 } else { 800 };
-            assert!(
-                sole > 1000 && other > 1000 && scattered >= least && lookups > 1000,
-                "stale {stale}: {sole} sole, {other} other, {scattered} scattered, {lookups} lookups"
             );
         }
     }
