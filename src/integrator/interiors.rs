@@ -122,12 +122,14 @@ impl InteriorStack {
     }
 
     /// True if `obj` is on the stack.
+    #[inline]
     #[must_use]
     pub fn contains(&self, obj: u32) -> bool {
         self.entries().contains(&obj)
     }
 
     /// Enters `obj`.
+    #[inline]
     pub fn push(&mut self, obj: u32) {
         let len = usize::from(self.len);
         if len < MAX_NESTING && !self.contains(obj) {
@@ -162,7 +164,21 @@ impl InteriorStack {
     }
 
     /// Leaves `obj` (no-op if not entered).
+    #[inline]
     pub fn remove(&mut self, obj: u32) {
+        // The most recently entered object, with no walk medium riding on the stack: the
+        // last entry goes (entries are distinct, `push` skips an object already entered, so
+        // the search below would find this one and move nothing after it).
+        if self.walk_len == 0 && self.entries().last() == Some(&obj) {
+            self.len -= 1;
+            return;
+        }
+        self.remove_searched(obj);
+    }
+
+    /// [`InteriorStack::remove`] by a search of the entries and the walk slots.
+    #[inline(never)]
+    fn remove_searched(&mut self, obj: u32) {
         if let Some(i) = self.entries().iter().position(|&o| o == obj) {
             self.entries.copy_within(i + 1..usize::from(self.len), i);
             self.len -= 1;

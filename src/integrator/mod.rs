@@ -767,9 +767,10 @@ impl<'s> PathState<'s> {
         let obj = &scene.objects[oi as usize];
         let entering = self.ray.d.dot(hit.ng) < 0.0;
         let guided_from = self.guided_from.take();
-        if obj.surface.transmits()
-            && (is_false_intersection(scene, &self.stack, oi, entering)
-                || matches!(obj.surface, ObjectSurface::Null))
+        // A null boundary (it transmits) is crossed whatever the stack holds: asked first, so
+        // that a bounds box skips the stack's priority search at both of its crossings.
+        if matches!(obj.surface, ObjectSurface::Null)
+            || (obj.surface.transmits() && is_false_intersection(scene, &self.stack, oi, entering))
         {
             return self.cross_boundary(scene, hit, oi, entering, sampler);
         }
