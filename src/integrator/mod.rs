@@ -743,6 +743,14 @@ impl<'s> PathState<'s> {
 
     /// 2. An escaped ray sees the infinite lights.
     fn escape(&mut self, scene: &Scene) {
+        // Without NEE at the last vertex every light's weight is 1: where the escape sees the
+        // same radiance in every direction (and no light has a layer), that sum, found at load.
+        if !self.prev.did_nee {
+            if let Some(e) = scene.escape_radiance {
+                self.radiance += self.beta * e;
+                return;
+            }
+        }
         let through = self.manifold_leg == ManifoldLeg::Through;
         let mut layers = [Rgb::ZERO; MAX_LIGHT_LAYERS];
         let e = emitted(scene, self.ray.d, &self.prev, None, through, &mut layers);
