@@ -498,7 +498,6 @@ impl<'s> PathState<'s> {
     /// the main direction's balance weight to the next vertex's sun NEE, which needs it only
     /// where it adds something, when `keep` gives the lean the scene's lifetime; otherwise
     /// the weight is evaluated here (the same bits either way).
-    #[inline(never)]
     #[allow(clippy::too_many_arguments)]
     fn scatter_in_medium<'m>(
         &mut self,
