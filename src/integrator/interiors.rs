@@ -405,6 +405,40 @@ mod tests {
     }
 
     #[test]
+    fn removing_an_object_matches_the_searched_removal() {
+        let mut rng = crate::sampling::Rng::new(17, 3);
+        let mut fast_taken = 0;
+        for _ in 0..20_000 {
+            let mut s = InteriorStack::new();
+            for _ in 0..(rng.next_u32() % 6) {
+                let o = rng.next_u32() % 8;
+                if rng.next_u32() % 4 == 0 {
+                    s.push_walk(o, WalkMedium::Scene(o + 100));
+                } else {
+                    s.push(o);
+                }
+            }
+            let obj = rng.next_u32() % 8;
+            let (mut fast, mut searched) = (s, s);
+            fast.remove(obj);
+            searched.remove_searched(obj);
+            assert_eq!(
+                fast.entries(),
+                searched.entries(),
+                "{:?} less {obj}",
+                s.entries()
+            );
+            for o in 0..8 {
+                assert_eq!(fast.walk_medium(o), searched.walk_medium(o));
+            }
+            if s.walk_len == 0 && s.entries().last() == Some(&obj) {
+                fast_taken += 1;
+            }
+        }
+        assert!(fast_taken > 1000, "{fast_taken}");
+    }
+
+    #[test]
     fn field_walk_media_keep_their_coefficients_and_look() {
         let mut s = InteriorStack::new();
         for look in [0, 1] {
