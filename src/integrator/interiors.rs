@@ -412,7 +412,7 @@ mod tests {
             let mut s = InteriorStack::new();
             for _ in 0..(rng.next_u32() % 6) {
                 let o = rng.next_u32() % 8;
-                if rng.next_u32() % 4 == 0 {
+                if rng.next_u32().is_multiple_of(4) {
                     s.push_walk(o, WalkMedium::Scene(o + 100));
                 } else {
                     s.push(o);

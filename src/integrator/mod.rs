@@ -1265,7 +1265,7 @@ interior = { type = "homogeneous", albedo = 0.9, attenuation = 0.5 }
                 stack.push(rng.next_u32() % n);
             }
             let oi = rng.next_u32() % n;
-            let entering = rng.next_u32() % 2 == 0;
+            let entering = rng.next_u32().is_multiple_of(2);
             let obj = &scene.objects[oi as usize];
             // The order the test had before null boundaries were asked first.
             let searched_first = obj.surface.transmits()
