@@ -364,6 +364,29 @@ pub struct LightSampler {
     probabilities: Vec<f32>,
 }
 
+/// The radiance that every ray escaping the scene sees, when it does not depend on the
+/// direction: the escape's sum over `lights` (each infinite light's
+/// [`Light::escaped_radiance`], black ones skipped, in order, at unit weight) when the
+/// infinite lights are constant environments and delta distant lights only (an escaping ray
+/// never sees a delta light); `None` when an environment map or a distant light with an
+/// angular radius makes the escape depend on the direction.
+#[must_use]
+pub fn direction_free_escape(lights: &[Light]) -> Option<Rgb> {
+    let mut l = Rgb::ZERO;
+    for light in lights {
+        match light {
+            // The escape's own operations: the sum of `le * w` with the weight w = 1.
+            Light::ConstantEnvironment { radiance } if !radiance.is_black() => {
+                l += *radiance * 1.0;
+            }
+            Light::ConstantEnvironment { .. } | Light::Sphere { .. } => {}
+            Light::Distant { cos_radius, .. } if !(*cos_radius < 1.0) => {}
+            Light::Distant { .. } | Light::EnvironmentMap(_) => return None,
+        }
+    }
+    Some(l)
+}
+
 /// The index of the delta distant light (a sun with no angular radius) of greatest
 /// irradiance summed over RGB, the first of equals; `None` when `lights` has none.
 #[must_use]

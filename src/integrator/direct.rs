@@ -364,7 +364,12 @@ pub(super) fn emitted(
         Some(_) if after_manifold => Rgb::ZERO,
         Some((li, point)) => {
             if let crate::light::Light::Sphere { radiance, .. } = &scene.lights[li] {
-                to_layer(li, *radiance * weight(li, Some(point)))
+                let w = if prev.did_nee {
+                    weight(li, Some(point))
+                } else {
+                    1.0
+                };
+                to_layer(li, *radiance * w)
             } else {
                 Rgb::ZERO
             }
@@ -377,7 +382,10 @@ pub(super) fn emitted(
                 {
                     let le = light.escaped_radiance(dir);
                     if !le.is_black() {
-                        l += to_layer(li, le * weight(li, None));
+                        // Without NEE at the previous vertex the weight is 1: decided here,
+                        // without calling the weight's closure.
+                        let w = if prev.did_nee { weight(li, None) } else { 1.0 };
+                        l += to_layer(li, le * w);
                     }
                 }
             }

@@ -122,12 +122,14 @@ impl InteriorStack {
     }
 
     /// True if `obj` is on the stack.
+    #[inline]
     #[must_use]
     pub fn contains(&self, obj: u32) -> bool {
         self.entries().contains(&obj)
     }
 
     /// Enters `obj`.
+    #[inline]
     pub fn push(&mut self, obj: u32) {
         let len = usize::from(self.len);
         if len < MAX_NESTING && !self.contains(obj) {
@@ -162,7 +164,21 @@ impl InteriorStack {
     }
 
     /// Leaves `obj` (no-op if not entered).
+    #[inline]
     pub fn remove(&mut self, obj: u32) {
+        // The most recently entered object, with no walk medium riding on the stack: the
+        // last entry goes (entries are distinct, `push` skips an object already entered, so
+        // the search below would find this one and move nothing after it).
+        if self.walk_len == 0 && self.entries().last() == Some(&obj) {
+            self.len -= 1;
+            return;
+        }
+        self.remove_searched(obj);
+    }
+
+    /// [`InteriorStack::remove`] by a search of the entries and the walk slots.
+    #[inline(never)]
+    fn remove_searched(&mut self, obj: u32) {
         if let Some(i) = self.entries().iter().position(|&o| o == obj) {
             self.entries.copy_within(i + 1..usize::from(self.len), i);
             self.len -= 1;
@@ -386,6 +402,40 @@ mod tests {
             s.walk_medium(7),
             Some(WalkMedium::Absorbing(Rgb([1.0, 2.0, 3.0])))
         );
+    }
+
+    #[test]
+    fn removing_an_object_matches_the_searched_removal() {
+        let mut rng = crate::sampling::Rng::new(17, 3);
+        let mut fast_taken = 0;
+        for _ in 0..20_000 {
+            let mut s = InteriorStack::new();
+            for _ in 0..(rng.next_u32() % 6) {
+                let o = rng.next_u32() % 8;
+                if rng.next_u32().is_multiple_of(4) {
+                    s.push_walk(o, WalkMedium::Scene(o + 100));
+                } else {
+                    s.push(o);
+                }
+            }
+            let obj = rng.next_u32() % 8;
+            let (mut fast, mut searched) = (s, s);
+            fast.remove(obj);
+            searched.remove_searched(obj);
+            assert_eq!(
+                fast.entries(),
+                searched.entries(),
+                "{:?} less {obj}",
+                s.entries()
+            );
+            for o in 0..8 {
+                assert_eq!(fast.walk_medium(o), searched.walk_medium(o));
+            }
+            if s.walk_len == 0 && s.entries().last() == Some(&obj) {
+                fast_taken += 1;
+            }
+        }
+        assert!(fast_taken > 1000, "{fast_taken}");
     }
 
     #[test]

@@ -743,6 +743,14 @@ impl<'s> PathState<'s> {
 
     /// 2. An escaped ray sees the infinite lights.
     fn escape(&mut self, scene: &Scene) {
+        // Without NEE at the last vertex every light's weight is 1: where the escape sees the
+        // same radiance in every direction (and no light has a layer), that sum, found at load.
+        if !self.prev.did_nee {
+            if let Some(e) = scene.escape_radiance {
+                self.radiance += self.beta * e;
+                return;
+            }
+        }
         let through = self.manifold_leg == ManifoldLeg::Through;
         let mut layers = [Rgb::ZERO; MAX_LIGHT_LAYERS];
         let e = emitted(scene, self.ray.d, &self.prev, None, through, &mut layers);
@@ -767,10 +775,7 @@ impl<'s> PathState<'s> {
         let obj = &scene.objects[oi as usize];
         let entering = self.ray.d.dot(hit.ng) < 0.0;
         let guided_from = self.guided_from.take();
-        if obj.surface.transmits()
-            && (is_false_intersection(scene, &self.stack, oi, entering)
-                || matches!(obj.surface, ObjectSurface::Null))
-        {
+        if crosses_unchanged(scene, &self.stack, obj, oi, entering) {
             return self.cross_boundary(scene, hit, oi, entering, sampler);
         }
         let guided = guided_from == Some(oi) && !entering;
@@ -1021,6 +1026,22 @@ impl<'s> PathState<'s> {
     }
 }
 
+/// True when the ray crosses the boundary of `obj` (object `oi`) without interacting: a null
+/// boundary, or a false intersection of a transmissive one ([`is_false_intersection`]). A
+/// null boundary (it transmits) is crossed whatever the stack holds, so it is asked first:
+/// a bounds box skips the stack's priority search at both of its crossings.
+#[inline]
+fn crosses_unchanged(
+    scene: &Scene,
+    stack: &InteriorStack,
+    obj: &Object,
+    oi: u32,
+    entering: bool,
+) -> bool {
+    matches!(obj.surface, ObjectSurface::Null)
+        || (obj.surface.transmits() && is_false_intersection(scene, stack, oi, entering))
+}
+
 /// The medium a shadow ray entering `obj`'s per-walk interior at `hit` uses (out of line:
 /// untextured scenes never get here).
 #[cold]
@@ -1179,6 +1200,176 @@ center = [-1.0, 0.0, 0.0]
 radius = 0.8
 interior = { type = "homogeneous", albedo = 0.9, attenuation = 1.0 }
 "#;
+
+    /// Fog (no surface: a null boundary) and glass at priorities 0 and 2, an opaque diffuse
+    /// ball at priority 1, and a null boundary at priority 3.
+    const NESTED: &str = r#"
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 40
+[film]
+width = 8
+height = 8
+spp = 1
+[[light]]
+type = "environment"
+radiance = 0.5
+[[object]]
+name = "fog"
+shape = "sphere"
+center = [-1.0, 0.0, 0.0]
+radius = 0.8
+interior = { type = "homogeneous", albedo = 0.9, attenuation = 1.0 }
+[[object]]
+name = "ball"
+shape = "sphere"
+center = [0.0, 1.0, 0.0]
+radius = 0.3
+priority = 1
+surface = { type = "lambertian", reflectance = 0.5 }
+[[object]]
+name = "glass"
+shape = "sphere"
+center = [1.0, 0.0, 0.0]
+radius = 0.6
+priority = 2
+surface = { type = "dielectric", ior = 1.5 }
+interior = { type = "homogeneous", albedo = 0.5, attenuation = 2.0 }
+[[object]]
+name = "haze"
+shape = "sphere"
+center = [0.0, -1.0, 0.0]
+radius = 0.5
+priority = 3
+interior = { type = "homogeneous", albedo = 0.9, attenuation = 0.5 }
+"#;
+
+    #[test]
+    fn a_boundary_is_crossed_unchanged_as_the_search_first_form_decides() {
+        let scene = load_scene_str(NESTED, Path::new("nested.toml")).expect("scene");
+        let n = scene.objects.len() as u32;
+        assert_eq!(n, 4);
+        assert!(scene
+            .objects
+            .iter()
+            .any(|o| matches!(o.surface, ObjectSurface::Null)));
+        assert!(scene.objects.iter().any(|o| !o.surface.transmits()));
+        let mut rng = Rng::new(5, 9);
+        let (mut crossed, mut met) = (0, 0);
+        for _ in 0..20_000 {
+            // Any stack of distinct objects (silhouette cases included: an object entered
+            // twice, left without being entered).
+            let mut stack = InteriorStack::new();
+            for _ in 0..(rng.next_u32() % 4) {
+                stack.push(rng.next_u32() % n);
+            }
+            let oi = rng.next_u32() % n;
+            let entering = rng.next_u32().is_multiple_of(2);
+            let obj = &scene.objects[oi as usize];
+            // The order the test had before null boundaries were asked first.
+            let searched_first = obj.surface.transmits()
+                && (is_false_intersection(&scene, &stack, oi, entering)
+                    || matches!(obj.surface, ObjectSurface::Null));
+            let fast = crosses_unchanged(&scene, &stack, obj, oi, entering);
+            assert_eq!(
+                fast,
+                searched_first,
+                "object {oi}, entering {entering}, stack {:?}",
+                stack.entries()
+            );
+            if fast {
+                crossed += 1;
+            } else {
+                met += 1;
+            }
+        }
+        assert!(crossed > 1000 && met > 1000, "{crossed} crossed, {met} met");
+    }
+
+    /// The sky, with or without a delta sun, a second sky, a disc sun or a sphere light.
+    fn sky_scene(extra: &str) -> Scene {
+        let text = format!(
+            r#"
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 40
+[film]
+width = 8
+height = 8
+spp = 1
+[[light]]
+type = "environment"
+radiance = [0.25, 0.35, 0.55]
+{extra}
+[[object]]
+name = "fog"
+shape = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 0.8
+interior = {{ type = "homogeneous", albedo = 0.9, attenuation = 1.0 }}
+"#
+        );
+        load_scene_str(&text, Path::new("sky.toml")).expect("scene")
+    }
+
+    #[test]
+    fn an_escape_without_nee_adds_what_the_lights_give_every_direction() {
+        let sun = "[[light]]\ntype = \"distant\"\ndirection = [-0.5, 0.8, 0.4]\nirradiance = [4.0, 3.7, 3.3]\n";
+        let sky2 = "[[light]]\ntype = \"environment\"\nradiance = [0.1, 0.3, 0.7]\n";
+        let disc = "[[light]]\ntype = \"distant\"\ndirection = [0.0, 1.0, 0.0]\nirradiance = 3.0\nangular_radius = 20.0\n";
+        let ball = "[[light]]\ntype = \"sphere\"\ncenter = [0.0, 3.0, 0.0]\nradius = 0.5\nradiance = 8.0\n";
+        let cases = [
+            (String::new(), true),
+            (sun.to_string(), true),
+            (format!("{sun}{sky2}"), true),
+            (ball.to_string(), true),
+            (disc.to_string(), false),
+            (format!("{sun}{disc}"), false),
+        ];
+        let mut rng = Rng::new(3, 4);
+        for (extra, direction_free) in cases {
+            let scene = sky_scene(&extra);
+            assert_eq!(scene.escape_radiance.is_some(), direction_free, "{extra}");
+            let mut seen_disc = false;
+            for _ in 0..3000 {
+                let z = 2.0 * rng.next_f32() - 1.0;
+                let phi = 2.0 * std::f32::consts::PI * rng.next_f32();
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let beta = Rgb([rng.next_f32(), rng.next_f32() * 3.0, rng.next_f32()]);
+                for through in [false, true] {
+                    let mut path = PathState::new(Ray::new(Vec3::new(0.0, 0.0, 2.0), d), 0.0);
+                    path.beta = beta;
+                    path.radiance = Rgb([0.5, 0.25, 0.125]);
+                    if through {
+                        path.manifold_leg = ManifoldLeg::Through;
+                    }
+                    let mut layers = [Rgb::ZERO; MAX_LIGHT_LAYERS];
+                    let e = emitted(&scene, d, &path.prev, None, through, &mut layers);
+                    let expected = path.radiance + beta * e;
+                    seen_disc |= e
+                        != emitted(
+                            &scene,
+                            Vec3::new(0.0, 0.0, -1.0),
+                            &path.prev,
+                            None,
+                            through,
+                            &mut layers,
+                        );
+                    path.escape(&scene);
+                    assert_eq!(
+                        path.radiance.0.map(f32::to_bits),
+                        expected.0.map(f32::to_bits),
+                        "{extra} d = {d:?}"
+                    );
+                }
+            }
+            // A disc sun is seen in some directions and not others.
+            assert_eq!(seen_disc, !direction_free, "{extra}");
+        }
+    }
 
     #[test]
     fn a_step_in_vacuum_is_the_first_hit_with_its_cone_advanced() {

@@ -74,6 +74,12 @@ fn load_scene_placing(text: &str, path: &Path, overlap: bool) -> Result<Scene, S
         let geometry = placed.geometry(&ctx)?;
         let selection = LightSelection::new(&lights.lights, &geometry);
         prepare_sun_maps(&placed.built, &lights.lights, selection.brightest_delta_sun);
+        let escape_radiance =
+            if lights.layers.iter().all(Option::is_none) && lights.layer_names.is_empty() {
+                crate::light::direction_free_escape(&lights.lights)
+            } else {
+                None
+            };
         Ok(Scene {
             camera,
             camera_params,
@@ -93,6 +99,7 @@ fn load_scene_placing(text: &str, path: &Path, overlap: bool) -> Result<Scene, S
             inputs: ctx.inputs.take(),
             light_layers: lights.layers,
             light_layer_names: lights.layer_names,
+            escape_radiance,
         })
     })
 }

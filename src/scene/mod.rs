@@ -447,6 +447,11 @@ pub struct Scene {
     pub light_layers: Vec<Option<u8>>,
     /// The names of the light layers, by slot.
     pub light_layer_names: Vec<String>,
+    /// The radiance a ray escaping the scene sees from every direction
+    /// ([`crate::light::direction_free_escape`]), where it is the same for every direction
+    /// and no light has a layer of its own; `None` otherwise. Found once at load: a path
+    /// that escapes without NEE at its last vertex adds it without visiting the lights.
+    pub escape_radiance: Option<crate::spectrum::Rgb>,
 }
 
 impl Scene {
