@@ -177,9 +177,35 @@ fn check_unit(param: &str, v: f32) -> Result<(), BsdfError> {
     Ok(())
 }
 
+/// True when `v` lies in [0, 1] (false for NaN).
+#[inline]
+fn in_unit(v: f32) -> bool {
+    (0.0..=1.0).contains(&v)
+}
+
+/// True when every channel of `c` lies in [0, 1] (false for NaN), without branches.
+#[inline]
+fn rgb_in_unit(c: Rgb) -> bool {
+    in_unit(c[0]) & in_unit(c[1]) & in_unit(c[2])
+}
+
 /// Checks each channel of `c` lies in [0, 1]; the channel's name (`param.r`, ...) is formatted
-/// only for an error, so a valid colour costs no allocation (BSDFs are built per hit).
+/// only for an error, so a valid colour costs no allocation (BSDFs are built per hit). The
+/// all-in-range test is inlined and the error's construction is out of line
+/// ([`rgb_unit_error`]).
+#[inline]
 fn check_rgb_unit(param: &str, c: Rgb) -> Result<(), BsdfError> {
+    if rgb_in_unit(c) {
+        Ok(())
+    } else {
+        rgb_unit_error(param, c)
+    }
+}
+
+/// The error of [`check_rgb_unit`] for the first channel out of [0, 1] (or NaN).
+#[cold]
+#[inline(never)]
+fn rgb_unit_error(param: &str, c: Rgb) -> Result<(), BsdfError> {
     for (i, ch) in ["r", "g", "b"].iter().enumerate() {
         let v = c[i];
         if v.is_nan() || !(0.0..=1.0).contains(&v) {
@@ -187,6 +213,16 @@ fn check_rgb_unit(param: &str, c: Rgb) -> Result<(), BsdfError> {
         }
     }
     Ok(())
+}
+
+/// The checks of [`Surface::dielectric`] in their order, for parameters that failed its
+/// inlined all-valid test: returns the first error.
+#[cold]
+#[inline(never)]
+fn dielectric_error(eta: f32, roughness: f32, tint: Rgb) -> Result<(), BsdfError> {
+    check_positive("eta", eta)?;
+    check_unit("roughness", roughness)?;
+    rgb_unit_error("tint", tint)
 }
 
 fn check_positive(param: &str, v: f32) -> Result<(), BsdfError> {
@@ -348,6 +384,39 @@ fn dielectric_pdf(mf: &Microfacet, eta: f32, floor: f32, wo: Vec3, h: &HalfGeome
         (1.0 - f) * dv * h.wi_m.abs() / h.denom
     };
     finite_or_zero(v)
+}
+
+/// [`dielectric_f`] and [`dielectric_pdf`] together, for a sample: the Fresnel term, `D(wm)`
+/// and `Λ(wo)` are computed once for both (the same values, so the same bits as the two
+/// separate calls).
+fn dielectric_f_pdf(
+    mf: &Microfacet,
+    tint: Rgb,
+    eta: f32,
+    floor: f32,
+    wo: Vec3,
+    wi: Vec3,
+    h: &HalfGeometry,
+) -> (Rgb, f32) {
+    let f = fresnel_dielectric(h.wo_m, eta);
+    let d = mf.d(h.wm);
+    let lambda_o = mf.lambda(wo);
+    let g = 1.0 / (1.0 + lambda_o + mf.lambda(wi));
+    let fv = if h.reflect {
+        Rgb::splat(finite_or_zero(d * g * f / (4.0 * (wo.z * wi.z).abs())))
+    } else {
+        let v = d * (1.0 - f) * g * (h.wi_m * h.wo_m / (h.denom * wi.z * wo.z)).abs()
+            / (h.etap * h.etap);
+        finite_rgb(tint * v)
+    };
+    let q = reflect_probability(f, floor, wo.z);
+    let dv = mf.visible_pdf_with(wo, h.wm, |_| lambda_o, || d);
+    let pdf = if h.reflect {
+        q * dv / (4.0 * h.wo_m.abs())
+    } else {
+        (1.0 - q) * dv * h.wi_m.abs() / h.denom
+    };
+    (fv, finite_or_zero(pdf))
 }
 
 /// Attempts to build the BSDF sample record for a continuous lobe from `f` and `pdf`.
@@ -551,8 +620,7 @@ impl BaseLobe {
                 let wi = wi.try_normalize()?;
                 // Recompute f and pdf from (wo, wi) exactly as eval/pdf do (MIS consistency).
                 let h = dielectric_half(wo, wi, eta)?;
-                let fv = dielectric_f(&mf, tint, eta, wo, wi, &h);
-                let pdf = dielectric_pdf(&mf, eta, reflect_floor, wo, &h);
+                let (fv, pdf) = dielectric_f_pdf(&mf, tint, eta, reflect_floor, wo, wi, &h);
                 continuous_sample(wo, wi, fv, pdf, h.etap)
             }
             BaseLobe::DiffuseTransmission {
@@ -839,9 +907,12 @@ impl Surface {
         distribution: MicrofacetDistribution,
         tint: Rgb,
     ) -> Result<Surface, BsdfError> {
-        check_positive("eta", eta)?;
-        check_unit("roughness", roughness)?;
-        check_rgb_unit("tint", tint)?;
+        // Built at every boundary hit: one branch-free test of all five parameters (NaN fails
+        // every comparison), the error found out of line.
+        let valid = (eta > 0.0) & (eta < f32::INFINITY) & in_unit(roughness) & rgb_in_unit(tint);
+        if !valid {
+            dielectric_error(eta, roughness, tint)?;
+        }
         let alpha = roughness * roughness;
         Ok(Surface {
             base: BaseLobe::Dielectric {
