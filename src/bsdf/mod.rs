@@ -1223,3 +1223,115 @@ impl Surface {
         self.base.albedo_hint()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GGX: MicrofacetDistribution = MicrofacetDistribution::Ggx;
+
+    fn error_of(eta: f32, roughness: f32, tint: Rgb) -> Option<(String, u32, &'static str)> {
+        match Surface::dielectric(eta, roughness, GGX, tint) {
+            Ok(_) => None,
+            Err(BsdfError::InvalidParameter {
+                param,
+                value,
+                problem,
+            }) => Some((param, value.to_bits(), problem)),
+        }
+    }
+
+    #[test]
+    fn dielectric_accepts_the_edges_of_its_ranges() {
+        for (eta, r, tint) in [
+            (1.5, 0.0, Rgb::ZERO),
+            (1.5, 1.0, Rgb::ONE),
+            (f32::MAX, -0.0, Rgb::new(-0.0, 0.5, 1.0)),
+            (f32::from_bits(1), 0.5, Rgb::new(1.0, 0.0, -0.0)),
+        ] {
+            assert_eq!(error_of(eta, r, tint), None, "{eta} {r} {tint:?}");
+        }
+    }
+
+    #[test]
+    fn dielectric_errors_name_the_first_bad_parameter() {
+        let nan = f32::NAN;
+        let e = |p: &str, v: f32, m: &'static str| Some((p.to_string(), v.to_bits(), m));
+        let pos = "must be finite and > 0";
+        let unit = "must be in [0, 1]";
+        assert_eq!(error_of(nan, 0.5, Rgb::ONE), e("eta", nan, "is NaN"));
+        assert_eq!(error_of(0.0, 0.5, Rgb::ONE), e("eta", 0.0, pos));
+        assert_eq!(error_of(-0.0, 0.5, Rgb::ONE), e("eta", -0.0, pos));
+        assert_eq!(
+            error_of(f32::INFINITY, 0.5, Rgb::ONE),
+            e("eta", f32::INFINITY, pos)
+        );
+        // The first failing check wins, in the order eta, roughness, tint.
+        assert_eq!(error_of(-1.0, 2.0, Rgb::splat(nan)), e("eta", -1.0, pos));
+        assert_eq!(
+            error_of(1.5, nan, Rgb::splat(2.0)),
+            e("roughness", nan, "is NaN")
+        );
+        assert_eq!(
+            error_of(1.5, 1.0001, Rgb::ONE),
+            e("roughness", 1.0001, unit)
+        );
+        assert_eq!(
+            error_of(1.5, -1e-30, Rgb::ONE),
+            e("roughness", -1e-30, unit)
+        );
+        let tint = Rgb::new(0.5, 1.5, nan);
+        assert_eq!(error_of(1.5, 0.5, tint), e("tint.g", 1.5, unit));
+        let tint = Rgb::new(0.5, 1.0, nan);
+        assert_eq!(error_of(1.5, 0.5, tint), e("tint.b", nan, "is NaN"));
+        let tint = Rgb::new(-0.5, 1.0, 0.0);
+        assert_eq!(error_of(1.5, 0.5, tint), e("tint.r", -0.5, unit));
+    }
+
+    /// A small deterministic generator of uniform numbers in [0, 1).
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn dir(&mut self) -> Vec3 {
+            let z = 2.0 * self.next() - 1.0;
+            let phi = 2.0 * std::f32::consts::PI * self.next();
+            let s = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(s * phi.cos(), s * phi.sin(), z)
+        }
+    }
+
+    #[test]
+    fn dielectric_f_pdf_has_the_bits_of_f_and_pdf_apart() {
+        let mut rng = Lcg(27);
+        let tint = Rgb::new(0.9, 0.6, 0.3);
+        let mut checked = 0;
+        for distribution in [GGX, MicrofacetDistribution::Beckmann] {
+            for alpha in [0.002, 0.05, 0.3, 0.8, 1.0] {
+                let mf = Microfacet::new(distribution, alpha);
+                for (eta, floor) in [(1.33, 0.0), (1.0 / 1.33, 0.0), (1.5, 0.4), (2.4, 0.95)] {
+                    for _ in 0..400 {
+                        let (wo, wi) = (rng.dir(), rng.dir());
+                        let Some(h) = dielectric_half(wo, wi, eta) else {
+                            continue;
+                        };
+                        let (f, pdf) = dielectric_f_pdf(&mf, tint, eta, floor, wo, wi, &h);
+                        let f_apart = dielectric_f(&mf, tint, eta, wo, wi, &h);
+                        let pdf_apart = dielectric_pdf(&mf, eta, floor, wo, &h);
+                        for c in 0..3 {
+                            assert_eq!(f[c].to_bits(), f_apart[c].to_bits(), "{wo:?} {wi:?}");
+                        }
+                        assert_eq!(pdf.to_bits(), pdf_apart.to_bits(), "{wo:?} {wi:?}");
+                        checked += usize::from(pdf > 0.0);
+                    }
+                }
+            }
+        }
+        assert!(checked > 5000, "only {checked} pairs with a positive pdf");
+    }
+}
