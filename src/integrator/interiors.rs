@@ -2,10 +2,12 @@
 //! Images"): which objects a point is inside of, which one governs, and which boundary
 //! crossings are false intersections that only update the stack.
 
+use std::borrow::Cow;
+
 use crate::bsdf::Surface;
 use crate::math::Vec2;
 use crate::medium::{Coefficients, Medium, WalkMedium};
-use crate::scene::{Object, ObjectSurface, Scene};
+use crate::scene::{DielectricParams, Object, ObjectSurface, Scene};
 use crate::spectrum::Rgb;
 
 /// The deepest nesting of interiors tracked; deeper entries are ignored.
@@ -311,36 +313,50 @@ fn enter_walk(
     }
 }
 
-/// Builds the boundary BSDF of `obj` for the media meeting there, its textured parameters
-/// read at texture coordinates `uv` with a footprint `width_uv` wide; `u_mask` picks a
-/// blend's surface ([`ObjectSurface::pick`]).
+/// The boundary BSDF of `obj` for the media meeting there, its textured parameters read at
+/// texture coordinates `uv` with a footprint `width_uv` wide; `u_mask` picks a blend's surface
+/// ([`ObjectSurface::pick`]). Borrowed where the surface is fixed for the object (a fixed
+/// surface, or an untextured dielectric seen from air, built when the scene was loaded),
+/// built here otherwise.
+#[inline]
 pub(super) fn boundary_surface_at(
     obj: &Object,
     outside_ior: f32,
     uv: Vec2,
     width_uv: f32,
     u_mask: f32,
-) -> Option<Surface> {
+) -> Option<Cow<'_, Surface>> {
     match obj.surface.pick(uv, width_uv, u_mask) {
-        ObjectSurface::Blend(_) => None,
-        ObjectSurface::Fixed(s) => Some(s.clone()),
-        ObjectSurface::Null => None,
-        ObjectSurface::Textured(t) => t.at(uv, width_uv),
-        ObjectSurface::Dielectric(d) => {
-            let eta = d.ior / outside_ior.max(1e-6);
-            let s = Surface::dielectric(
-                eta,
-                d.roughness.eval(uv, width_uv),
-                d.distribution,
-                d.tint.eval(uv, width_uv),
-            )
-            .and_then(|s| s.with_reflect_floor(d.min_reflect_probability))
-            .ok()?;
-            match &d.coat {
-                Some(c) => c.over(s, uv, width_uv),
-                None => Some(s),
-            }
-        }
+        ObjectSurface::Dielectric(d) => match &d.in_air {
+            Some(s) if outside_ior == 1.0 => Some(Cow::Borrowed(s)),
+            _ => built_dielectric(d, outside_ior, uv, width_uv).map(Cow::Owned),
+        },
+        ObjectSurface::Fixed(s) => Some(Cow::Borrowed(s)),
+        ObjectSurface::Textured(t) => t.at(uv, width_uv).map(Cow::Owned),
+        ObjectSurface::Blend(_) | ObjectSurface::Null => None,
+    }
+}
+
+/// The dielectric boundary `d` built for an outside of IOR `outside_ior`, its textured
+/// parameters read at `uv` (footprint `width_uv`).
+fn built_dielectric(
+    d: &DielectricParams,
+    outside_ior: f32,
+    uv: Vec2,
+    width_uv: f32,
+) -> Option<Surface> {
+    let eta = d.ior / outside_ior.max(1e-6);
+    let s = Surface::dielectric(
+        eta,
+        d.roughness.eval(uv, width_uv),
+        d.distribution,
+        d.tint.eval(uv, width_uv),
+    )
+    .and_then(|s| s.with_reflect_floor(d.min_reflect_probability))
+    .ok()?;
+    match &d.coat {
+        Some(c) => c.over(s, uv, width_uv),
+        None => Some(s),
     }
 }
 

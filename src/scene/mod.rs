@@ -132,6 +132,10 @@ pub struct DielectricParams {
     pub min_reflect_probability: f32,
     /// Optional coat.
     pub coat: Option<CoatParams>,
+    /// The surface against an outside of IOR exactly 1 (relative IOR `ior`), built once when
+    /// the scene is loaded if no parameter is textured (`None` otherwise): the surface every
+    /// hit from air builds, so hits can borrow it instead of building and checking it again.
+    pub in_air: Option<Surface>,
 }
 
 /// A coat over a boundary whose [`Surface`] is built at each hit: the coat itself, with its
