@@ -405,3 +405,32 @@ pub(super) fn guided_connection(
     };
     ph * tr_medium * f * tr_shadow * ls.radiance * (w * jacobian / (q * p_sel * ls.pdf * p_d))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roughness_from_air_is_answered_as_the_built_surfaces_answer() {
+        let scene = crate::scene::load_scene_str(
+            super::super::interiors::DIELECTRICS,
+            std::path::Path::new("d.toml"),
+        )
+        .expect("scene");
+        let mut answers = [0; 2];
+        for obj in &scene.objects {
+            for outside_ior in [1.0, 1.33, 1.4, 1.5, 0.999_999_9] {
+                let fast = may_be_rough(obj, outside_ior);
+                assert_eq!(
+                    fast,
+                    may_be_rough_built(obj, outside_ior),
+                    "{} from outside IOR {outside_ior}",
+                    obj.name
+                );
+                answers[usize::from(fast)] += 1;
+            }
+        }
+        // Smooth and index-matched boundaries (delta) and rough ones both occur.
+        assert!(answers[0] >= 5 && answers[1] >= 15, "{answers:?}");
+    }
+}
