@@ -460,8 +460,7 @@ mod tests {
         let (mut borrowed, mut built) = (0, 0);
         for obj in &scene.objects {
             for u_mask in [0.0, 0.5, 0.99] {
-                let ObjectSurface::Dielectric(d) = obj.surface.pick(Vec2::ZERO, 0.0, u_mask)
-                else {
+                let ObjectSurface::Dielectric(d) = obj.surface.pick(Vec2::ZERO, 0.0, u_mask) else {
                     continue;
                 };
                 assert!(d.in_air.is_some(), "{}: untextured", obj.name);
@@ -492,7 +491,10 @@ mod tests {
                 }
             }
         }
-        assert!(borrowed >= 20 && built >= 80, "{borrowed} borrowed, {built} built");
+        assert!(
+            borrowed >= 20 && built >= 80,
+            "{borrowed} borrowed, {built} built"
+        );
     }
 
     #[test]

@@ -166,10 +166,7 @@ fn build_named(
             if !params.is_textured() {
                 params.in_air = Some(in_air);
             }
-            Ok((
-                ObjectSurface::Dielectric(params),
-                ior,
-            ))
+            Ok((ObjectSurface::Dielectric(params), ior))
         }
         SurfaceDesc::DiffuseTransmission(d) => {
             let r = colour("reflectance", d.reflectance.as_ref(), Rgb::splat(0.0))?;
