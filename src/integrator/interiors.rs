@@ -318,7 +318,7 @@ fn enter_walk(
 /// ([`ObjectSurface::pick`]). Borrowed where the surface is fixed for the object (a fixed
 /// surface, or an untextured dielectric seen from air, built when the scene was loaded),
 /// built here otherwise.
-#[inline(always)]
+#[inline]
 pub(super) fn boundary_surface_at(
     obj: &Object,
     outside_ior: f32,
@@ -339,7 +339,6 @@ pub(super) fn boundary_surface_at(
 
 /// The dielectric boundary `d` built for an outside of IOR `outside_ior`, its textured
 /// parameters read at `uv` (footprint `width_uv`).
-#[inline(never)]
 fn built_dielectric(
     d: &DielectricParams,
     outside_ior: f32,
