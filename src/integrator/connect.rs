@@ -39,7 +39,7 @@ use crate::light::Light;
 use crate::math::{Frame, Ray, Vec2, Vec3};
 use crate::medium::{Medium, PreparedPhase};
 use crate::sampling::{power_heuristic, PixelSampler};
-use crate::scene::{DielectricParams, Object, ObjectSurface, Scene, ShapeOwner};
+use crate::scene::{Object, ObjectSurface, Scene, ShapeOwner};
 use crate::spectrum::Rgb;
 
 /// Probability of the uniform-sphere component of the direction mixture.
@@ -89,25 +89,13 @@ fn footprint_at(obj: &Object, cone: RayCone, hit: &Hit, dir: Vec3) -> f32 {
 /// True when the boundary of `obj` (seen from a medium of IOR `outside_ior`) can have a
 /// non-delta lobe somewhere: a textured roughness or coat weight at its largest texel, either
 /// look of a blend. Untextured surfaces answer exactly as their one BSDF does.
-#[inline]
 fn may_be_rough(obj: &Object, outside_ior: f32) -> bool {
-    // Untextured, seen from air: the surface every hit borrows answers.
-    if let ObjectSurface::Dielectric(DielectricParams {
-        in_air: Some(s), ..
-    }) = &obj.surface
-    {
-        if outside_ior == 1.0 {
-            return !s.is_delta();
-        }
-    }
-    may_be_rough_built(obj, outside_ior)
-}
-
-/// [`may_be_rough`] from surfaces built for `outside_ior` (textured parameters at their
-/// largest).
-fn may_be_rough_built(obj: &Object, outside_ior: f32) -> bool {
     fn look(s: &ObjectSurface, outside_ior: f32) -> bool {
         match s {
+            // Untextured, seen from air: the surface every hit borrows.
+            ObjectSurface::Dielectric(d) if outside_ior == 1.0 && d.in_air.is_some() => {
+                d.in_air.as_ref().is_some_and(|s| !s.is_delta())
+            }
             ObjectSurface::Dielectric(d) => {
                 let eta = d.ior / outside_ior.max(1e-6);
                 let Ok(s) = Surface::dielectric(eta, d.roughness.max(), d.distribution, Rgb::ONE)
