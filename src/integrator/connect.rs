@@ -398,6 +398,36 @@ pub(super) fn guided_connection(
 mod tests {
     use super::*;
 
+    /// [`may_be_rough`] as it was before untextured dielectrics were built at load: every
+    /// dielectric look built for `outside_ior` (textured parameters at their largest).
+    fn may_be_rough_built(obj: &Object, outside_ior: f32) -> bool {
+        fn look(s: &ObjectSurface, outside_ior: f32) -> bool {
+            match s {
+                ObjectSurface::Dielectric(d) => {
+                    let eta = d.ior / outside_ior.max(1e-6);
+                    let Ok(s) =
+                        Surface::dielectric(eta, d.roughness.max(), d.distribution, Rgb::ONE)
+                    else {
+                        return false;
+                    };
+                    match &d.coat {
+                        Some(c) => s
+                            .with_prepared_coat(&c.coat, c.weight.max())
+                            .is_ok_and(|s| !s.is_delta()),
+                        None => !s.is_delta(),
+                    }
+                }
+                ObjectSurface::Fixed(s) => !s.is_delta(),
+                ObjectSurface::Textured(_) => true,
+                ObjectSurface::Blend(_) | ObjectSurface::Null => false,
+            }
+        }
+        match &obj.surface {
+            ObjectSurface::Blend(b) => look(&b.a, outside_ior) || look(&b.b, outside_ior),
+            s => look(s, outside_ior),
+        }
+    }
+
     #[test]
     fn roughness_from_air_is_answered_as_the_built_surfaces_answer() {
         let scene = crate::scene::load_scene_str(

@@ -116,7 +116,8 @@ impl Roulette {
 
 /// Parameters of a dielectric boundary, turned into a [`Surface`] at each hit once the media
 /// on both sides (and so the relative IOR) are known, and the textured parameters read at
-/// the hit's texture coordinates.
+/// the hit's texture coordinates; an untextured boundary seen from air (the common case)
+/// uses the surface built once at load ([`DielectricParams::in_air`]) instead.
 #[derive(Clone, Debug)]
 pub struct DielectricParams {
     /// IOR of the object's interior.
