@@ -266,6 +266,9 @@ pub struct SurfaceBlend {
 }
 
 /// The scattering model of an object's boundary.
+// One per object (or two for a blend), read at every hit: a dielectric's surface built at load
+// (`DielectricParams::in_air`) is kept inline rather than behind a pointer.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum ObjectSurface {
     /// A dielectric whose relative IOR depends on the neighbouring interiors.
