@@ -121,6 +121,20 @@ impl Microfacet {
     /// first flipped to the upper hemisphere. Integrates to 1 over `m`. Zero at `w.z = 0`.
     #[must_use]
     pub fn visible_pdf(&self, w: Vec3, m: Vec3) -> f32 {
+        self.visible_pdf_with(w, m, |w| self.lambda(w), || self.d(m))
+    }
+
+    /// [`Microfacet::visible_pdf`] with Λ(w) and D(m) supplied by the caller when they are
+    /// needed (a caller that has them already passes closures returning them: the same bits,
+    /// as Λ is even in `w.z` and is computed here for the flipped `w`).
+    #[inline]
+    pub(crate) fn visible_pdf_with(
+        &self,
+        w: Vec3,
+        m: Vec3,
+        lambda: impl FnOnce(Vec3) -> f32,
+        d: impl FnOnce() -> f32,
+    ) -> f32 {
         let w = if w.z < 0.0 { -w } else { w };
         if !(w.z > 0.0) {
             return 0.0;
@@ -129,7 +143,7 @@ impl Microfacet {
         if !(wm > 0.0) {
             return 0.0;
         }
-        let v = self.g1(w) * wm * self.d(m) / w.z;
+        let v = 1.0 / (1.0 + lambda(w)) * wm * d() / w.z;
         if v.is_finite() {
             v
         } else {

@@ -177,9 +177,35 @@ fn check_unit(param: &str, v: f32) -> Result<(), BsdfError> {
     Ok(())
 }
 
+/// True when `v` lies in [0, 1] (false for NaN).
+#[inline]
+fn in_unit(v: f32) -> bool {
+    (0.0..=1.0).contains(&v)
+}
+
+/// True when every channel of `c` lies in [0, 1] (false for NaN), without branches.
+#[inline]
+fn rgb_in_unit(c: Rgb) -> bool {
+    in_unit(c[0]) & in_unit(c[1]) & in_unit(c[2])
+}
+
 /// Checks each channel of `c` lies in [0, 1]; the channel's name (`param.r`, ...) is formatted
-/// only for an error, so a valid colour costs no allocation (BSDFs are built per hit).
+/// only for an error, so a valid colour costs no allocation (BSDFs are built per hit). The
+/// all-in-range test is inlined and the error's construction is out of line
+/// ([`rgb_unit_error`]).
+#[inline]
 fn check_rgb_unit(param: &str, c: Rgb) -> Result<(), BsdfError> {
+    if rgb_in_unit(c) {
+        Ok(())
+    } else {
+        rgb_unit_error(param, c)
+    }
+}
+
+/// The error of [`check_rgb_unit`] for the first channel out of [0, 1] (or NaN).
+#[cold]
+#[inline(never)]
+fn rgb_unit_error(param: &str, c: Rgb) -> Result<(), BsdfError> {
     for (i, ch) in ["r", "g", "b"].iter().enumerate() {
         let v = c[i];
         if v.is_nan() || !(0.0..=1.0).contains(&v) {
@@ -187,6 +213,16 @@ fn check_rgb_unit(param: &str, c: Rgb) -> Result<(), BsdfError> {
         }
     }
     Ok(())
+}
+
+/// The checks of [`Surface::dielectric`] in their order, for parameters that failed its
+/// inlined all-valid test: returns the first error.
+#[cold]
+#[inline(never)]
+fn dielectric_error(eta: f32, roughness: f32, tint: Rgb) -> Result<(), BsdfError> {
+    check_positive("eta", eta)?;
+    check_unit("roughness", roughness)?;
+    rgb_unit_error("tint", tint)
 }
 
 fn check_positive(param: &str, v: f32) -> Result<(), BsdfError> {
@@ -348,6 +384,39 @@ fn dielectric_pdf(mf: &Microfacet, eta: f32, floor: f32, wo: Vec3, h: &HalfGeome
         (1.0 - f) * dv * h.wi_m.abs() / h.denom
     };
     finite_or_zero(v)
+}
+
+/// [`dielectric_f`] and [`dielectric_pdf`] together, for a sample: the Fresnel term, `D(wm)`
+/// and `Λ(wo)` are computed once for both (the same values, so the same bits as the two
+/// separate calls).
+fn dielectric_f_pdf(
+    mf: &Microfacet,
+    tint: Rgb,
+    eta: f32,
+    floor: f32,
+    wo: Vec3,
+    wi: Vec3,
+    h: &HalfGeometry,
+) -> (Rgb, f32) {
+    let f = fresnel_dielectric(h.wo_m, eta);
+    let d = mf.d(h.wm);
+    let lambda_o = mf.lambda(wo);
+    let g = 1.0 / (1.0 + lambda_o + mf.lambda(wi));
+    let fv = if h.reflect {
+        Rgb::splat(finite_or_zero(d * g * f / (4.0 * (wo.z * wi.z).abs())))
+    } else {
+        let v = d * (1.0 - f) * g * (h.wi_m * h.wo_m / (h.denom * wi.z * wo.z)).abs()
+            / (h.etap * h.etap);
+        finite_rgb(tint * v)
+    };
+    let q = reflect_probability(f, floor, wo.z);
+    let dv = mf.visible_pdf_with(wo, h.wm, |_| lambda_o, || d);
+    let pdf = if h.reflect {
+        q * dv / (4.0 * h.wo_m.abs())
+    } else {
+        (1.0 - q) * dv * h.wi_m.abs() / h.denom
+    };
+    (fv, finite_or_zero(pdf))
 }
 
 /// Attempts to build the BSDF sample record for a continuous lobe from `f` and `pdf`.
@@ -551,8 +620,7 @@ impl BaseLobe {
                 let wi = wi.try_normalize()?;
                 // Recompute f and pdf from (wo, wi) exactly as eval/pdf do (MIS consistency).
                 let h = dielectric_half(wo, wi, eta)?;
-                let fv = dielectric_f(&mf, tint, eta, wo, wi, &h);
-                let pdf = dielectric_pdf(&mf, eta, reflect_floor, wo, &h);
+                let (fv, pdf) = dielectric_f_pdf(&mf, tint, eta, reflect_floor, wo, wi, &h);
                 continuous_sample(wo, wi, fv, pdf, h.etap)
             }
             BaseLobe::DiffuseTransmission {
@@ -839,9 +907,12 @@ impl Surface {
         distribution: MicrofacetDistribution,
         tint: Rgb,
     ) -> Result<Surface, BsdfError> {
-        check_positive("eta", eta)?;
-        check_unit("roughness", roughness)?;
-        check_rgb_unit("tint", tint)?;
+        // Built at every boundary hit: one branch-free test of all five parameters (NaN fails
+        // every comparison), the error found out of line.
+        let valid = (eta > 0.0) & (eta < f32::INFINITY) & in_unit(roughness) & rgb_in_unit(tint);
+        if !valid {
+            dielectric_error(eta, roughness, tint)?;
+        }
         let alpha = roughness * roughness;
         Ok(Surface {
             base: BaseLobe::Dielectric {
@@ -1150,5 +1221,117 @@ impl Surface {
     #[must_use]
     pub fn albedo_hint(&self) -> Rgb {
         self.base.albedo_hint()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GGX: MicrofacetDistribution = MicrofacetDistribution::Ggx;
+
+    fn error_of(eta: f32, roughness: f32, tint: Rgb) -> Option<(String, u32, &'static str)> {
+        match Surface::dielectric(eta, roughness, GGX, tint) {
+            Ok(_) => None,
+            Err(BsdfError::InvalidParameter {
+                param,
+                value,
+                problem,
+            }) => Some((param, value.to_bits(), problem)),
+        }
+    }
+
+    #[test]
+    fn dielectric_accepts_the_edges_of_its_ranges() {
+        for (eta, r, tint) in [
+            (1.5, 0.0, Rgb::ZERO),
+            (1.5, 1.0, Rgb::ONE),
+            (f32::MAX, -0.0, Rgb::new(-0.0, 0.5, 1.0)),
+            (f32::from_bits(1), 0.5, Rgb::new(1.0, 0.0, -0.0)),
+        ] {
+            assert_eq!(error_of(eta, r, tint), None, "{eta} {r} {tint:?}");
+        }
+    }
+
+    #[test]
+    fn dielectric_errors_name_the_first_bad_parameter() {
+        let nan = f32::NAN;
+        let e = |p: &str, v: f32, m: &'static str| Some((p.to_string(), v.to_bits(), m));
+        let pos = "must be finite and > 0";
+        let unit = "must be in [0, 1]";
+        assert_eq!(error_of(nan, 0.5, Rgb::ONE), e("eta", nan, "is NaN"));
+        assert_eq!(error_of(0.0, 0.5, Rgb::ONE), e("eta", 0.0, pos));
+        assert_eq!(error_of(-0.0, 0.5, Rgb::ONE), e("eta", -0.0, pos));
+        assert_eq!(
+            error_of(f32::INFINITY, 0.5, Rgb::ONE),
+            e("eta", f32::INFINITY, pos)
+        );
+        // The first failing check wins, in the order eta, roughness, tint.
+        assert_eq!(error_of(-1.0, 2.0, Rgb::splat(nan)), e("eta", -1.0, pos));
+        assert_eq!(
+            error_of(1.5, nan, Rgb::splat(2.0)),
+            e("roughness", nan, "is NaN")
+        );
+        assert_eq!(
+            error_of(1.5, 1.0001, Rgb::ONE),
+            e("roughness", 1.0001, unit)
+        );
+        assert_eq!(
+            error_of(1.5, -1e-30, Rgb::ONE),
+            e("roughness", -1e-30, unit)
+        );
+        let tint = Rgb::new(0.5, 1.5, nan);
+        assert_eq!(error_of(1.5, 0.5, tint), e("tint.g", 1.5, unit));
+        let tint = Rgb::new(0.5, 1.0, nan);
+        assert_eq!(error_of(1.5, 0.5, tint), e("tint.b", nan, "is NaN"));
+        let tint = Rgb::new(-0.5, 1.0, 0.0);
+        assert_eq!(error_of(1.5, 0.5, tint), e("tint.r", -0.5, unit));
+    }
+
+    /// A small deterministic generator of uniform numbers in [0, 1).
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn dir(&mut self) -> Vec3 {
+            let z = 2.0 * self.next() - 1.0;
+            let phi = 2.0 * std::f32::consts::PI * self.next();
+            let s = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(s * phi.cos(), s * phi.sin(), z)
+        }
+    }
+
+    #[test]
+    fn dielectric_f_pdf_has_the_bits_of_f_and_pdf_apart() {
+        let mut rng = Lcg(27);
+        let tint = Rgb::new(0.9, 0.6, 0.3);
+        let mut checked = 0;
+        for distribution in [GGX, MicrofacetDistribution::Beckmann] {
+            for alpha in [0.002, 0.05, 0.3, 0.8, 1.0] {
+                let mf = Microfacet::new(distribution, alpha);
+                for (eta, floor) in [(1.33, 0.0), (1.0 / 1.33, 0.0), (1.5, 0.4), (2.4, 0.95)] {
+                    for _ in 0..400 {
+                        let (wo, wi) = (rng.dir(), rng.dir());
+                        let Some(h) = dielectric_half(wo, wi, eta) else {
+                            continue;
+                        };
+                        let (f, pdf) = dielectric_f_pdf(&mf, tint, eta, floor, wo, wi, &h);
+                        let f_apart = dielectric_f(&mf, tint, eta, wo, wi, &h);
+                        let pdf_apart = dielectric_pdf(&mf, eta, floor, wo, &h);
+                        for c in 0..3 {
+                            assert_eq!(f[c].to_bits(), f_apart[c].to_bits(), "{wo:?} {wi:?}");
+                        }
+                        assert_eq!(pdf.to_bits(), pdf_apart.to_bits(), "{wo:?} {wi:?}");
+                        checked += usize::from(pdf > 0.0);
+                    }
+                }
+            }
+        }
+        assert!(checked > 5000, "only {checked} pairs with a positive pdf");
     }
 }

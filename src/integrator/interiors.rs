@@ -2,10 +2,12 @@
 //! Images"): which objects a point is inside of, which one governs, and which boundary
 //! crossings are false intersections that only update the stack.
 
+use std::borrow::Cow;
+
 use crate::bsdf::Surface;
 use crate::math::Vec2;
 use crate::medium::{Coefficients, Medium, WalkMedium};
-use crate::scene::{Object, ObjectSurface, Scene};
+use crate::scene::{DielectricParams, Object, ObjectSurface, Scene};
 use crate::spectrum::Rgb;
 
 /// The deepest nesting of interiors tracked; deeper entries are ignored.
@@ -311,36 +313,50 @@ fn enter_walk(
     }
 }
 
-/// Builds the boundary BSDF of `obj` for the media meeting there, its textured parameters
-/// read at texture coordinates `uv` with a footprint `width_uv` wide; `u_mask` picks a
-/// blend's surface ([`ObjectSurface::pick`]).
+/// The boundary BSDF of `obj` for the media meeting there, its textured parameters read at
+/// texture coordinates `uv` with a footprint `width_uv` wide; `u_mask` picks a blend's surface
+/// ([`ObjectSurface::pick`]). Borrowed where the surface is fixed for the object (a fixed
+/// surface, or an untextured dielectric seen from air, built when the scene was loaded),
+/// built here otherwise.
+#[inline]
 pub(super) fn boundary_surface_at(
     obj: &Object,
     outside_ior: f32,
     uv: Vec2,
     width_uv: f32,
     u_mask: f32,
-) -> Option<Surface> {
+) -> Option<Cow<'_, Surface>> {
     match obj.surface.pick(uv, width_uv, u_mask) {
-        ObjectSurface::Blend(_) => None,
-        ObjectSurface::Fixed(s) => Some(s.clone()),
-        ObjectSurface::Null => None,
-        ObjectSurface::Textured(t) => t.at(uv, width_uv),
-        ObjectSurface::Dielectric(d) => {
-            let eta = d.ior / outside_ior.max(1e-6);
-            let s = Surface::dielectric(
-                eta,
-                d.roughness.eval(uv, width_uv),
-                d.distribution,
-                d.tint.eval(uv, width_uv),
-            )
-            .and_then(|s| s.with_reflect_floor(d.min_reflect_probability))
-            .ok()?;
-            match &d.coat {
-                Some(c) => c.over(s, uv, width_uv),
-                None => Some(s),
-            }
-        }
+        ObjectSurface::Dielectric(d) => match &d.in_air {
+            Some(s) if outside_ior == 1.0 => Some(Cow::Borrowed(s)),
+            _ => built_dielectric(d, outside_ior, uv, width_uv).map(Cow::Owned),
+        },
+        ObjectSurface::Fixed(s) => Some(Cow::Borrowed(s)),
+        ObjectSurface::Textured(t) => t.at(uv, width_uv).map(Cow::Owned),
+        ObjectSurface::Blend(_) | ObjectSurface::Null => None,
+    }
+}
+
+/// The dielectric boundary `d` built for an outside of IOR `outside_ior`, its textured
+/// parameters read at `uv` (footprint `width_uv`).
+fn built_dielectric(
+    d: &DielectricParams,
+    outside_ior: f32,
+    uv: Vec2,
+    width_uv: f32,
+) -> Option<Surface> {
+    let eta = d.ior / outside_ior.max(1e-6);
+    let s = Surface::dielectric(
+        eta,
+        d.roughness.eval(uv, width_uv),
+        d.distribution,
+        d.tint.eval(uv, width_uv),
+    )
+    .and_then(|s| s.with_reflect_floor(d.min_reflect_probability))
+    .ok()?;
+    match &d.coat {
+        Some(c) => c.over(s, uv, width_uv),
+        None => Some(s),
     }
 }
 
@@ -365,9 +381,120 @@ pub(super) fn is_false_intersection(
     }
 }
 
+/// Untextured dielectrics of every kind the loader builds: smooth, rough, index-matched, tinted,
+/// with a reflection floor, Beckmann, coated (rough and smooth coats over smooth and rough
+/// bases), a blend of two, and a diffuse boundary beside them.
+#[cfg(test)]
+pub(super) const DIELECTRICS: &str = r#"
+[camera]
+eye = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 40
+[film]
+width = 8
+height = 8
+spp = 1
+[[light]]
+type = "environment"
+radiance = 0.5
+[[object]]
+name = "smooth"
+shape = "sphere"
+center = [-2.0, 0.0, 0.0]
+radius = 0.3
+surface = { type = "dielectric", ior = 1.5 }
+[[object]]
+name = "skin"
+shape = "sphere"
+center = [-1.0, 0.0, 0.0]
+radius = 0.3
+surface = { type = "dielectric", ior = 1.4, roughness = 0.5477225575051661 }
+interior = { type = "homogeneous", albedo = 0.9, attenuation = 2.0 }
+[[object]]
+name = "matched"
+shape = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 0.3
+surface = { type = "dielectric", ior = 1.0, roughness = 0.4 }
+[[object]]
+name = "tinted"
+shape = "sphere"
+center = [1.0, 0.0, 0.0]
+radius = 0.3
+surface = { type = "dielectric", ior = 1.33, roughness = 0.2, tint = [0.9, 0.5, 0.25], min_reflect_probability = 0.4, distribution = "beckmann" }
+[[object]]
+name = "coated"
+shape = "sphere"
+center = [2.0, 0.0, 0.0]
+radius = 0.3
+surface = { type = "dielectric", ior = 1.6, roughness = 0.3, coat = { ior = 1.5, roughness = 0.2, weight = 0.7 } }
+[[object]]
+name = "clear coat"
+shape = "sphere"
+center = [0.0, 1.0, 0.0]
+radius = 0.3
+surface = { type = "dielectric", ior = 1.45, coat = { ior = 1.3, roughness = 0.25 } }
+[[object]]
+name = "blend"
+shape = "sphere"
+center = [0.0, -1.0, 0.0]
+radius = 0.3
+surface = { type = "blend", mask = 0.3, a = { type = "dielectric", ior = 1.5, roughness = 0.3 }, b = { type = "dielectric", ior = 1.5 } }
+[[object]]
+name = "diffuse"
+shape = "sphere"
+center = [0.0, 2.0, 0.0]
+radius = 0.3
+surface = { type = "lambertian", reflectance = 0.5 }
+"#;
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_surface_seen_from_air_is_the_one_a_hit_would_build() {
+        let scene = crate::scene::load_scene_str(DIELECTRICS, std::path::Path::new("d.toml"))
+            .expect("scene");
+        let (mut borrowed, mut built) = (0, 0);
+        for obj in &scene.objects {
+            for u_mask in [0.0, 0.5, 0.99] {
+                let ObjectSurface::Dielectric(d) = obj.surface.pick(Vec2::ZERO, 0.0, u_mask) else {
+                    continue;
+                };
+                assert!(d.in_air.is_some(), "{}: untextured", obj.name);
+                for outside_ior in [1.0, 1.33, 1.5, 0.999_999_9, 1.000_000_1] {
+                    for uv in [Vec2::ZERO, Vec2::new(0.25, 0.75)] {
+                        let got = boundary_surface_at(obj, outside_ior, uv, 0.0, u_mask);
+                        let want = built_dielectric(d, outside_ior, uv, 0.0);
+                        assert!(want.is_some(), "{}: builds", obj.name);
+                        assert_eq!(
+                            got.as_deref(),
+                            want.as_ref(),
+                            "{} from outside IOR {outside_ior}",
+                            obj.name
+                        );
+                        match got {
+                            Some(Cow::Borrowed(_)) => borrowed += 1,
+                            _ => built += 1,
+                        }
+                        // Only a hit from air borrows the surface built at load.
+                        assert_eq!(
+                            matches!(
+                                boundary_surface_at(obj, outside_ior, uv, 0.0, u_mask),
+                                Some(Cow::Borrowed(_))
+                            ),
+                            outside_ior == 1.0
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            borrowed >= 20 && built >= 80,
+            "{borrowed} borrowed, {built} built"
+        );
+    }
 
     #[test]
     fn the_stack_stays_small_enough_to_copy_inline() {

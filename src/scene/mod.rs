@@ -116,7 +116,8 @@ impl Roulette {
 
 /// Parameters of a dielectric boundary, turned into a [`Surface`] at each hit once the media
 /// on both sides (and so the relative IOR) are known, and the textured parameters read at
-/// the hit's texture coordinates.
+/// the hit's texture coordinates; an untextured boundary seen from air (the common case)
+/// uses the surface built once at load ([`DielectricParams::in_air`]) instead.
 #[derive(Clone, Debug)]
 pub struct DielectricParams {
     /// IOR of the object's interior.
@@ -132,6 +133,10 @@ pub struct DielectricParams {
     pub min_reflect_probability: f32,
     /// Optional coat.
     pub coat: Option<CoatParams>,
+    /// The surface against an outside of IOR exactly 1 (relative IOR `ior`), built once when
+    /// the scene is loaded if no parameter is textured (`None` otherwise): the surface every
+    /// hit from air builds, so hits can borrow it instead of building and checking it again.
+    pub in_air: Option<Surface>,
 }
 
 /// A coat over a boundary whose [`Surface`] is built at each hit: the coat itself, with its
@@ -261,6 +266,9 @@ pub struct SurfaceBlend {
 }
 
 /// The scattering model of an object's boundary.
+// One per object (or two for a blend), read at every hit: a dielectric's surface built at load
+// (`DielectricParams::in_air`) is kept inline rather than behind a pointer.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum ObjectSurface {
     /// A dielectric whose relative IOR depends on the neighbouring interiors.

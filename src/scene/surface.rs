@@ -151,18 +151,22 @@ fn build_named(
             let test = Surface::dielectric(ior, constant_scalar(&roughness), dist, constant(&tint))
                 .and_then(|s| s.with_reflect_floor(min_reflect_probability))
                 .map_err(|e| bad(&e))?;
-            with_coat(test)?;
-            Ok((
-                ObjectSurface::Dielectric(DielectricParams {
-                    ior,
-                    roughness,
-                    distribution: dist,
-                    tint,
-                    min_reflect_probability,
-                    coat,
-                }),
+            let in_air = with_coat(test)?;
+            let mut params = DielectricParams {
                 ior,
-            ))
+                roughness,
+                distribution: dist,
+                tint,
+                min_reflect_probability,
+                coat,
+                in_air: None,
+            };
+            // Untextured: the surface a hit from air builds is this one (the relative IOR
+            // `ior / 1` is `ior`; the constants are the values read).
+            if !params.is_textured() {
+                params.in_air = Some(in_air);
+            }
+            Ok((ObjectSurface::Dielectric(params), ior))
         }
         SurfaceDesc::DiffuseTransmission(d) => {
             let r = colour("reflectance", d.reflectance.as_ref(), Rgb::splat(0.0))?;
