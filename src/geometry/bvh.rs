@@ -764,46 +764,33 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
     /// triangle ([`TriangleBlock::new`]), so they hit, or are unsure, exactly when lane 0 is,
     /// at its distance, and [`Hits4::nearest`](super::triangle::Hits4::nearest) keeps the lowest of equally near lanes. The
     /// answer is the masked test's, without the mask and the block's count in the loop.
-    ///
-    /// The blocks are tested two at a time ([`ShearedRay::intersect8`]; a leaf's last block
-    /// alone in both halves): the nearest lane is the one the blocks' tests in order keep
-    /// (the lowest of equally near lanes, so a block tested twice answers from its first
-    /// half), and an unsure lane sends the pair's triangles one at a time through
-    /// [`Self::visit`] in position order, which is what the blocks' tests in order amount to.
-    /// One eight-lane test per leaf of up to eight triangles, and one copy of the test in the
-    /// traversal's code for each place it tests a leaf.
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, mut t_max: f32) -> f32 {
         let end = leaf.first + leaf.count;
         let (mut block, mut first) = (leaf.block, leaf.first);
-        loop {
-            let left = end - first;
-            let second = block + u32::from(left > LEAF_BLOCK);
-            let g = self.geometry;
-            let h = self.sr.intersect8(g.block(block), g.block(second), t_max);
+        while first < end {
+            let h = self.sr.intersect4(self.geometry.block(block), 15, t_max);
             if h.unsure != 0 {
-                for lane in 0..left.min(2 * LEAF_BLOCK) {
+                let n = (end - first).min(LEAF_BLOCK);
+                for lane in 0..n {
                     let slot = first + lane;
-                    if let Some(hit) = test_slot(g, self.sr, slot, t_max) {
-                        g.prefetch_prim(slot as usize);
-                        *self.best = Some((slot, BlockLane::new(block + lane / 4, lane & 3), hit));
+                    if let Some(hit) = test_slot(self.geometry, self.sr, slot, t_max) {
+                        self.geometry.prefetch_prim(slot as usize);
+                        *self.best = Some((slot, BlockLane::new(block, lane), hit));
                         t_max = hit.t;
                     }
                 }
             } else if h.hit != 0 {
                 let (lane, hit) = h.nearest();
-                let lane = lane as u32;
-                let slot = first + lane;
-                g.prefetch_prim(slot as usize);
-                *self.best = Some((slot, BlockLane::new(block + lane / 4, lane & 3), hit));
+                let slot = first + lane as u32;
+                self.geometry.prefetch_prim(slot as usize);
+                *self.best = Some((slot, BlockLane::new(block, lane as u32), hit));
                 t_max = hit.t;
             }
-            if left <= 2 * LEAF_BLOCK {
-                return t_max;
-            }
-            block += 2;
-            first += 2 * LEAF_BLOCK;
+            block += 1;
+            first += LEAF_BLOCK;
         }
+        t_max
     }
 }
 
@@ -849,31 +836,24 @@ impl LeafVisitor for AnyTriangle<'_, '_> {
     /// The leaf's triangles four at a time ([`ShearedRay::intersect4`]); a block with an
     /// edge function exactly zero one triangle at a time ([`Self::visit`], the exact path).
     /// Every lane of a block is tested, as in [`NearestTriangle::visit_leaf`].
-    /// Two blocks at a time ([`ShearedRay::intersect8`]), as in
-    /// [`NearestTriangle::visit_leaf`].
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, t_max: f32) -> f32 {
         let end = leaf.first + leaf.count;
         let (mut block, mut first) = (leaf.block, leaf.first);
-        loop {
-            let left = end - first;
-            let second = block + u32::from(left > LEAF_BLOCK);
-            let g = self.geometry;
-            let h = self.sr.intersect8(g.block(block), g.block(second), t_max);
+        while first < end {
+            let h = self.sr.intersect4(self.geometry.block(block), 15, t_max);
             let found = h.hit != 0
                 || (h.unsure != 0
-                    && (first..first + left.min(2 * LEAF_BLOCK))
-                        .any(|slot| test_slot(g, self.sr, slot, t_max).is_some()));
+                    && (first..first + (end - first).min(LEAF_BLOCK))
+                        .any(|slot| test_slot(self.geometry, self.sr, slot, t_max).is_some()));
             if found {
                 *self.found = true;
                 return 0.0;
             }
-            if left <= 2 * LEAF_BLOCK {
-                return t_max;
-            }
-            block += 2;
-            first += 2 * LEAF_BLOCK;
+            block += 1;
+            first += LEAF_BLOCK;
         }
+        t_max
     }
 }
 
