@@ -833,27 +833,35 @@ impl LeafVisitor for AnyTriangle<'_, '_> {
         }
     }
 
-    /// The leaf's triangles four at a time ([`ShearedRay::intersect4`]); a block with an
-    /// edge function exactly zero one triangle at a time ([`Self::visit`], the exact path).
-    /// Every lane of a block is tested, as in [`NearestTriangle::visit_leaf`].
+    /// The leaf's triangles eight at a time, two blocks at once ([`ShearedRay::intersect8`];
+    /// a leaf's last block alone in both halves, its lanes twice); a pair with an edge
+    /// function exactly zero one triangle at a time ([`Self::visit`], the exact path). Every
+    /// lane of a block is tested, as in [`NearestTriangle::visit_leaf`]; any hit ends the
+    /// query, so which lane hits does not matter. (The closest-hit query keeps the four-lane
+    /// test: in eight lanes it was slower on the recorded rays, docs/BENCHMARKS.md.)
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, t_max: f32) -> f32 {
         let end = leaf.first + leaf.count;
         let (mut block, mut first) = (leaf.block, leaf.first);
-        while first < end {
-            let h = self.sr.intersect4(self.geometry.block(block), 15, t_max);
+        loop {
+            let left = end - first;
+            let second = block + u32::from(left > LEAF_BLOCK);
+            let g = self.geometry;
+            let h = self.sr.intersect8(g.block(block), g.block(second), t_max);
             let found = h.hit != 0
                 || (h.unsure != 0
-                    && (first..first + (end - first).min(LEAF_BLOCK))
-                        .any(|slot| test_slot(self.geometry, self.sr, slot, t_max).is_some()));
+                    && (first..first + left.min(2 * LEAF_BLOCK))
+                        .any(|slot| test_slot(g, self.sr, slot, t_max).is_some()));
             if found {
                 *self.found = true;
                 return 0.0;
             }
-            block += 1;
-            first += LEAF_BLOCK;
+            if left <= 2 * LEAF_BLOCK {
+                return t_max;
+            }
+            block += 2;
+            first += 2 * LEAF_BLOCK;
         }
-        t_max
     }
 }
 

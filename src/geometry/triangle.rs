@@ -361,6 +361,170 @@ impl ShearedRay {
     }
 }
 
+/// The eight lanes of [`ShearedRay::intersect8`]: lanes 0–3 are the first block's, lanes
+/// 4–7 the second's.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Hits8 {
+    // The lanes' hits, read by the tests (the occlusion query reads only the bits).
+    #[cfg_attr(not(test), allow(dead_code))]
+    t: [f32; 8],
+    #[cfg_attr(not(test), allow(dead_code))]
+    b: [[f32; 8]; 3],
+    /// Bit `i`: lane `i` has no edge function exactly zero and hits with `0 < t < t_max`.
+    pub(crate) hit: u32,
+    /// Bit `i`: lane `i` has an edge function exactly zero in f32 (not in `hit`).
+    pub(crate) unsure: u32,
+}
+
+impl Hits8 {
+    /// As [`Hits4::nearest`], over eight lanes: the lane of the nearest hit in `hit`, the
+    /// lowest among equal distances (the one a visit of the two blocks in order keeps, as the
+    /// second block accepts only distances below the first's nearest). `hit` must not be
+    /// empty. (The occlusion query needs only the bits; the tests compare the lanes.)
+    #[cfg(test)]
+    pub(crate) fn nearest(&self) -> (usize, TriangleHit) {
+        let t = &self.t;
+        let mut best = (self.hit.trailing_zeros() & 7) as usize;
+        let mut rest = self.hit & self.hit.wrapping_sub(1);
+        while rest != 0 {
+            let i = (rest.trailing_zeros() & 7) as usize;
+            if t[i] < t[best] {
+                best = i;
+            }
+            rest &= rest - 1;
+        }
+        let [b0, b1, b2] = self.b.map(|b| b[best]);
+        (
+            best,
+            TriangleHit {
+                t: t[best],
+                b0,
+                b1,
+                b2,
+            },
+        )
+    }
+}
+
+impl ShearedRay {
+    /// [`ShearedRay::intersect4`] on every lane of two blocks at once (`lo` in lanes 0–3, `hi`
+    /// in lanes 4–7; they may be the same block, whose lanes then come twice): with AVX, one eight-lane pass of the same IEEE operations per
+    /// lane, in the same order (no FMA), so that every lane's hit and `unsure` bit are the
+    /// four-lane test's bit for bit; the loads, the shear constants, the sign tests and the
+    /// caller's loop step are paid once for eight triangles. Without AVX, the two four-lane
+    /// tests.
+    #[inline(always)]
+    pub(crate) fn intersect8(&self, lo: &TriangleBlock, hi: &TriangleBlock, t_max: f32) -> Hits8 {
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+        {
+            use std::arch::x86_64::{
+                __m128, __m256, _mm256_add_ps, _mm256_and_ps, _mm256_cmp_ps, _mm256_div_ps,
+                _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set1_ps, _mm256_set_m128,
+                _mm256_setzero_ps, _mm256_sub_ps, _mm256_xor_ps, _CMP_EQ_OQ, _CMP_GT_OQ,
+                _CMP_LT_OQ,
+            };
+            // SAFETY: AVX is enabled at compile time (the cfg above), so these are plain
+            // register operations; `kx`, `ky` and `kz` are a permutation of 0, 1, 2 (set by
+            // `new`), so every read is a stored lane vector of a block.
+            unsafe {
+                let both = |x: Vec4| _mm256_set_m128(__m128::from(x), __m128::from(x));
+                let (okx, oky, okz) = (both(self.okx), both(self.oky), both(self.okz));
+                let (sxv, syv) = (both(self.sxv), both(self.syv));
+                let sheared = |j: usize| {
+                    let load = |k: usize| -> __m256 {
+                        _mm256_set_m128(
+                            __m128::from(*hi.v[j].get_unchecked(k)),
+                            __m128::from(*lo.v[j].get_unchecked(k)),
+                        )
+                    };
+                    let px = _mm256_sub_ps(load(self.kx), okx);
+                    let py = _mm256_sub_ps(load(self.ky), oky);
+                    let pz = _mm256_sub_ps(load(self.kz), okz);
+                    (
+                        _mm256_sub_ps(px, _mm256_mul_ps(sxv, pz)),
+                        _mm256_sub_ps(py, _mm256_mul_ps(syv, pz)),
+                        pz,
+                    )
+                };
+                let (xa, ya, za) = sheared(0);
+                let (xb, yb, zb) = sheared(1);
+                let (xc, yc, zc) = sheared(2);
+                let edge = |p: __m256, q: __m256, r: __m256, s: __m256| {
+                    _mm256_sub_ps(_mm256_mul_ps(p, q), _mm256_mul_ps(r, s))
+                };
+                let u = edge(xc, yb, yc, xb);
+                let v = edge(xa, yc, ya, xc);
+                let w = edge(xb, ya, yb, xa);
+                let zero = _mm256_setzero_ps();
+                let unsure = _mm256_movemask_ps(_mm256_or_ps(
+                    _mm256_or_ps(
+                        _mm256_cmp_ps::<_CMP_EQ_OQ>(u, zero),
+                        _mm256_cmp_ps::<_CMP_EQ_OQ>(v, zero),
+                    ),
+                    _mm256_cmp_ps::<_CMP_EQ_OQ>(w, zero),
+                )) as u32;
+                // As in `intersect4`: mixed sign bits miss ([`same_sign_bits`]).
+                let differ =
+                    _mm256_movemask_ps(_mm256_or_ps(_mm256_xor_ps(u, v), _mm256_xor_ps(u, w)))
+                        as u32;
+                let inside = !differ & 0xff;
+                if inside & !unsure == 0 {
+                    return Hits8 {
+                        t: [0.0; 8],
+                        b: [[0.0; 8]; 3],
+                        hit: 0,
+                        unsure,
+                    };
+                }
+                let sz = _mm256_set1_ps(self.sz);
+                let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
+                let tn = _mm256_add_ps(
+                    _mm256_add_ps(
+                        _mm256_mul_ps(u, _mm256_mul_ps(za, sz)),
+                        _mm256_mul_ps(v, _mm256_mul_ps(zb, sz)),
+                    ),
+                    _mm256_mul_ps(w, _mm256_mul_ps(zc, sz)),
+                );
+                let inv = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+                let t = _mm256_mul_ps(tn, inv);
+                let in_range = _mm256_movemask_ps(_mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(t_max)),
+                )) as u32;
+                let lanes = |x: __m256| std::mem::transmute::<__m256, [f32; 8]>(x);
+                Hits8 {
+                    t: lanes(t),
+                    b: [
+                        lanes(_mm256_mul_ps(u, inv)),
+                        lanes(_mm256_mul_ps(v, inv)),
+                        lanes(_mm256_mul_ps(w, inv)),
+                    ],
+                    hit: !unsure & inside & in_range & 0xff,
+                    unsure,
+                }
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+        {
+            let (lo, hi) = (
+                self.intersect4(lo, 15, t_max),
+                self.intersect4(hi, 15, t_max),
+            );
+            let join = |a: Vec4, b: Vec4| {
+                let (a, b) = (a.to_array(), b.to_array());
+                [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
+            };
+            Hits8 {
+                t: join(lo.t, hi.t),
+                b: [0, 1, 2].map(|k| join(lo.b[k], hi.b[k])),
+                hit: lo.hit | hi.hit << 4,
+                unsure: lo.unsure | hi.unsure << 4,
+            }
+        }
+    }
+}
+
 /// The lanes (bit `i` for lane `i`, bits 0–3) where `u`, `v` and `w` have the same sign bit:
 /// neither `u ^ v` nor `u ^ w` has its sign bit set (two `xor`s, an `or` and one sign mask,
 /// where comparing each with zero both ways takes six compares).
@@ -730,6 +894,112 @@ mod tests {
             "{unsure} lanes with an edge function exactly zero"
         );
         assert!(nearest_not_first > 1_000, "{nearest_not_first}");
+    }
+
+    /// [`ShearedRay::intersect8`] on two blocks is the two blocks' [`ShearedRay::intersect4`]
+    /// (every lane) bit for bit: the same `hit` and `unsure` bits, the same distance and
+    /// barycentrics in every hit lane, and [`Hits8::nearest`] the lane the two blocks' tests
+    /// in order keep (the second block with the first's nearest as its `t_max`), on blocks of
+    /// one to four triangles, a third on a grid (edge functions exactly zero) and some with
+    /// the second block repeating a triangle of the first (equal distances across the blocks).
+    /// Fails if a lane's operations differ, a block lands in the wrong lanes, or ties go to
+    /// the second block.
+    #[test]
+    fn the_eight_lane_test_is_the_two_blocks_four_lane_tests() {
+        let mut next = uniform_stream(0x5851_f42d_4c95_7f2d);
+        let (mut hit_lanes, mut unsure_pairs, mut second_wins, mut ties) = (0, 0, 0, 0);
+        for i in 0..100_000 {
+            let grid = i % 3 == 0;
+            let mut coord = || coordinate(&mut next, grid);
+            let mut tri = || [(); 3].map(|_| Vec3::new(coord(), coord(), coord()));
+            let first: Vec<[Vec3; 3]> = (0..4).map(|_| tri()).collect();
+            let mut second: Vec<[Vec3; 3]> = (0..1 + i % 4).map(|_| tri()).collect();
+            if i % 4 == 1 {
+                // The same triangle in both blocks: equal distances in lanes 0 and 4 + 0.
+                second[0] = first[0];
+            }
+            let o = Vec3::new(coord(), coord(), coord()) * 2.0;
+            let target = Vec3::new(coord(), coord(), coord());
+            let Some(d) = (target - o).try_normalize() else {
+                continue;
+            };
+            let ray = Ray::new(o, d);
+            let t_max = if i % 7 == 0 { 2.0 } else { f32::INFINITY };
+            let sr = ShearedRay::new(&ray);
+            let pair = [TriangleBlock::new(&first), TriangleBlock::new(&second)];
+            let h = sr.intersect8(&pair[0], &pair[1], t_max);
+            let (lo, hi) = (
+                sr.intersect4(&pair[0], 15, t_max),
+                sr.intersect4(&pair[1], 15, t_max),
+            );
+            assert_eq!(h.unsure, lo.unsure | hi.unsure << 4, "case {i}: unsure");
+            assert_eq!(h.hit, lo.hit | hi.hit << 4, "case {i}: hit");
+            for lane in 0..8 {
+                if h.hit & (1 << lane) == 0 {
+                    continue;
+                }
+                let four = if lane < 4 { &lo } else { &hi };
+                let l = lane & 3;
+                let want = [four.t, four.b[0], four.b[1], four.b[2]].map(|x| x.to_array()[l]);
+                let got = [h.t[lane], h.b[0][lane], h.b[1][lane], h.b[2][lane]];
+                assert_eq!(
+                    got.map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "case {i}, lane {lane}"
+                );
+                hit_lanes += 1;
+            }
+            unsure_pairs += usize::from(h.unsure != 0);
+            // One block in both halves (a leaf's last block alone): its lanes twice, and the
+            // nearest in the first half, as the four-lane test's.
+            let same = sr.intersect8(&pair[0], &pair[0], t_max);
+            assert_eq!(same.unsure, lo.unsure * 0x11, "case {i}: one block, unsure");
+            assert_eq!(same.hit, lo.hit * 0x11, "case {i}: one block, hit");
+            if lo.hit != 0 {
+                let ((l, g), (l4, g4)) = (same.nearest(), lo.nearest());
+                assert_eq!(
+                    (l, bits(Some(g))),
+                    (l4, bits(Some(g4))),
+                    "case {i}: one block"
+                );
+            }
+            if h.unsure != 0 || h.hit == 0 {
+                continue;
+            }
+            // The two blocks in order: the second accepts only distances below the first's
+            // nearest.
+            let in_order = if lo.hit != 0 {
+                let (l, near) = lo.nearest();
+                let later = sr.intersect4(&pair[1], 15, near.t);
+                ties += usize::from(hi.hit != 0 && later.hit == 0 && hi.nearest().1.t == near.t);
+                if later.hit != 0 {
+                    let (l2, h2) = later.nearest();
+                    (l2 + 4, h2)
+                } else {
+                    (l, near)
+                }
+            } else {
+                let (l2, h2) = hi.nearest();
+                (l2 + 4, h2)
+            };
+            let (l, g) = h.nearest();
+            second_wins += usize::from(l >= 4 && lo.hit != 0);
+            assert_eq!(
+                (l, bits(Some(g))),
+                (in_order.0, bits(Some(in_order.1))),
+                "case {i}: nearest"
+            );
+        }
+        assert!(hit_lanes > 10_000, "{hit_lanes} lane hits");
+        assert!(
+            unsure_pairs > 1_000,
+            "{unsure_pairs} pairs with an unsure lane"
+        );
+        assert!(
+            second_wins > 500,
+            "{second_wins} pairs won by the second block"
+        );
+        assert!(ties > 500, "{ties} ties between the blocks");
     }
 
     #[test]
