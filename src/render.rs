@@ -378,26 +378,24 @@ fn render_tile_pass(
                 }
             }
             let pixel = PixelSeed::new(seed, x, film_y);
-            tile.add_samples(
-                x,
-                y,
-                s0..s1,
-                #[inline(always)]
-                |s| {
-                    let mut sampler = PixelSampler::in_pixel(&pixel, s);
-                    let film_pos = Vec2::new(x as f32, film_y as f32) + sampler.next_2d();
-                    let lens = sampler.next_2d();
-                    let ray = scene.camera.generate_ray(film_pos, lens);
-                    let r = trace_path(scene, ray, &mut sampler, &mut stats);
-                    PixelSample {
+            for s in s0..s1 {
+                let mut sampler = PixelSampler::in_pixel(&pixel, s);
+                let film_pos = Vec2::new(x as f32, film_y as f32) + sampler.next_2d();
+                let lens = sampler.next_2d();
+                let ray = scene.camera.generate_ray(film_pos, lens);
+                let r = trace_path(scene, ray, &mut sampler, &mut stats);
+                tile.add_sample(
+                    x,
+                    y,
+                    &PixelSample {
                         radiance: r.radiance,
                         albedo: r.albedo,
                         normal: r.normal,
                         depth: r.depth,
                         lights: r.lights,
-                    }
-                },
-            );
+                    },
+                );
+            }
         }
     }
     Some(stats)

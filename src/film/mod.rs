@@ -193,43 +193,6 @@ impl FilmTile {
         }
     }
 
-    /// Adds the samples `make(k)` for `k` in `samples`, in that order, to pixel (`x`, `y`) in
-    /// film coordinates: the same accumulator bits as [`FilmTile::add_sample`] on each (the
-    /// same samples dropped and counted), with the radiance of the run summed in `f64` pairs
-    /// and turned into the fixed-point sums once (see `pixel::RunSums`).
-    #[inline]
-    pub fn add_samples(
-        &mut self,
-        x: u32,
-        y: u32,
-        samples: std::ops::Range<u32>,
-        mut make: impl FnMut(u32) -> PixelSample,
-    ) {
-        let (dx, dy) = (x.wrapping_sub(self.x0), y.wrapping_sub(self.y0));
-        if dx >= self.width || dy >= self.height {
-            for k in samples {
-                make(k);
-                self.dropped += 1;
-            }
-            return;
-        }
-        let i = dy as usize * self.width as usize + dx as usize;
-        let layers = self.layers.count();
-        let mut run = pixel::RunSums::default();
-        for k in samples {
-            let s = make(k);
-            if !pixel::accepts(&s, layers) {
-                self.dropped += 1;
-                continue;
-            }
-            self.pixels[i].add_in_run(&mut run, &s);
-            if layers > 0 {
-                self.layers.add(i, &s);
-            }
-        }
-        self.pixels[i].fold_run(&mut run);
-    }
-
     /// Samples dropped by this tile since it was made.
     #[must_use]
     pub fn dropped_samples(&self) -> u64 {
@@ -642,69 +605,5 @@ impl Film {
         }
         self.dropped += other.dropped;
         Ok(())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::sampling::Rng;
-
-    #[test]
-    fn a_tile_adds_a_run_of_samples_as_it_adds_them_one_at_a_time() {
-        let names = ["sun".to_string(), "sky".to_string()];
-        let film = Film::with_light_layers(40, 30, &names).unwrap();
-        let mut rng = Rng::new(3, 8);
-        let make = |rng: &mut Rng, k: u32| -> PixelSample {
-            let mut v = || (rng.next_f32() - 0.25) * 2f32.powi((rng.next_u32() % 40) as i32 - 24);
-            let mut s = PixelSample {
-                radiance: Rgb([v(), v(), v()]),
-                albedo: Rgb([v(), 0.0, v()]),
-                normal: Vec3::new(0.0, v(), 1.0),
-                depth: if k.is_multiple_of(3) {
-                    f32::INFINITY
-                } else {
-                    v().abs()
-                },
-                lights: [Rgb::ZERO; MAX_LIGHT_LAYERS],
-            };
-            s.lights[0] = Rgb([v(), v(), v()]);
-            s.lights[1] = Rgb([v(), 0.0, v()]);
-            // Dropped samples: non-finite radiance, a light beyond the film's largest sample.
-            match k % 17 {
-                5 => s.radiance.0[1] = f32::NAN,
-                11 => s.lights[1].0[2] = 1.0e10,
-                _ => {}
-            }
-            s
-        };
-        for (x, y) in [(10, 20), (12, 23), (15, 16), (9, 20), (25, 20)] {
-            let mut one = film.tile(10, 16, 8, 8).unwrap();
-            let mut runs = one.clone();
-            for (first, last) in [(0u32, 1u32), (1, 9), (9, 64), (64, 200)] {
-                let seed = rng.clone();
-                for k in first..last {
-                    one.add_sample(x, y, &make(&mut rng, k));
-                }
-                rng = seed;
-                let mut calls = Vec::new();
-                runs.add_samples(x, y, first..last, |k| {
-                    calls.push(k);
-                    make(&mut rng, k)
-                });
-                assert_eq!(calls, (first..last).collect::<Vec<_>>());
-            }
-            assert_eq!(one.pixels, runs.pixels, "pixel ({x}, {y})");
-            assert_eq!(one.layers, runs.layers, "pixel ({x}, {y})");
-            assert_eq!(one.dropped, runs.dropped, "pixel ({x}, {y})");
-            let inside = (10..18).contains(&x) && (16..24).contains(&y);
-            // Outside the tile all 200 are dropped; inside only the bad ones (2 in 17).
-            let want = if inside { 2 * 200 / 17 } else { 200 };
-            assert!(
-                runs.dropped.abs_diff(want) <= 2,
-                "pixel ({x}, {y}): {}",
-                runs.dropped
-            );
-        }
     }
 }
