@@ -90,10 +90,19 @@ fn footprint_at(obj: &Object, cone: RayCone, hit: &Hit, dir: Vec3) -> f32 {
 /// non-delta lobe somewhere: a textured roughness or coat weight at its largest texel, either
 /// look of a blend. Untextured surfaces answer exactly as their one BSDF does.
 fn may_be_rough(obj: &Object, outside_ior: f32) -> bool {
-    fn look(s: &ObjectSurface, outside_ior: f32) -> bool {
+    rough_somewhere::<true>(obj, outside_ior)
+}
+
+/// [`may_be_rough`], with an untextured dielectric seen from air answered from the surface
+/// built at load (`BORROW_IN_AIR`, the renderer's way) or built again for the query (the
+/// general way, which the tests compare the borrowed answer against).
+fn rough_somewhere<const BORROW_IN_AIR: bool>(obj: &Object, outside_ior: f32) -> bool {
+    let look = |s: &ObjectSurface| -> bool {
         match s {
             // Untextured, seen from air: the surface every hit borrows.
-            ObjectSurface::Dielectric(d) if outside_ior == 1.0 && d.in_air.is_some() => {
+            ObjectSurface::Dielectric(d)
+                if BORROW_IN_AIR && outside_ior == 1.0 && d.in_air.is_some() =>
+            {
                 d.in_air.as_ref().is_some_and(|s| !s.is_delta())
             }
             ObjectSurface::Dielectric(d) => {
@@ -114,10 +123,10 @@ fn may_be_rough(obj: &Object, outside_ior: f32) -> bool {
             ObjectSurface::Textured(_) => true,
             ObjectSurface::Blend(_) | ObjectSurface::Null => false,
         }
-    }
+    };
     match &obj.surface {
-        ObjectSurface::Blend(b) => look(&b.a, outside_ior) || look(&b.b, outside_ior),
-        s => look(s, outside_ior),
+        ObjectSurface::Blend(b) => look(&b.a) || look(&b.b),
+        s => look(s),
     }
 }
 
@@ -398,36 +407,6 @@ pub(super) fn guided_connection(
 mod tests {
     use super::*;
 
-    /// [`may_be_rough`] as it was before untextured dielectrics were built at load: every
-    /// dielectric look built for `outside_ior` (textured parameters at their largest).
-    fn may_be_rough_built(obj: &Object, outside_ior: f32) -> bool {
-        fn look(s: &ObjectSurface, outside_ior: f32) -> bool {
-            match s {
-                ObjectSurface::Dielectric(d) => {
-                    let eta = d.ior / outside_ior.max(1e-6);
-                    let Ok(s) =
-                        Surface::dielectric(eta, d.roughness.max(), d.distribution, Rgb::ONE)
-                    else {
-                        return false;
-                    };
-                    match &d.coat {
-                        Some(c) => s
-                            .with_prepared_coat(&c.coat, c.weight.max())
-                            .is_ok_and(|s| !s.is_delta()),
-                        None => !s.is_delta(),
-                    }
-                }
-                ObjectSurface::Fixed(s) => !s.is_delta(),
-                ObjectSurface::Textured(_) => true,
-                ObjectSurface::Blend(_) | ObjectSurface::Null => false,
-            }
-        }
-        match &obj.surface {
-            ObjectSurface::Blend(b) => look(&b.a, outside_ior) || look(&b.b, outside_ior),
-            s => look(s, outside_ior),
-        }
-    }
-
     #[test]
     fn roughness_from_air_is_answered_as_the_built_surfaces_answer() {
         let scene = crate::scene::load_scene_str(
@@ -441,7 +420,7 @@ mod tests {
                 let fast = may_be_rough(obj, outside_ior);
                 assert_eq!(
                     fast,
-                    may_be_rough_built(obj, outside_ior),
+                    rough_somewhere::<false>(obj, outside_ior),
                     "{} from outside IOR {outside_ior}",
                     obj.name
                 );
