@@ -123,49 +123,6 @@ fn scramble_key(seed: u32, set: u32) -> Int4 {
     hash_int4(seed ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into())
 }
 
-/// The multiplier of a hashed number's key ([`PixelSampler::next_1d`]): the golden ratio's
-/// 64-bit fraction.
-const HASH_KEY_STEP: u64 = 0x9e37_79b9_7f4a_7c15;
-
-/// The hashed number of a sample whose hash is `base`, for the key `key` of its vertex and
-/// index ([`PixelSampler::hashed_key`]).
-#[inline]
-fn hashed_number(base: u64, key: u64) -> f32 {
-    bits_to_unit_f32((mix64(base ^ key) >> 32) as u32)
-}
-
-/// Numbers set aside by [`PixelSampler::defer`], in their order in the sample stream.
-#[derive(Clone, Copy, Debug)]
-pub enum Deferred<const N: usize> {
-    /// Hashed numbers, made when asked: the sample's hash and the first number's key.
-    Hashed {
-        /// The sample's hash ([`PixelSampler`]'s `hash_base`).
-        base: u64,
-        /// The key of the first number; the `i`-th one's is `i` steps on.
-        key: u64,
-    },
-    /// Numbers drawn when set aside (some of them from the Sobol sequence).
-    Drawn([f32; N]),
-}
-
-impl<const N: usize> Deferred<N> {
-    /// The `i`-th number set aside (`i < N`; 0 past the end).
-    #[inline]
-    #[must_use]
-    pub fn at(&self, i: usize) -> f32 {
-        if i >= N {
-            return 0.0;
-        }
-        match self {
-            Deferred::Hashed { base, key } => hashed_number(
-                *base,
-                key.wrapping_add((i as u64).wrapping_mul(HASH_KEY_STEP)),
-            ),
-            Deferred::Drawn(u) => u.get(i).copied().unwrap_or(0.0),
-        }
-    }
-}
-
 /// The part of a [`PixelSampler`] that depends on the pixel only (not on the sample): made
 /// once per pixel by a render loop that takes many samples there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -310,35 +267,9 @@ impl PixelSampler {
             return self.next_sobol(j);
         }
         self.used = j.saturating_add(1);
-        hashed_number(self.hash_base, self.hashed_key(j))
-    }
-
-    /// The key the hashed number `j` of the current vertex is made from ([`hashed_number`]):
-    /// `(vertex << 32 | j) · HASH_KEY_STEP`, so number `j + 1`'s key is this one plus
-    /// [`HASH_KEY_STEP`] (the two halves do not overlap, and the product wraps).
-    #[inline]
-    fn hashed_key(&self, j: u32) -> u64 {
-        ((u64::from(self.vertex) << 32) | u64::from(j)).wrapping_mul(HASH_KEY_STEP)
-    }
-
-    /// The next `N` numbers, set aside: [`Deferred::at`]`(i)` is the number the `i`-th of `N`
-    /// calls of [`Self::next_1d`] would return now, and the sampler moves on past them. When
-    /// all `N` are hashed numbers (the sample's Sobol numbers of the vertex are used up),
-    /// nothing is computed here and each is hashed when asked, with no test of the vertex's
-    /// Sobol dimensions per number; otherwise they are drawn now, one after the other.
-    #[inline]
-    pub fn defer<const N: usize>(&mut self) -> Deferred<N> {
-        let j = self.used;
-        let n = N as u32;
-        if j >= self.sobol_dims && j <= u32::MAX - n {
-            self.used = j + n;
-            Deferred::Hashed {
-                base: self.hash_base,
-                key: self.hashed_key(j),
-            }
-        } else {
-            Deferred::Drawn(std::array::from_fn(|_| self.next_1d()))
-        }
+        let key = (u64::from(self.vertex) << 32) | u64::from(j);
+        let bits = mix64(self.hash_base ^ key.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        bits_to_unit_f32((bits >> 32) as u32)
     }
 
     /// Number `j` (< `sobol_dims`) of the current vertex, from its Sobol sets. The first
@@ -441,76 +372,6 @@ mod tests {
                 );
             }
         }
-    }
-
-    /// Sets aside `N` numbers of a sampler that drew `before` numbers in its vertex, after
-    /// `vertices` vertices: the numbers set aside, read in any order and more than once, are
-    /// the next_1d numbers bit for bit, and the numbers after them too. Returns 0 when they
-    /// were drawn at once, 1 when hashed when asked.
-    fn check_deferred<const N: usize>(
-        pixel: &PixelSeed,
-        s: u32,
-        vertices: u32,
-        before: u32,
-    ) -> usize {
-        let mut a = PixelSampler::in_pixel(pixel, s);
-        for _ in 0..vertices {
-            a.start_vertex();
-        }
-        for _ in 0..before {
-            a.next_1d();
-        }
-        let mut b = a.clone();
-        let want: Vec<u32> = (0..N + 9).map(|_| a.next_1d().to_bits()).collect();
-        let d = b.defer::<N>();
-        let mut got = vec![0u32; N];
-        for i in (0..N).rev().chain(0..N).chain([N / 2]) {
-            got[i] = d.at(i).to_bits();
-        }
-        got.extend((0..9).map(|_| b.next_1d().to_bits()));
-        assert_eq!(
-            got, want,
-            "sample {s} vertex {vertices} after {before}, N = {N}"
-        );
-        assert_eq!(a.position(), b.position());
-        assert_eq!(d.at(N), 0.0);
-        match d {
-            Deferred::Drawn(_) => 0,
-            Deferred::Hashed { .. } => 1,
-        }
-    }
-
-    #[test]
-    fn deferred_numbers_are_the_numbers_drawn_one_by_one() {
-        // Samplers at every position of the first vertices (Sobol, across the Sobol end,
-        // hashed), Sobol samples and hashed ones past 2^16, one to eight numbers set aside.
-        let mut rng = Rng::new(33, 2);
-        let mut kinds = [0u32; 2];
-        for _ in 0..20 {
-            let (seed, px, py) = (
-                u64::from(rng.next_u32()),
-                rng.next_u32() >> 20,
-                rng.next_u32() >> 20,
-            );
-            let pixel = PixelSeed::new(seed, px, py);
-            for s in [0, 1, 7, rng.next_u32() % SOBOL_SAMPLES, SOBOL_SAMPLES + 5] {
-                for vertices in 0..3 {
-                    for before in 0..14 {
-                        for kind in [
-                            check_deferred::<1>(&pixel, s, vertices, before),
-                            check_deferred::<2>(&pixel, s, vertices, before),
-                            check_deferred::<3>(&pixel, s, vertices, before),
-                            check_deferred::<5>(&pixel, s, vertices, before),
-                            check_deferred::<8>(&pixel, s, vertices, before),
-                        ] {
-                            kinds[kind] += 1;
-                        }
-                    }
-                }
-            }
-        }
-        // Both kinds occur: drawn at once, and hashed when asked.
-        assert!(kinds.iter().all(|&k| k > 500), "{kinds:?}");
     }
 
     #[test]

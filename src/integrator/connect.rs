@@ -57,13 +57,12 @@ const ROULETTE_MIN: f32 = 0.05;
 /// Uniform solid-angle density on the sphere.
 const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * std::f32::consts::PI);
 
-/// True when `hit`, on a ray with direction `dir` from inside object `oi`, is a real boundary
-/// of `oi` that the ray leaves through. `false_exit` is [`is_false_intersection`] for leaving
-/// `oi` with the connection's stack: the same for every ray of a connection, so asked once.
-fn leaves_through(scene: &Scene, oi: u32, false_exit: bool, hit: &Hit, dir: Vec3) -> bool {
-    !false_exit
-        && scene.shape_owner[hit.shape as usize] == ShapeOwner::Object(oi)
+/// True when `hit`, on a ray with direction `dir` from inside object `oi` (stack `stack`),
+/// is a real boundary of `oi` that the ray leaves through.
+fn leaves_through(scene: &Scene, stack: &InteriorStack, oi: u32, hit: &Hit, dir: Vec3) -> bool {
+    scene.shape_owner[hit.shape as usize] == ShapeOwner::Object(oi)
         && dir.dot(hit.ng) > 0.0
+        && !is_false_intersection(scene, stack, oi, false)
 }
 
 /// A blend's `u_mask` that picks its look `a` whatever the mask (masks are in [0, 1]).
@@ -218,13 +217,12 @@ pub(super) fn guided_connection(
     if !may_be_rough(obj, outside_ior) {
         return Rgb::ZERO;
     }
-    // The connection's eight numbers, in this order: u_light, u_dir (2), u_mix, u_lobe, u_m
-    // (2), u_rr. When they are hashed numbers, those of the direction mixture are made only
-    // past the roulette.
-    let draws = sampler.defer::<8>();
-    let u_light = draws.at(0);
-    let u_dir = Vec2::new(draws.at(1), draws.at(2));
-    let u_rr = draws.at(7);
+    let u_light = sampler.next_1d();
+    let u_dir = sampler.next_2d();
+    let u_mix = sampler.next_1d();
+    let u_lobe = sampler.next_1d();
+    let u_m = sampler.next_2d();
+    let u_rr = sampler.next_1d();
     // Drawn only for blends: other surfaces keep their sample sequence (and images).
     let u_pick = if matches!(obj.surface, ObjectSurface::Blend(_)) {
         sampler.next_1d()
@@ -247,11 +245,20 @@ pub(super) fn guided_connection(
     // The probe: the boundary where x + t u leaves the interior frames the lobe, and gives
     // the texture coordinates its parameters are read at.
     stats.rays += 1;
-    let false_exit = is_false_intersection(scene, &stack, oi, false);
     let probe = scene
         .geometry
         .intersect(&Ray::new(x, u), f32::INFINITY)
-        .filter(|h| leaves_through(scene, oi, false_exit, h, u));
+        .filter(|h| leaves_through(scene, &stack, oi, h, u));
+    let lobes = probe.as_ref().map_or(
+        ProbeLobes {
+            lobes: [None, None],
+        },
+        |h| ProbeLobes::at(obj, outside_ior, h.uv(), footprint_at(obj, cone, h, u)),
+    );
+    let frame0 = probe
+        .as_ref()
+        .filter(|_| !lobes.is_empty())
+        .map(|h| Frame::from_normal(h.ns));
     let q = match &probe {
         Some(h) => {
             let tr = medium.transmittance(
@@ -267,21 +274,6 @@ pub(super) fn guided_connection(
     if !(u_rr < q) {
         return Rgb::ZERO;
     }
-    let lobes = probe.as_ref().map_or(
-        ProbeLobes {
-            lobes: [None, None],
-        },
-        |h| ProbeLobes::at(obj, outside_ior, h.uv(), footprint_at(obj, cone, h, u)),
-    );
-    let frame0 = probe
-        .as_ref()
-        .filter(|_| !lobes.is_empty())
-        .map(|h| Frame::from_normal(h.ns));
-    let (u_mix, u_lobe, u_m) = (
-        draws.at(3),
-        draws.at(4),
-        Vec2::new(draws.at(5), draws.at(6)),
-    );
 
     // The inside direction d (x → boundary), from the mixture.
     let d = match (frame0, lobes.choose(u_lobe)) {
@@ -314,7 +306,7 @@ pub(super) fn guided_connection(
     let Some(y) = scene.geometry.intersect(&Ray::new(x, d), f32::INFINITY) else {
         return Rgb::ZERO;
     };
-    if !leaves_through(scene, oi, false_exit, &y, d) {
+    if !leaves_through(scene, &stack, oi, &y, d) {
         return Rgb::ZERO;
     }
 
