@@ -354,7 +354,7 @@ impl SceneGeometry {
                 best: &mut best,
             },
         );
-        best.map(|(slot, lane, h)| self.triangle_record(ray, slot as usize, lane, h))
+        best.map(|(slot, lane, h)| self.make_hit(ray, Best::Tri(slot as usize, lane, h)))
     }
 
     /// [`Self::closest`] in a scene with analytic shapes (a sole box excepted: see
@@ -626,57 +626,51 @@ impl SceneGeometry {
                 prim: 0,
                 p_error: h.p_error,
             },
-            Best::Tri(slot, lane, h) => self.triangle_record(ray, slot, lane, h),
-        }
-    }
-
-    /// The record of triangle `slot` hit at `h` ([`Self::make_hit`]'s triangle case), its
-    /// corners read back from block lane `lane`: inlined into [`Self::closest_triangle`], so
-    /// that a triangle-only query makes no further call and passes no [`Best`].
-    #[inline(always)]
-    fn triangle_record(&self, ray: &Ray, slot: usize, lane: BlockLane, h: TriangleHit) -> Hit {
-        debug_assert!(slot < self.prims.len());
-        // SAFETY: `slot` is a BVH position the traversal reported, below
-        // `bvh.order().len() == prims.len()`.
-        let p = unsafe { self.prims.get_unchecked(slot) };
-        let [a4, b4, c4] = self.corners(slot, lane);
-        // The corners as stored (`w` = 0), combined in SIMD lanes: the same
-        // per-coordinate IEEE operations as on `Vec3`s.
-        let pos = (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate();
-        // A triangle without a normal faces the ray.
-        let ng = if p.ng.x.is_nan() { -ray.d } else { p.ng };
-        let mut ns = ng;
-        let mut uv = Vec2::new(h.b1, h.b2);
-        // (The mesh is read only when it has normals or UVs.)
-        if p.attributes {
-            if let Some(Shape::Mesh(m)) = self.shapes.get(p.shape as usize) {
-                let tri = || m.indices[p.prim as usize].map(|i| i as usize);
-                if let Some(n) = &m.normals {
-                    let tri = tri();
-                    let s =
-                        (n[tri[0]] * h.b0 + n[tri[1]] * h.b1 + n[tri[2]] * h.b2).normalize_or(ng);
-                    ns = if s.dot(ng) < 0.0 { -s } else { s };
+            Best::Tri(slot, lane, h) => {
+                debug_assert!(slot < self.prims.len());
+                // SAFETY: `slot` is a BVH position the traversal reported, below
+                // `bvh.order().len() == prims.len()`.
+                let p = unsafe { self.prims.get_unchecked(slot) };
+                let [a4, b4, c4] = self.corners(slot, lane);
+                // The corners as stored (`w` = 0), combined in SIMD lanes: the same
+                // per-coordinate IEEE operations as on `Vec3`s.
+                let pos = (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate();
+                // A triangle without a normal faces the ray.
+                let ng = if p.ng.x.is_nan() { -ray.d } else { p.ng };
+                let mut ns = ng;
+                let mut uv = Vec2::new(h.b1, h.b2);
+                // (The mesh is read only when it has normals or UVs.)
+                if p.attributes {
+                    if let Some(Shape::Mesh(m)) = self.shapes.get(p.shape as usize) {
+                        let tri = || m.indices[p.prim as usize].map(|i| i as usize);
+                        if let Some(n) = &m.normals {
+                            let tri = tri();
+                            let s = (n[tri[0]] * h.b0 + n[tri[1]] * h.b1 + n[tri[2]] * h.b2)
+                                .normalize_or(ng);
+                            ns = if s.dot(ng) < 0.0 { -s } else { s };
+                        }
+                        if let Some(t) = &m.uvs {
+                            let tri = tri();
+                            uv = t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2;
+                        }
+                    }
                 }
-                if let Some(t) = &m.uvs {
-                    let tri = tri();
-                    uv = t[tri[0]] * h.b0 + t[tri[1]] * h.b1 + t[tri[2]] * h.b2;
+                // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
+                let p_error = crate::math::gamma(7)
+                    * (a4.abs() * h.b0.abs() + b4.abs() * h.b1.abs() + c4.abs() * h.b2.abs())
+                        .truncate()
+                        .max_element();
+                Hit {
+                    t: h.t,
+                    p: pos,
+                    ng,
+                    ns,
+                    uv: HitUv::At(uv),
+                    shape: p.shape,
+                    prim: p.prim,
+                    p_error,
                 }
             }
-        }
-        // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
-        let p_error = crate::math::gamma(7)
-            * (a4.abs() * h.b0.abs() + b4.abs() * h.b1.abs() + c4.abs() * h.b2.abs())
-                .truncate()
-                .max_element();
-        Hit {
-            t: h.t,
-            p: pos,
-            ng,
-            ns,
-            uv: HitUv::At(uv),
-            shape: p.shape,
-            prim: p.prim,
-            p_error,
         }
     }
 
