@@ -138,6 +138,9 @@ pub struct WideBvh {
     /// The CPU runs AVX2, FMA and POPCNT (detected when the hierarchy is built): the 8-wide
     /// node test.
     avx2: bool,
+    /// The CPU also runs AVX-512 F and VL, and `VELOUR_NO_AVX512` is not set: the
+    /// traversal compiled for them ([`WideBvh::traverse_avx512`]).
+    avx512: bool,
 }
 
 /// The ray quantities the slab test needs, per axis.
@@ -250,6 +253,36 @@ trait NodeTest {
             a.cmpeq(t).bitmask() | (b.cmpeq(t).bitmask() << 4),
         )
     }
+
+    /// Writes the children entered in `mask` to `order[..n]` (`n` their number), sorted by
+    /// their entry distance in `near`, nearest first, ties by slot: each is put at its rank
+    /// (the entered children nearer than it, or as near in a lower slot) without a
+    /// data-dependent loop. Entries from `n` on are unspecified.
+    #[inline(always)]
+    fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
+        let mut rest = mask;
+        while rest != 0 {
+            let slot = (rest.trailing_zeros() & 7) as usize;
+            rest &= rest - 1;
+            let t = near[slot];
+            let (lt, eq) = self.before(near, t);
+            let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
+            order[rank & 7] = Ranked {
+                slot: slot as u32,
+                t,
+            };
+        }
+    }
+}
+
+/// An entered child of a node in the traversal's order: its slot and entry distance.
+/// `repr(C)`, so that eight of them are the eight 64-bit lanes `t_bits << 32 | slot` the
+/// AVX-512 ordering sorts ([`avx512`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+struct Ranked {
+    slot: u32,
+    t: f32,
 }
 
 impl NodeTest for SlabRay {
@@ -414,6 +447,115 @@ mod avx2 {
     }
 }
 
+/// The traversal compiled for AVX-512 (F and VL) where the CPU has it: the AVX2 node test
+/// ([`avx2::AvxSlab`]), the whole traversal in EVEX code with 32 vector registers, and the
+/// entered children of a node with three or more ordered at once by a sorting network over
+/// eight 64-bit keys ([`sort_entered`]) instead of a rank per child.
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use std::arch::x86_64::{
+        __m512i, _mm256_and_si256, _mm256_loadu_si256, _mm256_set1_epi32, _mm512_cvtepu32_epi64,
+        _mm512_mask_mov_epi64, _mm512_max_epu64, _mm512_min_epu64, _mm512_or_si512,
+        _mm512_permutexvar_epi64, _mm512_set1_epi64, _mm512_set_epi64, _mm512_slli_epi64,
+        _mm512_storeu_si512,
+    };
+
+    use super::{avx2::AvxSlab, Node8, NodeTest, Ranked, WIDTH};
+
+    /// Whether the CPU runs [`super::WideBvh::traverse_avx512`]: AVX-512 F and VL besides
+    /// AVX2, FMA and POPCNT, unless `VELOUR_NO_AVX512` is set (which leaves the AVX2
+    /// traversal, for comparisons on one machine).
+    pub(super) fn detected() -> bool {
+        super::avx2_fma_and_popcnt()
+            && std::is_x86_feature_detected!("avx512f")
+            && std::is_x86_feature_detected!("avx512vl")
+            && std::env::var_os("VELOUR_NO_AVX512").is_none()
+    }
+
+    /// The AVX2 node test, in a traversal that may order children with AVX-512. Made only
+    /// where [`detected`] holds.
+    pub(super) struct Avx512Slab(pub(super) AvxSlab);
+
+    impl NodeTest for Avx512Slab {
+        #[inline(always)]
+        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+            self.0.test(node, t_max)
+        }
+
+        #[inline(always)]
+        fn before(&self, near: &[f32; WIDTH], t: f32) -> (u32, u32) {
+            self.0.before(near, t)
+        }
+
+        #[inline(always)]
+        fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
+            // SAFETY: an `Avx512Slab` exists only where AVX-512 F and VL and AVX2 were
+            // detected.
+            unsafe { sort_entered(near, mask, order) }
+        }
+    }
+
+    /// One layer of the bitonic network: lane `i` against lane `partner[i]`, keeping the
+    /// larger key in the lanes of `take_max` and the smaller in the others.
+    #[inline]
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    fn layer(x: __m512i, partner: __m512i, take_max: u8) -> __m512i {
+        let p = _mm512_permutexvar_epi64(partner, x);
+        let lo = _mm512_min_epu64(x, p);
+        let hi = _mm512_max_epu64(x, p);
+        _mm512_mask_mov_epi64(lo, take_max, hi)
+    }
+
+    /// The lanes of a bitonic network's layer (block size `k`, partner distance `j`) that keep
+    /// the larger key: in an ascending block (`i & k == 0`) the upper lane of each pair, in a
+    /// descending one the lower.
+    const fn take_max(k: usize, j: usize) -> u8 {
+        let mut m = 0u8;
+        let mut i = 0;
+        while i < WIDTH {
+            let upper = i & j != 0;
+            let ascending = i & k == 0;
+            if upper == ascending {
+                m |= 1 << i;
+            }
+            i += 1;
+        }
+        m
+    }
+
+    /// [`NodeTest::order`] by sorting eight 64-bit keys, `entry distance bits << 32 | slot`,
+    /// in one register: the children not entered get the largest key, so the entered ones
+    /// come first, nearest first and ties by slot (the slot breaks them). Entry distances of
+    /// entered children are at least zero or `-0`, so with the sign bit cleared (`-0` becomes
+    /// `+0`, which compares equal to it) their bits order them as the floats; a sorted key
+    /// is its `Ranked` (`repr(C)`: the slot in the low half, the distance in the high).
+    /// Bitonic sort (Batcher 1968): six layers of a permute, a min, a max and a blend.
+    #[inline]
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    pub(super) fn sort_entered(near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
+        // SAFETY: the load reads the 8 floats of `near`, the store writes the 8 × 8 bytes of
+        // `order` (`Ranked` is `repr(C)`, two 4-byte fields).
+        let bits = unsafe { _mm256_loadu_si256(near.as_ptr().cast()) };
+        let bits = _mm256_and_si256(bits, _mm256_set1_epi32(0x7fff_ffff));
+        let keys = _mm512_or_si512(
+            _mm512_slli_epi64::<32>(_mm512_cvtepu32_epi64(bits)),
+            _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0),
+        );
+        let mut x = _mm512_mask_mov_epi64(_mm512_set1_epi64(-1), mask as u8, keys);
+        // Partners `i ^ j` for j = 1, 2, 4.
+        let p1 = _mm512_set_epi64(6, 7, 4, 5, 2, 3, 0, 1);
+        let p2 = _mm512_set_epi64(5, 4, 7, 6, 1, 0, 3, 2);
+        let p4 = _mm512_set_epi64(3, 2, 1, 0, 7, 6, 5, 4);
+        x = layer(x, p1, const { take_max(2, 1) });
+        x = layer(x, p2, const { take_max(4, 2) });
+        x = layer(x, p1, const { take_max(4, 1) });
+        x = layer(x, p4, const { take_max(8, 4) });
+        x = layer(x, p2, const { take_max(8, 2) });
+        x = layer(x, p1, const { take_max(8, 1) });
+        unsafe { _mm512_storeu_si512(order.as_mut_ptr().cast(), x) };
+    }
+}
+
 /// What [`WideBvh::traverse`] calls for each primitive of an entered leaf: `visit(position,
 /// t_max)` returns the new `t_max` (a closer hit's distance, or `t_max`; a value ≤ 0 ends the
 /// traversal). Closures are visitors; a query's own type can be one whose `visit` is
@@ -533,6 +675,7 @@ impl WideBvh {
         let counts = subtree_counts(&bvh2);
         let mut out = WideBvh {
             avx2: avx2_fma_and_popcnt(),
+            avx512: avx512_detected(),
             ..WideBvh::default()
         };
         if counts[0] <= MAX_LEAF_PRIMITIVES {
@@ -637,9 +780,20 @@ impl WideBvh {
     /// `primitive(position, t_max)` for each of its primitives; `primitive` returns the new
     /// `t_max` (the distance of a closer hit, or the same value). Returns early when
     /// `primitive` returns a value ≤ 0 (an any-hit query that found something).
-    #[inline]
+    ///
+    /// Only the choice of traversal, inlined where it is called, so that a query calls the
+    /// traversal for its CPU directly (the portable one is out of line: with it inlined here,
+    /// this layer saved and restored six registers on every query).
+    #[inline(always)]
     pub fn traverse(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
         if self.nodes.is_empty() {
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: `avx512` is set only when the CPU reported AVX-512 F and VL, AVX2,
+            // FMA and POPCNT.
+            unsafe { self.traverse_avx512(ray, t_max, primitive) };
             return;
         }
         #[cfg(target_arch = "x86_64")]
@@ -648,6 +802,13 @@ impl WideBvh {
             unsafe { self.traverse_avx2(ray, t_max, primitive) };
             return;
         }
+        self.traverse_portable(ray, t_max, primitive);
+    }
+
+    /// [`Self::traverse`] with the 4-wide node test (`SlabRay`), for CPUs without AVX2 and
+    /// FMA.
+    #[inline(never)]
+    fn traverse_portable(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
         let slab = SlabRay::new(ray);
         if self.shallow() {
             self.traverse_with::<_, false>(&slab, t_max, primitive);
@@ -689,6 +850,34 @@ impl WideBvh {
         }
     }
 
+    /// [`Self::traverse_avx2`] compiled for AVX-512 F and VL as well: the same node test,
+    /// the children of a node with three or more entered ordered by a sorting network
+    /// ([`avx512::sort_entered`]); the same visits in the same order.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512 F and VL, AVX2, FMA and POPCNT.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,popcnt,avx512f,avx512vl")]
+    unsafe fn traverse_avx512(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
+        // SAFETY: this function runs only with AVX2 and FMA.
+        let Some(wide) = (unsafe { avx2::AvxSlab::from_ray(ray) }) else {
+            // `o·inv` overflows `f32`: the 4-wide test, which has no such term.
+            let slab = SlabRay::new(ray);
+            if self.shallow() {
+                self.traverse_with::<_, false>(&slab, t_max, primitive);
+            } else {
+                self.traverse_with::<_, true>(&slab, t_max, primitive);
+            }
+            return;
+        };
+        let wide = avx512::Avx512Slab(wide);
+        if self.shallow() {
+            self.traverse_with::<_, false>(&wide, t_max, primitive);
+        } else {
+            self.traverse_with::<_, true>(&wide, t_max, primitive);
+        }
+    }
+
     /// Asks the CPU to bring the four cache lines of inner node `index` towards the core
     /// (a hint: no fault, no visible effect; `index` may be any value). Issued for a child
     /// that waits on the stack or behind leaf tests, so that its lines arrive meanwhile.
@@ -718,7 +907,21 @@ impl WideBvh {
     #[cfg(test)]
     pub(super) fn without_avx2(mut self) -> Self {
         self.avx2 = false;
+        self.avx512 = false;
         self
+    }
+
+    /// Forces the AVX2 traversal where the AVX-512 one would run (tests compare the two).
+    #[cfg(test)]
+    pub(super) fn without_avx512(mut self) -> Self {
+        self.avx512 = false;
+        self
+    }
+
+    /// Whether this hierarchy's traversal is the AVX-512 one.
+    #[cfg(test)]
+    pub(super) fn uses_avx512(&self) -> bool {
+        self.avx512
     }
 
     /// The traversal with node test `slab`. One or two entered children (most nodes) are
@@ -737,7 +940,7 @@ impl WideBvh {
         let mut current = 0u32;
         // Scratch for the children of a node with three or more entered (only entries below
         // the counts are read), initialised once per ray.
-        let mut order = [(0u32, 0.0f32); WIDTH];
+        let mut order = [Ranked::default(); WIDTH];
         let mut inner = [Entry::default(); WIDTH];
         // Tests the leaf in slot `$slot` of `node`; returns from the traversal when
         // `primitive` ends it.
@@ -816,23 +1019,14 @@ impl WideBvh {
                 }
             } else {
                 // Three or more: the entered children sorted by entry distance, nearest
-                // first, ties by slot, each put at its rank (the entered children nearer
-                // than it, or as near in a lower slot) without a data-dependent loop.
+                // first, ties by slot ([`NodeTest::order`]).
                 let n = mask.count_ones() as usize;
-                let mut rest = mask;
-                while rest != 0 {
-                    let slot = (rest.trailing_zeros() & 7) as usize;
-                    rest &= rest - 1;
-                    let t = near[slot];
-                    let (lt, eq) = slab.before(&near, t);
-                    let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
-                    order[rank & 7] = (slot as u32, t);
-                }
+                slab.order(&near, mask, &mut order);
                 // Leaves are intersected at once, nearest first (a hit shortens the ray for
                 // the rest); inner children are pushed farthest first, so the nearest is
                 // visited next.
                 let mut m = 0;
-                for &(slot, t) in &order[..n] {
+                for &Ranked { slot, t } in &order[..n] {
                     if t > t_max {
                         break;
                     }
@@ -891,6 +1085,18 @@ fn avx2_fma_and_popcnt() -> bool {
         crate::math::avx2_enabled()
             && std::is_x86_feature_detected!("fma")
             && std::is_x86_feature_detected!("popcnt")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether the CPU runs the AVX-512 traversal (see `avx512::detected`).
+fn avx512_detected() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        avx512::detected()
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -1393,13 +1599,10 @@ mod tests {
         );
     }
 
-    /// A node test's `before`: the slots nearer than a distance, and those equal to it.
-    type BeforeFn<'a> = dyn Fn(&[f32; WIDTH], f32) -> (u32, u32) + 'a;
-
-    /// The rank placement of the traversal's three-or-more case against a stable sort by
-    /// entry distance (ties by slot), with both node tests' `before`.
+    /// `NodeTest::order` of every node test against a stable sort by entry distance (ties by
+    /// slot; `-0` and `+0` equal, as the traversal compares them).
     #[test]
-    fn children_placed_at_their_rank_are_in_stable_sorted_order() {
+    fn children_are_ordered_as_a_stable_sort_by_entry_distance() {
         let mut rng = Lcg(91);
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
         let slab = SlabRay::new(&ray);
@@ -1408,33 +1611,65 @@ mod tests {
             // SAFETY: AVX2 and FMA were detected.
             unsafe { avx2::AvxSlab::from_ray(&ray) }.expect("a finite ray")
         });
-        for _ in 0..20_000 {
-            // Few distinct values, so that ties are common.
-            let near: [f32; WIDTH] = std::array::from_fn(|_| (rng.next() * 4.0).floor() * 0.5);
-            let mask = (rng.next() * 256.0) as u32 & 0xff;
-            let mut expected: Vec<(u32, f32)> = (0..WIDTH as u32)
-                .filter(|&s| mask & (1 << s) != 0)
-                .map(|s| (s, near[s as usize]))
-                .collect();
-            expected.sort_by(|a, b| a.1.total_cmp(&b.1)); // stable: ties keep slot order
-            let place = |before: &BeforeFn<'_>| {
-                let mut order = [(0u32, 0.0f32); WIDTH];
-                let mut rest = mask;
-                while rest != 0 {
-                    let slot = (rest.trailing_zeros() & 7) as usize;
-                    rest &= rest - 1;
-                    let (lt, eq) = before(&near, near[slot]);
-                    let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
-                    order[rank] = (slot as u32, near[slot]);
+        #[cfg(target_arch = "x86_64")]
+        let wide = avx512::detected().then(|| {
+            // SAFETY: AVX-512 F and VL (and AVX2 and FMA) were detected.
+            avx512::Avx512Slab(unsafe { avx2::AvxSlab::from_ray(&ray) }.expect("a finite ray"))
+        });
+        #[cfg(target_arch = "x86_64")]
+        if wide.is_none() {
+            eprintln!("note: no AVX-512 on this CPU; its ordering is not tested");
+        }
+        let mut eights = 0;
+        for i in 0..50_000 {
+            // Few distinct values, so that ties are common; some zeros of either sign, some
+            // large distances (exponent bits high) and some subnormal ones.
+            let near: [f32; WIDTH] = std::array::from_fn(|_| {
+                let v = (rng.next() * 5.0).floor() * 0.5;
+                match i % 4 {
+                    0 if v == 0.0 && rng.next() < 0.5 => -0.0,
+                    1 => v * 1e30,
+                    2 => v * 1e-40,
+                    _ => v,
                 }
-                order[..mask.count_ones() as usize].to_vec()
+            });
+            let mask = if i % 16 == 0 {
+                0xff
+            } else {
+                (rng.next() * 256.0) as u32 & 0xff
             };
-            assert_eq!(place(&|n, t| slab.before(n, t)), expected);
+            eights += usize::from(mask == 0xff);
+            let mut expected: Vec<Ranked> = (0..WIDTH as u32)
+                .filter(|&s| mask & (1 << s) != 0)
+                .map(|slot| Ranked {
+                    slot,
+                    t: near[slot as usize],
+                })
+                .collect();
+            // Stable: ties keep slot order. (No NaN among the distances.)
+            expected.sort_by(|a, b| a.t.partial_cmp(&b.t).unwrap_or(std::cmp::Ordering::Equal));
+            let n = mask.count_ones() as usize;
+            let placed = |test: &dyn Fn(&mut [Ranked; WIDTH])| {
+                let mut order = [Ranked::default(); WIDTH];
+                test(&mut order);
+                order[..n].to_vec()
+            };
+            assert_eq!(placed(&|o| slab.order(&near, mask, o)), expected);
             #[cfg(target_arch = "x86_64")]
             if let Some(avx) = &avx {
-                assert_eq!(place(&|n, t| avx.before(n, t)), expected);
+                assert_eq!(placed(&|o| avx.order(&near, mask, o)), expected);
+            }
+            #[cfg(target_arch = "x86_64")]
+            if let Some(wide) = &wide {
+                let got = placed(&|o| wide.order(&near, mask, o));
+                assert_eq!(got, expected, "{near:?} {mask:#x}");
+                // The distances come back bit for bit, but for a zero's sign.
+                for (g, e) in got.iter().zip(&expected) {
+                    assert_eq!(g.t.to_bits(), e.t.to_bits() & 0x7fff_ffff);
+                }
             }
         }
+        assert!(eights > 1_000);
     }
 
     /// The surface area heuristic's cost of a built tree, read from its nodes as
@@ -1544,6 +1779,55 @@ mod tests {
         }
     }
 
+    /// The AVX-512 traversal against the AVX2 one: the same primitives visited with the same
+    /// `t_max`, in the same order, bit for bit, over boxes with many exact copies (children
+    /// entered at the very same distance, ordered by slot) and rays from inside and outside.
+    #[test]
+    fn the_avx512_traversal_visits_as_the_avx2_one() {
+        let mut rng = Lcg(29);
+        let mut checked = 0;
+        for n in [9, 60, 500, 4000] {
+            let mut boxes = rng.boxes(n, 0.1);
+            // Every third box repeated three times.
+            let copies: Vec<_> = boxes.iter().step_by(3).copied().collect();
+            for b in copies {
+                boxes.extend([b, b, b]);
+            }
+            let wide = WideBvh::build(&boxes);
+            if !wide.uses_avx512() {
+                eprintln!("note: no AVX-512 on this CPU (or VELOUR_NO_AVX512 set); not compared");
+                return;
+            }
+            let narrow = wide.clone().without_avx512();
+            for i in 0..6000 {
+                let o = if i % 2 == 0 {
+                    rng.vec() * 0.9
+                } else {
+                    rng.vec() * 3.0
+                };
+                let ray = Ray::new(o, (rng.vec() - o * 0.3).normalize_or(Vec3::X));
+                let t_max = if i % 3 == 0 { 1.0 } else { f32::INFINITY };
+                let shorten = |pos: u32, t: f32| match pos % 5 {
+                    0 => t * 0.9,
+                    2 if i % 7 == 0 => 0.0,
+                    _ => t,
+                };
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                wide.traverse(&ray, t_max, |pos, t: f32| {
+                    a.push((pos, t.to_bits()));
+                    shorten(pos, t)
+                });
+                narrow.traverse(&ray, t_max, |pos, t: f32| {
+                    b.push((pos, t.to_bits()));
+                    shorten(pos, t)
+                });
+                assert_eq!(a, b, "{n} boxes, ray {i}");
+                checked += a.len();
+            }
+        }
+        assert!(checked > 100_000, "{checked}");
+    }
+
     #[test]
     fn the_traversal_visits_leaves_in_the_plain_traversals_order() {
         let mut rng = Lcg(17);
@@ -1551,6 +1835,7 @@ mod tests {
             let boxes = rng.boxes(n, 0.1);
             for bvh in [
                 WideBvh::build(&boxes),
+                WideBvh::build(&boxes).without_avx512(),
                 WideBvh::build(&boxes).without_avx2(),
             ] {
                 for i in 0..4000 {
