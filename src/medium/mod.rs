@@ -443,7 +443,8 @@ impl Medium {
             return Rgb::ONE;
         }
         // Guard 0·∞ (σ_t = 0 with an infinite segment): docs/references.md §8.
-        self.sigma_t()
-            .map(|s| if s == 0.0 { 1.0 } else { (-s * d).exp() })
+        let sigma_t = self.sigma_t();
+        let e = crate::math::exp3(sigma_t.0.map(|s| -s * d));
+        Rgb([0, 1, 2].map(|k| if sigma_t[k] == 0.0 { 1.0 } else { e[k] }))
     }
 }

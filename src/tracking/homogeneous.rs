@@ -6,6 +6,7 @@
 //! ray. [`sample_homogeneous`] does both at once.
 
 use super::{channel_probabilities, pick_channel, Flight};
+use crate::math::exp3;
 use crate::spectrum::Rgb;
 
 /// A free-flight distance sampled in a homogeneous medium, not yet compared with the
@@ -51,7 +52,7 @@ impl HomogeneousFlight {
     pub fn resolve(&self, t_max: f32) -> Flight {
         let (sigma_t, p, t) = (self.sigma_t, self.p, self.t);
         if t < t_max {
-            let tr = sigma_t.map(|s| (-s * t).exp());
+            let tr = Rgb(exp3(sigma_t.0.map(|s| -s * t)));
             let pdf: f32 = (0..3).map(|k| p[k] * sigma_t[k] * tr[k]).sum();
             if !(pdf > 0.0) {
                 return Flight::Escape { weight: Rgb::ZERO };
@@ -62,7 +63,8 @@ impl HomogeneousFlight {
                 density: 1.0,
             }
         } else {
-            let tr = sigma_t.map(|s| if s == 0.0 { 1.0 } else { (-s * t_max).exp() });
+            let e = exp3(sigma_t.0.map(|s| -s * t_max));
+            let tr = Rgb([0, 1, 2].map(|k| if sigma_t[k] == 0.0 { 1.0 } else { e[k] }));
             let prob: f32 = (0..3).map(|k| p[k] * tr[k]).sum();
             if !(prob > 0.0) {
                 return Flight::Escape { weight: Rgb::ZERO };
