@@ -102,6 +102,13 @@ fn hg_from_delta(g: f32, delta: f32) -> f32 {
 /// only the one of `1 − μ`, `1 + μ` that the sign of `g` uses computed (the same bits).
 #[inline]
 fn hg_eval(g: f32, wo: Vec3, wi: Vec3) -> f32 {
+    if g == 0.0 {
+        // Isotropic (g = ±0): δ = 1 + 2g·a is exactly 1 for every a in [0, 2], and the value
+        // (1 − g)(1 + g)/(4π)/(1·√1) is exactly 1/(4π); only a NaN `a` (a NaN direction)
+        // makes it NaN, which [`hg_from_delta`] turns into 0.
+        let a = (0.5 * (wo + wi).length_squared()).clamp(0.0, 2.0);
+        return if a.is_nan() { 0.0 } else { INV_4PI };
+    }
     let delta = if g >= 0.0 {
         let a = (0.5 * (wo + wi).length_squared()).clamp(0.0, 2.0);
         (1.0 - g) * (1.0 - g) + 2.0 * g * a
@@ -134,18 +141,27 @@ pub fn henyey_greenstein_mu(g: f32, mu: f32) -> f32 {
 fn sample_hg(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
     let xi = u.x.clamp(0.0, 1.0);
     let xi_c = 1.0 - xi;
-    let (d, p, q) = if g >= 0.0 {
-        ((1.0 - g) + 2.0 * g * xi, 1.0 + g * xi, (1.0 - g) + g * xi)
+    let (a, b) = if g == 0.0 {
+        // Isotropic (g = ±0): below, d = p = q = 1 exactly for every ξ in [0, 1] and the
+        // factors (1 ∓ g)² are 1, so a = 2(1 − ξ) and b = 2ξ (doubling is exact, and both lie
+        // in [0, 2]; a NaN ξ stays NaN): the same bits without the division.
+        (2.0 * xi_c, 2.0 * xi)
     } else {
+        let (d, p, q) = if g >= 0.0 {
+            ((1.0 - g) + 2.0 * g * xi, 1.0 + g * xi, (1.0 - g) + g * xi)
+        } else {
+            (
+                (1.0 + g) - 2.0 * g * xi_c,
+                (1.0 + g) - g * xi_c,
+                1.0 - g * xi_c,
+            )
+        };
+        let d2 = d * d;
         (
-            (1.0 + g) - 2.0 * g * xi_c,
-            (1.0 + g) - g * xi_c,
-            1.0 - g * xi_c,
+            (2.0 * (1.0 - g) * (1.0 - g) * xi_c * p / d2).clamp(0.0, 2.0),
+            (2.0 * (1.0 + g) * (1.0 + g) * xi * q / d2).clamp(0.0, 2.0),
         )
     };
-    let d2 = d * d;
-    let a = (2.0 * (1.0 - g) * (1.0 - g) * xi_c * p / d2).clamp(0.0, 2.0);
-    let b = (2.0 * (1.0 + g) * (1.0 + g) * xi * q / d2).clamp(0.0, 2.0);
     let mu = if a < b { 1.0 - a } else { b - 1.0 };
     let sin_t = (a * b).max(0.0).sqrt().min(1.0);
     let phi = 2.0 * PI * u.y;
@@ -211,7 +227,12 @@ impl PhaseFunction {
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: Vec2) -> PhaseSample {
         let (wi, w_in) = self.sample_with_incident(wo, u);
-        let pdf = self.pdf(-w_in, wi);
+        let pdf = match *self {
+            // Isotropic: `w_in` and `wi` are finite (normalised or fallen back to a unit
+            // axis), so the pdf below is exactly 1/(4π) ([`hg_eval`]).
+            PhaseFunction::HenyeyGreenstein { g } if g == 0.0 => INV_4PI,
+            _ => self.pdf(-w_in, wi),
+        };
         PhaseSample {
             wi,
             pdf,

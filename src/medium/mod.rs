@@ -443,7 +443,11 @@ impl Medium {
             return Rgb::ONE;
         }
         // Guard 0·∞ (σ_t = 0 with an infinite segment): docs/references.md §8.
-        let sigma_t = self.sigma_t();
+        let sigma_t = match self {
+            Medium::Absorbing { sigma_a } => *sigma_a,
+            Medium::Homogeneous(h) => h.coefficients.sigma_t(),
+            _ => self.sigma_t(),
+        };
         let e = crate::math::exp3(sigma_t.0.map(|s| -s * d));
         Rgb([0, 1, 2].map(|k| if sigma_t[k] == 0.0 { 1.0 } else { e[k] }))
     }
