@@ -403,6 +403,70 @@ pub fn exp3(x: [f32; 3]) -> [f32; 3] {
     }
 }
 
+/// The table of glibc's single-precision `log` (`__logf_data.tab`, glibc 2.27 and later):
+/// `(1/c, ln c)` for the 16 subintervals c of [0x1.66p-1, 0x1.66p0) that the argument's
+/// mantissa is reduced to.
+const LOGF_TABLE: [(u64, u64); 16] = [
+    (0x3ff661ec79f8f3be, 0xbfd57bf7808caade),
+    (0x3ff571ed4aaf883d, 0xbfd2bef0a7c06ddb),
+    (0x3ff49539f0f010b0, 0xbfd01eae7f513a67),
+    (0x3ff3c995b0b80385, 0xbfcb31d8a68224e9),
+    (0x3ff30d190c8864a5, 0xbfc6574f0ac07758),
+    (0x3ff25e227b0b8ea0, 0xbfc1aa2bc79c8100),
+    (0x3ff1bb4a4a1a343f, 0xbfba4e76ce8c0e5e),
+    (0x3ff12358f08ae5ba, 0xbfb1973c5a611ccc),
+    (0x3ff0953f419900a7, 0xbfa252f438e10c1e),
+    (0x3ff0000000000000, 0x0000000000000000),
+    (0x3fee608cfd9a47ac, 0x3faaa5aa5df25984),
+    (0x3feca4b31f026aa0, 0x3fbc5e53aa362eb4),
+    (0x3feb2036576afce6, 0x3fc526e57720db08),
+    (0x3fe9c2d163a1aa2d, 0x3fcbc2860d224770),
+    (0x3fe886e6037841ed, 0x3fd1058bc8a07ee1),
+    (0x3fe767dcf5534862, 0x3fd4043057b6ee09),
+];
+/// ln 2 (`__logf_data.ln2`).
+const LOGF_LN2: u64 = 0x3fe62e42fefa39ef;
+/// The polynomial for ln(1 + r) − r ≈ A0 r⁴ + A1 r³ + A2 r² (`__logf_data.poly`).
+const LOGF_POLY: [u64; 3] = [0xbfd00ea348b88334, 0x3fd5575b0be00b6a, 0xbfdffffef20a4123];
+
+/// `x.ln()` with the bits that glibc's `logf` gives on a CPU with FMA (its `__logf_fma`;
+/// glibc 2.27 and later), computed inline as [`exp_f32`] is for `expf`: the same
+/// operations, fused multiply–adds, table and constants. Zero, subnormal, negative and
+/// non-finite `x` (glibc's special cases) call `x.ln()` itself. Without FMA in the build it
+/// is `x.ln()`. Checked against the C library on every `f32` by the exhaustive test
+/// (`cargo test --release --lib -- math::tests::ln_f32_has_the_c_librarys_bits_everywhere --ignored`).
+#[must_use]
+#[inline]
+pub fn ln_f32(x: f32) -> f32 {
+    #[cfg(target_feature = "fma")]
+    {
+        let ix = x.to_bits();
+        if ix == 0x3f80_0000 {
+            return 0.0;
+        }
+        if ix.wrapping_sub(0x0080_0000) >= 0x7f80_0000 - 0x0080_0000 {
+            return x.ln();
+        }
+        // x = 2^k z with z in [0x1.66p-1, 0x1.66p0); c near z from the table, r = z/c − 1.
+        let tmp = ix.wrapping_sub(0x3f33_0000);
+        let (invc, logc) = LOGF_TABLE[((tmp >> 19) % 16) as usize];
+        let (invc, logc) = (f64::from_bits(invc), f64::from_bits(logc));
+        let k = (tmp as i32) >> 23;
+        let z = f64::from(f32::from_bits(ix.wrapping_sub(tmp & 0xff80_0000)));
+        let r = z.mul_add(invc, -1.0);
+        let y0 = f64::from(k).mul_add(f64::from_bits(LOGF_LN2), logc);
+        let [a0, a1, a2] = LOGF_POLY.map(f64::from_bits);
+        let r2 = r * r;
+        let y = r.mul_add(a1, a2);
+        let y = r2.mul_add(a0, y);
+        r2.mul_add(y, r + y0) as f32
+    }
+    #[cfg(not(target_feature = "fma"))]
+    {
+        x.ln()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -461,5 +525,53 @@ mod tests {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     fn exp_f32_has_the_c_librarys_bits_everywhere() {
         assert_eq!(compare_exp(0, u32::MAX, 1), 1 << 32);
+    }
+
+    /// `ln_f32` against the C library's `logf` for the bit patterns `start`, `start + step`,
+    /// … up to `last`; returns how many were compared.
+    fn compare_ln(start: u32, last: u32, step: u32) -> u64 {
+        let mut n = 0u64;
+        let mut bits = start;
+        loop {
+            let x = f32::from_bits(bits);
+            assert_eq!(
+                ln_f32(x).to_bits(),
+                x.ln().to_bits(),
+                "ln_f32({x:e}) ({bits:#010x})"
+            );
+            n += 1;
+            match bits.checked_add(step) {
+                Some(b) if b <= last => bits = b,
+                _ => return n,
+            }
+        }
+    }
+
+    #[test]
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    fn ln_f32_has_the_c_librarys_bits() {
+        // A stride through every bit pattern (zeros, subnormals, negatives, ∞, NaN), then
+        // every third pattern of [2^-24, 1]: the arguments 1 − u of the free flights.
+        assert!(compare_ln(0, u32::MAX, 9_973) > 400_000);
+        assert!(compare_ln(0x3380_0000, 0x3f80_0000, 3) > 60_000_000);
+        for x in [
+            0.0f32,
+            -0.0,
+            1.0,
+            f32::MIN_POSITIVE,
+            1e-40,
+            f32::INFINITY,
+            -1.0,
+        ] {
+            assert_eq!(ln_f32(x).to_bits(), x.ln().to_bits(), "{x:e}");
+        }
+        assert!(ln_f32(f32::NAN).is_nan());
+    }
+
+    #[test]
+    #[ignore = "every f32: about a minute in release"]
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    fn ln_f32_has_the_c_librarys_bits_everywhere() {
+        assert_eq!(compare_ln(0, u32::MAX, 1), 1 << 32);
     }
 }

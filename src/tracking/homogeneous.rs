@@ -6,7 +6,7 @@
 //! ray. [`sample_homogeneous`] does both at once.
 
 use super::{channel_probabilities, pick_channel, Flight};
-use crate::math::exp3;
+use crate::math::{exp3, ln_f32};
 use crate::spectrum::Rgb;
 
 /// A free-flight distance sampled in a homogeneous medium, not yet compared with the
@@ -28,13 +28,14 @@ impl HomogeneousFlight {
     /// heuristic) over channels (docs/references.md §4.6). `sigma_t` and `sigma_s` are per
     /// unit length; `u_channel` and `u_distance` are uniform in [0, 1).
     #[must_use]
+    #[inline(always)]
     pub fn sample(sigma_t: Rgb, sigma_s: Rgb, beta: Rgb, u_channel: f32, u_distance: f32) -> Self {
         let alpha = sigma_s.safe_div(sigma_t);
         let p = channel_probabilities(beta, alpha);
         let channel = pick_channel(p, u_channel);
         let st = sigma_t[channel];
         let t = if st > 0.0 {
-            -(1.0 - u_distance).ln() / st
+            -ln_f32(1.0 - u_distance) / st
         } else {
             f32::INFINITY
         };
