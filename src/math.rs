@@ -521,7 +521,7 @@ mod tests {
     }
 
     #[test]
-    #[ignore = "every f32: about a minute in release"]
+    #[ignore = "every f32: two to ten minutes in release"]
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     fn exp_f32_has_the_c_librarys_bits_everywhere() {
         assert_eq!(compare_exp(0, u32::MAX, 1), 1 << 32);
@@ -569,7 +569,7 @@ mod tests {
     }
 
     #[test]
-    #[ignore = "every f32: about a minute in release"]
+    #[ignore = "every f32: two to ten minutes in release"]
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     fn ln_f32_has_the_c_librarys_bits_everywhere() {
         assert_eq!(compare_ln(0, u32::MAX, 1), 1 << 32);
