@@ -228,9 +228,10 @@ impl PhaseFunction {
     pub fn sample(&self, wo: Vec3, u: Vec2) -> PhaseSample {
         let (wi, w_in) = self.sample_with_incident(wo, u);
         let pdf = match *self {
-            // Isotropic: `w_in` and `wi` are finite (normalised or fallen back to a unit
-            // axis), so the pdf below is exactly 1/(4π) ([`hg_eval`]).
-            PhaseFunction::HenyeyGreenstein { g } if g == 0.0 => INV_4PI,
+            // Isotropic (the pattern matches g = −0 too: float patterns compare with `==`):
+            // `w_in` and `wi` are finite (normalised or fallen back to a unit axis), so the pdf
+            // below is exactly 1/(4π) ([`hg_eval`]).
+            PhaseFunction::HenyeyGreenstein { g: 0.0 } => INV_4PI,
             _ => self.pdf(-w_in, wi),
         };
         PhaseSample {

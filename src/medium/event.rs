@@ -183,7 +183,7 @@ impl<'a> VertexPhase<'a> {
                 let s = p.sample(wo, sampler.next_2d());
                 // The value is the pdf, finite (HG's value is 0 where not finite): a positive
                 // pdf divided by itself is exactly 1.
-                (s.pdf > 0.0).then(|| PhaseDirection {
+                (s.pdf > 0.0).then_some(PhaseDirection {
                     wi: s.wi,
                     weight: Rgb::ONE,
                     pdf: s.pdf,
