@@ -261,6 +261,7 @@ pub fn gamma(n: i32) -> f32 {
 /// The table of glibc's single-precision `exp` (`__exp2f_data.tab`, glibc 2.27 and later):
 /// entry `i` is the bit pattern of 2^(i/32) with `i << 47` subtracted, so that adding
 /// `k << 47` to entry `k mod 32` gives 2^(k/32) for any integer `k`.
+#[cfg(target_feature = "fma")]
 const EXPF_TABLE: [u64; 32] = [
     0x3ff0000000000000,
     0x3fefd9b0d3158574,
@@ -296,13 +297,17 @@ const EXPF_TABLE: [u64; 32] = [
     0x3fefd0765b6e4540,
 ];
 /// 32/ln 2 (`__exp2f_data.invln2_scaled`).
+#[cfg(target_feature = "fma")]
 const EXPF_INV_LN2_N: u64 = 0x40471547652b82fe;
 /// 1.5 · 2^52: adding it rounds to an integer (`__exp2f_data.shift`).
+#[cfg(target_feature = "fma")]
 const EXPF_SHIFT: u64 = 0x4338000000000000;
 /// The polynomial for 2^(r/32) − 1 ≈ (C0 r + C1) r² + C2 r (`__exp2f_data.poly_scaled`).
+#[cfg(target_feature = "fma")]
 const EXPF_POLY: [u64; 3] = [0x3ebc6af84b912394, 0x3f2ebfce50fac4f3, 0x3f962e42ff0c52d6];
 /// Arguments whose biased exponent field (bits 20–30 of the `f32`) is above this (|x| ≥ 88,
 /// infinities, NaN) take glibc's special-case path.
+#[cfg(target_feature = "fma")]
 const EXPF_LARGE_TOP: u32 = 0x42a;
 
 /// `x.exp()` with the bits that glibc's `expf` gives on a CPU with FMA (its `__expf_fma`,
@@ -406,6 +411,7 @@ pub fn exp3(x: [f32; 3]) -> [f32; 3] {
 /// The table of glibc's single-precision `log` (`__logf_data.tab`, glibc 2.27 and later):
 /// `(1/c, ln c)` for the 16 subintervals c of [0x1.66p-1, 0x1.66p0) that the argument's
 /// mantissa is reduced to.
+#[cfg(target_feature = "fma")]
 const LOGF_TABLE: [(u64, u64); 16] = [
     (0x3ff661ec79f8f3be, 0xbfd57bf7808caade),
     (0x3ff571ed4aaf883d, 0xbfd2bef0a7c06ddb),
@@ -425,8 +431,10 @@ const LOGF_TABLE: [(u64, u64); 16] = [
     (0x3fe767dcf5534862, 0x3fd4043057b6ee09),
 ];
 /// ln 2 (`__logf_data.ln2`).
+#[cfg(target_feature = "fma")]
 const LOGF_LN2: u64 = 0x3fe62e42fefa39ef;
 /// The polynomial for ln(1 + r) − r ≈ A0 r⁴ + A1 r³ + A2 r² (`__logf_data.poly`).
+#[cfg(target_feature = "fma")]
 const LOGF_POLY: [u64; 3] = [0xbfd00ea348b88334, 0x3fd5575b0be00b6a, 0xbfdffffef20a4123];
 
 /// `x.ln()` with the bits that glibc's `logf` gives on a CPU with FMA (its `__logf_fma`;
