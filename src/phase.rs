@@ -102,6 +102,13 @@ fn hg_from_delta(g: f32, delta: f32) -> f32 {
 /// only the one of `1 − μ`, `1 + μ` that the sign of `g` uses computed (the same bits).
 #[inline]
 fn hg_eval(g: f32, wo: Vec3, wi: Vec3) -> f32 {
+    if g == 0.0 {
+        // Isotropic (g = ±0): δ = 1 + 2g·a is exactly 1 for every a in [0, 2], and the value
+        // (1 − g)(1 + g)/(4π)/(1·√1) is exactly 1/(4π); only a NaN `a` (a NaN direction)
+        // makes it NaN, which [`hg_from_delta`] turns into 0.
+        let a = (0.5 * (wo + wi).length_squared()).clamp(0.0, 2.0);
+        return if a.is_nan() { 0.0 } else { INV_4PI };
+    }
     let delta = if g >= 0.0 {
         let a = (0.5 * (wo + wi).length_squared()).clamp(0.0, 2.0);
         (1.0 - g) * (1.0 - g) + 2.0 * g * a
@@ -134,18 +141,27 @@ pub fn henyey_greenstein_mu(g: f32, mu: f32) -> f32 {
 fn sample_hg(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
     let xi = u.x.clamp(0.0, 1.0);
     let xi_c = 1.0 - xi;
-    let (d, p, q) = if g >= 0.0 {
-        ((1.0 - g) + 2.0 * g * xi, 1.0 + g * xi, (1.0 - g) + g * xi)
+    let (a, b) = if g == 0.0 {
+        // Isotropic (g = ±0): below, d = p = q = 1 exactly for every ξ in [0, 1] and the
+        // factors (1 ∓ g)² are 1, so a = 2(1 − ξ) and b = 2ξ (doubling is exact, and both lie
+        // in [0, 2]; a NaN ξ stays NaN): the same bits without the division.
+        (2.0 * xi_c, 2.0 * xi)
     } else {
+        let (d, p, q) = if g >= 0.0 {
+            ((1.0 - g) + 2.0 * g * xi, 1.0 + g * xi, (1.0 - g) + g * xi)
+        } else {
+            (
+                (1.0 + g) - 2.0 * g * xi_c,
+                (1.0 + g) - g * xi_c,
+                1.0 - g * xi_c,
+            )
+        };
+        let d2 = d * d;
         (
-            (1.0 + g) - 2.0 * g * xi_c,
-            (1.0 + g) - g * xi_c,
-            1.0 - g * xi_c,
+            (2.0 * (1.0 - g) * (1.0 - g) * xi_c * p / d2).clamp(0.0, 2.0),
+            (2.0 * (1.0 + g) * (1.0 + g) * xi * q / d2).clamp(0.0, 2.0),
         )
     };
-    let d2 = d * d;
-    let a = (2.0 * (1.0 - g) * (1.0 - g) * xi_c * p / d2).clamp(0.0, 2.0);
-    let b = (2.0 * (1.0 + g) * (1.0 + g) * xi * q / d2).clamp(0.0, 2.0);
     let mu = if a < b { 1.0 - a } else { b - 1.0 };
     let sin_t = (a * b).max(0.0).sqrt().min(1.0);
     let phi = 2.0 * PI * u.y;
@@ -211,7 +227,13 @@ impl PhaseFunction {
     #[must_use]
     pub fn sample(&self, wo: Vec3, u: Vec2) -> PhaseSample {
         let (wi, w_in) = self.sample_with_incident(wo, u);
-        let pdf = self.pdf(-w_in, wi);
+        let pdf = match *self {
+            // Isotropic (the pattern matches g = −0 too: float patterns compare with `==`):
+            // `w_in` and `wi` are finite (normalised or fallen back to a unit axis), so the pdf
+            // below is exactly 1/(4π) ([`hg_eval`]).
+            PhaseFunction::HenyeyGreenstein { g: 0.0 } => INV_4PI,
+            _ => self.pdf(-w_in, wi),
+        };
         PhaseSample {
             wi,
             pdf,
@@ -252,5 +274,131 @@ impl PhaseFunction {
             PhaseFunction::HenyeyGreenstein { g } => g,
             PhaseFunction::DoubleHenyeyGreenstein { g1, g2, w } => w * g1 + (1.0 - w) * g2,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `sample_hg`'s inversion for every g, as it was before the isotropic shortcut.
+    fn sample_hg_general(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
+        let xi = u.x.clamp(0.0, 1.0);
+        let xi_c = 1.0 - xi;
+        let (d, p, q) = if g >= 0.0 {
+            ((1.0 - g) + 2.0 * g * xi, 1.0 + g * xi, (1.0 - g) + g * xi)
+        } else {
+            (
+                (1.0 + g) - 2.0 * g * xi_c,
+                (1.0 + g) - g * xi_c,
+                1.0 - g * xi_c,
+            )
+        };
+        let d2 = d * d;
+        let a = (2.0 * (1.0 - g) * (1.0 - g) * xi_c * p / d2).clamp(0.0, 2.0);
+        let b = (2.0 * (1.0 + g) * (1.0 + g) * xi * q / d2).clamp(0.0, 2.0);
+        let mu = if a < b { 1.0 - a } else { b - 1.0 };
+        let sin_t = (a * b).max(0.0).sqrt().min(1.0);
+        let phi = 2.0 * PI * u.y;
+        let f = Frame::from_normal(w_in);
+        let w = f.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), mu));
+        w.try_normalize().unwrap_or(w_in)
+    }
+
+    /// `hg_eval` for every g, as it was before the isotropic shortcut.
+    fn hg_eval_general(g: f32, wo: Vec3, wi: Vec3) -> f32 {
+        let delta = if g >= 0.0 {
+            let a = (0.5 * (wo + wi).length_squared()).clamp(0.0, 2.0);
+            (1.0 - g) * (1.0 - g) + 2.0 * g * a
+        } else {
+            let b = (0.5 * (wo - wi).length_squared()).clamp(0.0, 2.0);
+            (1.0 + g) * (1.0 + g) - 2.0 * g * b
+        };
+        hg_from_delta(g, delta)
+    }
+
+    /// A small deterministic generator of uniform `f32`s in [0, 1) (24-bit, as the sampler's).
+    struct Uniform(u64);
+    impl Uniform {
+        fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((self.0 >> 40) as f32) * (1.0 / 16_777_216.0)
+        }
+        fn direction(&mut self) -> Vec3 {
+            let v = Vec3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5);
+            v.try_normalize().unwrap_or(Vec3::Z)
+        }
+    }
+
+    #[test]
+    fn isotropic_sampling_and_values_have_the_general_formulas_bits() {
+        let mut rng = Uniform(7);
+        let edges = [0.0, 0.5, 1.0 - f32::EPSILON / 2.0, f32::EPSILON, f32::NAN];
+        for i in 0..200_000 {
+            let u = if i < edges.len() * edges.len() {
+                Vec2::new(edges[i % edges.len()], edges[i / edges.len()])
+            } else {
+                Vec2::new(rng.next(), rng.next())
+            };
+            let (wo, wi) = (rng.direction(), rng.direction());
+            for g in [0.0f32, -0.0] {
+                let w_in = (-wo).try_normalize().unwrap_or(Vec3::Z);
+                let got = sample_hg(g, w_in, u);
+                let want = sample_hg_general(g, w_in, u);
+                assert_eq!(
+                    got.to_array().map(f32::to_bits),
+                    want.to_array().map(f32::to_bits)
+                );
+                assert_eq!(
+                    hg_eval(g, wo, wi).to_bits(),
+                    hg_eval_general(g, wo, wi).to_bits()
+                );
+                let phase = PhaseFunction::HenyeyGreenstein { g };
+                let s = phase.sample(wo, u);
+                let pdf = hg_eval_general(g, -w_in, want);
+                assert_eq!(
+                    (s.pdf.to_bits(), s.value.to_bits()),
+                    (pdf.to_bits(), pdf.to_bits())
+                );
+            }
+        }
+        // A NaN direction: the value is 0, as the general formula's.
+        let nan = Vec3::new(f32::NAN, 0.0, 1.0);
+        assert_eq!(hg_eval(0.0, nan, Vec3::Z), 0.0);
+        assert_eq!(hg_eval_general(0.0, nan, Vec3::Z), 0.0);
+    }
+
+    #[test]
+    fn a_samples_value_over_its_pdf_is_exactly_one() {
+        // What `VertexPhase::sample`'s weight of 1 relies on, for single and double HG.
+        let mut rng = Uniform(11);
+        let phases = [
+            PhaseFunction::HenyeyGreenstein { g: 0.0 },
+            PhaseFunction::HenyeyGreenstein { g: 0.99 },
+            PhaseFunction::HenyeyGreenstein { g: -0.99 },
+            PhaseFunction::HenyeyGreenstein { g: 0.3 },
+            PhaseFunction::DoubleHenyeyGreenstein {
+                g1: 0.95,
+                g2: -0.6,
+                w: 0.8,
+            },
+        ];
+        let mut positive = 0;
+        for _ in 0..50_000 {
+            let u = Vec2::new(rng.next(), rng.next());
+            let wo = rng.direction();
+            for p in &phases {
+                let s = p.sample(wo, u);
+                assert!(s.pdf.is_finite() && s.value.to_bits() == s.pdf.to_bits());
+                if s.pdf > 0.0 {
+                    assert_eq!(s.value / s.pdf, 1.0);
+                    positive += 1;
+                }
+            }
+        }
+        assert!(positive > 200_000);
     }
 }

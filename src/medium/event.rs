@@ -181,9 +181,11 @@ impl<'a> VertexPhase<'a> {
         match self {
             VertexPhase::Hg(p) => {
                 let s = p.sample(wo, sampler.next_2d());
-                (s.pdf > 0.0).then(|| PhaseDirection {
+                // The value is the pdf, finite (HG's value is 0 where not finite): a positive
+                // pdf divided by itself is exactly 1.
+                (s.pdf > 0.0).then_some(PhaseDirection {
                     wi: s.wi,
-                    weight: Rgb::splat(s.value / s.pdf),
+                    weight: Rgb::ONE,
                     pdf: s.pdf,
                 })
             }

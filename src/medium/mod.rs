@@ -443,7 +443,48 @@ impl Medium {
             return Rgb::ONE;
         }
         // Guard 0·∞ (σ_t = 0 with an infinite segment): docs/references.md §8.
-        self.sigma_t()
-            .map(|s| if s == 0.0 { 1.0 } else { (-s * d).exp() })
+        let sigma_t = match self {
+            Medium::Absorbing { sigma_a } => *sigma_a,
+            Medium::Homogeneous(h) => h.coefficients.sigma_t(),
+            _ => self.sigma_t(),
+        };
+        let e = crate::math::exp3(sigma_t.0.map(|s| -s * d));
+        Rgb([0, 1, 2].map(|k| if sigma_t[k] == 0.0 { 1.0 } else { e[k] }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closed_form_transmittance_has_the_bits_of_the_c_librarys_exp() {
+        let media = [
+            Medium::Homogeneous(HomogeneousMedium {
+                coefficients: Coefficients {
+                    sigma_a: Rgb::new(0.16, 1.2, 5.4),
+                    sigma_s: Rgb::new(15.84, 22.8, 30.6),
+                },
+                phase: PhaseFunction::HenyeyGreenstein { g: 0.0 },
+            }),
+            Medium::Absorbing {
+                sigma_a: Rgb::new(0.0, 2.5, 90.0),
+            },
+        ];
+        let mut n = 0;
+        for m in &media {
+            let sigma_t = m.sigma_t();
+            for i in 0..50_000u32 {
+                let d = (i as f32) * 1e-4 * (1.0 + i as f32 * 1e-3);
+                let want = sigma_t.map(|s| if s == 0.0 { 1.0 } else { (-s * d).exp() });
+                let got = m.closed_form_transmittance(d);
+                assert_eq!(got.0.map(f32::to_bits), want.0.map(f32::to_bits), "d = {d}");
+                n += 1;
+            }
+            // An infinite segment: 0 where σ_t > 0, 1 where σ_t = 0 (no 0·∞).
+            let far = sigma_t.map(|s| if s == 0.0 { 1.0 } else { 0.0 });
+            assert_eq!(m.closed_form_transmittance(f32::INFINITY), far);
+        }
+        assert_eq!(n, 100_000);
     }
 }
