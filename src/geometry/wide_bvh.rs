@@ -240,11 +240,6 @@ const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32
 /// The slab test of one node: the entry distances of its eight children and the mask of those
 /// the ray enters within `[0, t_max]` (bit `i` for child `i`).
 trait NodeTest {
-    /// Whether nodes with exactly two entered children go through [`Self::order`] too
-    /// (one path for every node with two or more, without the two-child case's own
-    /// comparison and leaf/inner branches) rather than through their own case.
-    const ORDER_FROM_TWO: bool = false;
-
     fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32);
 
     /// The masks of the children whose entry distance in `near` is below `t` and equal to
@@ -482,8 +477,6 @@ mod avx512 {
     pub(super) struct Avx512Slab(pub(super) AvxSlab);
 
     impl NodeTest for Avx512Slab {
-        const ORDER_FROM_TWO: bool = true;
-
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
             self.0.test(node, t_max)
@@ -986,7 +979,7 @@ impl WideBvh {
                     continue;
                 }
                 leaf!(node, s0);
-            } else if !T::ORDER_FROM_TWO && rest & (rest - 1) == 0 {
+            } else if rest & (rest - 1) == 0 {
                 // Two children, nearest first (a tie keeps the lower slot first).
                 let s1 = (rest.trailing_zeros() & 7) as usize;
                 let (a, b) = if near[s1] < near[s0] {
@@ -1025,10 +1018,8 @@ impl WideBvh {
                     continue;
                 }
             } else {
-                // Three or more (two or more with [`NodeTest::ORDER_FROM_TWO`]): the entered
-                // children sorted by entry distance, nearest first, ties by slot
-                // ([`NodeTest::order`]). With two, the same visits as the two-child case: the
-                // nearer first, a leaf of the two before the inner one is entered.
+                // Three or more: the entered children sorted by entry distance, nearest
+                // first, ties by slot ([`NodeTest::order`]).
                 let n = mask.count_ones() as usize;
                 slab.order(&near, mask, &mut order);
                 // Leaves are intersected at once, nearest first (a hit shortens the ray for
@@ -1606,46 +1597,6 @@ mod tests {
             entered > 8_000 && on_plane > 10_000,
             "{entered} entered, {on_plane} on planes"
         );
-    }
-
-    /// The AVX-512 traversal sends nodes with exactly two entered children through its
-    /// sorting network (`ORDER_FROM_TWO`): on every pair of slots, with ties and zeros of
-    /// either sign, the network puts the two as the two-child case does (the later slot
-    /// first only when strictly nearer).
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn the_network_orders_two_children_as_the_two_child_case() {
-        assert!(!<SlabRay as NodeTest>::ORDER_FROM_TWO);
-        if !avx512::detected() {
-            eprintln!("note: no AVX-512 on this CPU; not tested");
-            return;
-        }
-        assert!(<avx512::Avx512Slab as NodeTest>::ORDER_FROM_TWO);
-        let ray = Ray::new(Vec3::ZERO, Vec3::X);
-        // SAFETY: AVX-512 F and VL (and AVX2 and FMA) were detected.
-        let wide = avx512::Avx512Slab(unsafe { avx2::AvxSlab::from_ray(&ray) }.expect("finite"));
-        let values = [0.0f32, -0.0, 0.5, 0.5, 1.0, 3.0e-41, 2.0e30, 7.25];
-        let mut checked = 0;
-        for s0 in 0..WIDTH {
-            for s1 in s0 + 1..WIDTH {
-                for &u in &values {
-                    for &v in &values {
-                        let mut near = [9.0f32; WIDTH];
-                        near[s0] = u;
-                        near[s1] = v;
-                        let (a, b) = if near[s1] < near[s0] { (s1, s0) } else { (s0, s1) };
-                        let mut order = [Ranked::default(); WIDTH];
-                        wide.order(&near, (1 << s0) | (1 << s1), &mut order);
-                        assert_eq!(order[0].slot as usize, a, "{near:?}");
-                        assert_eq!(order[1].slot as usize, b, "{near:?}");
-                        assert_eq!(order[0].t.to_bits(), near[a].to_bits() & 0x7fff_ffff);
-                        assert_eq!(order[1].t.to_bits(), near[b].to_bits() & 0x7fff_ffff);
-                        checked += 1;
-                    }
-                }
-            }
-        }
-        assert_eq!(checked, 28 * 64);
     }
 
     /// `NodeTest::order` of every node test against a stable sort by entry distance (ties by
