@@ -104,17 +104,6 @@ struct Node8 {
 }
 
 impl Node8 {
-    /// The slots whose child is not a leaf (inner children and empty slots; bit `i` for
-    /// slot `i`).
-    #[inline(always)]
-    fn inner_mask(&self) -> u32 {
-        let mut m = 0;
-        for (i, &c) in self.count.iter().enumerate() {
-            m |= u32::from(c == 0) << i;
-        }
-        m
-    }
-
     fn empty() -> Self {
         Node8 {
             planes: [
@@ -251,10 +240,6 @@ const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32
 /// The slab test of one node: the entry distances of its eight children and the mask of those
 /// the ray enters within `[0, t_max]` (bit `i` for child `i`).
 trait NodeTest {
-    /// Whether a node with three or more entered children, all inner, skips the per-child
-    /// loop: its children are pushed straight from [`Self::order`]'s list.
-    const ALL_INNER_PATH: bool = false;
-
     fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32);
 
     /// The masks of the children whose entry distance in `near` is below `t` and equal to
@@ -492,8 +477,6 @@ mod avx512 {
     pub(super) struct Avx512Slab(pub(super) AvxSlab);
 
     impl NodeTest for Avx512Slab {
-        const ALL_INNER_PATH: bool = true;
-
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
             self.0.test(node, t_max)
@@ -1039,21 +1022,6 @@ impl WideBvh {
                 // first, ties by slot ([`NodeTest::order`]).
                 let n = mask.count_ones() as usize;
                 slab.order(&near, mask, &mut order);
-                if T::ALL_INNER_PATH && mask & !node.inner_mask() == 0 {
-                    // Every entered child inner: no leaf shortens the ray, and each entered
-                    // child's entry distance is at most `t_max`, so all are visited; the
-                    // nearest next, the others pushed farthest first, as the loop below does.
-                    for r in order[1..n].iter().rev() {
-                        let slot = (r.slot & 7) as usize;
-                        self.prefetch_node(node.child[slot]);
-                        stack.push(Entry {
-                            node: node.child[slot],
-                            t: r.t,
-                        });
-                    }
-                    current = node.child[(order[0].slot & 7) as usize];
-                    continue;
-                }
                 // Leaves are intersected at once, nearest first (a hit shortens the ray for
                 // the rest); inner children are pushed farthest first, so the nearest is
                 // visited next.
