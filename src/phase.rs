@@ -102,7 +102,14 @@ fn hg_from_delta(g: f32, delta: f32) -> f32 {
 /// only the one of `1 − μ`, `1 + μ` that the sign of `g` uses computed (the same bits).
 #[inline]
 fn hg_eval(g: f32, wo: Vec3, wi: Vec3) -> f32 {
-    if g == 0.0 {
+    hg_eval_with::<true>(g, wo, wi)
+}
+
+/// [`hg_eval`], with the isotropic shortcut when `ISOTROPIC_SHORTCUT` (the tests compare the
+/// two instances bit for bit).
+#[inline(always)]
+fn hg_eval_with<const ISOTROPIC_SHORTCUT: bool>(g: f32, wo: Vec3, wi: Vec3) -> f32 {
+    if ISOTROPIC_SHORTCUT && g == 0.0 {
         // Isotropic (g = ±0): δ = 1 + 2g·a is exactly 1 for every a in [0, 2], and the value
         // (1 − g)(1 + g)/(4π)/(1·√1) is exactly 1/(4π); only a NaN `a` (a NaN direction)
         // makes it NaN, which [`hg_from_delta`] turns into 0.
@@ -139,9 +146,16 @@ pub fn henyey_greenstein_mu(g: f32, mu: f32) -> f32 {
 /// Samples HG by exact inversion in the cancellation-free form of docs/references.md §2.3; returns
 /// the propagation direction after scattering, given the direction before (`w_in`).
 fn sample_hg(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
+    sample_hg_with::<true>(g, w_in, u)
+}
+
+/// [`sample_hg`], with the isotropic shortcut when `ISOTROPIC_SHORTCUT` (the tests compare the
+/// two instances bit for bit).
+#[inline(always)]
+fn sample_hg_with<const ISOTROPIC_SHORTCUT: bool>(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
     let xi = u.x.clamp(0.0, 1.0);
     let xi_c = 1.0 - xi;
-    let (a, b) = if g == 0.0 {
+    let (a, b) = if ISOTROPIC_SHORTCUT && g == 0.0 {
         // Isotropic (g = ±0): below, d = p = q = 1 exactly for every ξ in [0, 1] and the
         // factors (1 ∓ g)² are 1, so a = 2(1 − ξ) and b = 2ξ (doubling is exact, and both lie
         // in [0, 2]; a NaN ξ stays NaN): the same bits without the division.
@@ -281,40 +295,14 @@ impl PhaseFunction {
 mod tests {
     use super::*;
 
-    /// `sample_hg`'s inversion for every g, as it was before the isotropic shortcut.
+    /// `sample_hg`'s inversion for every g, without the isotropic shortcut.
     fn sample_hg_general(g: f32, w_in: Vec3, u: Vec2) -> Vec3 {
-        let xi = u.x.clamp(0.0, 1.0);
-        let xi_c = 1.0 - xi;
-        let (d, p, q) = if g >= 0.0 {
-            ((1.0 - g) + 2.0 * g * xi, 1.0 + g * xi, (1.0 - g) + g * xi)
-        } else {
-            (
-                (1.0 + g) - 2.0 * g * xi_c,
-                (1.0 + g) - g * xi_c,
-                1.0 - g * xi_c,
-            )
-        };
-        let d2 = d * d;
-        let a = (2.0 * (1.0 - g) * (1.0 - g) * xi_c * p / d2).clamp(0.0, 2.0);
-        let b = (2.0 * (1.0 + g) * (1.0 + g) * xi * q / d2).clamp(0.0, 2.0);
-        let mu = if a < b { 1.0 - a } else { b - 1.0 };
-        let sin_t = (a * b).max(0.0).sqrt().min(1.0);
-        let phi = 2.0 * PI * u.y;
-        let f = Frame::from_normal(w_in);
-        let w = f.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), mu));
-        w.try_normalize().unwrap_or(w_in)
+        sample_hg_with::<false>(g, w_in, u)
     }
 
-    /// `hg_eval` for every g, as it was before the isotropic shortcut.
+    /// `hg_eval` for every g, without the isotropic shortcut.
     fn hg_eval_general(g: f32, wo: Vec3, wi: Vec3) -> f32 {
-        let delta = if g >= 0.0 {
-            let a = (0.5 * (wo + wi).length_squared()).clamp(0.0, 2.0);
-            (1.0 - g) * (1.0 - g) + 2.0 * g * a
-        } else {
-            let b = (0.5 * (wo - wi).length_squared()).clamp(0.0, 2.0);
-            (1.0 + g) * (1.0 + g) - 2.0 * g * b
-        };
-        hg_from_delta(g, delta)
+        hg_eval_with::<false>(g, wo, wi)
     }
 
     /// A small deterministic generator of uniform `f32`s in [0, 1) (24-bit, as the sampler's).

@@ -833,6 +833,25 @@ impl WideBvh {
     #[target_feature(enable = "avx2,fma,popcnt")]
     unsafe fn traverse_avx2(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
         // SAFETY: this function runs only with AVX2 and FMA.
+        unsafe { self.traverse_wide(ray, t_max, primitive, |slab| slab) }
+    }
+
+    /// The body of the AVX2 and AVX-512 traversals, inlined into each (so compiled for its
+    /// features): the 8-wide node test made from `ray` and handed to the traversal through
+    /// `wrap`, or the 4-wide one where `o·inv` overflows `f32`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn traverse_wide<W: NodeTest>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        primitive: impl LeafVisitor,
+        wrap: impl FnOnce(avx2::AvxSlab) -> W,
+    ) {
+        // SAFETY: AVX2 and FMA are available (the caller's contract).
         let Some(wide) = (unsafe { avx2::AvxSlab::from_ray(ray) }) else {
             // `o·inv` overflows `f32`: the 4-wide test, which has no such term.
             let slab = SlabRay::new(ray);
@@ -843,6 +862,7 @@ impl WideBvh {
             }
             return;
         };
+        let wide = wrap(wide);
         if self.shallow() {
             self.traverse_with::<_, false>(&wide, t_max, primitive);
         } else {
@@ -859,23 +879,8 @@ impl WideBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,popcnt,avx512f,avx512vl")]
     unsafe fn traverse_avx512(&self, ray: &Ray, t_max: f32, primitive: impl LeafVisitor) {
-        // SAFETY: this function runs only with AVX2 and FMA.
-        let Some(wide) = (unsafe { avx2::AvxSlab::from_ray(ray) }) else {
-            // `o·inv` overflows `f32`: the 4-wide test, which has no such term.
-            let slab = SlabRay::new(ray);
-            if self.shallow() {
-                self.traverse_with::<_, false>(&slab, t_max, primitive);
-            } else {
-                self.traverse_with::<_, true>(&slab, t_max, primitive);
-            }
-            return;
-        };
-        let wide = avx512::Avx512Slab(wide);
-        if self.shallow() {
-            self.traverse_with::<_, false>(&wide, t_max, primitive);
-        } else {
-            self.traverse_with::<_, true>(&wide, t_max, primitive);
-        }
+        // SAFETY: this function runs only with AVX-512 F and VL, AVX2, FMA and POPCNT.
+        unsafe { self.traverse_wide(ray, t_max, primitive, avx512::Avx512Slab) }
     }
 
     /// Asks the CPU to bring the four cache lines of inner node `index` towards the core
