@@ -479,12 +479,25 @@ pub fn ln_f32(x: f32) -> f32 {
 mod tests {
     use super::*;
 
-    /// `exp_f32` and `exp3` against the C library's `expf` for the bit patterns `start`,
-    /// `start + step`, … up to `last`; returns how many were compared.
-    fn compare_exp(start: u32, last: u32, step: u32) -> u64 {
+    /// Calls `check` on the bit patterns `start`, `start + step`, … up to `last` (stopping
+    /// before the pattern would pass `u32::MAX`); returns how many it checked.
+    fn for_patterns(start: u32, last: u32, step: u32, mut check: impl FnMut(u32)) -> u64 {
         let mut n = 0u64;
         let mut bits = start;
         loop {
+            check(bits);
+            n += 1;
+            match bits.checked_add(step) {
+                Some(b) if b <= last => bits = b,
+                _ => return n,
+            }
+        }
+    }
+
+    /// `exp_f32` and `exp3` against the C library's `expf` for the bit patterns `start`,
+    /// `start + step`, … up to `last`; returns how many were compared.
+    fn compare_exp(start: u32, last: u32, step: u32) -> u64 {
+        for_patterns(start, last, step, |bits| {
             let x = f32::from_bits(bits);
             let want = x.exp().to_bits();
             assert_eq!(exp_f32(x).to_bits(), want, "exp_f32({x:e}) ({bits:#010x})");
@@ -496,12 +509,7 @@ mod tests {
                 [x, y, w].map(|v| v.exp().to_bits()),
                 "exp3 at {bits:#010x}"
             );
-            n += 1;
-            match bits.checked_add(step) {
-                Some(b) if b <= last => bits = b,
-                _ => return n,
-            }
-        }
+        })
     }
 
     #[test]
@@ -541,21 +549,14 @@ mod tests {
     /// `ln_f32` against the C library's `logf` for the bit patterns `start`, `start + step`,
     /// … up to `last`; returns how many were compared.
     fn compare_ln(start: u32, last: u32, step: u32) -> u64 {
-        let mut n = 0u64;
-        let mut bits = start;
-        loop {
+        for_patterns(start, last, step, |bits| {
             let x = f32::from_bits(bits);
             assert_eq!(
                 ln_f32(x).to_bits(),
                 x.ln().to_bits(),
                 "ln_f32({x:e}) ({bits:#010x})"
             );
-            n += 1;
-            match bits.checked_add(step) {
-                Some(b) if b <= last => bits = b,
-                _ => return n,
-            }
-        }
+        })
     }
 
     #[test]
