@@ -257,9 +257,10 @@ trait NodeTest {
     /// Writes the children entered in `mask` to `order[..n]` (`n` their number), sorted by
     /// their entry distance in `near`, nearest first, ties by slot: each is put at its rank
     /// (the entered children nearer than it, or as near in a lower slot) without a
-    /// data-dependent loop. Entries from `n` on are unspecified.
+    /// data-dependent loop. Entries from `n` on are unspecified (they may stay
+    /// uninitialised); the first `n` are always written.
     #[inline(always)]
-    fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
+    fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut MaybeUninit<[Ranked; WIDTH]>) {
         let mut rest = mask;
         while rest != 0 {
             let slot = (rest.trailing_zeros() & 7) as usize;
@@ -267,10 +268,17 @@ trait NodeTest {
             let t = near[slot];
             let (lt, eq) = self.before(near, t);
             let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
-            order[rank & 7] = Ranked {
-                slot: slot as u32,
-                t,
-            };
+            // SAFETY: `rank & 7` is below `WIDTH`: the write stays inside `order`.
+            unsafe {
+                order
+                    .as_mut_ptr()
+                    .cast::<Ranked>()
+                    .add(rank & 7)
+                    .write(Ranked {
+                        slot: slot as u32,
+                        t,
+                    });
+            }
         }
     }
 }
@@ -334,9 +342,9 @@ fn directed_products(o: Vec3, inv: Vec4) -> Option<(Vec4, Vec4)> {
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m256, _mm256_cmp_ps, _mm256_fmadd_ps, _mm256_fmsub_ps, _mm256_loadu_ps, _mm256_max_ps,
-        _mm256_min_ps, _mm256_movemask_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
-        _CMP_EQ_OQ, _CMP_LE_OS, _CMP_LT_OQ,
+        __m256, _mm256_cmp_ps, _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps,
+        _mm256_movemask_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _CMP_EQ_OQ,
+        _CMP_LE_OS, _CMP_LT_OQ,
     };
 
     use super::{
@@ -350,10 +358,13 @@ mod avx2 {
     pub(super) struct AvxSlab {
         /// The capped reciprocal direction ([`slab_constants`]).
         inv: [__m256; 3],
-        /// `o·inv` rounded up: the entry planes' origin term.
-        c_near: [__m256; 3],
-        /// `o·inv` rounded down: the exit planes' origin term.
-        c_far: [__m256; 3],
+        /// The same, one float per axis (the last is 1): read by the AVX-512 node test as a
+        /// broadcast operand at its use ([`super::avx512`]).
+        pub(super) inv_scalar: [f32; 4],
+        /// `o·inv` rounded up, negated: the entry planes' origin term, added.
+        neg_c_near: [__m256; 3],
+        /// `o·inv` rounded down, negated: the exit planes' origin term, added.
+        neg_c_far: [__m256; 3],
         near: [usize; 3],
         far: [usize; 3],
     }
@@ -369,6 +380,9 @@ mod avx2 {
             let (inv, neg) = slab_constants(ray);
             let p = OCTANT_PLANES[(neg & 7) as usize];
             let (up, down) = directed_products(ray.o, inv)?;
+            // Negated in four lanes before they are splatted: `P·inv + (−c)` is the same
+            // fused operation as `P·inv − c` (one rounding of the same exact value).
+            let (up, down) = (-up, -down);
             // SAFETY: AVX is available (the caller's contract).
             unsafe {
                 Some(AvxSlab {
@@ -377,12 +391,13 @@ mod avx2 {
                         _mm256_set1_ps(inv.y),
                         _mm256_set1_ps(inv.z),
                     ],
-                    c_near: [
+                    inv_scalar: inv.to_array(),
+                    neg_c_near: [
                         _mm256_set1_ps(up.x),
                         _mm256_set1_ps(up.y),
                         _mm256_set1_ps(up.z),
                     ],
-                    c_far: [
+                    neg_c_far: [
                         _mm256_set1_ps(down.x),
                         _mm256_set1_ps(down.y),
                         _mm256_set1_ps(down.z),
@@ -394,9 +409,18 @@ mod avx2 {
         }
     }
 
-    impl NodeTest for AvxSlab {
+    impl AvxSlab {
+        /// The node test with the slab distances `P·inv + (−c)` of axis `k` computed by
+        /// `mul_add(P, k, −c)`, which must be the fused multiply-add of `P` by this ray's
+        /// `inv[k]` (the AVX2 test keeps `inv` splatted, the AVX-512 one broadcasts it from
+        /// [`Self::inv_scalar`] at its use).
         #[inline(always)]
-        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+        pub(super) fn test_with(
+            &self,
+            node: &Node8,
+            t_max: f32,
+            mul_add: impl Fn(__m256, usize, __m256) -> __m256,
+        ) -> ([f32; WIDTH], u32) {
             // SAFETY: an `AvxSlab` exists only where AVX2 and FMA are available (its
             // constructor needs them); the plane indices are `k` or `k + 3` (below 6, from
             // `OCTANT_PLANES`); the loads read the 8 contiguous floats of a `[Vec4; 2]`
@@ -417,8 +441,8 @@ mod avx2 {
                             .as_ptr()
                             .cast::<f32>(),
                     );
-                    near = _mm256_max_ps(near, _mm256_fmsub_ps(n, self.inv[k], self.c_near[k]));
-                    far = _mm256_min_ps(far, _mm256_fmsub_ps(f, self.inv[k], self.c_far[k]));
+                    near = _mm256_max_ps(near, mul_add(n, k, self.neg_c_near[k]));
+                    far = _mm256_min_ps(far, mul_add(f, k, self.neg_c_far[k]));
                 }
                 let far = _mm256_fmadd_ps(
                     far,
@@ -430,6 +454,16 @@ mod avx2 {
                 _mm256_storeu_ps(out.as_mut_ptr(), near);
                 (out, mask)
             }
+        }
+    }
+
+    impl NodeTest for AvxSlab {
+        #[inline(always)]
+        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
+            // SAFETY: AVX2 and FMA are available (see `test_with`).
+            self.test_with(node, t_max, |p, k, c| unsafe {
+                _mm256_fmadd_ps(p, self.inv[k], c)
+            })
         }
 
         #[inline(always)]
@@ -454,11 +488,13 @@ mod avx2 {
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
     use std::arch::x86_64::{
-        __m512i, _mm256_and_si256, _mm256_loadu_si256, _mm256_set1_epi32, _mm512_cvtepu32_epi64,
-        _mm512_mask_mov_epi64, _mm512_max_epu64, _mm512_min_epu64, _mm512_or_si512,
-        _mm512_permutexvar_epi64, _mm512_set1_epi64, _mm512_set_epi64, _mm512_slli_epi64,
-        _mm512_storeu_si512,
+        __m256, __m512i, _mm256_and_si256, _mm256_loadu_si256, _mm256_set1_epi32,
+        _mm512_cvtepu32_epi64, _mm512_mask_mov_epi64, _mm512_max_epu64, _mm512_min_epu64,
+        _mm512_or_si512, _mm512_permutexvar_epi64, _mm512_set1_epi64, _mm512_set_epi64,
+        _mm512_slli_epi64, _mm512_storeu_si512,
     };
+
+    use std::mem::MaybeUninit;
 
     use super::{avx2::AvxSlab, Node8, NodeTest, Ranked, WIDTH};
 
@@ -479,7 +515,12 @@ mod avx512 {
     impl NodeTest for Avx512Slab {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
-            self.0.test(node, t_max)
+            let inv = &self.0.inv_scalar;
+            // SAFETY: an `Avx512Slab` exists only where AVX-512 F and VL were detected;
+            // `k < 3`.
+            self.0.test_with(node, t_max, |p, k, c| unsafe {
+                fmadd_broadcast(p, inv.get_unchecked(k), c)
+            })
         }
 
         #[inline(always)]
@@ -488,11 +529,34 @@ mod avx512 {
         }
 
         #[inline(always)]
-        fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
+        fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut MaybeUninit<[Ranked; WIDTH]>) {
             // SAFETY: an `Avx512Slab` exists only where AVX-512 F and VL and AVX2 were
             // detected.
             unsafe { sort_entered(near, mask, order) }
         }
+    }
+
+    /// `a·b + c` for eight lanes of `a` and `c` and a float `b`, one fused multiply-add
+    /// with `b` an embedded broadcast operand (`{1to8}`): the same rounding as
+    /// `_mm256_fmadd_ps` with `b` splatted. Written in assembly so that the broadcast stays
+    /// at its use: with the intrinsics the compiler hoists the splat out of the traversal's
+    /// loop and then spills and reloads it around the leaf tests.
+    #[inline]
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+    fn fmadd_broadcast(a: __m256, b: &f32, c: __m256) -> __m256 {
+        let mut r = a;
+        // SAFETY: AVX-512 F and VL are enabled; the instruction reads the 4 bytes of `b`
+        // and writes only `r`.
+        unsafe {
+            std::arch::asm!(
+                "vfmadd132ps {r:y}, {c:y}, dword ptr [{b}]{{1to8}}",
+                r = inout(zmm_reg) r,
+                c = in(zmm_reg) c,
+                b = in(reg) b,
+                options(pure, readonly, nostack, preserves_flags),
+            );
+        }
+        r
     }
 
     /// One layer of the bitonic network: lane `i` against lane `partner[i]`, keeping the
@@ -532,7 +596,11 @@ mod avx512 {
     /// Bitonic sort (Batcher 1968): six layers of a permute, a min, a max and a blend.
     #[inline]
     #[target_feature(enable = "avx2,avx512f,avx512vl")]
-    pub(super) fn sort_entered(near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
+    pub(super) fn sort_entered(
+        near: &[f32; WIDTH],
+        mask: u32,
+        order: &mut MaybeUninit<[Ranked; WIDTH]>,
+    ) {
         // SAFETY: the load reads the 8 floats of `near`, the store writes the 8 × 8 bytes of
         // `order` (`Ranked` is `repr(C)`, two 4-byte fields).
         let bits = unsafe { _mm256_loadu_si256(near.as_ptr().cast()) };
@@ -943,10 +1011,11 @@ impl WideBvh {
         let mut stack_entries = MaybeUninit::uninit();
         let mut stack = Stack::<SPILL>::new(&mut stack_entries);
         let mut current = 0u32;
-        // Scratch for the children of a node with three or more entered (only entries below
-        // the counts are read), initialised once per ray.
-        let mut order = [Ranked::default(); WIDTH];
-        let mut inner = [Entry::default(); WIDTH];
+        // Scratch for the children of a node with three or more entered, left uninitialised:
+        // only entries below the counts are read, and `order` writes those, the loop below
+        // the inner children's.
+        let mut order = MaybeUninit::<[Ranked; WIDTH]>::uninit();
+        let mut inner = MaybeUninit::<[Entry; WIDTH]>::uninit();
         // Tests the leaf in slot `$slot` of `node`; returns from the traversal when
         // `primitive` ends it.
         macro_rules! leaf {
@@ -1027,11 +1096,14 @@ impl WideBvh {
                 // first, ties by slot ([`NodeTest::order`]).
                 let n = mask.count_ones() as usize;
                 slab.order(&near, mask, &mut order);
+                // SAFETY: `order` wrote its first `n` entries (`n ≤ WIDTH`).
+                let sorted =
+                    unsafe { std::slice::from_raw_parts(order.as_ptr().cast::<Ranked>(), n) };
                 // Leaves are intersected at once, nearest first (a hit shortens the ray for
                 // the rest); inner children are pushed farthest first, so the nearest is
                 // visited next.
                 let mut m = 0;
-                for &Ranked { slot, t } in &order[..n] {
+                for &Ranked { slot, t } in sorted {
                     if t > t_max {
                         break;
                     }
@@ -1040,17 +1112,24 @@ impl WideBvh {
                         leaf!(node, slot);
                     } else {
                         self.prefetch_node(node.child[slot]);
-                        inner[m] = Entry {
-                            node: node.child[slot],
-                            t,
-                        };
+                        // SAFETY: `m` counts the inner children met so far, at most `n ≤
+                        // WIDTH` less one for this one: the write stays inside `inner`.
+                        unsafe {
+                            inner.as_mut_ptr().cast::<Entry>().add(m).write(Entry {
+                                node: node.child[slot],
+                                t,
+                            });
+                        }
                         m += 1;
                     }
                 }
                 // The nearest inner child is visited next; the others wait, farthest
                 // deepest.
                 if m > 0 {
-                    for e in inner[1..m].iter().rev() {
+                    // SAFETY: the loop above wrote `inner`'s first `m` entries.
+                    let inner =
+                        unsafe { std::slice::from_raw_parts(inner.as_ptr().cast::<Entry>(), m) };
+                    for e in inner[1..].iter().rev() {
                         stack.push(*e);
                     }
                     // (A leaf after it may have shortened the ray.)
@@ -1654,10 +1733,11 @@ mod tests {
             // Stable: ties keep slot order. (No NaN among the distances.)
             expected.sort_by(|a, b| a.t.partial_cmp(&b.t).unwrap_or(std::cmp::Ordering::Equal));
             let n = mask.count_ones() as usize;
-            let placed = |test: &dyn Fn(&mut [Ranked; WIDTH])| {
-                let mut order = [Ranked::default(); WIDTH];
+            let placed = |test: &dyn Fn(&mut MaybeUninit<[Ranked; WIDTH]>)| {
+                let mut order = MaybeUninit::uninit();
                 test(&mut order);
-                order[..n].to_vec()
+                // SAFETY: `order` writes the first `n` entries.
+                unsafe { std::slice::from_raw_parts(order.as_ptr().cast::<Ranked>(), n) }.to_vec()
             };
             assert_eq!(placed(&|o| slab.order(&near, mask, o)), expected);
             #[cfg(target_arch = "x86_64")]
