@@ -358,9 +358,6 @@ mod avx2 {
     pub(super) struct AvxSlab {
         /// The capped reciprocal direction ([`slab_constants`]).
         inv: [__m256; 3],
-        /// The same, one float per axis (the last is 1): read by the AVX-512 node test as a
-        /// broadcast operand at its use ([`super::avx512`]).
-        pub(super) inv_scalar: [f32; 4],
         /// `o·inv` rounded up, negated: the entry planes' origin term, added.
         neg_c_near: [__m256; 3],
         /// `o·inv` rounded down, negated: the exit planes' origin term, added.
@@ -391,7 +388,6 @@ mod avx2 {
                         _mm256_set1_ps(inv.y),
                         _mm256_set1_ps(inv.z),
                     ],
-                    inv_scalar: inv.to_array(),
                     neg_c_near: [
                         _mm256_set1_ps(up.x),
                         _mm256_set1_ps(up.y),
@@ -409,18 +405,9 @@ mod avx2 {
         }
     }
 
-    impl AvxSlab {
-        /// The node test with the slab distances `P·inv + (−c)` of axis `k` computed by
-        /// `mul_add(P, k, −c)`, which must be the fused multiply-add of `P` by this ray's
-        /// `inv[k]` (the AVX2 test keeps `inv` splatted, the AVX-512 one broadcasts it from
-        /// [`Self::inv_scalar`] at its use).
+    impl NodeTest for AvxSlab {
         #[inline(always)]
-        pub(super) fn test_with(
-            &self,
-            node: &Node8,
-            t_max: f32,
-            mul_add: impl Fn(__m256, usize, __m256) -> __m256,
-        ) -> ([f32; WIDTH], u32) {
+        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
             // SAFETY: an `AvxSlab` exists only where AVX2 and FMA are available (its
             // constructor needs them); the plane indices are `k` or `k + 3` (below 6, from
             // `OCTANT_PLANES`); the loads read the 8 contiguous floats of a `[Vec4; 2]`
@@ -441,8 +428,8 @@ mod avx2 {
                             .as_ptr()
                             .cast::<f32>(),
                     );
-                    near = _mm256_max_ps(near, mul_add(n, k, self.neg_c_near[k]));
-                    far = _mm256_min_ps(far, mul_add(f, k, self.neg_c_far[k]));
+                    near = _mm256_max_ps(near, _mm256_fmadd_ps(n, self.inv[k], self.neg_c_near[k]));
+                    far = _mm256_min_ps(far, _mm256_fmadd_ps(f, self.inv[k], self.neg_c_far[k]));
                 }
                 let far = _mm256_fmadd_ps(
                     far,
@@ -454,16 +441,6 @@ mod avx2 {
                 _mm256_storeu_ps(out.as_mut_ptr(), near);
                 (out, mask)
             }
-        }
-    }
-
-    impl NodeTest for AvxSlab {
-        #[inline(always)]
-        fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
-            // SAFETY: AVX2 and FMA are available (see `test_with`).
-            self.test_with(node, t_max, |p, k, c| unsafe {
-                _mm256_fmadd_ps(p, self.inv[k], c)
-            })
         }
 
         #[inline(always)]
@@ -488,10 +465,10 @@ mod avx2 {
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
     use std::arch::x86_64::{
-        __m256, __m512i, _mm256_and_si256, _mm256_loadu_si256, _mm256_set1_epi32,
-        _mm512_cvtepu32_epi64, _mm512_mask_mov_epi64, _mm512_max_epu64, _mm512_min_epu64,
-        _mm512_or_si512, _mm512_permutexvar_epi64, _mm512_set1_epi64, _mm512_set_epi64,
-        _mm512_slli_epi64, _mm512_storeu_si512,
+        __m512i, _mm256_and_si256, _mm256_loadu_si256, _mm256_set1_epi32, _mm512_cvtepu32_epi64,
+        _mm512_mask_mov_epi64, _mm512_max_epu64, _mm512_min_epu64, _mm512_or_si512,
+        _mm512_permutexvar_epi64, _mm512_set1_epi64, _mm512_set_epi64, _mm512_slli_epi64,
+        _mm512_storeu_si512,
     };
 
     use std::mem::MaybeUninit;
@@ -515,12 +492,7 @@ mod avx512 {
     impl NodeTest for Avx512Slab {
         #[inline(always)]
         fn test(&self, node: &Node8, t_max: f32) -> ([f32; WIDTH], u32) {
-            let inv = &self.0.inv_scalar;
-            // SAFETY: an `Avx512Slab` exists only where AVX-512 F and VL were detected;
-            // `k < 3`.
-            self.0.test_with(node, t_max, |p, k, c| unsafe {
-                fmadd_broadcast(p, inv.get_unchecked(k), c)
-            })
+            self.0.test(node, t_max)
         }
 
         #[inline(always)]
@@ -534,29 +506,6 @@ mod avx512 {
             // detected.
             unsafe { sort_entered(near, mask, order) }
         }
-    }
-
-    /// `a·b + c` for eight lanes of `a` and `c` and a float `b`, one fused multiply-add
-    /// with `b` an embedded broadcast operand (`{1to8}`): the same rounding as
-    /// `_mm256_fmadd_ps` with `b` splatted. Written in assembly so that the broadcast stays
-    /// at its use: with the intrinsics the compiler hoists the splat out of the traversal's
-    /// loop and then spills and reloads it around the leaf tests.
-    #[inline]
-    #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
-    fn fmadd_broadcast(a: __m256, b: &f32, c: __m256) -> __m256 {
-        let mut r = a;
-        // SAFETY: AVX-512 F and VL are enabled; the instruction reads the 4 bytes of `b`
-        // and writes only `r`.
-        unsafe {
-            std::arch::asm!(
-                "vfmadd132ps {r:y}, {c:y}, dword ptr [{b}]{{1to8}}",
-                r = inout(zmm_reg) r,
-                c = in(zmm_reg) c,
-                b = in(reg) b,
-                options(pure, readonly, nostack, preserves_flags),
-            );
-        }
-        r
     }
 
     /// One layer of the bitonic network: lane `i` against lane `partner[i]`, keeping the
