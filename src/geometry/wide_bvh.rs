@@ -1632,8 +1632,81 @@ mod tests {
         );
     }
 
+    /// The 8-wide node test's slab distances are each one fused multiply-add of the plane by
+    /// the reciprocal minus the directed origin term (`P·inv − c`, rounded once), written out
+    /// per child with `f32::mul_add`: the same entered children and entry distances (as
+    /// numbers: a zero may differ in sign), whatever form the test adds its origin terms in.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_8_wide_node_test_rounds_each_distance_once() {
+        if !avx2_fma_and_popcnt() {
+            eprintln!("note: no AVX2 and FMA on this CPU; the 8-wide test is not checked");
+            return;
+        }
+        let mut rng = Lcg(37);
+        let boxes = rng.boxes(2000, 0.1);
+        let bvh = WideBvh::build(&boxes);
+        let (mut entered, mut culled) = (0, 0);
+        for i in 0..40_000 {
+            let node = &bvh.nodes[i % bvh.nodes.len()];
+            let o = rng.vec() * if i % 7 == 0 { 40.0 } else { 1.5 };
+            // Most rays aimed at a point in one of the node's children.
+            let c = i % WIDTH;
+            let plane = |p: usize| node.planes[p][c / 4].to_array()[c % 4];
+            let mut d = if i % 4 != 0 && plane(0).is_finite() {
+                let (lo, hi) = (
+                    Vec3::new(plane(0), plane(1), plane(2)),
+                    Vec3::new(plane(3), plane(4), plane(5)),
+                );
+                (lo + (hi - lo) * Vec3::new(rng.next(), rng.next(), rng.next()) - o)
+                    .normalize_or(Vec3::X)
+            } else {
+                rng.vec().normalize_or(Vec3::X)
+            };
+            if i % 5 == 0 {
+                d[i % 3] = 0.0;
+            }
+            let ray = Ray::new(o, d);
+            let t_max = if i % 3 == 0 {
+                rng.next() * 2.0
+            } else {
+                f32::INFINITY
+            };
+            let (inv, neg) = slab_constants(&ray);
+            let p = OCTANT_PLANES[(neg & 7) as usize];
+            let Some((up, down)) = directed_products(o, inv) else {
+                continue;
+            };
+            // SAFETY: AVX2 and FMA were detected.
+            let wide = unsafe { avx2::AvxSlab::from_ray(&ray) }.expect("a finite ray");
+            let (got, mask) = wide.test(node, t_max);
+            for (c, &entry) in got.iter().enumerate() {
+                let (mut near, mut far) = (0.0f32, t_max);
+                for k in 0..3 {
+                    let n = node.planes[p[k]][c / 4].to_array()[c % 4];
+                    let f = node.planes[p[k + 3]][c / 4].to_array()[c % 4];
+                    near = near.max(n.mul_add(inv[k], -up[k]));
+                    far = far.min(f.mul_add(inv[k], -down[k]));
+                }
+                let inside = near <= far.mul_add(FMA_FAR_SCALE, FMA_FAR_FLOOR);
+                assert_eq!(mask & (1 << c) != 0, inside, "ray {i} child {c}");
+                if inside {
+                    assert_eq!(entry, near, "ray {i} child {c}");
+                    entered += 1;
+                } else {
+                    culled += 1;
+                }
+            }
+        }
+        assert!(
+            entered > 10_000 && culled > 10_000,
+            "{entered} entered, {culled} culled"
+        );
+    }
+
     /// `NodeTest::order` of every node test against a stable sort by entry distance (ties by
-    /// slot; `-0` and `+0` equal, as the traversal compares them).
+    /// slot; `-0` and `+0` equal, as the traversal compares them). The list starts filled
+    /// with a slot no child has, so an entry `order` leaves unwritten below the count shows.
     #[test]
     fn children_are_ordered_as_a_stable_sort_by_entry_distance() {
         let mut rng = Lcg(91);
@@ -1683,9 +1756,13 @@ mod tests {
             expected.sort_by(|a, b| a.t.partial_cmp(&b.t).unwrap_or(std::cmp::Ordering::Equal));
             let n = mask.count_ones() as usize;
             let placed = |test: &dyn Fn(&mut MaybeUninit<[Ranked; WIDTH]>)| {
-                let mut order = MaybeUninit::uninit();
+                let sentinel = Ranked {
+                    slot: 99,
+                    t: f32::NAN,
+                };
+                let mut order = MaybeUninit::new([sentinel; WIDTH]);
                 test(&mut order);
-                // SAFETY: `order` writes the first `n` entries.
+                // SAFETY: the list was initialised (`n ≤ WIDTH`).
                 unsafe { std::slice::from_raw_parts(order.as_ptr().cast::<Ranked>(), n) }.to_vec()
             };
             assert_eq!(placed(&|o| slab.order(&near, mask, o)), expected);
