@@ -342,9 +342,9 @@ fn directed_products(o: Vec3, inv: Vec4) -> Option<(Vec4, Vec4)> {
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use std::arch::x86_64::{
-        __m256, _mm256_cmp_ps, _mm256_fmadd_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps,
-        _mm256_movemask_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _CMP_EQ_OQ,
-        _CMP_LE_OS, _CMP_LT_OQ,
+        __m256, _mm256_cmp_ps, _mm256_fmadd_ps, _mm256_fmsub_ps, _mm256_loadu_ps, _mm256_max_ps,
+        _mm256_min_ps, _mm256_movemask_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
+        _CMP_EQ_OQ, _CMP_LE_OS, _CMP_LT_OQ,
     };
 
     use super::{
@@ -358,10 +358,10 @@ mod avx2 {
     pub(super) struct AvxSlab {
         /// The capped reciprocal direction ([`slab_constants`]).
         inv: [__m256; 3],
-        /// `o·inv` rounded up, negated: the entry planes' origin term, added.
-        neg_c_near: [__m256; 3],
-        /// `o·inv` rounded down, negated: the exit planes' origin term, added.
-        neg_c_far: [__m256; 3],
+        /// `o·inv` rounded up: the entry planes' origin term.
+        c_near: [__m256; 3],
+        /// `o·inv` rounded down: the exit planes' origin term.
+        c_far: [__m256; 3],
         near: [usize; 3],
         far: [usize; 3],
     }
@@ -377,9 +377,6 @@ mod avx2 {
             let (inv, neg) = slab_constants(ray);
             let p = OCTANT_PLANES[(neg & 7) as usize];
             let (up, down) = directed_products(ray.o, inv)?;
-            // Negated in four lanes before they are splatted: `P·inv + (−c)` is the same
-            // fused operation as `P·inv − c` (one rounding of the same exact value).
-            let (up, down) = (-up, -down);
             // SAFETY: AVX is available (the caller's contract).
             unsafe {
                 Some(AvxSlab {
@@ -388,12 +385,12 @@ mod avx2 {
                         _mm256_set1_ps(inv.y),
                         _mm256_set1_ps(inv.z),
                     ],
-                    neg_c_near: [
+                    c_near: [
                         _mm256_set1_ps(up.x),
                         _mm256_set1_ps(up.y),
                         _mm256_set1_ps(up.z),
                     ],
-                    neg_c_far: [
+                    c_far: [
                         _mm256_set1_ps(down.x),
                         _mm256_set1_ps(down.y),
                         _mm256_set1_ps(down.z),
@@ -428,8 +425,8 @@ mod avx2 {
                             .as_ptr()
                             .cast::<f32>(),
                     );
-                    near = _mm256_max_ps(near, _mm256_fmadd_ps(n, self.inv[k], self.neg_c_near[k]));
-                    far = _mm256_min_ps(far, _mm256_fmadd_ps(f, self.inv[k], self.neg_c_far[k]));
+                    near = _mm256_max_ps(near, _mm256_fmsub_ps(n, self.inv[k], self.c_near[k]));
+                    far = _mm256_min_ps(far, _mm256_fmsub_ps(f, self.inv[k], self.c_far[k]));
                 }
                 let far = _mm256_fmadd_ps(
                     far,
