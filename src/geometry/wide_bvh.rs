@@ -911,7 +911,6 @@ impl WideBvh {
                 .wrapping_add(index as usize)
                 .cast::<i8>();
             // SAFETY: a prefetch is a hint that never faults, whatever the address.
-            #[cfg(any())]
             unsafe {
                 _mm_prefetch::<_MM_HINT_T0>(p);
                 _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
