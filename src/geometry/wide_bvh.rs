@@ -257,10 +257,9 @@ trait NodeTest {
     /// Writes the children entered in `mask` to `order[..n]` (`n` their number), sorted by
     /// their entry distance in `near`, nearest first, ties by slot: each is put at its rank
     /// (the entered children nearer than it, or as near in a lower slot) without a
-    /// data-dependent loop. Entries from `n` on are unspecified (they may stay
-    /// uninitialised); the first `n` are always written.
+    /// data-dependent loop. Entries from `n` on are unspecified.
     #[inline(always)]
-    fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut MaybeUninit<[Ranked; WIDTH]>) {
+    fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
         let mut rest = mask;
         while rest != 0 {
             let slot = (rest.trailing_zeros() & 7) as usize;
@@ -268,17 +267,10 @@ trait NodeTest {
             let t = near[slot];
             let (lt, eq) = self.before(near, t);
             let rank = (mask & (lt | (eq & ((1 << slot) - 1)))).count_ones() as usize;
-            // SAFETY: `rank & 7` is below `WIDTH`: the write stays inside `order`.
-            unsafe {
-                order
-                    .as_mut_ptr()
-                    .cast::<Ranked>()
-                    .add(rank & 7)
-                    .write(Ranked {
-                        slot: slot as u32,
-                        t,
-                    });
-            }
+            order[rank & 7] = Ranked {
+                slot: slot as u32,
+                t,
+            };
         }
     }
 }
@@ -468,8 +460,6 @@ mod avx512 {
         _mm512_storeu_si512,
     };
 
-    use std::mem::MaybeUninit;
-
     use super::{avx2::AvxSlab, Node8, NodeTest, Ranked, WIDTH};
 
     /// Whether the CPU runs [`super::WideBvh::traverse_avx512`]: AVX-512 F and VL besides
@@ -498,7 +488,7 @@ mod avx512 {
         }
 
         #[inline(always)]
-        fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut MaybeUninit<[Ranked; WIDTH]>) {
+        fn order(&self, near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
             // SAFETY: an `Avx512Slab` exists only where AVX-512 F and VL and AVX2 were
             // detected.
             unsafe { sort_entered(near, mask, order) }
@@ -542,11 +532,7 @@ mod avx512 {
     /// Bitonic sort (Batcher 1968): six layers of a permute, a min, a max and a blend.
     #[inline]
     #[target_feature(enable = "avx2,avx512f,avx512vl")]
-    pub(super) fn sort_entered(
-        near: &[f32; WIDTH],
-        mask: u32,
-        order: &mut MaybeUninit<[Ranked; WIDTH]>,
-    ) {
+    pub(super) fn sort_entered(near: &[f32; WIDTH], mask: u32, order: &mut [Ranked; WIDTH]) {
         // SAFETY: the load reads the 8 floats of `near`, the store writes the 8 × 8 bytes of
         // `order` (`Ranked` is `repr(C)`, two 4-byte fields).
         let bits = unsafe { _mm256_loadu_si256(near.as_ptr().cast()) };
@@ -957,11 +943,10 @@ impl WideBvh {
         let mut stack_entries = MaybeUninit::uninit();
         let mut stack = Stack::<SPILL>::new(&mut stack_entries);
         let mut current = 0u32;
-        // Scratch for the children of a node with three or more entered, left uninitialised:
-        // only entries below the counts are read, and `order` writes those, the loop below
-        // the inner children's.
-        let mut order = MaybeUninit::<[Ranked; WIDTH]>::uninit();
-        let mut inner = MaybeUninit::<[Entry; WIDTH]>::uninit();
+        // Scratch for the children of a node with three or more entered (only entries below
+        // the counts are read), initialised once per ray.
+        let mut order = [Ranked::default(); WIDTH];
+        let mut inner = [Entry::default(); WIDTH];
         // Tests the leaf in slot `$slot` of `node`; returns from the traversal when
         // `primitive` ends it.
         macro_rules! leaf {
@@ -1042,14 +1027,11 @@ impl WideBvh {
                 // first, ties by slot ([`NodeTest::order`]).
                 let n = mask.count_ones() as usize;
                 slab.order(&near, mask, &mut order);
-                // SAFETY: `order` wrote its first `n` entries (`n ≤ WIDTH`).
-                let sorted =
-                    unsafe { std::slice::from_raw_parts(order.as_ptr().cast::<Ranked>(), n) };
                 // Leaves are intersected at once, nearest first (a hit shortens the ray for
                 // the rest); inner children are pushed farthest first, so the nearest is
                 // visited next.
                 let mut m = 0;
-                for &Ranked { slot, t } in sorted {
+                for &Ranked { slot, t } in &order[..n] {
                     if t > t_max {
                         break;
                     }
@@ -1058,24 +1040,17 @@ impl WideBvh {
                         leaf!(node, slot);
                     } else {
                         self.prefetch_node(node.child[slot]);
-                        // SAFETY: `m` counts the inner children met so far, at most `n ≤
-                        // WIDTH` less one for this one: the write stays inside `inner`.
-                        unsafe {
-                            inner.as_mut_ptr().cast::<Entry>().add(m).write(Entry {
-                                node: node.child[slot],
-                                t,
-                            });
-                        }
+                        inner[m] = Entry {
+                            node: node.child[slot],
+                            t,
+                        };
                         m += 1;
                     }
                 }
                 // The nearest inner child is visited next; the others wait, farthest
                 // deepest.
                 if m > 0 {
-                    // SAFETY: the loop above wrote `inner`'s first `m` entries.
-                    let inner =
-                        unsafe { std::slice::from_raw_parts(inner.as_ptr().cast::<Entry>(), m) };
-                    for e in inner[1..].iter().rev() {
+                    for e in inner[1..m].iter().rev() {
                         stack.push(*e);
                     }
                     // (A leaf after it may have shortened the ray.)
@@ -1752,15 +1727,14 @@ mod tests {
             // Stable: ties keep slot order. (No NaN among the distances.)
             expected.sort_by(|a, b| a.t.partial_cmp(&b.t).unwrap_or(std::cmp::Ordering::Equal));
             let n = mask.count_ones() as usize;
-            let placed = |test: &dyn Fn(&mut MaybeUninit<[Ranked; WIDTH]>)| {
+            let placed = |test: &dyn Fn(&mut [Ranked; WIDTH])| {
                 let sentinel = Ranked {
                     slot: 99,
                     t: f32::NAN,
                 };
-                let mut order = MaybeUninit::new([sentinel; WIDTH]);
+                let mut order = [sentinel; WIDTH];
                 test(&mut order);
-                // SAFETY: the list was initialised (`n ≤ WIDTH`).
-                unsafe { std::slice::from_raw_parts(order.as_ptr().cast::<Ranked>(), n) }.to_vec()
+                order[..n].to_vec()
             };
             assert_eq!(placed(&|o| slab.order(&near, mask, o)), expected);
             #[cfg(target_arch = "x86_64")]
