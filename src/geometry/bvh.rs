@@ -882,39 +882,16 @@ impl LeafVisitor for AnyTriangle<'_, '_> {
 /// `t_max > 0` (other queries hit nothing).
 ///
 /// The same predicate as `o.is_finite() && d.is_finite() && d != Vec3::ZERO && t_max > 0`,
-/// evaluated on two overlapping 4-lane reads of the ray's six floats ([`ray_lanes`]: `o.x,
-/// o.y, o.z, d.x` and `o.z, d.x, d.y, d.z`) with two compares for finiteness and one for the
-/// direction, and no branch per component (a component is finite when its magnitude is below
-/// ∞, which NaN is not; `−0` equals `0`).
+/// evaluated with two 4-lane compares and no branch per component (a component is finite
+/// when its magnitude is below ∞, which NaN is not; `−0` equals `0`).
 #[inline(always)]
 fn valid_query(ray: &Ray, t_max: f32) -> bool {
-    let (head, tail) = ray_lanes(ray);
+    let o = Vec4::from((ray.o, 0.0));
+    let d = Vec4::from((ray.d, 0.0));
     let inf = Vec4::splat(f32::INFINITY);
-    let finite = head.abs().cmplt(inf).bitmask() & tail.abs().cmplt(inf).bitmask();
-    // Lanes 1–3 of `tail` are the direction.
-    let nonzero = tail.cmpne(Vec4::ZERO).bitmask() & 0b1110;
-    (finite == 0b1111) & (nonzero != 0) & (t_max > 0.0)
-}
-
-// `ray_lanes` reads a ray as six consecutive floats: the origin's three then the direction's.
-const _: () = {
-    use std::mem::{align_of, offset_of, size_of};
-    assert!(size_of::<Vec3>() == 12 && align_of::<Vec3>() == 4);
-    assert!(offset_of!(Ray, o) == 0 && offset_of!(Ray, d) == 12 && size_of::<Ray>() == 24);
-};
-
-/// The ray's origin and direction as two overlapping lane vectors, `(o.x, o.y, o.z, d.x)` and
-/// `(o.z, d.x, d.y, d.z)`: two unaligned 16-byte reads, where building `(o, 0)` and `(d, 0)`
-/// takes a shuffle or an insert per lane.
-#[inline(always)]
-fn ray_lanes(ray: &Ray) -> (Vec4, Vec4) {
-    // SAFETY: a `Ray` is six consecutive `f32`s, the origin's at 0 and the direction's at 12
-    // bytes (the assertions above; `Vec3` is three `f32`s with the alignment of one).
-    let v = unsafe { &*(ray as *const Ray).cast::<[f32; 6]>() };
-    (
-        Vec4::new(v[0], v[1], v[2], v[3]),
-        Vec4::new(v[2], v[3], v[4], v[5]),
-    )
+    let finite = o.abs().cmplt(inf).bitmask() & d.abs().cmplt(inf).bitmask();
+    let nonzero = d.cmpne(Vec4::ZERO).bitmask();
+    (finite & 7 == 7) & (nonzero != 0) & (t_max > 0.0)
 }
 
 /// [`SceneGeometry::closest`] when the scene's only shape is the analytic box `sole`
