@@ -765,26 +765,20 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
     /// at its distance, and [`Hits4::nearest`](super::triangle::Hits4::nearest) keeps the lowest of equally near lanes. The
     /// answer is the masked test's, without the mask and the block's count in the loop.
     ///
-    /// The loop steps through the leaf's block indices alone (a leaf has at least one
-    /// primitive: `Leaf::count` is 1 to [`super::wide_bvh::MAX_LEAF_PRIMITIVES`], so its first
-    /// block is tested before the loop's test); a block's first position, and the number of its
-    /// lanes that are the leaf's, are worked out from the index only where a lane hits or is
-    /// unsure.
+    /// The loop runs on the primitives `left` to test from the block on: a leaf has at least
+    /// one (`Leaf::count` is 1 to [`super::wide_bvh::MAX_LEAF_PRIMITIVES`]), so the first
+    /// block is tested before the loop's test, and the count of the block's own lanes is
+    /// worked out only where a lane is unsure.
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, mut t_max: f32) -> f32 {
         debug_assert!(leaf.count > 0);
-        let end = leaf.first + leaf.count;
-        let last = leaf.block + (leaf.count - 1) / LEAF_BLOCK;
-        let mut block = leaf.block;
+        let (mut block, mut first, mut left) = (leaf.block, leaf.first, leaf.count);
         loop {
             let h = self.sr.intersect4(self.geometry.block(block), 15, t_max);
-            let first = leaf.first + (block - leaf.block) * LEAF_BLOCK;
             if h.unsure != 0 {
-                for lane in 0..LEAF_BLOCK {
+                let n = left.min(LEAF_BLOCK);
+                for lane in 0..n {
                     let slot = first + lane;
-                    if slot >= end {
-                        break;
-                    }
                     if let Some(hit) = test_slot(self.geometry, self.sr, slot, t_max) {
                         self.geometry.prefetch_prim(slot as usize);
                         *self.best = Some((slot, BlockLane::new(block, lane), hit));
@@ -798,10 +792,12 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
                 *self.best = Some((slot, BlockLane::new(block, lane as u32), hit));
                 t_max = hit.t;
             }
-            if block == last {
+            if left <= LEAF_BLOCK {
                 return t_max;
             }
+            left -= LEAF_BLOCK;
             block += 1;
+            first += LEAF_BLOCK;
         }
     }
 }
