@@ -764,19 +764,14 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
     /// triangle ([`TriangleBlock::new`]), so they hit, or are unsure, exactly when lane 0 is,
     /// at its distance, and [`Hits4::nearest`](super::triangle::Hits4::nearest) keeps the lowest of equally near lanes. The
     /// answer is the masked test's, without the mask and the block's count in the loop.
-    ///
-    /// The loop runs on the primitives `left` to test from the block on: a leaf has at least
-    /// one (`Leaf::count` is 1 to [`super::wide_bvh::MAX_LEAF_PRIMITIVES`]), so the first
-    /// block is tested before the loop's test, and the count of the block's own lanes is
-    /// worked out only where a lane is unsure.
     #[inline(always)]
     fn visit_leaf(&mut self, leaf: Leaf, mut t_max: f32) -> f32 {
-        debug_assert!(leaf.count > 0);
-        let (mut block, mut first, mut left) = (leaf.block, leaf.first, leaf.count);
-        loop {
+        let end = leaf.first + leaf.count;
+        let (mut block, mut first) = (leaf.block, leaf.first);
+        while first < end {
             let h = self.sr.intersect4(self.geometry.block(block), 15, t_max);
             if h.unsure != 0 {
-                let n = left.min(LEAF_BLOCK);
+                let n = (end - first).min(LEAF_BLOCK);
                 for lane in 0..n {
                     let slot = first + lane;
                     if let Some(hit) = test_slot(self.geometry, self.sr, slot, t_max) {
@@ -792,13 +787,10 @@ impl LeafVisitor for NearestTriangle<'_, '_> {
                 *self.best = Some((slot, BlockLane::new(block, lane as u32), hit));
                 t_max = hit.t;
             }
-            if left <= LEAF_BLOCK {
-                return t_max;
-            }
-            left -= LEAF_BLOCK;
             block += 1;
             first += LEAF_BLOCK;
         }
+        t_max
     }
 }
 

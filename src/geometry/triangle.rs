@@ -75,32 +75,13 @@ impl TriangleSoa {
     }
 }
 
-/// Bytes of one lane vector (`Vec4`): the step between the axes of a [`TriangleSoa`] or of a
-/// vertex row of a [`TriangleBlock`], and between stored vertices.
-const LANE_BYTES: usize = std::mem::size_of::<Vec4>();
-
-/// The lane vector `offset` bytes into `v` (`offset` = 16·k: `v[k]`), read without scaling
-/// an index.
-///
-/// # Safety
-/// `offset` must be 0, 16 or 32.
-#[inline(always)]
-unsafe fn lane_at(v: &[Vec4; 3], offset: usize) -> Vec4 {
-    debug_assert!(offset % LANE_BYTES == 0 && offset < 3 * LANE_BYTES);
-    // SAFETY: `offset` is 16·k with k below 3 (the caller's promise): `v[k]`, aligned.
-    unsafe { *v.as_ptr().cast::<u8>().add(offset).cast::<Vec4>() }
-}
-
 /// Per-ray constants of the watertight test: the dominant axis `kz`, the two others in an
 /// order that keeps the winding, and the shear that maps the ray to `+z` from the origin.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ShearedRay {
-    /// The axes `kx`, `ky`, `kz` as byte offsets (`16·k`) into three lane vectors (a
-    /// [`TriangleSoa`] or a vertex row of a [`TriangleBlock`]): a block's lanes are read at
-    /// `row + offset` without scaling an index on every block ([`lane_at`]).
-    bx: usize,
-    by: usize,
-    bz: usize,
+    kx: usize,
+    ky: usize,
+    kz: usize,
     /// Origin coordinates `o[kx]`, `o[ky]`, `o[kz]`, splatted.
     okx: Vec4,
     oky: Vec4,
@@ -131,9 +112,9 @@ impl ShearedRay {
         // IEEE quotients as three scalar ones).
         let s = Vec4::new(d[kx], d[ky], 1.0, 1.0) / Vec4::splat(d[kz]);
         ShearedRay {
-            bx: LANE_BYTES * kx,
-            by: LANE_BYTES * ky,
-            bz: LANE_BYTES * kz,
+            kx,
+            ky,
+            kz,
             okx: Vec4::splat(o[kx]),
             oky: Vec4::splat(o[ky]),
             okz: Vec4::splat(o[kz]),
@@ -141,23 +122,6 @@ impl ShearedRay {
             syv: Vec4::splat(s.y),
             sz: s.z,
         }
-    }
-
-    /// The axes `[kx, ky, kz]` (a permutation of 0, 1, 2).
-    #[inline(always)]
-    pub(crate) fn axes(&self) -> [usize; 3] {
-        [self.bx, self.by, self.bz].map(|b| b / LANE_BYTES)
-    }
-
-    /// Checks (debug builds) that the axis offsets are those of a permutation of 0, 1, 2:
-    /// what makes every [`lane_at`] of them a stored lane vector.
-    #[inline(always)]
-    fn debug_check_axes(&self) {
-        debug_assert!({
-            let mut k = self.axes();
-            k.sort_unstable();
-            k == [0, 1, 2] && [self.bx, self.by, self.bz].iter().all(|b| b % LANE_BYTES == 0)
-        });
     }
 
     /// The watertight test. Edge functions are evaluated as `E(P,Q) = Qx·Py − Qy·Px` on
@@ -170,13 +134,13 @@ impl ShearedRay {
     /// evaluation.
     #[inline(always)]
     pub(crate) fn intersect(&self, tri: &TriangleSoa, t_max: f32) -> Option<TriangleHit> {
-        self.debug_check_axes();
-        // SAFETY: the offsets are of a permutation of 0, 1, 2 (set by `new`).
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
+        // SAFETY: `kx`, `ky` and `kz` are a permutation of 0, 1, 2 (set by `new`).
         let (vx, vy, vz) = unsafe {
             (
-                lane_at(&tri.v, self.bx),
-                lane_at(&tri.v, self.by),
-                lane_at(&tri.v, self.bz),
+                *tri.v.get_unchecked(self.kx),
+                *tri.v.get_unchecked(self.ky),
+                *tri.v.get_unchecked(self.kz),
             )
         };
         self.intersect_permuted(vx, vy, vz, t_max)
@@ -197,19 +161,17 @@ impl ShearedRay {
         corners: [u32; 3],
         t_max: f32,
     ) -> Option<TriangleHit> {
-        self.debug_check_axes();
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
         debug_assert!(corners.iter().all(|&c| (c as usize) < verts.len()));
-        let base = verts.as_ptr().cast::<u8>();
-        // SAFETY: the corners are below `verts.len()` (the caller's promise) and the axis
-        // offsets are `16·k` with `k` below 3 (set by `new`): component `k` of vertex `i`
-        // lies `16·i + 4·k` bytes in, a component of a stored vertex.
-        let lane = |offset: usize| unsafe {
-            let [a, b, c] = corners
-                .map(|i| *base.add(LANE_BYTES * i as usize + offset / 4).cast::<f32>());
+        let base = verts.as_ptr().cast::<f32>();
+        // SAFETY: the corners are below `verts.len()` (the caller's promise) and `kx`, `ky`,
+        // `kz` below 3 (set by `new`): every read is a component of a stored vertex.
+        let lane = |k: usize| unsafe {
+            let [a, b, c] = corners.map(|i| base.add(4 * i as usize + k));
             // (Lane 3 is never read by the test.)
-            Vec4::new(a, b, c, 0.0)
+            Vec4::new(*a, *b, *c, 0.0)
         };
-        self.intersect_permuted(lane(self.bx), lane(self.by), lane(self.bz), t_max)
+        self.intersect_permuted(lane(self.kx), lane(self.ky), lane(self.kz), t_max)
     }
 
     /// The test on the triangle's coordinates along the ray's axes `kx`, `ky`, `kz` (lane
@@ -346,14 +308,14 @@ impl ShearedRay {
     /// the exact path.
     #[inline(always)]
     pub(crate) fn intersect4(&self, block: &TriangleBlock, valid: u32, t_max: f32) -> Hits4 {
-        self.debug_check_axes();
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
         let sheared = |v: &[Vec4; 3]| {
-            // SAFETY: the offsets are of a permutation of 0, 1, 2 (set by `new`).
+            // SAFETY: `kx`, `ky` and `kz` are a permutation of 0, 1, 2 (set by `new`).
             let (vx, vy, vz) = unsafe {
                 (
-                    lane_at(v, self.bx),
-                    lane_at(v, self.by),
-                    lane_at(v, self.bz),
+                    *v.get_unchecked(self.kx),
+                    *v.get_unchecked(self.ky),
+                    *v.get_unchecked(self.kz),
                 )
             };
             let px = vx - self.okx;
@@ -453,7 +415,7 @@ impl ShearedRay {
     /// tests.
     #[inline(always)]
     pub(crate) fn intersect8(&self, lo: &TriangleBlock, hi: &TriangleBlock, t_max: f32) -> Hits8 {
-        self.debug_check_axes();
+        debug_assert!(self.kx < 3 && self.ky < 3 && self.kz < 3);
         #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
         {
             use std::arch::x86_64::{
@@ -463,7 +425,7 @@ impl ShearedRay {
                 _CMP_LT_OQ,
             };
             // SAFETY: AVX is enabled at compile time (the cfg above), so these are plain
-            // register operations; the axis offsets are of a permutation of 0, 1, 2 (set by
+            // register operations; `kx`, `ky` and `kz` are a permutation of 0, 1, 2 (set by
             // `new`), so every read is a stored lane vector of a block.
             unsafe {
                 let both = |x: Vec4| _mm256_set_m128(__m128::from(x), __m128::from(x));
@@ -472,13 +434,13 @@ impl ShearedRay {
                 let sheared = |j: usize| {
                     let load = |k: usize| -> __m256 {
                         _mm256_set_m128(
-                            __m128::from(lane_at(&hi.v[j], k)),
-                            __m128::from(lane_at(&lo.v[j], k)),
+                            __m128::from(*hi.v[j].get_unchecked(k)),
+                            __m128::from(*lo.v[j].get_unchecked(k)),
                         )
                     };
-                    let px = _mm256_sub_ps(load(self.bx), okx);
-                    let py = _mm256_sub_ps(load(self.by), oky);
-                    let pz = _mm256_sub_ps(load(self.bz), okz);
+                    let px = _mm256_sub_ps(load(self.kx), okx);
+                    let py = _mm256_sub_ps(load(self.ky), oky);
+                    let pz = _mm256_sub_ps(load(self.kz), okz);
                     (
                         _mm256_sub_ps(px, _mm256_mul_ps(sxv, pz)),
                         _mm256_sub_ps(py, _mm256_mul_ps(syv, pz)),
@@ -817,9 +779,8 @@ mod tests {
             hits += usize::from(expected.is_some());
             let sr = ShearedRay::new(&ray);
             let tri = TriangleSoa::new(p[0], p[1], p[2]);
-            let [kx, ky, kz] = sr.axes();
-            let x = tri.v[kx] - sr.okx - sr.sxv * (tri.v[kz] - sr.okz);
-            let y = tri.v[ky] - sr.oky - sr.syv * (tri.v[kz] - sr.okz);
+            let x = tri.v[sr.kx] - sr.okx - sr.sxv * (tri.v[sr.kz] - sr.okz);
+            let y = tri.v[sr.ky] - sr.oky - sr.syv * (tri.v[sr.kz] - sr.okz);
             let e = x.zxyw() * y.yzxw() - y.zxyw() * x.yzxw();
             zeros += usize::from(e.cmpeq(Vec4::ZERO).bitmask() & 7 != 0);
         }
