@@ -341,9 +341,7 @@ impl SceneGeometry {
         if self.prims.is_empty() || !valid_query(ray, t_max) {
             return None;
         }
-        // The empty-cell test out of line: inlined, its registers made this function save
-        // six on every query, the unbounded ones (most) included.
-        if t_max.is_finite() && self.empty.is_some() && self.segment_in_empty_cells(ray, t_max) {
+        if self.segment_misses_triangles(ray, t_max) {
             return None;
         }
         let mut best = None;
@@ -572,13 +570,6 @@ impl SceneGeometry {
                 .empty
                 .as_ref()
                 .is_some_and(|e| e.clear(ray.o, ray.at(t_max)))
-    }
-
-    /// [`Self::segment_misses_triangles`] past its first test, out of line (the closest-hit
-    /// query in a scene of triangles calls it only for a finite `t_max` and an empty-cell grid).
-    #[inline(never)]
-    fn segment_in_empty_cells(&self, ray: &Ray, t_max: f32) -> bool {
-        self.segment_misses_triangles(ray, t_max)
     }
 
     /// True when the segment `(0, t_max)` of `ray`, which ends on a sphere centred at
