@@ -634,8 +634,7 @@ impl SceneGeometry {
                 let [a4, b4, c4] = self.corners(slot, lane);
                 // The corners as stored (`w` = 0), combined in SIMD lanes: the same
                 // per-coordinate IEEE operations as on `Vec3`s.
-                let (pa, pb, pc) = (a4 * h.b0, b4 * h.b1, c4 * h.b2);
-                let pos = (pa + pb + pc).truncate();
+                let pos = (a4 * h.b0 + b4 * h.b1 + c4 * h.b2).truncate();
                 // A triangle without a normal faces the ray.
                 let ng = if p.ng.x.is_nan() { -ray.d } else { p.ng };
                 let mut ns = ng;
@@ -656,11 +655,11 @@ impl SceneGeometry {
                         }
                     }
                 }
-                // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|, from the
-                // products `pos` summed: |p·b| is |p|·|b| bit for bit (a product's rounding
-                // to nearest does not depend on the operands' signs).
+                // Barycentric interpolation error (pbrt-v4 §6.8.6): γ7 Σ|b_i p_i|.
                 let p_error = crate::math::gamma(7)
-                    * (pa.abs() + pb.abs() + pc.abs()).truncate().max_element();
+                    * (a4.abs() * h.b0.abs() + b4.abs() * h.b1.abs() + c4.abs() * h.b2.abs())
+                        .truncate()
+                        .max_element();
                 Hit {
                     t: h.t,
                     p: pos,
