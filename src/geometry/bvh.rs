@@ -328,13 +328,7 @@ impl SceneGeometry {
             return closest_on_sole_box(sole, ray, t_max);
         }
         if self.analytic.is_empty() {
-            // An unbounded query has no empty-cell test to make (`segment_misses_triangles`
-            // holds only for a finite `t_max`); without that test's inlined code its function
-            // saves three registers instead of six.
-            if t_max.is_finite() {
-                return self.closest_triangle(ray, t_max);
-            }
-            return self.closest_triangle_unbounded(ray, t_max);
+            return self.closest_triangle(ray, t_max);
         }
         self.closest_any(ray, t_max)
     }
@@ -344,26 +338,10 @@ impl SceneGeometry {
     /// shell), without the set-up of the analytic shapes' loops.
     #[inline(never)]
     fn closest_triangle(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        self.closest_triangle_with::<true>(ray, t_max)
-    }
-
-    /// [`Self::closest_triangle`] for a `t_max` that is not finite (∞, or a NaN or −∞ that
-    /// [`valid_query`] rejects), for which [`Self::segment_misses_triangles`] is false: the
-    /// same search without the empty-cell test.
-    #[inline(never)]
-    fn closest_triangle_unbounded(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        debug_assert!(!t_max.is_finite());
-        self.closest_triangle_with::<false>(ray, t_max)
-    }
-
-    /// The body of [`Self::closest_triangle`] (`EMPTY_CELLS`) and of
-    /// [`Self::closest_triangle_unbounded`].
-    #[inline(always)]
-    fn closest_triangle_with<const EMPTY_CELLS: bool>(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         if self.prims.is_empty() || !valid_query(ray, t_max) {
             return None;
         }
-        if EMPTY_CELLS && self.segment_misses_triangles(ray, t_max) {
+        if self.segment_misses_triangles(ray, t_max) {
             return None;
         }
         let mut best = None;
