@@ -21,6 +21,8 @@
 #
 # A peer that cannot be installed is skipped with a notice (no Cycles; Mitsuba's scalar variant
 # instead of LLVM; no grid scenes); with VELOUR_REQUIRE_EXTERNAL=1 each of those is an error.
+# VELOUR_BINARY=path races that velour (e.g. tools/build_pgo.sh's target/pgo/release/velour)
+# instead of building target/release/velour.
 # See docs/peers.md ("The benchmark race") and docs/BENCHMARKS-peers.md.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -107,10 +109,23 @@ if [ -z "$CYCLES_PY" ]; then
   missing "cannot set up bpy 5.0.1 (needs CPython 3.11): Cycles is skipped"
 fi
 
-cargo build --release --quiet
-VELOUR="$(pwd)/target/release/velour"
+# VELOUR_BINARY races a velour built otherwise (e.g. tools/build_pgo.sh's
+# target/pgo/release/velour); by default the plain release build.
+if [ -n "${VELOUR_BINARY:-}" ]; then
+  if [ ! -x "$VELOUR_BINARY" ]; then
+    echo "run_best.sh: VELOUR_BINARY=$VELOUR_BINARY is not an executable file" >&2
+    exit 2
+  fi
+  VELOUR="$(cd "$(dirname "$VELOUR_BINARY")" && pwd)/$(basename "$VELOUR_BINARY")"
+else
+  cargo build --release --quiet
+  VELOUR="$(pwd)/target/release/velour"
+fi
 # velour is named by the last commit that changed its sources (the tools do not change it).
 VERSION="$(git log -1 --format=%h -- src Cargo.toml Cargo.lock 2>/dev/null || echo unknown)$(git diff --quiet -- src Cargo.toml Cargo.lock 2>/dev/null || echo '+dirty')"
+if [ -n "${VELOUR_BINARY:-}" ]; then
+  VERSION="$VERSION ($VELOUR_BINARY)"
+fi
 if [ "$TRANSLATE" = 1 ]; then
   OUT=tools/peers/generated
 fi
