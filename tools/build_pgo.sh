@@ -60,8 +60,8 @@ echo "build_pgo.sh: wrote target/pgo/release/velour" >&2
 
 if [ "$check" = 1 ]; then
   cargo build --release --quiet
-  plain=$(mktemp)
-  guided=$(mktemp)
+  plain=$counts/plain.md
+  guided=$counts/guided.md
   tools/checksums.sh target/release/velour >"$plain"
   tools/checksums.sh target/pgo/release/velour >"$guided"
   if ! diff "$plain" "$guided"; then
