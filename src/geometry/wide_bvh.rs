@@ -1422,12 +1422,7 @@ mod tests {
                     }
                 }
             }
-            let ray = Ray::new(o, d);
-            let t_max = if i % 3 == 0 {
-                rng.next() * 2.0
-            } else {
-                f32::INFINITY
-            };
+            let (ray, t_max) = test_ray(o, d, i, &mut rng);
             let (inv, neg) = slab_constants(&ray);
             let p = OCTANT_PLANES[(neg & 7) as usize];
             let (got, mask) = SlabRay::new(&ray).test(node, t_max);
@@ -1452,6 +1447,17 @@ mod tests {
             entered > 10_000 && zeros > 5_000,
             "{entered} entered, {zeros} zeros"
         );
+    }
+
+    /// A test ray from `o` along `d` and its bound: for every third `i` a finite `t_max` in
+    /// `[0, 2)` drawn from `rng`, otherwise unbounded.
+    fn test_ray(o: Vec3, d: Vec3, i: usize, rng: &mut Lcg) -> (Ray, f32) {
+        let t_max = if i % 3 == 0 {
+            rng.next() * 2.0
+        } else {
+            f32::INFINITY
+        };
+        (Ray::new(o, d), t_max)
     }
 
     /// Entry and exit of the ray through a box in f64 within `[0, t_max]`, or `None`; a zero
@@ -1562,12 +1568,7 @@ mod tests {
                     continue;
                 }
             }
-            let ray = Ray::new(o, d);
-            let t_max = if i % 3 == 0 {
-                rng.next() * 2.0
-            } else {
-                f32::INFINITY
-            };
+            let (ray, t_max) = test_ray(o, d, i, &mut rng);
             let Some((t0, _)) = exact_slab(&ray, lo, hi, t_max) else {
                 continue;
             };
@@ -1638,12 +1639,7 @@ mod tests {
             if i % 5 == 0 {
                 d[i % 3] = 0.0;
             }
-            let ray = Ray::new(o, d);
-            let t_max = if i % 3 == 0 {
-                rng.next() * 2.0
-            } else {
-                f32::INFINITY
-            };
+            let (ray, t_max) = test_ray(o, d, i, &mut rng);
             let (inv, neg) = slab_constants(&ray);
             let p = OCTANT_PLANES[(neg & 7) as usize];
             let Some((up, down)) = directed_products(o, inv) else {
