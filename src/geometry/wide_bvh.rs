@@ -1452,7 +1452,7 @@ mod tests {
     /// A test ray from `o` along `d` and its bound: for every third `i` a finite `t_max` in
     /// `[0, 2)` drawn from `rng`, otherwise unbounded.
     fn test_ray(o: Vec3, d: Vec3, i: usize, rng: &mut Lcg) -> (Ray, f32) {
-        let t_max = if i % 3 == 0 {
+        let t_max = if i.is_multiple_of(3) {
             rng.next() * 2.0
         } else {
             f32::INFINITY
